@@ -1,0 +1,34 @@
+# One command each for a newcomer: `make demo` and `make test` create .venv when missing.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test test-fast lint bench clean
+
+$(STAMP): pyproject.toml
+	test -d $(VENV) || $(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/paintcell run scenarios/door.py --out results/door
+	@echo "Results: results/door (report.html, metrics.json, plan.json, trajectory.npz/.csv, trace.npz)"
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+	$(BIN)/paintcell check scenarios/ --fast --junit results/check-junit.xml
+
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow"
+
+lint: $(STAMP)
+	$(BIN)/ruff check planning robots sim scenarios tests benchmarks
+	$(BIN)/mypy
+
+bench: $(STAMP)
+	for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
+
+clean:
+	rm -rf $(VENV) results build *.egg-info
