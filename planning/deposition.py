@@ -1,0 +1,372 @@
+"""Film thickness on a surface from a sampled gun trajectory (paper §2.2, DESIGN.md).
+
+For gun position g, spray axis a, travel direction x̂ (re-orthogonalized against a), ŷ = a × x̂, a
+surface point p with unit normal n (toward the painted side) and d = p − g, ω = d/|d|, the ray
+through p meets the reference plane at q = g + ω·h/(a·ω), and
+
+    rate(p) = f(q) · |n·ω| · h² / ((a·ω)³ · |d|²)     if a·ω > 0 and n·ω < 0, else 0.
+
+With dx = d·x̂, dy = d·ŷ, dz = d·a this is f(h·dx/dz, h·dy/dz) · (−n·d) · h² / dz³, which is what
+the fast kernel evaluates (no square roots beyond the ring radius).
+Thickness is Σ_s rate_s · dwell_s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from planning.applicator import Applicator
+from planning.errors import PaintcellError
+
+#: points per spatial block: the culling unit (≈ 5.5 × 5.5 cm at 5 mm resolution).
+BLOCK_POINTS = 128
+#: gun samples evaluated together against the union of their candidate blocks (stays in cache).
+CHUNK_SAMPLES = 8
+#: at most this many (sample, point) pairs in one kernel call (memory bound, ~2 MB per temp).
+MAX_PAIRS_PER_CALL = 1 << 18
+#: dz below this [m] counts as "not in front of the gun" (avoids 1/dz³ blow-up).
+_DZ_EPS_M = 1e-9
+
+
+class DepositionError(PaintcellError):
+    """Gun samples, points or normals passed to the deposition model are invalid."""
+
+
+@dataclass(frozen=True, eq=False)
+class GunSamples:
+    """A sampled gun trajectory.
+
+    positions: (S, 3) spray points (TCP) [m], in the same frame as the surface points.
+    spray_axes: (S, 3) unit spray directions (tool +z).
+    travel_dirs: (S, 3) unit travel directions (tool +x), orthogonal to the spray axis.
+    dwell_s: (S,) time attributed to each sample [s] (≥ 0).
+    """
+
+    positions: np.ndarray
+    spray_axes: np.ndarray
+    travel_dirs: np.ndarray
+    dwell_s: np.ndarray
+
+    def __post_init__(self) -> None:
+        pos = _as_vectors(self.positions, "positions")
+        s = len(pos)
+        axes = _as_vectors(self.spray_axes, "spray_axes", s)
+        trav = _as_vectors(self.travel_dirs, "travel_dirs", s)
+        dwell = np.asarray(self.dwell_s, float).reshape(-1)
+        if len(dwell) != s:
+            raise DepositionError(f"dwell_s has {len(dwell)} entries, expected {s} (one a sample)")
+        if not np.all(np.isfinite(dwell)) or np.any(dwell < 0):
+            raise DepositionError("dwell_s must be finite and >= 0 [s]")
+        if s and np.any(np.abs(np.linalg.norm(axes, axis=1) - 1) > 1e-6):
+            raise DepositionError("spray_axes must be unit vectors; normalize them")
+        if s and np.any(np.abs(np.linalg.norm(trav, axis=1) - 1) > 1e-6):
+            raise DepositionError("travel_dirs must be unit vectors; normalize them")
+        if s and np.any(np.abs(np.sum(axes * trav, axis=1)) > 1e-6):
+            raise DepositionError("travel_dirs must be orthogonal to spray_axes")
+        for name, arr in (("positions", pos), ("spray_axes", axes), ("travel_dirs", trav),
+                          ("dwell_s", dwell)):
+            object.__setattr__(self, name, arr)
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    @property
+    def total_time_s(self) -> float:
+        """Σ dwell [s]."""
+        return float(self.dwell_s.sum())
+
+    @classmethod
+    def straight_pass(cls, start_m: npt.ArrayLike, end_m: npt.ArrayLike, spray_axis: npt.ArrayLike,
+                      speed_m_s: float, spacing_m: float = 0.005) -> GunSamples:
+        """Constant-speed straight pass from `start_m` to `end_m` (3,) [m], spray axis (3,),
+        sample spacing [m]; dwell by the trapezoid rule (half intervals at the ends)."""
+        a = np.asarray(start_m, float)
+        b = np.asarray(end_m, float)
+        length = float(np.linalg.norm(b - a))
+        if length <= 0 or speed_m_s <= 0 or spacing_m <= 0:
+            raise DepositionError("straight_pass needs distinct end points, speed > 0, spacing > 0")
+        n = max(2, int(math.ceil(length / spacing_m)) + 1)
+        t = np.linspace(0.0, 1.0, n)
+        pos = a + t[:, None] * (b - a)
+        x = (b - a) / length
+        z = np.asarray(spray_axis, float)
+        z = z / np.linalg.norm(z)
+        x = x - np.dot(x, z) * z
+        x = x / np.linalg.norm(x)
+        dt = length / (n - 1) / speed_m_s
+        dwell = np.full(n, dt)
+        dwell[[0, -1]] = dt / 2
+        return cls(pos, np.tile(z, (n, 1)), np.tile(x, (n, 1)), dwell)
+
+
+def _as_vectors(x: npt.ArrayLike, name: str, rows: int | None = None) -> np.ndarray:
+    arr = np.ascontiguousarray(x, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise DepositionError(f"{name} must have shape (n, 3), got {arr.shape}")
+    if rows is not None and len(arr) != rows:
+        raise DepositionError(f"{name} has {len(arr)} rows, expected {rows}")
+    if not np.all(np.isfinite(arr)):
+        raise DepositionError(f"{name} contains NaN or inf")
+    return arr
+
+
+def _tool_axes(spray_axes: np.ndarray, travel_dirs: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Unit (x̂, ŷ, â) per sample: x̂ re-orthogonalized against â, ŷ = â × x̂."""
+    a = spray_axes / np.linalg.norm(spray_axes, axis=1, keepdims=True)
+    x = travel_dirs - np.sum(travel_dirs * a, axis=1, keepdims=True) * a
+    nx = np.linalg.norm(x, axis=1, keepdims=True)
+    if np.any(nx < 1e-9):
+        raise DepositionError("a travel direction is parallel to its spray axis; give x ⟂ z")
+    x = x / nx
+    return x, np.cross(a, x), a
+
+
+def deposition_rate(app: Applicator, positions: npt.ArrayLike, spray_axes: npt.ArrayLike,
+                    travel_dirs: npt.ArrayLike, points: npt.ArrayLike,
+                    normals: npt.ArrayLike) -> np.ndarray:
+    """Dense rate matrix (S, N) [m/s]: film-thickness rate at each point from each gun sample.
+
+    positions: (S, 3) gun positions [m]; spray_axes: (S, 3) unit; travel_dirs: (S, 3) unit ⟂ axis;
+    points: (N, 3) surface points [m]; normals: (N, 3) unit normals toward the painted side.
+    Straight-line projection onto the reference plane + area magnification (DESIGN.md), written
+    literally (ω, q, cosines); memory O(S·N·3) — use `thickness` for large problems.
+    """
+    g = _as_vectors(positions, "positions")
+    s = len(g)
+    x_hat, y_hat, a = _tool_axes(_as_vectors(spray_axes, "spray_axes", s),
+                                 _as_vectors(travel_dirs, "travel_dirs", s))
+    p = _as_vectors(points, "points")
+    n = _as_vectors(normals, "normals", len(p))
+    h = app.standoff_m
+    d = p[None, :, :] - g[:, None, :]                        # (S, N, 3)
+    dist = np.linalg.norm(d, axis=2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        omega = d / dist[..., None]
+        cos_a = np.einsum("snk,sk->sn", omega, a)              # a·ω
+        n_dot_w = np.einsum("snk,nk->sn", omega, n)            # n·ω
+        valid = (cos_a > 0) & (n_dot_w < 0) & (dist > 0)
+        q_rel = omega * (h / np.where(valid, cos_a, 1.0))[..., None]   # q − g
+        qx = np.einsum("snk,sk->sn", q_rel, x_hat)
+        qy = np.einsum("snk,sk->sn", q_rel, y_hat)
+        mag = np.abs(n_dot_w) * h * h / (np.where(valid, cos_a, 1.0) ** 3
+                                         * np.where(valid, dist, 1.0) ** 2)
+    rate = app.flux(np.where(valid, qx, 0.0), np.where(valid, qy, 0.0)) * mag
+    return np.where(valid, rate, 0.0)
+
+
+# --- the fast kernel ------------------------------------------------------------------------------
+def _morton_order(p: np.ndarray) -> np.ndarray:
+    """Permutation that sorts points along a 3-D Z-order curve (10 bits an axis)."""
+    lo = p.min(axis=0)
+    span = float(np.max(p.max(axis=0) - lo))
+    q = np.zeros(p.shape, np.uint64) if span == 0 else \
+        np.minimum((p - lo) / span * 1023.0, 1023.0).astype(np.uint64)
+    code = np.zeros(len(p), np.uint64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return np.argsort(code, kind="stable")
+
+
+@dataclass(frozen=True)
+class _Blocks:
+    order: np.ndarray       # (N,) original index of each sorted point
+    feats: np.ndarray       # (nb, B, 8): p (3), 1, n (3), n·p ; pads have n = 0, n·p = 0
+    centers: np.ndarray     # (nb, 3) block bounding-sphere centres [m]
+    radii: np.ndarray       # (nb,) bounding-sphere radii [m]
+
+
+def _make_blocks(p: np.ndarray, n: np.ndarray, block: int) -> _Blocks:
+    order = _morton_order(p)
+    npts = len(p)
+    nb = -(-npts // block)
+    pad = nb * block - npts
+    idx = np.concatenate([order, np.full(pad, order[-1])])
+    ps = p[idx]
+    ns = n[idx].copy()
+    if pad:
+        ns[npts:] = 0.0
+    feats = np.empty((nb * block, 8))
+    feats[:, 0:3] = ps
+    feats[:, 3] = 1.0
+    feats[:, 4:7] = ns
+    feats[:, 7] = np.einsum("ij,ij->i", ns, ps)
+    pb = ps.reshape(nb, block, 3)
+    lo, hi = pb.min(axis=1), pb.max(axis=1)
+    centers = 0.5 * (lo + hi)
+    radii = np.sqrt(np.max(np.sum((pb - centers[:, None, :]) ** 2, axis=2), axis=1))
+    return _Blocks(order, feats.reshape(nb, block, 8), centers, radii)
+
+
+def _candidate_blocks(blocks: _Blocks, g: np.ndarray, a: np.ndarray, tan_cone: float) -> np.ndarray:
+    """Blocks whose bounding sphere may meet the spray cone of any of the K samples (conservative).
+
+    A point p is reached only if dz = (p−g)·a > 0 and its lateral distance ≤ tan_cone · dz. For
+    any p in a sphere (c, ρ): lateral(p) ≥ lateral(c) − ρ and dz(p) ≤ dz(c) + ρ.
+    """
+    c, rho = blocks.centers, blocks.radii
+    d = c[None, :, :] - g[:, None, :]                           # (K, nb, 3)
+    dz = np.einsum("knj,kj->kn", d, a)
+    lat = np.sqrt(np.maximum(np.einsum("knj,knj->kn", d, d) - dz * dz, 0.0))
+    far = dz + rho
+    ok = (far > 0) & (lat - rho <= tan_cone * far)
+    return np.flatnonzero(ok.any(axis=0))
+
+
+def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndarray) -> np.ndarray:
+    """Σ_k coef_k · rate_k(points) for K samples, via one (4K, 8) @ (8, n) product.
+
+    w_mat rows: dx (K), dy (K), dz (K), n·d (K); coef: (K,) dwell / h [s/m]; feats: (n, 8).
+    Everything else in place on (K, n) temporaries.
+    """
+    k = len(coef)
+    h = app.standoff_m
+    m = w_mat @ feats.T                                        # (4K, n)
+    dx, dy, dz, nd = m[:k], m[k:2 * k], m[2 * k:3 * k], m[3 * k:]
+    # weight (−n·d)·h³/dz³ ≥ 0, zero for back-facing (n·d ≥ 0) and points behind the gun
+    np.negative(nd, out=nd)
+    np.maximum(nd, 0.0, out=nd)
+    nd *= dz > _DZ_EPS_M
+    np.maximum(dz, _DZ_EPS_M, out=dz)
+    inv = np.divide(h, dz, out=dz)                             # h/dz
+    u2 = np.multiply(dx, inv, out=dx)
+    np.square(u2, out=u2)
+    v2 = np.multiply(dy, inv, out=dy)
+    np.square(v2, out=v2)
+    t1 = np.empty_like(u2)
+    t2 = np.empty_like(u2)
+    # central Gaussian: A0·exp(−u²/2σx² − v²/2σy²) = exp(ln A0 − …)
+    np.multiply(u2, -0.5 / app.sigma_x_m**2, out=t1)
+    np.multiply(v2, -0.5 / app.sigma_y_m**2, out=t2)
+    t1 += t2
+    if app.a0_m_s > 0:
+        t1 += math.log(app.a0_m_s)
+        np.exp(t1, out=t1)
+    else:
+        t1.fill(0.0)
+    r = np.add(u2, v2, out=u2)
+    np.sqrt(r, out=r)
+    for amp, mu, sg in zip(app.ring_amplitudes_m_s, app.ring_radii_m, app.ring_sigmas_m,
+                           strict=True):
+        if amp <= 0:
+            continue
+        np.subtract(r, mu, out=t2)
+        np.square(t2, out=t2)
+        t2 *= -0.5 / sg**2
+        t2 += math.log(amp)
+        np.exp(t2, out=t2)
+        t1 += t2
+    # rate·h = f · (−n·d) · (h/dz)³ ; coef carries dwell/h
+    np.multiply(inv, inv, out=t2)
+    t2 *= inv
+    t2 *= nd
+    t1 *= t2
+    return coef @ t1
+
+
+def _sample_chunks(s: int, k: int) -> Iterator[slice]:
+    for i in range(0, s, k):
+        yield slice(i, min(i + k, s))
+
+
+def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: npt.ArrayLike,
+              occluder: Any = None, *, threads: int = 2) -> np.ndarray:
+    """Film thickness (N,) [m] at each point: Σ_s rate_s(p) · dwell_s.
+
+    app: the deposition model; gun: the sampled trajectory (same frame as the points);
+    points: (N, 3) [m]; normals: (N, 3) unit normals toward the painted side.
+    occluder: optional `trimesh.Trimesh` (or object with `.mesh`, e.g. a `Surface`): a point gets
+        nothing from a chunk of `CHUNK_SAMPLES` gun samples when the segment from the point to the
+        chunk's middle gun position hits the mesh (visibility is evaluated once per chunk; rays
+        cost ~10 µs each with trimesh's pure-Python intersector, so this is slow).
+    threads: worker threads over sample chunks (numpy releases the GIL); the summation order is
+        fixed, so the result does not depend on it.
+
+    Points are grouped into Z-order blocks of `BLOCK_POINTS`; for every chunk of `CHUNK_SAMPLES`
+    samples only blocks whose bounding sphere meets a spray cone of half-angle
+    atan(footprint_radius / h) are evaluated (exactly, with no truncation inside them); the culled
+    pairs all have f(q) < 1e-4 · peak. Memory is O(N + MAX_PAIRS_PER_CALL).
+    """
+    if not isinstance(gun, GunSamples):
+        raise DepositionError(f"gun must be a GunSamples, got {type(gun).__name__}")
+    p = _as_vectors(points, "points")
+    n = _as_vectors(normals, "normals", len(p))
+    out = np.zeros(len(p))
+    keep = gun.dwell_s > 0
+    if len(p) == 0 or not np.any(keep):
+        return out
+    g = gun.positions[keep]
+    x_hat, y_hat, a = _tool_axes(gun.spray_axes[keep], gun.travel_dirs[keep])
+    coef_all = gun.dwell_s[keep] / app.standoff_m
+    blocks = _make_blocks(p, n, BLOCK_POINTS)
+    tan_cone = app.footprint_radius_m / app.standoff_m
+    mesh = None
+    if occluder is not None:
+        mesh = getattr(occluder, "mesh", occluder)
+        if not hasattr(mesh, "ray"):
+            raise DepositionError("occluder must be a trimesh.Trimesh or have a `.mesh` one")
+        threads = 1  # trimesh's ray engine is not known to be thread-safe
+
+    def chunk(sl: slice) -> tuple[np.ndarray, np.ndarray]:
+        gk, ak = g[sl], a[sl]
+        kk = len(gk)
+        cand = _candidate_blocks(blocks, gk, ak, tan_cone)
+        contrib = np.zeros((len(cand), BLOCK_POINTS))
+        if len(cand) == 0:
+            return cand, contrib
+        w = np.zeros((4 * kk, 8))
+        w[:kk, 0:3] = x_hat[sl]
+        w[:kk, 3] = -np.einsum("ij,ij->i", gk, x_hat[sl])
+        w[kk:2 * kk, 0:3] = y_hat[sl]
+        w[kk:2 * kk, 3] = -np.einsum("ij,ij->i", gk, y_hat[sl])
+        w[2 * kk:3 * kk, 0:3] = ak
+        w[2 * kk:3 * kk, 3] = -np.einsum("ij,ij->i", gk, ak)
+        w[3 * kk:, 4:7] = -gk
+        w[3 * kk:, 7] = 1.0
+        per_call = max(1, MAX_PAIRS_PER_CALL // (kk * BLOCK_POINTS))
+        for j in range(0, len(cand), per_call):
+            ids = cand[j:j + per_call]
+            feats = blocks.feats[ids].reshape(-1, 8)
+            if mesh is not None:
+                feats = feats.copy()
+                vis = _visible(mesh, feats[:, 0:3], gk[kk // 2])
+                feats[~vis, 4:8] = 0.0          # n = 0 ⇒ zero rate
+            contrib[j:j + len(ids)] = _kernel(app, w, coef_all[sl], feats).reshape(len(ids), -1)
+        return cand, contrib
+
+    out_blocks = np.zeros((len(blocks.centers), BLOCK_POINTS))
+    chunks = list(_sample_chunks(len(g), CHUNK_SAMPLES))
+    if threads <= 1 or len(chunks) < 2:
+        for sl in chunks:
+            ids, c = chunk(sl)
+            out_blocks[ids] += c
+    else:
+        with ThreadPoolExecutor(max_workers=threads) as pool:
+            for ids, c in pool.map(chunk, chunks):      # in order: deterministic sums
+                out_blocks[ids] += c
+    out[blocks.order] = out_blocks.reshape(-1)[:len(p)]
+    return out
+
+
+def _visible(mesh: Any, pts: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """(n,) True where the segment from each point to the gun position g misses the mesh."""
+    d = g[None, :] - pts
+    dist = np.linalg.norm(d, axis=1)
+    ok = dist > 0
+    dirs = np.where(ok[:, None], d / np.where(ok, dist, 1.0)[:, None], np.array([0.0, 0.0, 1.0]))
+    eps = 1e-6 * max(1.0, float(np.max(np.abs(pts))))  # leave the point's own triangles
+    origins = pts + dirs * max(eps, 1e-5)
+    locs, index_ray, _ = mesh.ray.intersects_location(origins, dirs, multiple_hits=False)
+    vis = np.ones(len(pts), bool)
+    if len(index_ray):
+        hit_d = np.linalg.norm(locs - origins[index_ray], axis=1)
+        blocked = hit_d < dist[index_ray] - 1e-5
+        vis[index_ray[blocked]] = False
+    return vis
