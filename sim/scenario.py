@@ -1,0 +1,154 @@
+"""`Scenario`: everything that defines one car-part painting job, declared once per part.
+
+A scenario script (`scenarios/door.py`) builds one `Scenario` named `SCENARIO` holding only what
+differs from the defaults, and ends with `raise SystemExit(SCENARIO.main())` so that
+`python scenarios/door.py` runs it end to end. `paintcell check scenarios/` imports every script
+and reads its `SCENARIO`.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from planning.errors import PaintcellError
+
+
+class ScenarioError(PaintcellError):
+    """A scenario cannot be found, loaded or is inconsistent."""
+
+
+def pose(xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+         rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+    """(4, 4) transform from a position [m] and roll-pitch-yaw (fixed XYZ axes) [rad]."""
+    r, p, y = rpy_rad
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    T = np.eye(4)
+    T[:3, :3] = np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+    T[:3, 3] = xyz_m
+    return T
+
+
+@dataclass(frozen=True)
+class Placement:
+    """A rigid placement in the cell: position [m] and roll-pitch-yaw [rad] (fixed XYZ axes)."""
+
+    xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(4, 4) homogeneous transform."""
+        return pose(self.xyz_m, self.rpy_rad)
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """What a scenario must achieve to pass `paintcell check`.
+
+    reachability_pct: minimum share of plan poses the robot reaches [%].
+    max_collisions: maximum number of robot–part/booth contacts during execution.
+    max_executed_nsd_pct: maximum executed film-thickness σ/μ over the part [%].
+    max_loss_pp: maximum sim-to-plan loss of uniformity [percentage points of σ/μ].
+    max_cycle_time_s: maximum executed cycle time [s].
+    """
+
+    reachability_pct: float = 100.0
+    max_collisions: int = 0
+    max_executed_nsd_pct: float = 20.0
+    max_loss_pp: float = 1.0
+    max_cycle_time_s: float = 120.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One painting job: part, placement, robot, applicator, settings and thresholds.
+
+    name: short identifier (used for output folders and CI rows).
+    part: a library part name (`planning.parts.PART_NAMES`) or a path to an STL/OBJ/PLY mesh
+        (relative paths are relative to the scenario script).
+    resolution_m: mesh resolution for a full run [m]; fast_resolution_m for `--fast` runs.
+    part_placement: where the part frame sits in the world.
+    robot: robot name for `robots.load_robot`; base: robot base placement in the world.
+    applicator: path to an Applicator TOML file, or None for the default bell.
+    planner: keyword arguments for `planning.coverage.PlannerSettings` (only what differs).
+    fast_planner: planner overrides applied on top of `planner` for `--fast` runs.
+    trajectory: keyword arguments for `sim.trajectory.TrajectorySettings`.
+    servo: keyword arguments for `sim.execute.ServoSettings`.
+    thresholds: what `paintcell check` holds the run to.
+    source: the file the scenario was declared in (filled in by `load_scenario`).
+    """
+
+    name: str
+    part: str
+    part_placement: Placement
+    base: Placement = Placement()
+    robot: str = "abb_paint"
+    resolution_m: float = 0.01
+    fast_resolution_m: float = 0.025
+    applicator: str | None = None
+    planner: dict[str, Any] = field(default_factory=dict)
+    fast_planner: dict[str, Any] = field(default_factory=dict)
+    trajectory: dict[str, Any] = field(default_factory=dict)
+    servo: dict[str, Any] = field(default_factory=dict)
+    thresholds: Thresholds = Thresholds()
+    source: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe description of the scenario (for reports)."""
+        return asdict(self)
+
+    def main(self, argv: list[str] | None = None) -> int:
+        """Entry point of a scenario script: `paintcell run <this script>` with the given args."""
+        from sim.cli import main as cli_main
+
+        src = self.source or sys.argv[0]
+        return cli_main(["run", src, *(sys.argv[1:] if argv is None else argv)])
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Import a scenario script and return its `SCENARIO` (with `source` filled in)."""
+    path = Path(path)
+    if not path.exists():
+        raise ScenarioError(f"scenario {path} does not exist; pass a scenario script such as "
+                            "scenarios/door.py, or a folder of them")
+    if path.suffix != ".py":
+        raise ScenarioError(f"scenario {path} is not a Python script; scenarios are .py files "
+                            "that define SCENARIO")
+    mod_name = f"paintcell_scenario_{path.stem}"
+    spec = importlib.util.spec_from_file_location(mod_name, path)
+    if spec is None or spec.loader is None:
+        raise ScenarioError(f"cannot import scenario {path}")
+    module = importlib.util.module_from_spec(spec)
+    # Run the script as a module, not as __main__, so it does not start a run on import.
+    spec.loader.exec_module(module)
+    scenario = getattr(module, "SCENARIO", None)
+    if not isinstance(scenario, Scenario):
+        raise ScenarioError(f"{path} defines no SCENARIO (a sim.scenario.Scenario); add one")
+    from dataclasses import replace
+
+    return replace(scenario, source=str(path.resolve()))
+
+
+def find_scenarios(paths: list[str]) -> list[Path]:
+    """Scenario scripts named by `paths` (files, or folders searched for `*.py`), sorted."""
+    found: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found.extend(sorted(q for q in p.glob("*.py") if not q.name.startswith("_")))
+        elif p.exists():
+            found.append(p)
+        else:
+            raise ScenarioError(f"scenario path {p} does not exist")
+    if not found:
+        raise ScenarioError(f"no scenario scripts found in {', '.join(paths)}")
+    return found
