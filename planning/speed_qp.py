@@ -34,6 +34,7 @@ import osqp
 import scipy.sparse as sp
 
 from planning.applicator import Applicator
+from planning.deposition import deposition_rate
 from planning.errors import PlanError
 
 #: Relative tolerance of the re-measured constraints of an accepted solution: the equality
@@ -450,8 +451,6 @@ def optimize_pass_speed(app: Applicator, centers: npt.ArrayLike, spray_axes: npt
     Returns the SpeedResult; constant nominal speed (and a status saying why) whenever the QP
     fails or does not improve the band σ/μ.
     """
-    from planning.deposition import deposition_rate
-
     c = np.asarray(centers, dtype=float)
     a = np.asarray(spray_axes, dtype=float)
     d = np.asarray(travel_dirs, dtype=float)

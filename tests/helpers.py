@@ -26,3 +26,12 @@ def assert_unit(vectors: np.ndarray, atol: float = UNIT_NORM_ATOL) -> None:
     """Every row of `vectors` (..., 3) has unit length within `atol`."""
     norms = np.linalg.norm(vectors, axis=-1)
     assert np.allclose(norms, 1.0, atol=atol), f"max |norm - 1| = {np.abs(norms - 1).max():.3g}"
+
+
+# --- speed QP (planning.speed_qp) ----------------------------------------------------------------
+# Re-measured constraints of an accepted QP solution, relative to each bound: the module's own
+# acceptance tolerance (planning.speed_qp.CONSTRAINT_RTOL); polished OSQP solutions meet ~1e-10.
+QP_CONSTRAINT_RTOL = 1e-6
+# Central finite differences of a quadratic objective at step 1e-5 on O(1) variables: exact up to
+# round-off (~1e-16 · J / h ≈ 1e-12 relative), so 1e-6 is ample yet catches any wrong Hessian term.
+FD_GRADIENT_RTOL = 1e-6
