@@ -114,6 +114,12 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         sys.stderr.write(f"paintcell: error: {_one_line(exc)}\n")
         return EXIT_USAGE
+    except Exception as exc:  # a bug, not bad input: still one line unless --debug
+        if args.debug:
+            traceback.print_exc()
+        sys.stderr.write(f"paintcell: internal error: {type(exc).__name__}: {_one_line(exc)} "
+                         "(rerun with --debug for the traceback)\n")
+        return EXIT_USAGE
 
 
 def _one_line(exc: BaseException) -> str:
@@ -245,10 +251,10 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from sim.report import write_report
-
     if not (args.dir / "metrics.json").exists():
         raise PaintcellError(f"{args.dir / 'metrics.json'} is missing; run `paintcell run` first")
+    from sim.report import write_report
+
     path = write_report(args.dir)
     print(f"report: {path}")
     return EXIT_OK

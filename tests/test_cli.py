@@ -1,0 +1,68 @@
+"""The `paintcell` command line: help, one-line errors with exit code 2, JUnit XML."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from sim.cli import EXIT_USAGE, build_parser, main, write_junit
+
+COMMANDS = ["run", "check", "plan", "validate", "export", "report"]
+
+
+def _run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "sim.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=120)
+
+
+@pytest.mark.parametrize("cmd", COMMANDS)
+def test_help_explains_every_option(cmd: str) -> None:
+    sub = build_parser()._subparsers._group_actions[0].choices[cmd]  # type: ignore[union-attr]
+    for action in sub._actions:
+        if action.dest != "help":
+            assert action.help, f"{cmd} option {action.dest} has no help"
+    out = _run(cmd, "--help")
+    assert out.returncode == 0 and "usage: paintcell" in out.stdout
+
+
+def test_unknown_scenario_is_one_line_exit_2(tmp_path: Path) -> None:
+    out = _run("run", str(tmp_path / "nope.py"))
+    assert out.returncode == EXIT_USAGE
+    assert out.stderr.count("\n") == 1 and "does not exist" in out.stderr
+    assert "Traceback" not in out.stderr
+
+
+def test_script_without_scenario_and_bad_option(tmp_path: Path) -> None:
+    script = tmp_path / "empty.py"
+    script.write_text("x = 1\n")
+    out = _run("run", str(script))
+    assert out.returncode == EXIT_USAGE and "defines no SCENARIO" in out.stderr
+    out = _run("run", str(script), "--mode", "telepathy")
+    assert out.returncode == EXIT_USAGE and out.stderr.count("\n") == 1
+    out = _run("report", str(tmp_path / "missing_dir"))
+    assert out.returncode == EXIT_USAGE and "metrics.json" in out.stderr
+
+
+def test_debug_shows_traceback(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--debug", "run", str(tmp_path / "nope.py")]) == EXIT_USAGE
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_junit_xml_is_valid_with_one_case_per_scenario(tmp_path: Path) -> None:
+    ok = [{"name": "executed_nsd_pct", "value": 8.0, "limit": 12.0, "unit": "%", "passed": True}]
+    bad = [{"name": "loss_pp", "value": 2.5, "limit": 1.0, "unit": "pp", "passed": False}]
+    path = tmp_path / "junit.xml"
+    write_junit(path, [("door", 3.0, ok, None), ("hood", 2.0, bad, None),
+                       ("roof", 0.1, [], "pose 3 of pass 2 unreachable")])
+    root = ET.parse(path).getroot()
+    assert root.tag == "testsuite" and root.get("tests") == "3"
+    assert root.get("failures") == "1" and root.get("errors") == "1"
+    cases = {c.get("name"): c for c in root.iter("testcase")}
+    assert set(cases) == {"door", "hood", "roof"}
+    assert cases["door"].find("failure") is None
+    assert "loss_pp" in cases["hood"].find("failure").get("message")  # type: ignore[union-attr]
+    assert cases["roof"].find("error") is not None
