@@ -1,0 +1,371 @@
+"""Curves within a surface: plane sections, indexing curves and geodesic offsets (paper §2.3, §4).
+
+Every curve here is a planar section of the triangle mesh: the start curve (a section plane
+orthogonal to the average normal's tangent plane), the *indexing curve* at a pass sample (the
+section by the plane through the sample orthogonal to the pass tangent, which contains the surface
+normal), and the in-surface continuation of a pass past its last offset point (the normal section
+containing the pass tangent). Offsets are measured as arc length along indexing curves — geodesic
+distance in the surface, not a straight shift: on a cylinder, passes around it are spaced by arc.
+
+Crossing points lie on mesh edges; their normals are the linear interpolation of the vertex
+normals (renormalized). Beyond the surface boundary an indexing curve is continued along its end
+tangent with the end normal (the "virtual extension" that overspray and edge passes paint on).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, depth_first_order
+
+from planning.errors import PlanError
+
+#: Points of a section closer than this are merged [m] (a plane through a vertex gives repeats).
+_MERGE_M = 1e-9
+#: Length over which an end tangent is measured for the straight continuation past a boundary [m].
+_END_TANGENT_M = 0.01
+
+
+@dataclass(frozen=True, eq=False)
+class SurfaceGeometry:
+    """Mesh connectivity precomputed once for repeated plane sections.
+
+    vertices: (N, 3) [m]; normals: (N, 3) unit, painted side; faces: (F, 3) int;
+    edges: (E, 2) unique vertex pairs; face_edges: (F, 3) index of each face's edges in `edges`;
+    edge_length_m: median mesh edge length [m] (the mesh resolution).
+    """
+
+    vertices: np.ndarray
+    normals: np.ndarray
+    faces: np.ndarray
+    edges: np.ndarray
+    face_edges: np.ndarray
+    edge_length_m: float
+
+    @classmethod
+    def from_surface(cls, surface: Any) -> SurfaceGeometry:
+        """Build from a `planning.surface.Surface` (uses its vertices, normals, faces, mesh)."""
+        mesh = surface.mesh
+        edges = np.asarray(mesh.edges_unique, dtype=np.int64)
+        face_edges = np.asarray(mesh.faces_unique_edges, dtype=np.int64)
+        v = np.asarray(surface.vertices, float)
+        lengths = np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1)
+        return cls(v, np.asarray(surface.normals, float), np.asarray(surface.faces), edges,
+                   face_edges, float(np.median(lengths)))
+
+
+@dataclass(frozen=True, eq=False)
+class Section:
+    """One connected, ordered component of a plane–mesh section.
+
+    points: (K, 3) ordered points on mesh edges [m]; normals: (K, 3) unit surface normals;
+    closed: True when the component is a loop (last point connects to the first).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    closed: bool
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def _signed(geom: SurfaceGeometry, origin: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    return (geom.vertices - origin) @ normal
+
+
+def _crossings(geom: SurfaceGeometry, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Crossing edges of the section with signed vertex distances d (N,).
+
+    Returns (edge ids (C,), points (C, 3), normals (C, 3)). Zero distances count as positive, so
+    a plane through a vertex crosses each edge at most once.
+    """
+    pos = d >= 0
+    e = geom.edges
+    cross = np.flatnonzero(pos[e[:, 0]] != pos[e[:, 1]])
+    a, b = e[cross, 0], e[cross, 1]
+    t = (d[a] / (d[a] - d[b]))[:, None]
+    pts = geom.vertices[a] + t * (geom.vertices[b] - geom.vertices[a])
+    nrm = _unit(geom.normals[a] + t * (geom.normals[b] - geom.normals[a]))
+    return cross, pts, nrm
+
+
+def _order_components(geom: SurfaceGeometry, d: np.ndarray, cross: np.ndarray,
+                      wanted: np.ndarray | None = None) -> list[tuple[np.ndarray, bool]]:
+    """Order crossing edges into polylines: each crossed face links its two crossed edges.
+
+    Returns (indices into `cross` in order, closed) per component (only the components holding
+    the `wanted` crossing indices when given).
+    """
+    n_cross = len(cross)
+    node = np.full(len(geom.edges), -1, dtype=np.int64)
+    node[cross] = np.arange(n_cross)
+    fn = node[geom.face_edges]                      # (F, 3) crossing-node id or -1
+    hit = fn >= 0
+    two = hit.sum(axis=1) == 2
+    pairs = fn[two][hit[two]].reshape(-1, 2)
+    graph = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
+                          shape=(n_cross, n_cross)).tocsr()
+    graph = graph + graph.T
+    n_comp, labels = connected_components(graph, directed=False)
+    degree = np.diff(graph.indptr)
+    comps = range(n_comp) if wanted is None else np.unique(labels[wanted])
+    out = []
+    for c in comps:
+        members = np.flatnonzero(labels == c)
+        ends = members[degree[members] <= 1]
+        start = int(ends[0]) if len(ends) else int(members[0])
+        order = depth_first_order(graph, start, directed=False, return_predecessors=False)
+        closed = len(ends) == 0 and len(members) > 2
+        out.append((np.asarray(order), closed))
+    return out
+
+
+def _dedupe(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    if len(points) < 2:
+        return points, normals
+    keep = np.ones(len(points), bool)
+    keep[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1) > _MERGE_M
+    return points[keep], normals[keep]
+
+
+def plane_sections(geom: SurfaceGeometry, origin: npt.ArrayLike,
+                   plane_normal: npt.ArrayLike) -> list[Section]:
+    """All components of the section of the mesh by a plane, each an ordered polyline.
+
+    origin: (3,) a point of the plane [m]; plane_normal: (3,) its normal (any length).
+    Returns the components (possibly none), longest first.
+    """
+    o = np.asarray(origin, float)
+    nrm = _unit(np.asarray(plane_normal, float))
+    d = _signed(geom, o, nrm)
+    cross, pts, nn = _crossings(geom, d)
+    if len(cross) < 2:
+        return []
+    secs = []
+    for order, closed in _order_components(geom, d, cross):
+        p, n = _dedupe(pts[order], nn[order])
+        if len(p) >= 2:
+            secs.append(Section(p, n, closed))
+    secs.sort(key=lambda s: -float(np.linalg.norm(np.diff(s.points, axis=0), axis=1).sum()))
+    return secs
+
+
+@dataclass(frozen=True, eq=False)
+class IndexingCurve:
+    """A curve of the surface through a source point, parameterized by signed arc length.
+
+    points: (K, 3) polyline on the surface [m]; normals: (K, 3) unit normals;
+    s: (K,) arc length [m], increasing, 0 at the source point (its foot on the polyline);
+    positive s lies on the requested side ("right" of the pass for an indexing curve).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    s: np.ndarray
+
+    @property
+    def s_min(self) -> float:
+        """Arc length of the first point (≤ 0) [m]: the boundary on the left side."""
+        return float(self.s[0])
+
+    @property
+    def s_max(self) -> float:
+        """Arc length of the last point (≥ 0) [m]: the boundary on the right side."""
+        return float(self.s[-1])
+
+    def sample(self, s_query: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Points (Q, 3), normals (Q, 3) and `inside` (Q,) bool at arc lengths s_query (Q,) [m].
+
+        Beyond either end the curve continues straight along its end tangent (measured over the
+        last `_END_TANGENT_M`) with the end normal: the virtual extension of the surface.
+        """
+        q = np.atleast_1d(np.asarray(s_query, float))
+        s, p, n = self.s, self.points, self.normals
+        pts = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
+        nrm = _unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
+        lo, hi = q < s[0], q > s[-1]
+        if lo.any():
+            t0 = _unit(p[0] - self._at(s[0] + min(_END_TANGENT_M, s[-1] - s[0])))
+            pts[lo] = p[0] + (s[0] - q[lo])[:, None] * t0
+            nrm[lo] = n[0]
+        if hi.any():
+            t1 = _unit(p[-1] - self._at(s[-1] - min(_END_TANGENT_M, s[-1] - s[0])))
+            pts[hi] = p[-1] + (q[hi] - s[-1])[:, None] * t1
+            nrm[hi] = n[-1]
+        return pts, nrm, ~(lo | hi)
+
+    def _at(self, s0: float) -> np.ndarray:
+        return np.array([np.interp(s0, self.s, self.points[:, k]) for k in range(3)])
+
+
+def _foot_on_polyline(points: np.ndarray, p: np.ndarray) -> tuple[float, float]:
+    """(arc length of the closest point of the polyline to p [m], distance [m])."""
+    a, b = points[:-1], points[1:]
+    ab = b - a
+    l2 = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(l2 > 0, l2, 1.0), 0.0, 1.0)
+    foot = a + t[:, None] * ab
+    dist = np.linalg.norm(foot - p, axis=1)
+    i = int(np.argmin(dist))
+    seg = np.sqrt(l2)
+    s_cum = np.concatenate([[0.0], np.cumsum(seg)])
+    return float(s_cum[i] + t[i] * seg[i]), float(dist[i])
+
+
+def curve_through(geom: SurfaceGeometry, point: npt.ArrayLike, plane_normal: npt.ArrayLike,
+                  forward: npt.ArrayLike, *, max_gap_m: float | None = None,
+                  signed_d: np.ndarray | None = None) -> IndexingCurve | None:
+    """The section component through `point`, as arc length from it, positive toward `forward`.
+
+    point: (3,) a point on (or within `max_gap_m` of) the surface [m];
+    plane_normal: (3,) the section plane's normal; forward: (3,) the direction of increasing s.
+    max_gap_m: refuse (return None) when the section passes farther than this from the point
+        (default: two mesh edge lengths). signed_d: precomputed signed vertex distances (N,).
+    Closed sections are cut open opposite the point. Returns None when there is no section there.
+    """
+    p = np.asarray(point, float)
+    nrm = _unit(np.asarray(plane_normal, float))
+    d = _signed(geom, p, nrm) if signed_d is None else signed_d
+    cross, pts, nn = _crossings(geom, d)
+    if len(cross) < 2:
+        return None
+    near = int(np.argmin(np.linalg.norm(pts - p, axis=1)))
+    (order, closed), = _order_components(geom, d, cross, wanted=np.array([near]))
+    cp, cn = _dedupe(pts[order], nn[order])
+    if len(cp) < 2:
+        return None
+    if closed:  # cut the loop at the point farthest from the source point
+        far = int(np.argmax(np.linalg.norm(cp - p, axis=1)))
+        cp, cn = np.roll(cp, -far, axis=0), np.roll(cn, -far, axis=0)
+    s0, gap = _foot_on_polyline(cp, p)
+    if gap > (2.0 * geom.edge_length_m if max_gap_m is None else max_gap_m):
+        return None
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(cp, axis=0), axis=1))]) - s0
+    # orientation: the local tangent at the source point must point along `forward`
+    i = int(np.clip(np.searchsorted(s, 0.0), 1, len(s) - 1))
+    if np.dot(cp[i] - cp[i - 1], np.asarray(forward, float)) < 0:
+        cp, cn, s = cp[::-1], cn[::-1], -s[::-1]
+    return IndexingCurve(cp, cn, s)
+
+
+def indexing_curves(geom: SurfaceGeometry, points: npt.ArrayLike, tangents: npt.ArrayLike,
+                    normals: npt.ArrayLike) -> list[IndexingCurve | None]:
+    """Indexing curve at each pass sample: the section by the plane through the sample orthogonal
+    to the pass tangent (it contains the surface normal), s > 0 on the pass's right (T × n).
+
+    points: (S, 3) foot points on the surface [m]; tangents: (S, 3) pass tangents;
+    normals: (S, 3) surface normals. Returns S curves (None where no section passes the point).
+    """
+    p = np.asarray(points, float)
+    n = _unit(np.asarray(normals, float))
+    t = np.asarray(tangents, float)
+    t = _unit(t - np.sum(t * n, axis=1, keepdims=True) * n)
+    right = np.cross(t, n)
+    d_all = geom.vertices @ t.T - np.sum(p * t, axis=1)      # (N, S) signed distances
+    return [curve_through(geom, p[i], t[i], right[i], signed_d=d_all[:, i])
+            for i in range(len(p))]
+
+
+def walk(curves: list[IndexingCurve | None], distance_m: float | np.ndarray
+         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points (S, 3), normals (S, 3) and inside (S,) reached at arc length `distance_m` along each
+    curve (scalar or (S,) [m], signed: > 0 to the right). Missing curves give NaN points and
+    inside = False."""
+    m = len(curves)
+    dist = np.broadcast_to(np.asarray(distance_m, float), (m,))
+    pts = np.full((m, 3), np.nan)
+    nrm = np.full((m, 3), np.nan)
+    inside = np.zeros(m, bool)
+    for i, c in enumerate(curves):
+        if c is None:
+            continue
+        a, b, ok = c.sample(dist[i:i + 1])
+        pts[i], nrm[i], inside[i] = a[0], b[0], ok[0]
+    return pts, nrm, inside
+
+
+def arc_length(points: npt.ArrayLike) -> np.ndarray:
+    """(M,) cumulative polyline arc length from the first point [m]."""
+    p = np.asarray(points, float)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+
+
+def resample(points: npt.ArrayLike, normals: npt.ArrayLike, spacing_m: float,
+             flags: npt.ArrayLike | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Resample a polyline at (nearly) uniform arc-length spacing, keeping both ends.
+
+    points: (M, 3) [m]; normals: (M, 3) interpolated linearly and renormalized;
+    flags: (M,) bool carried by nearest neighbour (default all True).
+    Returns points (Q, 3), normals (Q, 3), flags (Q,).
+    """
+    p = np.asarray(points, float)
+    n = np.asarray(normals, float)
+    f = np.ones(len(p), bool) if flags is None else np.asarray(flags, bool)
+    s = arc_length(p)
+    if s[-1] <= 0:
+        raise PlanError("cannot resample a curve of zero length; the pass degenerated to a point")
+    q = np.linspace(0.0, s[-1], max(2, int(np.ceil(s[-1] / spacing_m - 1e-9)) + 1))
+    pts = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
+    nrm = _unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
+    idx = np.clip(np.searchsorted(s, q), 0, len(s) - 1)
+    prev = np.clip(idx - 1, 0, len(s) - 1)
+    nearest = np.where(np.abs(s[prev] - q) <= np.abs(s[idx] - q), prev, idx)
+    return pts, nrm, f[nearest]
+
+
+def tangents(points: npt.ArrayLike) -> np.ndarray:
+    """(M, 3) unit tangents of a polyline by central differences (one-sided at the ends)."""
+    p = np.asarray(points, float)
+    t = np.gradient(p, axis=0)
+    return _unit(t)
+
+
+def geodesic_curvature(points: npt.ArrayLike, normals: npt.ArrayLike,
+                       smoothing_m: float = 0.05) -> np.ndarray:
+    """(M,) signed geodesic curvature κ_g = (d²r/ds²) · (n × T) of a curve in the surface [1/m].
+
+    points: (M, 3) curve on the surface [m]; normals: (M, 3) surface normals there.
+    smoothing_m: second differences are taken at this arc-length step (a mesh section is faceted,
+        so point-to-point differences are noisy); positive κ_g bends toward n × T (the left).
+    """
+    p = np.asarray(points, float)
+    n = np.asarray(normals, float)
+    s = arc_length(p)
+    if len(p) < 3 or s[-1] <= 0:
+        return np.zeros(len(p))
+    m = max(3, int(np.ceil(s[-1] / smoothing_m)) + 1)
+    q = np.linspace(0.0, s[-1], m)
+    h = q[1] - q[0]
+    r = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
+    nq = _unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
+    t = _unit(r[2:] - r[:-2])
+    k_vec = (r[2:] - 2.0 * r[1:-1] + r[:-2]) / (h * h)
+    kg = np.einsum("ij,ij->i", k_vec, np.cross(nq[1:-1], t))
+    return np.interp(s, q[1:-1], kg)
+
+
+def check_offset_order(source_points: np.ndarray, offset_points: np.ndarray,
+                       label: str) -> None:
+    """Refuse an offset that reverses direction (a cusp/swallowtail: it self-intersects).
+
+    source_points / offset_points: (S, 3) corresponding points of the current pass and its
+    offset [m]. Raises PlanError naming where along the pass it happened.
+    """
+    ds = np.diff(source_points, axis=0)
+    do = np.diff(offset_points, axis=0)
+    ok = np.all(np.isfinite(do), axis=1)
+    dots = np.einsum("ij,ij->i", ds[ok], do[ok])
+    if np.any(dots < 0):
+        i = int(np.flatnonzero(ok)[np.argmax(dots < 0)])
+        s = float(arc_length(source_points)[i])
+        raise PlanError(f"{label} self-intersects (the offset reverses direction {s:.3f} m along "
+                        "the current pass; geodesic curvature too high): narrow the index range "
+                        "(w_max_m) or choose another start-curve orientation")
