@@ -35,3 +35,20 @@ QP_CONSTRAINT_RTOL = 1e-6
 # Central finite differences of a quadratic objective at step 1e-5 on O(1) variables: exact up to
 # round-off (~1e-16 · J / h ≈ 1e-12 relative), so 1e-6 is ample yet catches any wrong Hessian term.
 FD_GRADIENT_RTOL = 1e-6
+
+
+# --- robots (kinematics, IK) ---------------------------------------------------------------------
+# MuJoCo vs Pinocchio TCP position of the same MJCF [m]: both compose the same float64 transforms;
+# the issue asks for 1e-9 m (observed ~1e-15).
+FK_AGREEMENT_ATOL_M = 1e-9
+# ... and orientation (max entry of the rotation-matrix difference), same reasoning.
+FK_AGREEMENT_ATOL_ROT = 1e-9
+# Closed-form OPW IK round trip [m, rad-like matrix entries]: acos/atan2 round-off near 1 m links
+# (observed ~5e-15); 1e-9 leaves room for poses near the workspace boundary.
+OPW_ROUND_TRIP_ATOL = 1e-9
+# Damped-least-squares IK targets of the issue: 1e-6 m position, 1e-5 rad orientation.
+IK_POS_TOL_M = 1e-6
+IK_ROT_TOL_RAD = 1e-5
+# Jacobian vs central finite differences with step 1e-6 rad: truncation O(h²·|FK'''|) ≈ 1e-12,
+# round-off ~1e-16/1e-6 = 1e-10; 1e-7 catches any wrong column or frame.
+JACOBIAN_FD_ATOL = 1e-7
