@@ -22,7 +22,12 @@ import numpy.typing as npt
 import trimesh
 from scipy.interpolate import BSpline, CubicSpline
 
+from planning.atomic_io import atomic_write_npz
 from planning.errors import SurfaceError
+
+_FORMAT = "paintcell.Surface/1"
+_ARRAY_FIELDS = ("vertices", "faces", "normals", "vertex_areas", "gaussian_curvature",
+                 "mean_curvature", "principal_curvatures", "principal_directions")
 
 # Parameter-space sampling used to measure arc length of a curve before resampling it [-].
 _ARC_SAMPLES = 4001
@@ -112,6 +117,33 @@ class Surface:
             principal_directions=self.principal_directions @ R.T,
         )
 
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the surface to an `.npz` file atomically (exact round trip with `load`)."""
+        arrays = {k: getattr(self, k) for k in _ARRAY_FIELDS}
+        arrays["format"] = np.array(_FORMAT)
+        arrays["name"] = np.array(self.name)
+        if self.uv is not None:
+            arrays["uv"] = self.uv
+        if self.grid_shape is not None:
+            arrays["grid_shape"] = np.array(self.grid_shape, dtype=np.int64)
+        atomic_write_npz(path, arrays)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Surface:
+        """Read a surface written by `save`."""
+        path = Path(path)
+        if not path.is_file():
+            raise SurfaceError(f"surface file {path} does not exist; check the path")
+        with np.load(path) as z:
+            if "format" not in z or str(z["format"]) != _FORMAT:
+                raise SurfaceError(f"{path} is not a paintcell surface file; write it with "
+                                   "Surface.save")
+            kw = {k: np.array(z[k]) for k in _ARRAY_FIELDS}
+            uv = np.array(z["uv"]) if "uv" in z else None
+            grid = tuple(int(x) for x in z["grid_shape"]) if "grid_shape" in z else None
+            name = str(z["name"])
+        return cls(name=name, uv=uv, grid_shape=grid, **kw)  # type: ignore[arg-type]
+
     @classmethod
     def from_mesh(cls, path_or_mesh: str | os.PathLike[str] | trimesh.Trimesh,
                   component: int | None = None, flip: bool = False,
@@ -146,6 +178,7 @@ def load_clean_mesh(path_or_mesh: str | os.PathLike[str] | trimesh.Trimesh,
     Returns vertices (N, 3) [m], faces (F, 3) int64 consistently wound toward the painted side,
     and a default name (the file stem, or "mesh").
     """
+    src: object
     if isinstance(path_or_mesh, trimesh.Trimesh):
         src, name = path_or_mesh, "mesh"
     else:

@@ -346,3 +346,16 @@ def test_mesh_property_is_cached_and_consistent() -> None:
     assert s.mesh is s.mesh
     assert np.array_equal(s.mesh.faces, s.faces)
     assert s.mesh.area == pytest.approx(s.area, rel=1e-12)
+
+
+def test_save_load_round_trip(tmp_path) -> None:
+    for s in (plane(0.2, 0.1, 0.05), Surface.from_mesh(trimesh.creation.icosphere(2))):
+        s.save(tmp_path / "s.npz")
+        t = Surface.load(tmp_path / "s.npz")
+        assert t.name == s.name and t.grid_shape == s.grid_shape
+        for key in ("vertices", "faces", "normals", "principal_directions", "mean_curvature"):
+            assert np.array_equal(getattr(t, key), getattr(s, key))
+        assert (t.uv is None) == (s.uv is None)
+    with pytest.raises(SurfaceError, match="not a paintcell surface"):
+        np.savez(tmp_path / "x.npz", a=np.zeros(3))
+        Surface.load(tmp_path / "x.npz")
