@@ -306,7 +306,7 @@ def build_speed_objective(rates: Sequence[npt.ArrayLike], curve_lengths: Sequenc
     w = np.where(used, k, 0.0)
     w /= w.sum()
     blocks = []
-    for j in np.flatnonzero(used):
+    for j in np.flatnonzero(used).tolist():
         ell = np.asarray(curve_lengths[j], dtype=float)
         r = ell / ell.sum()
         C = mats[j] - r @ mats[j]           # (I − 1 rᵀ) G_j: centred film along curve j

@@ -244,3 +244,21 @@ def test_sample_pass_profile_matches_segments() -> None:
     assert np.all(v >= 0.25 * (1 - 1e-9)) and np.all(v <= 1.0 * (1 + 1e-9))
     with pytest.raises(SpeedQPError, match="arc positions"):
         sample_pass_profile(res, [edges[-1] + 0.1])
+
+
+def test_repair_moves_admm_points_onto_the_constraints() -> None:
+    """The ADMM clean-up lands any nearby point exactly on the equality and acceleration rows."""
+    from planning.speed_qp import _repair
+    c, _, _, s, band = _plane_pass()
+    settings = SpeedSettings(n_knots=15)
+    obj = build_speed_objective(_gaussian_rates(c, band), band.lengths, s, settings)
+    dL = obj.interp[:-1] - obj.interp[1:]
+    acc_b = settings.a_max_m_s2 * s[:-1] * settings.v_nominal_m_s / settings.v_max_m_s**3
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        x = 1.0 + rng.normal(0.0, 0.3, dL.shape[1])        # far outside the acceleration rows
+        z = _repair(x, obj.eq_row, dL, acc_b, 0.5, 2.0)
+        assert obj.eq_row @ z == pytest.approx(1.0, rel=1e-12)
+        assert np.all(np.abs(dL @ z) <= acc_b * (1 + 1e-12))
+        shift = abs(1.0 - obj.eq_row @ np.clip(x, 0.5, 2.0))
+        assert np.all(z >= 0.5 - shift - 1e-12) and np.all(z <= 2.0 + shift + 1e-12)
