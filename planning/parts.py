@@ -80,7 +80,8 @@ def door(resolution_m: float = DEFAULT_RESOLUTION_M) -> Surface:
     """SUV front door outer skin: 1.10 m long (extrusion along x) × 0.80 m profile arc.
 
     Singly curved (K = 0) with varying curvature across the profile (`door_profile`): flat-ish
-    bottom, shoulder crease of radius ≈ 0.38 m at the belt line. Axis of zero curvature: x.
+    bottom (toward -y), shoulder crease of radius ≈ 0.38 m at the belt line (toward +y).
+    Direction of zero curvature: x; of maximum curvature: along the profile (≈ y).
     """
     return to_part_frame(extruded(door_profile(), 1.10, resolution_m, name="door"))
 
