@@ -403,15 +403,37 @@ def robot_qpos_adr(scene: Any, model: mujoco.MjModel) -> np.ndarray | None:
     return np.asarray(adr, int)
 
 
+def _film_spec_like(model: mujoco.MjModel, data: mujoco.MjData, film: Film) -> mujoco.MjSpec:
+    """A spec with only `film`, lights and copies of `model`'s cameras (world poses at `data`),
+    so that a render of it lines up pixel for pixel with a render of `model`."""
+    spec = mujoco.MjSpec()
+    spec.modelname = "film_overlay"
+    spec.visual.headlight.ambient = model.vis.headlight.ambient.copy()
+    spec.visual.headlight.diffuse = model.vis.headlight.diffuse.copy()
+    spec.worldbody.add_light(name="key", pos=[0, 0, 5], dir=[0, 0, -1],
+                             type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+                             diffuse=[0.6, 0.6, 0.6], castshadow=False)
+    for i in range(model.ncam):
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, data.cam_xmat[i])
+        spec.worldbody.add_camera(name=mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_CAMERA, i)
+                                  or f"camera{i}", pos=data.cam_xpos[i].copy(), quat=quat,
+                                  fovy=float(model.cam_fovy[i]))
+    add_film(spec, film)
+    return spec
+
+
 class SceneRenderer:
     """A compiled scene (a cell, an MjSpec, an MjModel, or a bare booth) with an offscreen
     renderer; optionally with a film-thickness mesh.
 
-    scene: a `sim.cell.Cell` (uses its `spec` to add the film, its `model` otherwise), an
-        `MjSpec`, an `MjModel` (no film possible), or None for `booth_spec()`.
-    film: the thickness map to draw (needs a spec or None scene), or None.
-    size: (width, height) [px]; shadows: MuJoCo shadow pass (off: ~5× faster on software GL).
-    cameras: extra named `CameraView`s usable by name in `render`.
+    scene: a `sim.cell.Cell` (its `model`), an `MjModel`, an `MjSpec` (the film is added to a
+        copy), or None for `booth_spec()`.
+    film: the thickness map to draw, or None. With a compiled model the film lives in a second
+        model that shares the cameras and clip planes; the two renders are composited by depth
+        (the film, lifted 0.5 mm off the part, wins over the part; the robot in front wins).
+    size: (width, height) [px]; shadows: MuJoCo shadow pass (off: several × faster on software
+        GL). cameras: extra named `CameraView`s usable by name in `render`.
     """
 
     def __init__(self, scene: Any = None, film: Film | None = None,
@@ -421,48 +443,52 @@ class SceneRenderer:
         if width < 8 or height < 8 or width > 8192 or height > 8192:
             raise RenderError(f"image size {size} px out of range: use 8..8192 per side")
         backend_name()
+        self.size = (width, height)
+        self.cameras: dict[str, CameraView] = dict(cameras or {})
+        self._film_r: mujoco.Renderer | None = None
+        self._renderer: mujoco.Renderer | None = None
         spec = _spec_of(scene)
         if scene is None:
-            z0 = -1.0
-            if film is not None:
-                z0 = float(film.vertices_world[:, 2].min()) - 0.25
+            z0 = -1.0 if film is None else float(film.vertices_world[:, 2].min()) - 0.25
             spec = booth_spec(floor_z_m=z0)
         if spec is not None:
             if film is not None:
                 add_film(spec, film)
-            try:
-                model = spec.compile()
-            except ValueError as e:
-                raise RenderError(f"scene does not compile for rendering: {_one_line(e)}") from e
+            model = _compile(spec)
         else:
             model = _model_of(scene)
             if model is None:
                 raise RenderError(f"cannot render a {type(scene).__name__}: pass a Cell, an "
-                                  "MjSpec, an MjModel or None")
-            if film is not None:
-                raise RenderError("a film needs the scene's MjSpec: pass the Cell (with .spec) "
-                                  "or an MjSpec, not a compiled MjModel")
-        model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
-        model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
+                                  "MjModel, an MjSpec or None")
+        _fit_offscreen(model, width, height)
         self.model = model
         self.data = mujoco.MjData(model)
-        src = _model_of(scene)
-        if src is not None and src.nq == model.nq:
-            self.data.qpos[:] = getattr(scene, "qpos0", src.qpos0)
         mujoco.mj_forward(model, self.data)
         self.qpos_adr = robot_qpos_adr(scene, model) if scene is not None else None
-        self.cameras: dict[str, CameraView] = dict(cameras or {})
-        self.size = (width, height)
-        try:
-            self._renderer = mujoco.Renderer(model, height=height, width=width)
-        except Exception as e:  # any GL failure: the backend is unusable
-            raise RenderBackendError(f"offscreen renderer with MUJOCO_GL={backend_name()} "
-                                     f"failed ({_one_line(e)}): {_INSTALL_HINT}") from e
+        home = getattr(scene, "q_home", None)
+        if home is not None and self.qpos_adr is not None and len(home) == len(self.qpos_adr):
+            self.set_q(home)
+        self._renderer = _make_renderer(model, width, height)
+        if spec is None and film is not None:
+            fmodel = _compile(_film_spec_like(model, self.data, film))
+            _fit_offscreen(fmodel, width, height)
+            # Same free-camera field of view and clip planes: pixels and depths line up.
+            fmodel.vis.global_.fovy = model.vis.global_.fovy
+            fmodel.vis.map.znear = model.vis.map.znear
+            fmodel.vis.map.zfar = model.vis.map.zfar
+            fmodel.stat.extent = model.stat.extent
+            fmodel.stat.center = model.stat.center
+            self._film_model = fmodel
+            self._film_data = mujoco.MjData(fmodel)
+            mujoco.mj_forward(fmodel, self._film_data)
+            self._film_r = _make_renderer(fmodel, width, height)
         self.set_shadows(shadows)
 
     def set_shadows(self, on: bool) -> None:
         """Turn MuJoCo's shadow pass on or off (off by default: much faster)."""
-        self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = int(bool(on))
+        for r in (self._renderer, self._film_r):
+            if r is not None:
+                r.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = int(bool(on))
 
     def set_q(self, q: npt.ArrayLike) -> None:
         """Set the robot joint positions (n,) [rad] and run `mj_forward`."""
@@ -474,7 +500,7 @@ class SceneRenderer:
         self.data.qpos[adr] = q
         mujoco.mj_forward(self.model, self.data)
 
-    def _camera(self, camera: CameraView | str | None) -> mujoco.MjvCamera | str | int:
+    def _camera(self, camera: CameraView | str | None) -> mujoco.MjvCamera | str:
         if isinstance(camera, CameraView):
             return camera.to_mjv()
         if camera is None:
@@ -492,20 +518,67 @@ class SceneRenderer:
     def render(self, camera: CameraView | str | None = None,
                q: npt.ArrayLike | None = None) -> np.ndarray:
         """(H, W, 3) uint8 RGB frame from `camera`, robot at `q` (n,) [rad] if given."""
+        if self._renderer is None:
+            raise RenderError("renderer is closed; make a new SceneRenderer")
         if q is not None:
             self.set_q(q)
-        self._renderer.update_scene(self.data, camera=self._camera(camera))
-        return self._renderer.render().copy()
+        cam = self._camera(camera)
+        self._renderer.update_scene(self.data, camera=cam)
+        rgb = self._renderer.render().copy()
+        if self._film_r is None:
+            return rgb
+        self._film_r.update_scene(self._film_data, camera=cam)
+        film_rgb = self._film_r.render()
+        depth = _depth(self._renderer)
+        film_depth = _depth(self._film_r)
+        far = float(self._film_model.vis.map.zfar * self._film_model.stat.extent)
+        # The film is lifted FILM_OFFSET_M off the part: it wins over the part's own surface;
+        # anything nearer the camera than the film (the robot) wins over the film.
+        show = (film_depth < 0.999 * far) & (film_depth < depth + 0.2 * FILM_OFFSET_M)
+        rgb[show] = film_rgb[show]
+        return rgb
 
     def close(self) -> None:
-        """Free the GL context."""
-        self._renderer.close()
+        """Free the GL contexts."""
+        for r in (self._renderer, self._film_r):
+            if r is not None:
+                r.close()
+        self._renderer = self._film_r = None
 
     def __enter__(self) -> SceneRenderer:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _depth(r: mujoco.Renderer) -> np.ndarray:
+    """(H, W) distance along the view axis [m] of the scene last updated in `r`."""
+    r.enable_depth_rendering()
+    try:
+        return r.render()
+    finally:
+        r.disable_depth_rendering()
+
+
+def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
+    try:
+        return spec.compile()
+    except ValueError as e:
+        raise RenderError(f"scene does not compile for rendering: {_one_line(e)}") from e
+
+
+def _fit_offscreen(model: mujoco.MjModel, width: int, height: int) -> None:
+    model.vis.global_.offwidth = max(int(model.vis.global_.offwidth), width)
+    model.vis.global_.offheight = max(int(model.vis.global_.offheight), height)
+
+
+def _make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    try:
+        return mujoco.Renderer(model, height=height, width=width)
+    except Exception as e:  # any GL failure: the backend is unusable
+        raise RenderBackendError(f"offscreen renderer with MUJOCO_GL={backend_name()} failed "
+                                 f"({_one_line(e)}): {_INSTALL_HINT}") from e
 
 
 # --- one-call helpers -------------------------------------------------------------------------
@@ -516,7 +589,8 @@ def render_thickness(scene: Any, surface: Any, thickness_m: npt.ArrayLike, vmin_
                      colorbar: bool = True, shadows: bool = False) -> np.ndarray:
     """(H, W, 3) uint8 render of the part coloured by film thickness.
 
-    scene: Cell / MjSpec (film added to a copy) or None (bare booth); surface: `Surface` in the
+    scene: a Cell / MjModel (film composited by depth), an MjSpec (film added to a copy) or
+    None (bare booth); surface: `Surface` in the
     part frame; thickness_m: (N,) per vertex [m]; vmin_um/vmax_um: shared colour range [µm];
     camera: a CameraView, a preset name ("front", "top", "along_passes", "oblique" from
     `part_cameras`), a model camera name, or None (MuJoCo's default free camera);
