@@ -178,7 +178,7 @@ def _morton_order(p: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class _Blocks:
     order: np.ndarray       # (N,) original index of each sorted point
-    feats: np.ndarray       # (nb, B, 8): p (3), 1, n (3), n·p ; pads have n = 0, n·p = 0
+    feats: np.ndarray       # (nb, 8, B): p (3), 1, n (3), n·p ; pads have n = 0, n·p = 0
     centers: np.ndarray     # (nb, 3) block bounding-sphere centres [m]
     radii: np.ndarray       # (nb,) bounding-sphere radii [m]
 
@@ -202,7 +202,8 @@ def _make_blocks(p: np.ndarray, n: np.ndarray, block: int) -> _Blocks:
     lo, hi = pb.min(axis=1), pb.max(axis=1)
     centers = 0.5 * (lo + hi)
     radii = np.sqrt(np.max(np.sum((pb - centers[:, None, :]) ** 2, axis=2), axis=1))
-    return _Blocks(order, feats.reshape(nb, block, 8), centers, radii)
+    feats_t = np.ascontiguousarray(feats.reshape(nb, block, 8).transpose(0, 2, 1))
+    return _Blocks(order, feats_t, centers, radii)
 
 
 def _candidate_blocks(blocks: _Blocks, g: np.ndarray, a: np.ndarray, tan_cone: float) -> np.ndarray:
@@ -221,17 +222,18 @@ def _candidate_blocks(blocks: _Blocks, g: np.ndarray, a: np.ndarray, tan_cone: f
 
 
 def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndarray) -> np.ndarray:
-    """Σ_k coef_k · rate_k(points) for K samples, via one (4K, 8) @ (8, n) product.
+    """Σ_k coef_k · rate_k(points) for K samples and a batch of point blocks.
 
-    w_mat rows: dx (K), dy (K), dz (K), n·d (K); coef: (K,) dwell / h [s/m]; feats: (n, 8).
-    Everything else in place on (K, n) temporaries.
+    w_mat: (4K, 8) rows giving dx (K), dy (K), dz (K) and −n·d (K) from the point features;
+    coef: (K,) dwell / h [s/m]; feats: (nb, 8, B) block features. Returns (nb, B).
+    A batched (4K, 8) @ (8, B) product (small per-block GEMMs: BLAS stays single-threaded, so
+    it does not fight the worker threads), then everything in place on (nb, K, B) temporaries.
     """
     k = len(coef)
     h = app.standoff_m
-    m = w_mat @ feats.T                                        # (4K, n)
-    dx, dy, dz, nd = m[:k], m[k:2 * k], m[2 * k:3 * k], m[3 * k:]
-    # weight (−n·d)·h³/dz³ ≥ 0, zero for back-facing (n·d ≥ 0) and points behind the gun
-    np.negative(nd, out=nd)
+    m = np.matmul(w_mat, feats)                                # (nb, 4K, B)
+    dx, dy, dz, nd = m[:, :k], m[:, k:2 * k], m[:, 2 * k:3 * k], m[:, 3 * k:]
+    # weight (−n·d)·h³/dz³ ≥ 0: zero for back-facing points (n·d ≥ 0) and points behind the gun
     np.maximum(nd, 0.0, out=nd)
     nd *= dz > _DZ_EPS_M
     np.maximum(dz, _DZ_EPS_M, out=dz)
@@ -240,13 +242,13 @@ def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndar
     np.square(u2, out=u2)
     v2 = np.multiply(dy, inv, out=dy)
     np.square(v2, out=v2)
-    t1 = np.empty_like(u2)
-    t2 = np.empty_like(u2)
+    t1 = np.empty(u2.shape)
+    t2 = np.empty(u2.shape)
     # central Gaussian: A0·exp(−u²/2σx² − v²/2σy²) = exp(ln A0 − …)
-    np.multiply(u2, -0.5 / app.sigma_x_m**2, out=t1)
-    np.multiply(v2, -0.5 / app.sigma_y_m**2, out=t2)
-    t1 += t2
     if app.a0_m_s > 0:
+        np.multiply(u2, -0.5 / app.sigma_x_m**2, out=t1)
+        np.multiply(v2, -0.5 / app.sigma_y_m**2, out=t2)
+        t1 += t2
         t1 += math.log(app.a0_m_s)
         np.exp(t1, out=t1)
     else:
@@ -257,10 +259,11 @@ def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndar
                            strict=True):
         if amp <= 0:
             continue
+        # A·exp(−(r−μ)²/2σ²) = exp(−((r−μ)·c)² + ln A), c = 1/(σ√2)
         np.subtract(r, mu, out=t2)
+        t2 *= 1.0 / (sg * math.sqrt(2.0))
         np.square(t2, out=t2)
-        t2 *= -0.5 / sg**2
-        t2 += math.log(amp)
+        np.subtract(math.log(amp), t2, out=t2)
         np.exp(t2, out=t2)
         t1 += t2
     # rate·h = f · (−n·d) · (h/dz)³ ; coef carries dwell/h
@@ -268,7 +271,7 @@ def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndar
     t2 *= inv
     t2 *= nd
     t1 *= t2
-    return coef @ t1
+    return np.matmul(coef, t1)                                 # (nb, B)
 
 
 def _sample_chunks(s: int, k: int) -> Iterator[slice]:
@@ -328,17 +331,17 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
         w[kk:2 * kk, 3] = -np.einsum("ij,ij->i", gk, y_hat[sl])
         w[2 * kk:3 * kk, 0:3] = ak
         w[2 * kk:3 * kk, 3] = -np.einsum("ij,ij->i", gk, ak)
-        w[3 * kk:, 4:7] = -gk
-        w[3 * kk:, 7] = 1.0
+        w[3 * kk:, 4:7] = gk                    # −n·d = n·g − n·p
+        w[3 * kk:, 7] = -1.0
         per_call = max(1, MAX_PAIRS_PER_CALL // (kk * BLOCK_POINTS))
         for j in range(0, len(cand), per_call):
             ids = cand[j:j + per_call]
-            feats = blocks.feats[ids].reshape(-1, 8)
+            feats = blocks.feats[ids]
             if mesh is not None:
-                feats = feats.copy()
-                vis = _visible(mesh, feats[:, 0:3], gk[kk // 2])
-                feats[~vis, 4:8] = 0.0          # n = 0 ⇒ zero rate
-            contrib[j:j + len(ids)] = _kernel(app, w, coef_all[sl], feats).reshape(len(ids), -1)
+                vis = _visible(mesh, feats[:, 0:3, :].transpose(0, 2, 1).reshape(-1, 3),
+                               gk[kk // 2]).reshape(len(ids), BLOCK_POINTS)
+                feats[:, 4:8, :] *= vis[:, None, :]          # n = 0 ⇒ zero rate
+            contrib[j:j + len(ids)] = _kernel(app, w, coef_all[sl], feats)
         return cand, contrib
 
     out_blocks = np.zeros((len(blocks.centers), BLOCK_POINTS))
