@@ -116,6 +116,7 @@ class Robot:
     pin_data: Any
     tcp_frame_id: int
     opw: OPWParameters | None = None   # closed-form IK parameters when the arm is ortho-parallel
+    wrist_joint_index: int | None = 4  # joint whose sin is 0 at the wrist singularity (J5)
     _base_joint_placement: Any = field(default=None, repr=False)
     _base_frame_placement: Any = field(default=None, repr=False)
 
@@ -269,6 +270,11 @@ class Robot:
         return np.array(pin.computeFrameJacobian(self.pin_model, self.pin_data, q,
                                                  self.tcp_frame_id,
                                                  pin.ReferenceFrame.LOCAL_WORLD_ALIGNED))
+
+    def flange_poses(self, T_world_tcp: npt.ArrayLike) -> np.ndarray:
+        """T_base_flange (M,4,4) for TCP targets T_world_tcp (M,4,4): strips base and tool."""
+        T = np.asarray(T_world_tcp, float)
+        return np.linalg.inv(self.T_world_base) @ T @ np.linalg.inv(self.T_flange_tcp)
 
     def limit_margin(self, Q: npt.ArrayLike) -> np.ndarray:
         """(K,) smallest distance [rad] of each row of Q (K, nq) to a joint limit (<0: outside)."""

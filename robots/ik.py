@@ -1,0 +1,307 @@
+"""Inverse kinematics along paint paths.
+
+Ortho-parallel arms (`robot.opw` set): the closed-form solver (`robots.opw`) gives all 8 branches
+for every pose of a pass at once; one branch is chosen for the whole pass (inside the joint limits,
+away from the wrist singularity, no joint jump, closest to `q_seed`), J4/J6 are unwrapped along the
+pass and shifted into their ±400° range near the seed; then every sample is refined with Pinocchio
+damped least squares (DLS) from the closed-form solution, or, where that one is missing or outside
+the limits, warm-started from the previous sample. Other arms (UR10) use DLS alone: a cold start
+with seeded random restarts for the first sample, warm starts after that.
+
+With `free_spin=True` only the spray axis (TCP z) is constrained: a 5-D task; warm-started DLS then
+keeps the rotation about the axis that needs the least joint motion from the previous sample.
+Every result carries a `ReachabilityReport`, re-measured from the joint solution.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from robots.errors import RobotError
+from robots.opw import N_BRANCHES, inverse
+from robots.reachability import ReachabilityReport, ReachabilityThresholds
+from robots.robot import Robot
+
+_LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+@dataclass(frozen=True)
+class IKSettings:
+    """Solver settings.
+
+    pos_tol_m: position tolerance of a converged sample [m].
+    rot_tol_rad: orientation tolerance [rad] (spray-axis angle with free spin).
+    damping: DLS damping λ (units of the task error, m ~ rad); small: converged solutions are
+        exact, the damping only tames steps near singularities.
+    max_step_rad: largest joint step of one DLS iteration [rad].
+    warm_iters: DLS iterations per warm-started sample.
+    cold_iters: DLS iterations per cold-start attempt.
+    cold_restarts: random restarts for a cold start (seeded, uniform inside the limits).
+    wrist_sin_min: branch selection keeps |sin q5| above this along the pass.
+    max_joint_jump_rad: branch selection rejects branches with a larger jump between samples.
+    seed: RNG seed of the restarts.
+    """
+
+    pos_tol_m: float = 1e-6
+    rot_tol_rad: float = 1e-5
+    damping: float = 1e-4
+    max_step_rad: float = 0.3
+    warm_iters: int = 30
+    cold_iters: int = 150
+    cold_restarts: int = 40
+    wrist_sin_min: float = 0.05
+    max_joint_jump_rad: float = 0.2
+    seed: int = 0
+
+    def thresholds(self) -> ReachabilityThresholds:
+        """The report's thresholds, consistent with these settings."""
+        return ReachabilityThresholds(self.pos_tol_m, self.rot_tol_rad, self.wrist_sin_min,
+                                      self.max_joint_jump_rad)
+
+
+@dataclass(frozen=True, eq=False)
+class IKPathResult:
+    """Joint path of one pass.
+
+    q: (M, n) joint angles [rad] (best effort at unreachable poses, never NaN).
+    reachability: per-pose report (pass index 0).
+    branch: OPW branch used for the pass (0..7), -1 for DLS-only robots.
+    method: "opw+dls" or "dls".
+    """
+
+    q: np.ndarray
+    reachability: ReachabilityReport
+    branch: int
+    method: str
+
+
+# --- damped least squares --------------------------------------------------------------------
+def _task_error(robot: Robot, T_target: np.ndarray, q: np.ndarray,
+                free_spin: bool) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """(error e, Jacobian J, position residual [m], rotation residual [rad]) at q."""
+    m, d, f = robot.pin_model, robot.pin_data, robot.tcp_frame_id
+    J = pin.computeFrameJacobian(m, d, q, f, _LWA)     # also updates d.oMf[f]
+    M = d.oMf[f]
+    e_p = T_target[:3, 3] - M.translation
+    R = M.rotation
+    if free_spin:
+        z, zt = R[:, 2], T_target[:3, 2]
+        c = np.cross(z, zt)
+        s = np.linalg.norm(c)
+        ang = float(np.arctan2(s, z @ zt))
+        w = c * (ang / s) if s > 1e-15 else np.zeros(3)
+        # Basis of the plane normal to z: the spin about z is free (5-D task).
+        B = np.linalg.svd(np.eye(3) - np.outer(z, z))[0][:, :2]
+        e = np.r_[e_p, B.T @ w]
+        Jt = np.vstack([J[:3], B.T @ J[3:]])
+        return e, Jt, float(np.linalg.norm(e_p)), ang
+    w = pin.log3(T_target[:3, :3] @ R.T)
+    return np.r_[e_p, w], J, float(np.linalg.norm(e_p)), float(np.linalg.norm(w))
+
+
+def dls(robot: Robot, T_world_tcp: npt.ArrayLike, q0: npt.ArrayLike, *, free_spin: bool = False,
+        max_iters: int = 30, settings: IKSettings | None = None) -> tuple[np.ndarray, bool]:
+    """Damped-least-squares IK for one pose T_world_tcp (4,4) from q0 (n,) [rad], joints clamped
+    to the limits. Returns (q (n,) [rad], converged to the settings' tolerances)."""
+    s = settings or IKSettings()
+    T = np.asarray(T_world_tcp, float)
+    q = np.clip(np.asarray(q0, float).copy(), robot.q_lower, robot.q_upper)
+    lam2 = s.damping ** 2
+    for _ in range(max_iters + 1):
+        e, J, rp, rr = _task_error(robot, T, q, free_spin)
+        if rp <= s.pos_tol_m and rr <= s.rot_tol_rad:
+            return q, True
+        dq = J.T @ np.linalg.solve(J @ J.T + lam2 * np.eye(len(e)), e)
+        big = np.abs(dq).max()
+        if big > s.max_step_rad:
+            dq *= s.max_step_rad / big
+        q = np.clip(q + dq, robot.q_lower, robot.q_upper)
+    return q, False
+
+
+def cold_start(robot: Robot, T_world_tcp: npt.ArrayLike, q_seed: npt.ArrayLike | None = None, *,
+               free_spin: bool = False, settings: IKSettings | None = None
+               ) -> tuple[np.ndarray, bool]:
+    """DLS from q_seed, q_home, then seeded random restarts; the first converged solution with
+    |sin q5| above the threshold wins (else the first converged, else the last attempt)."""
+    s = settings or IKSettings()
+    rng = np.random.default_rng(s.seed)
+    starts = [np.asarray(q, float) for q in (q_seed, robot.q_home) if q is not None]
+    starts += list(rng.uniform(robot.q_lower, robot.q_upper, (s.cold_restarts, robot.nq)))
+    fallback: tuple[np.ndarray, bool] | None = None
+    q = starts[0]
+    for q0 in starts:
+        q, ok = dls(robot, T_world_tcp, q0, free_spin=free_spin, max_iters=s.cold_iters,
+                    settings=s)
+        if ok:
+            wi = robot.wrist_joint_index
+            if wi is None or abs(np.sin(q[wi])) >= s.wrist_sin_min:
+                return q, True
+            fallback = fallback or (q, True)
+    return fallback or (q, False)
+
+
+# --- closed-form branch selection -------------------------------------------------------------
+def _fill_rows(Q: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Replace rows of Q (M, n) where ~ok by the nearest previous (else next) ok row."""
+    idx = np.where(ok, np.arange(len(ok)), -1)
+    idx = np.maximum.accumulate(idx)
+    first = int(np.argmax(ok))
+    idx[idx < 0] = first
+    return Q[idx]
+
+
+def opw_branches(robot: Robot, T_world_tcp: npt.ArrayLike, q_ref: npt.ArrayLike
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All 8 closed-form branches of a pass, continuous along it.
+
+    T_world_tcp: (M, 4, 4). q_ref: (n,) reference [rad] for the 2π shifts (J1, J4, J6).
+    Returns Q (8, M, 6) [rad] (unwrapped along the pass, shifted into the limits near q_ref where
+    possible), reach (8, M) (closed form exists) and within (8, M) (reach and inside the limits).
+    """
+    if robot.opw is None:
+        raise RobotError(f"{robot.name} has no closed-form IK; use DLS (solve_path does)")
+    Q, reach = inverse(robot.opw, robot.flange_poses(T_world_tcp))
+    Q = np.swapaxes(Q, 0, 1).copy()                     # (8, M, 6)
+    reach = reach.T.copy()
+    lo, hi = robot.q_lower, robot.q_upper
+    q_ref = np.asarray(q_ref, float)
+    two_pi_k = 2 * np.pi * np.arange(-3, 4)
+    within = np.zeros_like(reach)
+    for b in range(N_BRANCHES):
+        if not reach[b].any():
+            continue
+        Qb = np.unwrap(_fill_rows(Q[b], reach[b]), axis=0)
+        # Shift each joint path by 2πk: inside the limits if possible, start near q_ref.
+        cand = Qb[None] + two_pi_k[:, None, None]                   # (7, M, 6)
+        ok_pts = (cand >= lo - 1e-12) & (cand <= hi + 1e-12) & reach[b][None, :, None]
+        n_in = ok_pts.sum(axis=1)                                    # (7, 6)
+        dist = np.abs(cand[:, 0, :] - q_ref)
+        k = _best_shift(n_in, dist)
+        Qb = Qb + two_pi_k[k]
+        Q[b] = Qb
+        within[b] = reach[b] & np.all((Qb >= lo - 1e-12) & (Qb <= hi + 1e-12), axis=1)
+    Q[~reach] = np.nan
+    return Q, reach, within
+
+
+def _best_shift(n_in: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """Per joint, the shift index with the most samples inside the limits, then nearest q_ref."""
+    score = n_in * 1e3 - np.minimum(dist, 999.0)
+    return np.argmax(score, axis=0)
+
+
+def choose_branch(robot: Robot, Q: np.ndarray, within: np.ndarray,
+                  q_seed: npt.ArrayLike | None, settings: IKSettings) -> int:
+    """The branch (0..7) for a whole pass, from `opw_branches` output.
+
+    Feasible: every pose inside the limits, |sin q5| ≥ wrist_sin_min, no jump > max_joint_jump_rad.
+    Among feasible branches: closest to q_seed (time at full speed) when given, else the largest
+    worst-case margin (joint limit [rad] or asin|sin q5|). If none is feasible: most poses inside
+    the limits, then the largest wrist margin, then the smallest jump.
+    """
+    M = Q.shape[1]
+    lo, hi = robot.q_lower, robot.q_upper
+    wi = robot.wrist_joint_index
+    keys = []
+    for b in range(N_BRANCHES):
+        n_ok = int(within[b].sum())
+        if n_ok == 0:
+            keys.append((0, -np.inf, -np.inf, -np.inf, False))
+            continue
+        Qb = Q[b][within[b]]
+        margin = float(np.minimum(Qb - lo, hi - Qb).min())
+        wsin = float(np.abs(np.sin(Qb[:, wi])).min()) if wi is not None else 1.0
+        jump = float(np.abs(np.diff(Qb, axis=0)).max()) if len(Qb) > 1 else 0.0
+        if q_seed is not None:
+            first = Q[b][int(np.argmax(within[b]))]
+            pref = -float(np.max(np.abs(first - np.asarray(q_seed)) / robot.v_max))
+        else:
+            pref = min(margin, float(np.arcsin(min(wsin, 1.0))))
+        feasible = (n_ok == M and wsin >= settings.wrist_sin_min
+                    and jump <= settings.max_joint_jump_rad)
+        keys.append((n_ok, min(wsin, settings.wrist_sin_min), -jump, pref, feasible))
+    feas = [b for b in range(N_BRANCHES) if keys[b][4]]
+    if feas:
+        return max(feas, key=lambda b: keys[b][3])
+    return max(range(N_BRANCHES), key=lambda b: keys[b][:4])
+
+
+# --- paths ------------------------------------------------------------------------------------
+def _check_path(robot: Robot, T_world_tcp: npt.ArrayLike) -> np.ndarray:
+    T = np.asarray(T_world_tcp, float)
+    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0 or not np.all(np.isfinite(T)):
+        raise RobotError(f"{robot.name}: a path must be a non-empty finite (M, 4, 4) array of "
+                         f"T_world_tcp poses, got shape {T.shape}")
+    return T
+
+
+def solve_path(robot: Robot, T_world_tcp: npt.ArrayLike, q_seed: npt.ArrayLike | None = None,
+               free_spin: bool = False, settings: IKSettings | None = None) -> IKPathResult:
+    """Joint path (M, n) [rad] for the TCP poses T_world_tcp (M, 4, 4) of one pass.
+
+    q_seed: (n,) joint angles [rad] to stay close to (e.g. the end of the previous pass).
+    free_spin: constrain only the spray axis (TCP z), not the rotation about it.
+    Unreachable poses get a best-effort q and are flagged in `result.reachability`.
+    """
+    s = settings or IKSettings()
+    T = _check_path(robot, T_world_tcp)
+    if q_seed is not None:
+        q_seed = robot.check_q(q_seed)
+    M, n = len(T), robot.nq
+    q = np.empty((M, n))
+    branch = -1
+    if robot.opw is not None:
+        ref = q_seed if q_seed is not None else robot.q_home
+        Qc, _, within = opw_branches(robot, T, ref)
+        branch = choose_branch(robot, Qc, within, q_seed, s)
+        Qb, ok = Qc[branch], within[branch]
+        q_prev = Qb[int(np.argmax(ok))] if ok.any() else np.asarray(ref, float)
+        for i in range(M):
+            if ok[i] and not free_spin:
+                qi, conv = dls(robot, T[i], Qb[i], max_iters=s.warm_iters, settings=s)
+            else:
+                start = Qb[i] if (ok[i] and i == 0) else q_prev
+                qi, conv = dls(robot, T[i], start, free_spin=free_spin,
+                               max_iters=s.warm_iters, settings=s)
+                if not conv and ok[i]:
+                    qi, conv = dls(robot, T[i], Qb[i], free_spin=free_spin,
+                                   max_iters=s.warm_iters, settings=s)
+            q[i] = q_prev = qi
+        method = "opw+dls"
+    else:
+        q_prev, _ = cold_start(robot, T[0], q_seed, free_spin=free_spin, settings=s)
+        q[0] = q_prev
+        for i in range(1, M):
+            q_prev, _ = dls(robot, T[i], q_prev, free_spin=free_spin, max_iters=s.warm_iters,
+                            settings=s)
+            q[i] = q_prev
+        method = "dls"
+    report = ReachabilityReport.measure(robot, q, T, free_spin=free_spin,
+                                        thresholds=s.thresholds())
+    return IKPathResult(q=q, reachability=report, branch=branch, method=method)
+
+
+def solve_paths(robot: Robot, paths: list[npt.ArrayLike], q_seed: npt.ArrayLike | None = None,
+                free_spin: bool = False, settings: IKSettings | None = None
+                ) -> list[IKPathResult]:
+    """`solve_path` for each pass in order; each pass is seeded with the end of the previous one.
+
+    The combined report: `ReachabilityReport.concatenate([r.reachability for r in results])`.
+    """
+    results = []
+    seed = q_seed
+    for T in paths:
+        res = solve_path(robot, T, q_seed=seed, free_spin=free_spin, settings=settings)
+        results.append(res)
+        seed = res.q[-1]
+    return results
+
+
+def combined_report(results: list[IKPathResult]) -> ReachabilityReport:
+    """One report over the passes of `solve_paths` (pass k = results[k])."""
+    return ReachabilityReport.concatenate([r.reachability for r in results])
