@@ -1,0 +1,542 @@
+"""Algorithm 1 of the paper: start curve, offsets within the surface at optimized index widths,
+per-pass speed optimization, assembled into a `CoveragePlan`.
+
+    select the start curve (§2.3); optimize its speed (§3)
+    repeat: offset the latest pass to its right at the index width of §4; optimize its speed
+    until the offset lies completely outside the surface
+    the same to the left of the start curve
+
+Index widths: planar surfaces use the Fig. 5 rule (`planar_index_width`, one width for all
+passes). Curved surfaces (extruded or not) use markers along the current pass spaced by its total
+curvature; at each marker the surface is approximated by the extrusion of the marker's indexing
+curve and the brute-force search over n future passes (eq. 3) gives the best σ/μ per candidate
+width; the paper's constant-index restriction keeps the widths feasible at every marker, and the
+cost penalizes small widths and |w0 − w−1|. The new pass is the offset of every sample of the
+current pass by w0 along its indexing curve (geodesic), continued within the surface to the
+boundary and beyond it by `overspray_m` along the tangent. After the last pass that touches the
+surface, the first offset that lies completely outside is kept as a sideways overspray pass
+(`edge_passes`), painted over the virtual extension of the surface.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+import numpy as np
+
+from planning.applicator import Applicator
+from planning.errors import PlanError
+from planning.index_width import (
+    WidthSearch,
+    choose_constant_width,
+    cross_profiles,
+    planar_index_width,
+    search_range,
+    search_widths,
+)
+from planning.offset import (
+    IndexingCurve,
+    SurfaceGeometry,
+    arc_length,
+    check_offset_order,
+    curve_through,
+    geodesic_curvature,
+    indexing_curves,
+    resample,
+    tangents,
+    walk,
+)
+from planning.plan import CoveragePlan, PassPlan
+from planning.speed_qp import SpeedSettings, SubOffsetBand, optimize_pass_speed
+from planning.start_curve import select_start_curve
+
+#: A surface whose principal curvatures stay below this everywhere is planar [1/m] (a 1 km
+#: radius; the discrete curvature of a flat grid is ~1e-12).
+PLANAR_CURVATURE_1_M = 1e-3
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """Settings of Algorithm 1 (all SI).
+
+    u_max: largest acceptable σ/μ on an optimization profile (fraction; the paper uses 0.04).
+    overspray_m: each pass continues this far beyond the surface boundary along its tangent [m].
+    v_nominal_m_s: constant start speed of every pass; it sets the film thickness [m/s].
+    v_min_m_s / v_max_m_s: TCP speed bounds of the speed QP [m/s].
+    a_max_m_s2: TCP acceleration bound of the QP's linearized constraint [m/s²].
+    n_knots: optimized speed knots per pass (slowness interpolated linearly between them).
+    w_min_m / w_max_m / w_res_m: index-width search range SR and its resolution [m].
+    n_future: future passes considered in the extruded / curved search (the paper's n = 4).
+    future_grid_n: widths tried for each future pass after the candidate (evenly spread over
+        SR, ends included): the brute force costs future_grid_n^(n_future − 1) per candidate.
+    width_change_weight: weight of |w0 − w−1| / w_max against w_max / w0 in the width cost.
+    orientation: "auto" (minimal altitude), "zero-curvature", "max-curvature", or the angle of
+        the pass direction about the average normal from the part x axis [rad].
+    start_position: None (curvature divider / area median) or fraction in [0, 1] of the altitude.
+    optimize_speed: run the speed QP on every pass (False: constant v_nominal).
+    sample_spacing_m: spacing of the TCP samples along passes and of the offset computation [m].
+    band_curves: J sub-offset curves of the speed band (odd; curve 0 is the pass itself).
+    band_half_width: the band spans ± this fraction of the local index width.
+    marker_turn_rad / marker_spacing_m: a marker every this much turning of the pass tangent
+        plus every this much arc length (paper §4.3: markers spaced by total curvature).
+    max_markers: at most this many markers per pass.
+    profile_spacing_m: spacing of the optimization-profile points on indexing curves [m].
+    edge_passes: keep the first offset that lies completely outside as a sideways overspray pass.
+    max_passes: refuse to plan more passes than this (a guard against a runaway offset loop).
+    """
+
+    u_max: float = 0.04
+    overspray_m: float = 0.15
+    v_nominal_m_s: float = 0.5
+    v_min_m_s: float = 0.2
+    v_max_m_s: float = 1.0
+    a_max_m_s2: float = 5.0
+    n_knots: int = 24
+    w_min_m: float = 0.10
+    w_max_m: float = 0.45
+    w_res_m: float = 0.01
+    n_future: int = 4
+    future_grid_n: int = 6
+    width_change_weight: float = 1.0
+    orientation: float | str = "auto"
+    start_position: float | None = None
+    optimize_speed: bool = True
+    sample_spacing_m: float = 0.02
+    band_curves: int = 5
+    band_half_width: float = 0.5
+    marker_turn_rad: float = 0.25
+    marker_spacing_m: float = 0.4
+    max_markers: int = 7
+    profile_spacing_m: float = 0.01
+    edge_passes: bool = True
+    max_passes: int = 200
+
+    def __post_init__(self) -> None:
+        positive = ("u_max", "v_nominal_m_s", "v_min_m_s", "v_max_m_s", "a_max_m_s2", "w_min_m",
+                    "w_max_m", "w_res_m", "sample_spacing_m", "marker_turn_rad",
+                    "marker_spacing_m", "profile_spacing_m")
+        for name in positive:
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
+                    or v <= 0:
+                raise PlanError(f"PlannerSettings.{name} = {v!r} must be a finite number > 0")
+        for name in ("overspray_m", "width_change_weight", "band_half_width"):
+            v = getattr(self, name)
+            if not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+                raise PlanError(f"PlannerSettings.{name} = {v!r} must be a finite number >= 0")
+        for name, lo in (("n_knots", 2), ("n_future", 1), ("future_grid_n", 1),
+                         ("band_curves", 1), ("max_markers", 1), ("max_passes", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise PlanError(f"PlannerSettings.{name} = {v!r} must be an int >= {lo}")
+        if self.band_curves % 2 == 0:
+            raise PlanError(f"PlannerSettings.band_curves = {self.band_curves} must be odd "
+                            "(the pass itself plus pairs on both sides)")
+        if not self.v_min_m_s <= self.v_nominal_m_s <= self.v_max_m_s:
+            raise PlanError("PlannerSettings: need v_min_m_s <= v_nominal_m_s <= v_max_m_s")
+        if self.w_min_m > self.w_max_m:
+            raise PlanError("PlannerSettings: w_min_m > w_max_m; give w_min <= w_max")
+        search_range(self.w_min_m, self.w_max_m, self.w_res_m)
+        o = self.orientation
+        if isinstance(o, str):
+            if o not in ("auto", "zero-curvature", "max-curvature"):
+                raise PlanError(f"PlannerSettings.orientation = {o!r}: use 'auto', "
+                                "'zero-curvature', 'max-curvature' or an angle [rad]")
+        elif isinstance(o, bool) or not isinstance(o, int | float) or not math.isfinite(o):
+            raise PlanError(f"PlannerSettings.orientation = {o!r} must be a string or an angle")
+        p = self.start_position
+        if p is not None and not (isinstance(p, int | float) and 0.0 <= p <= 1.0):
+            raise PlanError(f"PlannerSettings.start_position = {p!r} must be None or in [0, 1]")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict of every field."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> PlannerSettings:
+        """Inverse of `to_dict`; unknown keys raise PlanError."""
+        names = {f.name for f in fields(cls)}
+        extra = set(d) - names
+        if extra:
+            raise PlanError(f"unknown planner settings {sorted(extra)}; valid: {sorted(names)}")
+        return cls(**d)
+
+    def speed_settings(self) -> SpeedSettings:
+        """The speed-QP settings these planner settings imply."""
+        return SpeedSettings(v_nominal_m_s=self.v_nominal_m_s, v_min_m_s=self.v_min_m_s,
+                             v_max_m_s=self.v_max_m_s, a_max_m_s2=self.a_max_m_s2,
+                             n_knots=self.n_knots)
+
+
+@dataclass(eq=False)
+class _PassGeom:
+    """A pass in the surface before timing: foot points (on-part core with in-surface
+    extensions), normals, on_part flags, side index, width from its predecessor."""
+
+    foot: np.ndarray
+    normals: np.ndarray
+    on_part: np.ndarray
+    side: int
+    width_m: float
+    edge: bool = False
+    curves: list[IndexingCurve | None] | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def _mirror(c: IndexingCurve | None) -> IndexingCurve | None:
+    if c is None:
+        return None
+    return IndexingCurve(c.points[::-1].copy(), c.normals[::-1].copy(), -c.s[::-1])
+
+
+class _Planner:
+    """Algorithm 1 state for one surface (mesh connectivity, cross-profile cache)."""
+
+    def __init__(self, surface: Any, app: Applicator, settings: PlannerSettings) -> None:
+        self.surface = surface
+        self.app = app
+        self.st = settings
+        self.geom = SurfaceGeometry.from_surface(surface)
+        self.widths = search_range(settings.w_min_m, settings.w_max_m, settings.w_res_m)
+        k = max(1, settings.future_grid_n)
+        self.future = np.unique(self.widths[np.rint(np.linspace(0, len(self.widths) - 1, k))
+                                            .astype(int)])
+        r = app.footprint_radius_m
+        step = settings.w_res_m
+        reach = settings.w_max_m + r + step
+        self.g0 = int(np.ceil(reach / step))
+        self.gun_s = (np.arange(2 * self.g0 + 1) - self.g0) * step
+        self.point_s = np.arange(-settings.w_max_m, settings.w_max_m + 1e-9,
+                                 settings.profile_spacing_m)
+        self.cache: dict[bytes, np.ndarray] = {}
+        self.cache_hits = 0
+        self.diag = float(np.linalg.norm(np.ptp(surface.vertices, axis=0)))
+
+    # --- geometry ---------------------------------------------------------------------------
+    def extend_in_surface(self, foot: np.ndarray, normals: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """Continue a pass at its last point along the normal section containing its tangent
+        until the surface boundary; returns the added points (K, 3) and normals (excluding the
+        end point)."""
+        sp = self.st.sample_spacing_m
+        s = arc_length(foot)
+        back = np.interp(s[-1] - min(2 * sp, s[-1]), s, np.arange(len(s)))
+        j = int(np.floor(back))
+        t = _unit(foot[-1] - foot[j])
+        n = normals[-1]
+        t = _unit(t - (t @ n) * n)
+        c = curve_through(self.geom, foot[-1], np.cross(t, n), t)
+        if c is None or c.s_max <= 0.5 * sp:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        keep = (c.s > 1e-6) & (c.s <= self.diag)
+        return c.points[keep], c.normals[keep]
+
+    def build_pass(self, foot: np.ndarray, normals: np.ndarray, inside: np.ndarray,
+                   extend: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Trim to the first..last inside sample, extend both ends within the surface, resample
+        at the sample spacing. Returns foot (M, 3), normals (M, 3), on_part (M,)."""
+        ok = np.all(np.isfinite(foot), axis=1)
+        foot, normals, inside = foot[ok], normals[ok], inside[ok]
+        idx = np.flatnonzero(inside)
+        if extend and len(idx):
+            foot = foot[idx[0]:idx[-1] + 1]
+            normals = normals[idx[0]:idx[-1] + 1]
+            inside = inside[idx[0]:idx[-1] + 1]
+        if extend and len(foot) >= 2:
+            tail_p, tail_n = self.extend_in_surface(foot, normals)
+            head_p, head_n = self.extend_in_surface(foot[::-1], normals[::-1])
+            foot = np.concatenate([head_p[::-1], foot, tail_p])
+            normals = np.concatenate([head_n[::-1], normals, tail_n])
+            inside = np.concatenate([np.ones(len(head_p), bool), inside,
+                                     np.ones(len(tail_p), bool)])
+        if len(foot) < 2 or arc_length(foot)[-1] < self.st.sample_spacing_m:
+            raise PlanError("an offset pass degenerated to a point; reduce w_max_m or check the "
+                            "surface for narrow tips")
+        return resample(foot, normals, self.st.sample_spacing_m, inside)
+
+    def curves_of(self, p: _PassGeom) -> list[IndexingCurve | None]:
+        if p.curves is None:
+            t = tangents(p.foot)
+            curves = indexing_curves(self.geom, p.foot, t, p.normals)
+            p.curves = [c if ok else None for c, ok in zip(curves, p.on_part, strict=True)]
+        return p.curves
+
+    # --- index width --------------------------------------------------------------------------
+    def markers(self, p: _PassGeom, valid: np.ndarray) -> np.ndarray:
+        """Indices of marker samples: equal steps of turning/marker_turn + length/spacing."""
+        idx = np.flatnonzero(valid)
+        foot = p.foot[idx]
+        s = arc_length(foot)
+        t = tangents(foot)
+        turn = np.concatenate([[0.0], np.cumsum(np.arccos(np.clip(
+            np.einsum("ij,ij->i", t[1:], t[:-1]), -1.0, 1.0)))])
+        c = turn / self.st.marker_turn_rad + s / self.st.marker_spacing_m
+        n = int(np.clip(np.ceil(c[-1]), 1, self.st.max_markers))
+        targets = (np.arange(n) + 0.5) / n * c[-1]
+        return np.unique(idx[np.clip(np.searchsorted(c, targets), 0, len(idx) - 1)])
+
+    def profile(self, curve: IndexingCurve, travel: np.ndarray) -> np.ndarray:
+        """Cross-profile table of a marker, cached by the curve's shape in its local frame."""
+        pts, nrm, _ = curve.sample(self.gun_s)
+        o, _, _ = curve.sample(np.array([0.0]))
+        n0 = nrm[self.g0]
+        t = _unit(travel - (travel @ n0) * n0)
+        frame = np.stack([t, np.cross(n0, t), n0])
+        key = np.concatenate([np.rint((pts - o[0]) @ frame.T / 1e-4),
+                              np.rint(nrm @ frame.T / 1e-4)]).astype(np.int64).tobytes()
+        film = self.cache.get(key)
+        if film is None:
+            film = cross_profiles(self.app, curve, t, self.gun_s, self.point_s)
+            self.cache[key] = film
+        else:
+            self.cache_hits += 1
+        return film
+
+    def choose_width(self, p: _PassGeom, curves: list[IndexingCurve | None],
+                     known_s: list[float], w_prev: float | None) -> tuple[float, dict[str, Any]]:
+        valid = np.array([c is not None for c in curves])
+        if not valid.any():
+            raise PlanError("no indexing curve could be built on the current pass; the surface "
+                            "may be too coarse for the sample spacing (refine the mesh)")
+        marks = self.markers(p, valid)
+        t_all = tangents(p.foot)
+        searches: list[WidthSearch] = []
+        for i in marks:                            # a few markers per pass
+            c = curves[int(i)]
+            assert c is not None
+            film = self.profile(c, t_all[int(i)])
+            searches.append(search_widths(film, self.st.w_res_m, self.g0, self.point_s,
+                                          known_s, self.widths, self.future, self.st.n_future,
+                                          w_prev))
+        w0, feasible, worst = choose_constant_width(searches, self.st.u_max, w_prev,
+                                                    self.st.width_change_weight)
+        return w0, {"rule": "constant-index over markers", "markers": int(len(marks)),
+                    "feasible": feasible, "worst_marker_nsd_pct": 100.0 * worst}
+
+
+def _is_planar(surface: Any) -> bool:
+    return bool(np.max(np.abs(surface.principal_curvatures)) < PLANAR_CURVATURE_1_M)
+
+
+def plan_coverage(surface: Any, applicator: Applicator,
+                  settings: PlannerSettings | None = None) -> CoveragePlan:
+    """Plan uniform coverage of `surface` with `applicator` (paper Algorithm 1).
+
+    surface: a `planning.surface.Surface` in its part frame; applicator: the deposition model;
+    settings: `PlannerSettings` (defaults when None).
+    Returns a `CoveragePlan` in the part frame: passes in execution order (side −k … +k,
+    alternating direction), TCP at standoff along the normal, speeds and times, on_part /
+    paint_on flags, index widths, the start-curve rule and the settings (with a `report` entry:
+    per-pass width choice, markers, speed-QP status, planning time).
+    Raises PlanError when an offset self-intersects or the loop does not terminate.
+    """
+    st = PlannerSettings() if settings is None else settings
+    t_start = time.perf_counter()
+    pl = _Planner(surface, applicator, st)
+    sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
+                            geom=pl.geom)
+    planar = _is_planar(surface)
+    planar_w = None
+    if planar:
+        pw = planar_index_width(applicator, st.w_min_m, st.w_max_m, st.w_res_m, st.u_max)
+        planar_w = pw
+    start = _PassGeom(sc.points, sc.normals, np.ones(len(sc.points), bool), 0, float("nan"))
+    start.info = {"rule": "start curve"}
+    passes: dict[int, _PassGeom] = {0: start}
+    right_widths: list[float] = []
+    for sign in (1, -1):
+        cur = start
+        widths_this_side: list[float] = []
+        for k in range(1, st.max_passes + 1):
+            curves = pl.curves_of(cur)
+            sweep_curves = curves if sign > 0 else [_mirror(c) for c in curves]
+            # known passes (besides C0), as positions ≤ 0 in the sweep frame
+            if widths_this_side:
+                known = list(-np.cumsum(widths_this_side[::-1]))
+                w_prev: float | None = widths_this_side[-1]
+            elif sign < 0 and right_widths:
+                known = list(-np.cumsum(right_widths))
+                w_prev = right_widths[0]
+            else:
+                known, w_prev = [], None
+            if planar_w is not None:
+                w0 = planar_w.width_m
+                info = {"rule": "planar (Fig. 5)", "feasible": planar_w.feasible,
+                        "nsd_pct": float(100 * np.interp(w0, planar_w.widths_m, planar_w.nsd))}
+            else:
+                w0, info = pl.choose_width(cur, sweep_curves, known, w_prev)
+            pts, nrm, inside = walk(sweep_curves, w0)
+            ok = np.all(np.isfinite(pts), axis=1)
+            check_offset_order(cur.foot[ok], pts[ok],
+                               f"offset {sign * k:+d} of the {surface.name} plan")
+            side = sign * k
+            if not inside.any():
+                if st.edge_passes and ok.sum() >= 2:
+                    foot, normals, on_part = pl.build_pass(pts, nrm, np.zeros(len(pts), bool),
+                                                           extend=False)
+                    edge = _PassGeom(foot, normals, np.zeros(len(foot), bool), side, w0,
+                                     edge=True)
+                    edge.info = dict(info, edge=True)
+                    passes[side] = edge
+                break
+            foot, normals, on_part = pl.build_pass(pts, nrm, inside)
+            new = _PassGeom(foot, normals, on_part, side, w0)
+            new.info = info
+            passes[side] = new
+            widths_this_side.append(w0)
+            cur = new
+        else:
+            raise PlanError(f"Algorithm 1 did not leave the surface after {st.max_passes} passes; "
+                            "raise w_min_m or max_passes")
+        if sign > 0:
+            right_widths = widths_this_side
+    plan_passes = _time_passes(pl, passes, st)
+    report = {
+        "start_rule": sc.rule,
+        "planar": planar,
+        "planar_width_m": None if planar_w is None else planar_w.width_m,
+        "cross_profiles_computed": len(pl.cache),
+        "cross_profile_cache_hits": pl.cache_hits,
+        "planning_time_s": time.perf_counter() - t_start,
+        "passes": [dict(side=p.side, **_jsonable(passes[p.side].info)) for p in plan_passes],
+    }
+    settings_dict = st.to_dict()
+    settings_dict["report"] = report
+    return CoveragePlan(surface_name=surface.name, applicator=applicator,
+                        passes=tuple(plan_passes), start_rule=sc.rule, settings=settings_dict)
+
+
+def _jsonable(d: dict[str, Any]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        if isinstance(v, np.generic):
+            v = v.item()
+        if isinstance(v, float) and not math.isfinite(v):
+            v = None
+        out[k] = v
+    return out
+
+
+def _band(pl: _Planner, p: _PassGeom, half_width_m: float) -> SubOffsetBand | None:
+    """Sub-offset curves of a pass: curve 0 its on-part foot points, then ± offsets walked along
+    the indexing curves; only points inside the surface, gaps split off."""
+    curves = pl.curves_of(p)
+    j = pl.st.band_curves
+    offs = np.linspace(-half_width_m, half_width_m, j)
+    offs = np.concatenate([[0.0], offs[np.abs(offs) > 1e-12]])
+    pts_l, nrm_l, len_l = [], [], []
+    for d in offs:                              # J ≤ ~7 curves
+        if d == 0.0:
+            pts, nrm, inside = p.foot, p.normals, p.on_part.copy()
+        else:
+            pts, nrm, inside = walk(curves, d)
+        keep = inside & np.all(np.isfinite(pts), axis=1)
+        pts, nrm = pts[keep], nrm[keep]
+        if len(pts) < 2:
+            if d == 0.0:
+                return None
+            continue
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        good = (seg > 1e-9) & (seg < 3.0 * pl.st.sample_spacing_m)
+        if good.sum() < 1:
+            continue
+        mid = 0.5 * (pts[1:] + pts[:-1])[good]
+        mn = _unit(nrm[1:] + nrm[:-1])[good]
+        pts_l.append(mid)
+        nrm_l.append(mn)
+        len_l.append(seg[good])
+    return SubOffsetBand(tuple(pts_l), tuple(nrm_l), tuple(len_l))
+
+
+def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
+                 st: PlannerSettings) -> list[PassPlan]:
+    """Add overspray, TCP poses, speeds (QP or constant), then order for execution."""
+    app = pl.app
+    h = app.standoff_m
+    sides = sorted(passes)
+    out: list[PassPlan] = []
+    speed_settings = st.speed_settings()
+    for order, side in enumerate(sides):
+        p = passes[side]
+        foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
+                                                 st.overspray_m, st.sample_spacing_m)
+        pos = foot + h * normals
+        axes = -normals
+        seg = np.diff(pos, axis=0)
+        seg_len = np.linalg.norm(seg, axis=1)
+        if np.any(seg_len <= 0):
+            raise PlanError(f"pass {side} has repeated TCP samples; refine the mesh")
+        travel = tangents(pos)
+        travel = _unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
+        # neighbours' widths for the band and the report
+        nb = [w for w in (p.width_m, passes[side + 1].width_m if side + 1 in passes else np.nan)
+              if np.isfinite(w)]
+        w_local = float(np.mean(nb)) if nb else st.w_max_m
+        nsd_c = nsd_o = float("nan")
+        times_seg = seg_len / st.v_nominal_m_s
+        if st.optimize_speed and not p.edge:
+            band = _band(pl, p, st.band_half_width * w_local)
+            if band is not None:
+                mid = 0.5 * (pos[1:] + pos[:-1])
+                ax = _unit(0.5 * (axes[1:] + axes[:-1]))
+                tr = _unit(seg - np.sum(seg * ax, axis=1, keepdims=True) * ax)
+                res = optimize_pass_speed(app, mid, ax, tr, seg_len, band, speed_settings)
+                times_seg = np.asarray(res.segment_times_s, float)
+                nsd_c, nsd_o = float(res.nsd_constant_pct), float(res.nsd_optimized_pct)
+                p.info["speed_status"] = res.status
+        elif p.edge:
+            p.info["speed_status"] = "constant: edge pass"
+        else:
+            p.info["speed_status"] = "constant: optimize_speed off"
+        kg = geodesic_curvature(p.foot, p.normals)
+        kg_max = float(np.max(np.abs(kg[p.on_part]))) if p.on_part.any() else 0.0
+        p.info["max_geodesic_curvature_1_m"] = kg_max
+        if order % 2 == 1:                      # boustrophedon: every other pass reversed
+            pos, axes, travel = pos[::-1], axes[::-1], -travel[::-1]
+            on_part, times_seg, seg_len = on_part[::-1], times_seg[::-1], seg_len[::-1]
+        v_seg = seg_len / times_seg
+        speeds = np.empty(len(pos))
+        speeds[0], speeds[-1] = v_seg[0], v_seg[-1]
+        speeds[1:-1] = 0.5 * (v_seg[1:] + v_seg[:-1])
+        times = np.concatenate([[0.0], np.cumsum(times_seg)])
+        out.append(PassPlan(
+            positions=np.ascontiguousarray(pos), spray_axes=np.ascontiguousarray(axes),
+            travel_dirs=np.ascontiguousarray(travel), speeds_m_s=speeds, times_s=times,
+            on_part=np.ascontiguousarray(on_part), paint_on=np.ones(len(pos), bool), side=side,
+            index_width_m=p.width_m, max_geodesic_curvature_1_m=kg_max,
+            nsd_constant_pct=nsd_c, nsd_optimized_pct=nsd_o))
+    return out
+
+
+def _with_overspray(foot: np.ndarray, normals: np.ndarray, on_part: np.ndarray,
+                    overspray_m: float, spacing_m: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Extend a pass by `overspray_m` at both ends along its end tangents (off the surface; the
+    normal stays the end normal so the TCP keeps standoff along it)."""
+    if overspray_m <= 0:
+        return foot, normals, on_part
+    n_ext = int(np.ceil(overspray_m / spacing_m - 1e-9))
+    d = np.arange(1, n_ext + 1) * (overspray_m / n_ext)
+    s = arc_length(foot)
+    span = min(2 * spacing_m, s[-1])
+
+    def end_tangent(f: np.ndarray, ss: np.ndarray) -> np.ndarray:
+        back = np.array([np.interp(ss[-1] - span, ss, f[:, k]) for k in range(3)])
+        return _unit(f[-1] - back)
+
+    t1 = end_tangent(foot, s)
+    t0 = end_tangent(foot[::-1], s[-1] - s[::-1])
+    head = foot[0] + d[::-1, None] * t0
+    tail = foot[-1] + d[:, None] * t1
+    return (np.concatenate([head, foot, tail]),
+            np.concatenate([np.tile(normals[0], (n_ext, 1)), normals,
+                            np.tile(normals[-1], (n_ext, 1))]),
+            np.concatenate([np.zeros(n_ext, bool), on_part, np.zeros(n_ext, bool)]))
