@@ -1,0 +1,552 @@
+"""One continuous paint program: TOPP-RA paint passes joined by ruckig moves.
+
+`build_program(robot, plan, T_world_part, settings)`:
+
+1. IK of every pass (`robots.ik`, unless `ik_results` are given), joint path q(s) over the
+   planned TCP arc length s as a C² cubic spline, refined with extra knots until the FK of the
+   spline stays within `path_tolerance_m` of the planned TCP polyline.
+2. TOPP-RA on each pass (`sim.time_law`): joint velocity and acceleration limits (with margins),
+   TCP speed ≤ planned speed, TCP acceleration ≤ `tcp_a_max_m_s2`. Passes start and end at the
+   planned speed (the TCP is already moving when the brush opens), lowered only where the limits
+   forbid it.
+3. ruckig moves (`sim.moves`), jerk-limited and time-optimal, that join the full joint state
+   (q, q̇, q̈) of their neighbours: approach home → first pass, a turn-around between passes, and
+   retract last pass → home. Approach and retract go through a via pose backed off from the pass
+   end along the spray axis (−z of the tool) by a clearance, at rest. Turn-arounds join the two
+   pass ends directly in joint space by default (both at standoff, a few cm apart; the TCP dips
+   toward the part by at most a few mm, measured and stored in `meta`; `sim.execute` checks
+   collisions); `turnaround_clearance_m` > 0 adds a backed-off via pose at rest instead.
+4. Sampling at the control rate on one global clock; each segment is evaluated analytically, so
+   position, velocity and acceleration are continuous at every junction.
+
+Speed following: where the planned speed can be followed it is (TOPP-RA is time-optimal and the
+planned speed is its velocity bound); where a limit binds, the runs of samples slower than
+planned by more than `slowdown_threshold` are reported in `JointTrajectory.slowdowns` with the
+limits that were active there.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, fields
+from typing import Any, Protocol
+
+import numpy as np
+import numpy.typing as npt
+import pinocchio as pin
+
+from planning.plan import CoveragePlan
+from sim.joint_trajectory import (
+    APPROACH,
+    PAINT,
+    RETRACT,
+    TURNAROUND,
+    JointTrajectory,
+    TrajectoryError,
+)
+from sim.moves import JointMove, plan_move
+from sim.time_law import JointPath, PassTimeLaw, parameterize_pass, tcp_path_derivatives
+
+# An IK path farther than this from the plan is not a pass the robot can paint [m]; beyond it
+# `build_program` refuses instead of timing a wrong path (the tolerance proper is 0.5 mm).
+_GROSS_IK_ERROR_M = 0.01
+
+
+class RobotLike(Protocol):
+    """What `build_program` needs of a robot (`robots.Robot` satisfies it)."""
+
+    name: str
+    joint_names: tuple[str, ...]
+    q_lower: np.ndarray
+    q_upper: np.ndarray
+    v_max: np.ndarray
+    a_max: np.ndarray
+    q_home: np.ndarray
+
+    @property
+    def nq(self) -> int: ...
+
+    def fk(self, q: npt.ArrayLike) -> np.ndarray: ...
+
+    def fk_many(self, Q: npt.ArrayLike) -> np.ndarray: ...
+
+    def jacobian(self, q: npt.ArrayLike) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class TrajectorySettings:
+    """Settings of the time law and the moves between passes (SI units)."""
+
+    control_rate_hz: float = 1000.0
+    """Sample rate of the program [Hz] (the controller's servo rate)."""
+    tcp_a_max_m_s2: float = 24.0
+    """TCP acceleration limit on paint passes [m/s²]; ABB quotes up to 24 m/s² for its paint
+    robots (IRB 5500 FlexPainter datasheet)."""
+    velocity_margin: float = 0.95
+    """Fraction of each joint's v_max the program may use (headroom for the servo)."""
+    acceleration_margin: float = 0.90
+    """Fraction of each joint's a_max the program may use; the sampled output is re-measured and
+    proved to stay within it."""
+    jerk_ramp_s: float = 0.08
+    """Joint jerk limit as a ramp time: j_max = margin·a_max / jerk_ramp_s [rad/s³]. No public
+    figure exists; 80 ms from zero to full acceleration is typical of industrial arm motion
+    profiles (≈ 12·a_max, e.g. 70-370 rad/s³ for the ABB-style arm)."""
+    q_home: tuple[float, ...] | None = None
+    """Home joint position [rad] where the program starts and ends (None: the robot's)."""
+    approach_clearance_m: float = 0.10
+    """Back-off of the via pose before the first pass, along −z of the tool [m] (0: none)."""
+    retract_clearance_m: float = 0.10
+    """Back-off of the via pose after the last pass, along −z of the tool [m] (0: none)."""
+    turnaround_clearance_m: float = 0.0
+    """Back-off of a via pose at rest between passes [m]; 0 joins the passes directly."""
+    grid_spacing_m: float = 0.01
+    """Largest TOPP-RA grid interval along the pass [m] (every plan sample is a grid point)."""
+    path_tolerance_m: float = 0.5e-3
+    """Largest FK deviation of the joint spline from the planned TCP path [m]."""
+    slowdown_threshold: float = 0.005
+    """Relative speed deficit below planned that counts as a slowdown (0.005 = 0.5 %)."""
+    join_at_speed: bool = True
+    """Passes start and end at the planned TCP speed (False: at rest)."""
+    ik_free_spin: bool = False
+    """Let IK rotate the tool about its spray axis (bell atomizers are symmetric)."""
+
+    def __post_init__(self) -> None:
+        checks = [
+            (self.control_rate_hz > 0, "control_rate_hz must be positive [Hz]"),
+            (self.tcp_a_max_m_s2 > 0, "tcp_a_max_m_s2 must be positive [m/s²]"),
+            (0 < self.velocity_margin <= 1, "velocity_margin must be in (0, 1]"),
+            (0 < self.acceleration_margin <= 1, "acceleration_margin must be in (0, 1]"),
+            (self.jerk_ramp_s > 0, "jerk_ramp_s must be positive [s]"),
+            (self.approach_clearance_m >= 0, "approach_clearance_m must be ≥ 0 [m]"),
+            (self.retract_clearance_m >= 0, "retract_clearance_m must be ≥ 0 [m]"),
+            (self.turnaround_clearance_m >= 0, "turnaround_clearance_m must be ≥ 0 [m]"),
+            (self.grid_spacing_m > 0, "grid_spacing_m must be positive [m]"),
+            (self.path_tolerance_m > 0, "path_tolerance_m must be positive [m]"),
+            (0 < self.slowdown_threshold < 1, "slowdown_threshold must be in (0, 1)"),
+        ]
+        for ok, msg in checks:
+            if not ok:
+                raise TrajectoryError(f"invalid TrajectorySettings: {msg}")
+        if self.q_home is not None:
+            object.__setattr__(self, "q_home", tuple(float(x) for x in self.q_home))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe dict (round-trips through `from_dict`)."""
+        d = asdict(self)
+        d["q_home"] = None if self.q_home is None else list(self.q_home)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TrajectorySettings:
+        """Settings from `to_dict` output; unknown keys raise `TrajectoryError`."""
+        names = {f.name for f in fields(cls)}
+        bad = sorted(set(d) - names)
+        if bad:
+            raise TrajectoryError(f"unknown TrajectorySettings keys {bad}; valid: {sorted(names)}")
+        return cls(**d)
+
+
+@dataclass
+class _Segment:
+    kind: int
+    duration_s: float
+    pass_index: int = -1
+    move: JointMove | None = None
+    law: PassTimeLaw | None = None
+
+
+def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayLike,
+                  settings: TrajectorySettings | None = None,
+                  ik_results: Sequence[Any] | None = None) -> JointTrajectory:
+    """The whole paint program of `plan` on `robot`, sampled at the control rate.
+
+    robot: a `robots.Robot` (or anything with its kinematic interface, see `RobotLike`).
+    plan: coverage plan in the part frame.
+    T_world_part: (4, 4) pose of the part in the world.
+    settings: time-law settings (None: defaults).
+    ik_results: per pass, the IK joint path (M_i, n) [rad] or an object with `.q` (an
+        `IKPathResult`); None runs `robots.ik` here.
+    Returns a `JointTrajectory` whose `meta` holds stage timings [s], the limits used, and the
+    measured path deviation and turn-around dip.
+    """
+    settings = settings or TrajectorySettings()
+    T_wp = np.asarray(T_world_part, float)
+    if T_wp.shape != (4, 4) or not np.all(np.isfinite(T_wp)):
+        raise TrajectoryError("T_world_part must be a finite (4, 4) pose")
+    n = int(robot.nq)
+    v_max = np.asarray(robot.v_max, float)
+    a_max = np.asarray(robot.a_max, float)
+    v_lim = settings.velocity_margin * v_max
+    a_lim = settings.acceleration_margin * a_max
+    j_lim = a_lim / settings.jerk_ramp_s
+    q_home = np.asarray(robot.q_home if settings.q_home is None else settings.q_home, float)
+    if q_home.shape != (n,):
+        raise TrajectoryError(f"q_home must have {n} joint values [rad], got {q_home.shape}")
+    timing = {"ik": 0.0, "path": 0.0, "toppra": 0.0, "ruckig": 0.0, "sampling": 0.0}
+
+    # --- 1. IK and joint paths ------------------------------------------------------------
+    T_world_tcp = [T_wp @ plan.tcp_frames(i) for i in range(len(plan.passes))]
+    t0 = time.perf_counter()
+    q_paths = _ik_paths(robot, T_world_tcp, q_home, settings, ik_results)
+    timing["ik"] = time.perf_counter() - t0
+
+    def fk_pos(Q: np.ndarray) -> np.ndarray:
+        return robot.fk_many(Q)[:, :3, 3]
+
+    t0 = time.perf_counter()
+    paths, deviations, knot_lists = [], [], []
+    for Tw, qk in zip(T_world_tcp, q_paths, strict=True):
+        p_plan = Tw[:, :3, 3]
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p_plan, axis=0),
+                                                                 axis=1))])
+        path, dev = _refined_path(robot, fk_pos, s_plan, p_plan, qk, settings.path_tolerance_m)
+        if dev > _GROSS_IK_ERROR_M:
+            raise TrajectoryError(f"the IK joint path of pass {len(paths)} is {1e3 * dev:.1f} mm "
+                                  "off the planned TCP path; the pass is not reachable (check "
+                                  "the reachability report, move the part or the base)")
+        paths.append(path)
+        deviations.append(dev)
+        knot_lists.append(s_plan)
+    timing["path"] = time.perf_counter() - t0
+
+    # --- 2. TOPP-RA on every pass ---------------------------------------------------------
+    t0 = time.perf_counter()
+    laws: list[PassTimeLaw] = []
+    dt = 1.0 / settings.control_rate_hz
+    for p, path, s_plan in zip(plan.passes, paths, knot_lists, strict=True):
+        v_knots = np.interp(path.s_knots, s_plan, p.speeds_m_s**2) ** 0.5
+        sd_b = None if settings.join_at_speed else 0.0
+        laws.append(parameterize_pass(path, fk_pos, v_knots, v_lim, a_lim,
+                                      settings.tcp_a_max_m_s2,
+                                      grid_spacing_m=settings.grid_spacing_m,
+                                      sd_start_m_s=sd_b, sd_end_m_s=sd_b, check_dt_s=dt))
+    timing["toppra"] = time.perf_counter() - t0
+
+    # --- 3. ruckig moves --------------------------------------------------------------------
+    t0 = time.perf_counter()
+    zero = np.zeros(n)
+
+    def move(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> JointMove:
+        return plan_move(*a, *b, v_lim, a_lim, j_lim, robot.q_lower, robot.q_upper)
+
+    def ends(law: PassTimeLaw) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        _, _, q, qd, qdd = law.joint_state(np.array([0.0, law.duration_s]))
+        return (q[0], qd[0], qdd[0]), (q[1], qd[1], qdd[1])
+
+    segments: list[_Segment] = []
+
+    def add_moves(kind: int, a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...],
+                  q_via: np.ndarray | None) -> None:
+        states = [a, b] if q_via is None else [a, (q_via, zero, zero), b]
+        for x, y in zip(states[:-1], states[1:], strict=True):
+            m = move(x, y)
+            segments.append(_Segment(kind, m.duration_s, move=m))
+
+    home = (q_home, zero, zero)
+    first_start, _ = ends(laws[0])
+    via = (None if settings.approach_clearance_m == 0 else
+           _backed_off(robot, first_start[0], settings.approach_clearance_m))
+    add_moves(APPROACH, home, first_start, via)
+    for i, law in enumerate(laws):
+        segments.append(_Segment(PAINT, law.duration_s, pass_index=i, law=law))
+        _, end = ends(law)
+        if i + 1 < len(laws):
+            nxt, _ = ends(laws[i + 1])
+            via = (None if settings.turnaround_clearance_m == 0 else
+                   _backed_off(robot, 0.5 * (end[0] + nxt[0]), settings.turnaround_clearance_m))
+            add_moves(TURNAROUND, end, nxt, via)
+        else:
+            via = (None if settings.retract_clearance_m == 0 else
+                   _backed_off(robot, end[0], settings.retract_clearance_m))
+            add_moves(RETRACT, end, home, via)
+    timing["ruckig"] = time.perf_counter() - t0
+
+    # --- 4. sampling on one clock -----------------------------------------------------------
+    t0 = time.perf_counter()
+    traj = _sample(robot, plan, segments, dt, knot_lists, settings, v_lim, a_lim)
+    timing["sampling"] = time.perf_counter() - t0
+
+    dip = _turnaround_dip(traj, T_world_tcp)
+    meta = dict(traj.meta)
+    meta.update({
+        "settings": settings.to_dict(),
+        "timing_s": timing,
+        "limits": {"v_max_rad_s": v_max.tolist(), "a_max_rad_s2": a_max.tolist(),
+                   "v_used_rad_s": v_lim.tolist(), "a_used_rad_s2": a_lim.tolist(),
+                   "j_used_rad_s3": j_lim.tolist(), "tcp_a_max_m_s2": settings.tcp_a_max_m_s2},
+        "max_path_deviation_m": float(max(deviations)),
+        "turnaround_max_dip_m": dip,
+        "cycle_time_s": traj.duration_s,
+        "paint_time_s": traj.paint_time_s,
+        "planned_paint_time_s": plan.paint_time_s,
+        "versions": {"toppra": importlib.metadata.version("toppra"),
+                     "ruckig": importlib.metadata.version("ruckig")},
+    })
+    summary = tuple({**s, "max_path_deviation_m": float(d)}
+                    for s, d in zip(traj.pass_summary, deviations, strict=True))
+    return JointTrajectory(**{name: getattr(traj, name) for name in JointTrajectory._ARRAYS},
+                           robot_name=traj.robot_name, joint_names=traj.joint_names,
+                           slowdowns=traj.slowdowns, pass_summary=summary, meta=meta)
+
+
+# --- IK ------------------------------------------------------------------------------------------
+def _ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarray,
+              settings: TrajectorySettings, ik_results: Sequence[Any] | None) -> list[np.ndarray]:
+    """Joint paths (M_i, n) of every pass, from `ik_results` or `robots.ik`."""
+    n = int(robot.nq)
+    if ik_results is None:
+        from robots.ik import solve_path  # robots/ is the only IK; imported when needed
+
+        out, seed = [], q_home
+        for Tw in T_world_tcp:
+            res = solve_path(robot, Tw, q_seed=seed, free_spin=settings.ik_free_spin)
+            out.append(np.asarray(res.q, float))
+            seed = out[-1][-1]
+        ik_results = out
+    if len(ik_results) != len(T_world_tcp):
+        raise TrajectoryError(f"ik_results has {len(ik_results)} passes, the plan has "
+                              f"{len(T_world_tcp)}; solve IK for the same plan")
+    q_paths = []
+    for i, (r, Tw) in enumerate(zip(ik_results, T_world_tcp, strict=True)):
+        q = np.asarray(getattr(r, "q", r), float)
+        if q.shape != (len(Tw), n) or not np.all(np.isfinite(q)):
+            raise TrajectoryError(f"IK result of pass {i} has shape {q.shape}, expected "
+                                  f"({len(Tw)}, {n}) finite joint values")
+        q_paths.append(q)
+    return q_paths
+
+
+# --- joint path refinement -----------------------------------------------------------------------
+def _refined_path(robot: RobotLike, fk_pos: Any, s_plan: np.ndarray, p_plan: np.ndarray,
+                  q_knots: np.ndarray, tol_m: float, max_rounds: int = 4) -> tuple[JointPath,
+                                                                                   float]:
+    """Spline through the IK samples, with corrected midpoint knots where its FK strays.
+
+    Returns the path and its largest deviation [m] from the planned polyline (checked at the
+    knots and at 3 points inside every knot interval).
+    """
+    if np.any(np.diff(s_plan) <= 1e-9):
+        raise TrajectoryError("a pass repeats a TCP position (zero-length step); remove "
+                              "duplicate samples from the plan")
+    s, q = s_plan.copy(), q_knots.copy()
+    frac = np.array([0.25, 0.5, 0.75])
+    for _ in range(max_rounds + 1):
+        path = JointPath(s, q)
+        s_chk = (s[:-1, None] + np.diff(s)[:, None] * frac).ravel()
+        dev_in = np.linalg.norm(fk_pos(path(s_chk)) - _lerp_rows(s_plan, p_plan, s_chk), axis=1)
+        dev_in = dev_in.reshape(-1, len(frac)).max(axis=1)
+        dev_knots = np.linalg.norm(fk_pos(q) - _lerp_rows(s_plan, p_plan, s), axis=1)
+        dev = float(max(dev_in.max(), dev_knots.max()))
+        bad = np.flatnonzero(dev_in > 0.5 * tol_m)
+        if dev <= tol_m or len(bad) == 0 or len(s) > 8 * len(s_plan):
+            return path, dev
+        s_new = 0.5 * (s[bad] + s[bad + 1])
+        q_new = path(s_new)
+        p_target = _lerp_rows(s_plan, p_plan, s_new)
+        for k in range(len(s_new)):  # loop over a few inserted knots, not samples
+            q_new[k] = _move_tcp_to(robot, q_new[k], p_target[k])
+        s = np.concatenate([s, s_new])
+        q = np.concatenate([q, q_new])
+        order = np.argsort(s)
+        s, q = s[order], q[order]
+    return path, dev
+
+
+def _lerp_rows(x: np.ndarray, Y: np.ndarray, xq: np.ndarray) -> np.ndarray:
+    """Row-wise linear interpolation of Y (M, d) at xq (K,)."""
+    return np.column_stack([np.interp(xq, x, Y[:, k]) for k in range(Y.shape[1])])
+
+
+def _move_tcp_to(robot: RobotLike, q: np.ndarray, p_target: np.ndarray,
+                 R_target: np.ndarray | None = None, iters: int = 8) -> np.ndarray:
+    """Damped Newton steps moving the TCP to p_target (3,) [m], holding R_target (default: the
+    orientation at q). Returns the new q (n,) [rad]."""
+    q = np.array(q, float)
+    T = robot.fk(q)
+    R_target = T[:3, :3] if R_target is None else R_target
+    for _ in range(iters):
+        err = np.concatenate([p_target - T[:3, 3], pin.log3(R_target @ T[:3, :3].T)])
+        if np.linalg.norm(err) < 1e-10:
+            break
+        J = robot.jacobian(q)
+        q = q + J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(6), err)
+        T = robot.fk(q)
+    return q
+
+
+def _backed_off(robot: RobotLike, q: np.ndarray, clearance_m: float) -> np.ndarray:
+    """Joint position (n,) [rad] with the TCP moved from FK(q) by `clearance_m` along −z of the
+    tool (away from the part), same orientation."""
+    T = robot.fk(q)
+    q_via = _move_tcp_to(robot, q, T[:3, 3] - clearance_m * T[:3, 2], T[:3, :3])
+    if np.any(q_via < robot.q_lower) or np.any(q_via > robot.q_upper):
+        raise TrajectoryError("the backed-off via pose leaves the joint limits; lower the "
+                              "approach/retract/turnaround clearance")
+    return q_via
+
+
+# --- sampling and reports ------------------------------------------------------------------------
+def _sample(robot: RobotLike, plan: CoveragePlan, segments: list[_Segment], dt: float,
+            knot_lists: list[np.ndarray], settings: TrajectorySettings, v_lim: np.ndarray,
+            a_lim: np.ndarray) -> JointTrajectory:
+    n = int(robot.nq)
+    starts = np.concatenate([[0.0], np.cumsum([sg.duration_s for sg in segments])])
+    total = float(starts[-1])
+    k = int(np.ceil(total / dt - 1e-9)) + 1
+    t = np.arange(k) * dt
+    seg_of = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(segments) - 1)
+    q = np.empty((k, n))
+    qd = np.empty((k, n))
+    qdd = np.empty((k, n))
+    v_plan = np.zeros(k)
+    paint = np.zeros(k, bool)
+    pass_index = np.full(k, -1, np.int64)
+    segment = np.empty(k, np.int64)
+    s_pass = np.full(k, np.nan)
+    sd_pass = np.full(k, np.nan)
+    for j, sg in enumerate(segments):
+        idx = np.flatnonzero(seg_of == j)
+        if len(idx) == 0:
+            continue
+        tl = t[idx] - starts[j]
+        segment[idx] = sg.kind
+        if sg.move is not None:
+            q[idx], qd[idx], qdd[idx] = sg.move.sample(tl)
+            continue
+        law = sg.law
+        assert law is not None
+        s, sd, q[idx], qd[idx], qdd[idx] = law.joint_state(tl)
+        p = plan.passes[sg.pass_index]
+        s_knots = knot_lists[sg.pass_index]
+        s_pass[idx], sd_pass[idx] = s, sd
+        pass_index[idx] = sg.pass_index
+        v_plan[idx] = np.interp(s, s_knots, p.speeds_m_s**2) ** 0.5
+        # Brush on over the knot intervals whose both ends the plan marks as painted.
+        i0 = np.clip(np.searchsorted(s_knots, s, side="right") - 1, 0, len(s_knots) - 1)
+        i1 = np.minimum(i0 + 1, len(s_knots) - 1)
+        paint[idx] = p.paint_on[i0] & (p.paint_on[i1] | (s <= s_knots[i0]))
+    T = robot.fk_many(q)
+    slowdowns, summary = _speed_report(plan, segments, starts, t, s_pass, sd_pass, v_plan,
+                                       pass_index, robot, settings, v_lim, a_lim)
+    return JointTrajectory(t_s=t, q=q, qd=qd, qdd=qdd, tcp_pos_world=T[:, :3, 3],
+                           tcp_rot_world=T[:, :3, :3], v_tcp_planned=v_plan, paint_on=paint,
+                           pass_index=pass_index, segment=segment, s_pass_m=s_pass,
+                           robot_name=str(robot.name), joint_names=tuple(robot.joint_names),
+                           slowdowns=tuple(slowdowns), pass_summary=tuple(summary))
+
+
+def _speed_report(plan: CoveragePlan, segments: list[_Segment], starts: np.ndarray,
+                  t: np.ndarray, s_pass: np.ndarray, sd_pass: np.ndarray, v_plan: np.ndarray,
+                  pass_index: np.ndarray, robot: RobotLike, settings: TrajectorySettings,
+                  v_lim: np.ndarray, a_lim: np.ndarray) -> tuple[list[dict[str, Any]],
+                                                                 list[dict[str, Any]]]:
+    """Slowdown runs and per-pass speed-following summary."""
+    slowdowns: list[dict[str, Any]] = []
+    summary: list[dict[str, Any]] = []
+    names = tuple(robot.joint_names)
+
+    def fk_pos(Q: np.ndarray) -> np.ndarray:
+        return robot.fk_many(Q)[:, :3, 3]
+
+    for j, sg in enumerate(segments):
+        if sg.law is None:
+            continue
+        law, i = sg.law, sg.pass_index
+        idx = np.flatnonzero(pass_index == i)
+        s, sd = s_pass[idx], sd_pass[idx]
+        v_act = np.interp(s, law.s_grid, law.tcp_speed_scale_grid) * sd
+        deficit = 1.0 - v_act / v_plan[idx]
+        slow = deficit > settings.slowdown_threshold
+        util = _utilization(law, fk_pos, names, v_lim, a_lim, settings.tcp_a_max_m_s2)
+        runs = _runs(slow)
+        for r0, r1 in runs:
+            s0, s1 = float(s[r0]), float(s[r1 - 1])
+            g = (law.s_grid >= s0 - 1e-9) & (law.s_grid <= s1 + 1e-9)
+            gi = np.flatnonzero(g)
+            lo = max(int(gi[0]) - 1, 0) if len(gi) else int(np.searchsorted(law.s_grid, s0)) - 1
+            hi = min(int(gi[-1]) + 2, len(law.s_grid)) if len(gi) else lo + 2
+            peak = {name: float(u[max(lo, 0):hi].max()) for name, u in util.items()}
+            active = sorted((nm for nm, u in peak.items() if u >= 0.99),
+                            key=lambda nm: -peak[nm])
+            if not active:
+                active = [max(peak, key=lambda nm: peak[nm])]
+            slowdowns.append({
+                "pass": i, "s_start_m": s0, "s_end_m": s1,
+                "t_start_s": float(t[idx[r0]]), "t_end_s": float(t[idx[r1 - 1]]),
+                "duration_s": float(t[idx[r1 - 1]] - t[idx[r0]]),
+                "max_speed_deficit_pct": float(100 * deficit[r0:r1].max()),
+                "limiting": active,
+            })
+        free = ~slow
+        err = np.abs(v_act[free] / v_plan[idx][free] - 1.0) if np.any(free) else np.zeros(1)
+        summary.append({
+            "pass": i,
+            "t_start_s": float(starts[j]),
+            "length_m": law.length_m,
+            "planned_duration_s": plan.passes[i].duration_s,
+            "duration_s": law.duration_s,
+            "time_ratio": law.duration_s / max(plan.passes[i].duration_s, 1e-12),
+            "slowed_fraction": float(np.mean(slow)) if len(slow) else 0.0,
+            "max_speed_deficit_pct": float(100 * max(deficit.max(), 0.0)) if len(idx) else 0.0,
+            "max_following_error_pct_unconstrained": float(100 * err.max()),
+            "start_speed_clipped": law.sd_start_clipped,
+            "end_speed_clipped": law.sd_end_clipped,
+            "limit_shrink": law.limit_shrink,
+            "n_slowdowns": len(runs),
+        })
+    return slowdowns, summary
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Half-open index ranges [a, b) of the True runs of a boolean array."""
+    if not np.any(mask):
+        return []
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(),
+                    strict=True))
+
+
+def _utilization(law: PassTimeLaw, fk_pos: Any, names: tuple[str, ...], v_lim: np.ndarray,
+                 a_lim: np.ndarray, a_tcp: float) -> dict[str, np.ndarray]:
+    """Per grid point, the fraction of each limit (as handed to TOPP-RA) in use."""
+    s, sd = law.s_grid, law.sd_grid
+    q1, q2 = law.path(s, 1), law.path(s, 2)
+    p1, p2 = tcp_path_derivatives(law.path, fk_pos, s)
+    # Each grid point sees the s̈ of the intervals on both sides; take the larger use.
+    u_l = np.concatenate([law.sdd[:1], law.sdd])
+    u_r = np.concatenate([law.sdd, law.sdd[-1:]])
+    x = sd**2
+    sh = law.limit_shrink
+    out: dict[str, np.ndarray] = {}
+    for k, nm in enumerate(names):
+        out[f"{nm} velocity"] = np.abs(q1[:, k]) * sd / (sh * v_lim[k])
+        acc = np.maximum(np.abs(q1[:, k] * u_l + q2[:, k] * x), np.abs(q1[:, k] * u_r
+                                                                        + q2[:, k] * x))
+        out[f"{nm} acceleration"] = acc / (sh * a_lim[k])
+    tcp = np.maximum(np.linalg.norm(p1 * u_l[:, None] + p2 * x[:, None], axis=1),
+                     np.linalg.norm(p1 * u_r[:, None] + p2 * x[:, None], axis=1))
+    # The TCP polygon is inscribed at cos(π/16) of the disc radius.
+    out["TCP acceleration"] = tcp / (sh * a_tcp * np.cos(np.pi / 16))
+    return out
+
+
+def _turnaround_dip(traj: JointTrajectory, T_world_tcp: list[np.ndarray]) -> float:
+    """Deepest excursion of the TCP toward the part during turn-arounds [m]: displacement along
+    the spray axis of the pass just finished, measured from that pass's end point (≤ 0: none)."""
+    dip = 0.0
+    seg = traj.segment
+    for i in range(len(T_world_tcp) - 1):
+        after = np.flatnonzero(traj.pass_index == i)
+        if len(after) == 0:
+            continue
+        k0 = after[-1] + 1
+        rest = np.flatnonzero(seg[k0:] != TURNAROUND)
+        k1 = k0 + (int(rest[0]) if len(rest) else len(seg) - k0)
+        if k1 == k0:
+            continue
+        z = T_world_tcp[i][-1, :3, 2]
+        p0 = T_world_tcp[i][-1, :3, 3]
+        dip = max(dip, float(np.max((traj.tcp_pos_world[k0:k1] - p0) @ z)))
+    return dip
