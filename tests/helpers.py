@@ -52,3 +52,58 @@ IK_ROT_TOL_RAD = 1e-5
 # Jacobian vs central finite differences with step 1e-6 rad: truncation O(h²·|FK'''|) ≈ 1e-12,
 # round-off ~1e-16/1e-6 = 1e-10; 1e-7 catches any wrong column or frame.
 JACOBIAN_FD_ATOL = 1e-7
+
+
+# --- deposition model (planning.applicator, planning.deposition, planning.calibration) ---------
+# Flat-plane reduction rate = f(q): the projection and magnification cancel exactly up to
+# float64 round-off of O(1) geometry (observed ~1e-15 relative).
+DEPOSITION_EXACT_RTOL = 1e-12
+# Issue targets for integrals of the kernel (cross profile vs closed-form line integral, paint
+# conservation over a large plane): 0.5 %; the sampling error at 2-5 mm steps is ~1e-5.
+DEPOSITION_INTEGRAL_RTOL = 5e-3
+# Fast culled kernel vs the dense evaluation, relative to the peak thickness: the culled pairs all
+# have f(q) < 1e-4 · peak (Applicator.footprint_radius_m), and only a ring of them is ever culled.
+KERNEL_CULL_RTOL = 1e-4
+# Calibration from a noisy synthetic stripe/grid: the issue asks for parameters within 3 %.
+CALIBRATION_PARAM_RTOL = 0.03
+
+
+# --- coverage planner (planning.start_curve, offset, index_width, coverage) -----------------------
+# Line integral of Gaussians over travel sampled at σ/2.5 (planning.index_width): the plain sum is
+# spectrally accurate (~1e-21); what remains is the footprint truncation at f < 1e-4·peak.
+LINE_INTEGRAL_RTOL = 1e-6
+# ∫ film across a pass vs the closed-form emitted flow: the footprint culling drops ≤ 1e-4 of
+# the paint mass (applicator.FOOTPRINT_REL), the trapezoid in y is exact to ~1e-8.
+PAINT_CONSERVATION_RTOL = 1e-3
+# σ/μ of the Fig. 5 curve vs the Poisson-summation closed form: lateral truncation of the single
+# pass profile at the footprint radius (1e-4·peak) moves σ/μ by at most a few 1e-4.
+NSD_TRUNCATION_ATOL = 5e-4
+# Geodesic distances walked along a faceted mesh section vs the smooth arc: chord deficit
+# (h/R)²/24 ≈ 3e-5 relative at h = 25 mm, R = 1 m, plus 1e-9 position round-off.
+MESH_ARC_RTOL = 1e-3
+# Plane sections of a flat mesh and straight passes: exact up to float64 round-off of 1 m values.
+FLAT_GEOMETRY_ATOL_M = 1e-9
+
+
+# --- rendering and plots (sim.render, sim.plots) --------------------------------------------------
+# A blank or single-colour frame has a per-channel pixel std of 0; any lit scene with a part and a
+# floor has tens of grey levels. 5 levels (of 255) separates the two with a wide margin.
+RENDER_MIN_PIXEL_STD = 5.0
+# Thin (≈10 %) and thick (≈90 %) ends of a thickness ramp, read back through the colour map: the
+# lighting shifts the nearest colour-map entry by < 0.15, so the two ends stay > 0.5 apart.
+RENDER_RAMP_MIN_LEVEL_GAP = 0.5
+
+
+# --- execution and validation (sim.cell, sim.execute, sim.validate) ------------------------------
+# Kinematic replay vs the plan it came from: the issue's bound; what remains is the plan's 10 ms
+# sampling and trapezoid dwell against the trace's 1 ms samples (measured ≈ 0.01 pp).
+KINEMATIC_REPLAY_LOSS_PP = 0.05
+# MuJoCo's TCP site vs Pinocchio FK of the same MJCF in a kinematic replay [mm]: float64 round-off
+# of 1 m transforms (observed ~1e-12 mm).
+REPLAY_TCP_ATOL_MM = 1e-6
+# Servo TCP error on the 0.45 m/s test passes: PD + inverse-dynamics feed-forward tracks to
+# ~0.02 mm (measured); 1 mm is a real arm's path accuracy — above it the controller is broken.
+SERVO_TRACKING_MAX_MM = 1.0
+# "Measurably larger" σ/μ loss [pp]: thickness sums are deterministic float64 (round-off of σ/μ
+# ~1e-10 pp), so 1e-4 pp is far above noise; the 10× softer servo adds ≈ 3e-4 pp on the test case.
+LOSS_RESOLUTION_PP = 1e-4
