@@ -628,7 +628,11 @@ def frame_indices(t_s: npt.ArrayLike, fps: float, speedup: float = 1.0,
     if fps <= 0 or speedup <= 0:
         raise RenderError(f"fps ({fps}) and speedup ({speedup}) must be > 0")
     t_show = np.arange(t[0], t[-1] + 1e-12, speedup / fps)
-    idx = np.unique(np.clip(np.searchsorted(t, t_show), 0, len(t) - 1))
+    hi = np.clip(np.searchsorted(t, t_show), 1, max(len(t) - 1, 1))
+    lo = hi - 1
+    nearest = np.where(np.abs(t[np.minimum(hi, len(t) - 1)] - t_show) < np.abs(t[lo] - t_show),
+                       hi, lo) if len(t) > 1 else np.zeros(len(t_show), int)
+    idx = np.unique(nearest)
     if max_frames is not None and len(idx) > max_frames:
         idx = idx[np.round(np.linspace(0, len(idx) - 1, max_frames)).astype(int)]
     return idx

@@ -107,3 +107,12 @@ SERVO_TRACKING_MAX_MM = 1.0
 # "Measurably larger" σ/μ loss [pp]: thickness sums are deterministic float64 (round-off of σ/μ
 # ~1e-10 pp), so 1e-4 pp is far above noise; the 10× softer servo adds ≈ 3e-4 pp on the test case.
 LOSS_RESOLUTION_PP = 1e-4
+
+
+# --- rendering and plots (sim.render, sim.plots) --------------------------------------------------
+# A blank or single-colour frame has a per-channel pixel std of 0; any lit scene with a part and a
+# floor has tens of grey levels. 5 levels (of 255) separates the two with a wide margin.
+RENDER_MIN_PIXEL_STD = 5.0
+# Thin (≈10 %) and thick (≈90 %) ends of a thickness ramp, read back through the colour map: the
+# lighting shifts the nearest colour-map entry by < 0.15, so the two ends stay > 0.5 apart.
+RENDER_RAMP_MIN_LEVEL_GAP = 0.5
