@@ -1,0 +1,380 @@
+"""The MuJoCo paint cell: the robot at its base pose, the part at its placement, the booth.
+
+Assembled programmatically with `mujoco.MjSpec`: the robot's own MJCF (`robot.mjcf_path`, the one
+source of truth Pinocchio also loads) is attached under a frame at `T_world_base`; the part is a
+static body whose visual mesh is exactly `surface.vertices/faces` (the geometry the deposition
+model evaluates), with collision geometry made of thin convex slabs (the open shell extruded by
+`shell_thickness_m` and cut into pieces of about `collision_piece_m`, because MuJoCo collides
+meshes through their convex hulls and the hull of a curved shell would be a solid lens).
+The booth is a floor plane (its own static body, so contacts name it). Sensors on the TCP site,
+the actuator forces and robot-vs-part / robot-vs-booth contact detectors let `sim.execute` roll
+the whole program out inside MuJoCo.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import mujoco
+import numpy as np
+import numpy.typing as npt
+
+from planning.errors import PaintcellError
+from planning.surface import Surface
+
+#: physics and control rate: 1 kHz (DESIGN.md, execution).
+TIMESTEP_S = 1e-3
+#: prefix of every name that comes from the robot's MJCF inside the cell.
+ROBOT_PREFIX = "robot/"
+PART_BODY = "part"
+BOOTH_BODY = "booth"
+#: contact sensor data: found (1) + dist (8) (MuJoCo mjtConDataField bits), reduce = mindist.
+_CONTACT_DATA_FOUND_DIST = 1 | 8
+_CONTACT_REDUCE_MINDIST = 1
+
+
+class CellError(PaintcellError):
+    """The MuJoCo cell cannot be assembled from the robot, part and placement given."""
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """A fixed camera: position and look-at point in the world [m], vertical field of view [deg]."""
+
+    name: str
+    pos_world: tuple[float, float, float]
+    target_world: tuple[float, float, float]
+    fovy_deg: float = 45.0
+
+
+@dataclass(frozen=True, eq=False)
+class Cell:
+    """A compiled paint cell and the indices `sim.execute` and `sim.render` need.
+
+    model: the compiled `mujoco.MjModel` (1 kHz, implicitfast).
+    spec: the `mujoco.MjSpec` it was compiled from (copy it before adding to it, e.g. a film).
+    robot_name, joint_names: the robot and its joint order (as in `Robot.joint_names`).
+    qpos_adr, dof_adr, actuator_ids: (n,) int arrays, in joint order.
+    tau_max: (n,) actuator torque limits [N·m] (the robot's `tau_max`).
+    tcp_site_id, tcp_site_name: the TCP site (spray point; z = spray axis, x = travel).
+    robot_body_ids: (B,) ids of every robot body; part_body_id, booth_body_id; names likewise.
+    part_visual_geom_id: the mesh geom that shows the painted surface (vertex order of `surface`).
+    sensor slices: tcp_pos / tcp_quat / actuator forces / contact (found, dist) per partner.
+    T_world_part, T_world_base: (4, 4) placements [m].
+    camera_names: fixed cameras (front, top, passes presets unless overridden).
+    """
+
+    model: mujoco.MjModel
+    spec: mujoco.MjSpec
+    robot_name: str
+    joint_names: tuple[str, ...]
+    qpos_adr: np.ndarray
+    dof_adr: np.ndarray
+    actuator_ids: np.ndarray
+    tau_max: np.ndarray
+    tcp_site_id: int
+    tcp_site_name: str
+    robot_body_ids: np.ndarray
+    robot_body_names: tuple[str, ...]
+    part_body_id: int
+    part_body_name: str
+    booth_body_id: int
+    booth_body_name: str
+    part_visual_geom_id: int
+    T_world_part: np.ndarray
+    T_world_base: np.ndarray
+    camera_names: tuple[str, ...]
+    sensor_tcp_pos: slice
+    sensor_tcp_quat: slice
+    sensor_actuator_force: slice
+    sensor_contact_part: slice
+    sensor_contact_booth: slice
+    q_home: np.ndarray
+    surface_name: str = ""
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def nq(self) -> int:
+        """Number of robot joints."""
+        return len(self.joint_names)
+
+    def body_name(self, body_id: int) -> str:
+        """MuJoCo name of a body id."""
+        return mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY, int(body_id)) or ""
+
+
+def _quat_from_matrix(R: np.ndarray) -> np.ndarray:
+    q = np.zeros(4)
+    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).ravel())
+    return q
+
+
+def _check_pose(T: npt.ArrayLike, name: str) -> np.ndarray:
+    T = np.asarray(T, float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise CellError(f"{name} has shape {T.shape}; pass a finite 4x4 rigid transform")
+    R = T[:3, :3]
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise CellError(f"{name} is not rigid; its rotation block must be orthonormal, det +1")
+    return T
+
+
+def default_cameras(surface_world: Surface, pass_dir_world: npt.ArrayLike | None = None,
+                    ) -> tuple[CameraSpec, ...]:
+    """Front, top and along-the-passes presets framing a part placed in the world.
+
+    surface_world: the part in world coordinates [m]; pass_dir_world: (3,) travel direction of the
+    passes (default: the part's longest principal axis).
+    """
+    v = surface_world.vertices
+    w = surface_world.vertex_areas
+    c = (v * w[:, None]).sum(0) / w.sum()
+    n = (surface_world.normals * w[:, None]).sum(0)
+    n = n / max(np.linalg.norm(n), 1e-12)
+    extent = float(np.linalg.norm(v.max(0) - v.min(0)))
+    dist = max(1.2 * extent, 0.8)
+    if pass_dir_world is None:
+        cov = np.cov((v - c).T, aweights=w)
+        pass_dir = np.linalg.eigh(cov)[1][:, -1]
+    else:
+        pass_dir = np.asarray(pass_dir_world, float)
+        pass_dir = pass_dir / max(np.linalg.norm(pass_dir), 1e-12)
+    front = c + dist * n + np.array([0, 0, 0.05 * dist])
+    top = c + np.array([0.0, 0.0, 1.5 * dist]) + 0.02 * dist * np.array([1.0, 0, 0])
+    # Along the passes: from beyond one end of the passes, a little off the painted side.
+    along = c - 1.3 * dist * pass_dir + 0.4 * dist * n + np.array([0, 0, 0.3 * dist])
+    tgt = tuple(float(x) for x in c)
+    return (CameraSpec("front", tuple(float(x) for x in front), tgt),  # type: ignore[arg-type]
+            CameraSpec("top", tuple(float(x) for x in top), tgt),  # type: ignore[arg-type]
+            CameraSpec("passes", tuple(float(x) for x in along), tgt))  # type: ignore[arg-type]
+
+
+def _camera_quat(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """MuJoCo camera looks along its -z with +y up: build that frame from a look-at."""
+    z = pos - target
+    nz = np.linalg.norm(z)
+    if nz < 1e-9:
+        raise CellError("camera position equals its target; move the camera")
+    z = z / nz
+    up = np.array([0.0, 0.0, 1.0])
+    if abs(z @ up) > 0.999:  # looking straight down: use +y of the world as "up" on screen
+        up = np.array([0.0, 1.0, 0.0])
+    x = np.cross(up, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return _quat_from_matrix(np.column_stack([x, y, z]))
+
+
+def _collision_pieces(surface: Surface, piece_m: float, thickness_m: float) -> list[np.ndarray]:
+    """Vertex clouds (part frame) of thin convex slabs that cover the shell.
+
+    Faces are binned by centroid into cubes of edge `piece_m`; each bin's vertices are offset by
+    ±thickness/2 along their normals; MuJoCo takes the convex hull of each cloud. The hull of a
+    piece deviates from the shell by at most its sagitta, piece²/(8 R) (1.3 mm for 0.1 m on R=1 m).
+    """
+    v, f, nrm = surface.vertices, surface.faces, surface.normals
+    cent = v[f].mean(axis=1)
+    key = np.floor((cent - cent.min(0)) / piece_m).astype(np.int64)
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    order = np.argsort(inv.ravel(), kind="stable")
+    bounds = np.searchsorted(inv.ravel()[order], np.arange(inv.max() + 2))
+    half = 0.5 * thickness_m
+    pieces = []
+    for b in range(len(bounds) - 1):
+        faces_b = f[order[bounds[b]:bounds[b + 1]]]
+        idx = np.unique(faces_b)
+        pieces.append(np.vstack([v[idx] + half * nrm[idx], v[idx] - half * nrm[idx]]))
+    return pieces
+
+
+def build_cell(robot: Any, surface: Surface, T_world_part: npt.ArrayLike, booth: bool = True,
+               cameras: Sequence[CameraSpec] | None = None,
+               pass_dir_world: npt.ArrayLike | None = None,
+               collision_piece_m: float = 0.1, shell_thickness_m: float = 0.002) -> Cell:
+    """Assemble and compile the paint cell.
+
+    robot: a `robots.Robot` (uses `name`, `mjcf_path`, `T_world_base`, `tcp_site_name`,
+        `base_body_name`, `joint_names`, `tau_max`, `q_home`).
+    surface: the part in its part frame (vertices [m], faces, normals).
+    T_world_part: (4, 4) placement of the part in the world.
+    booth: add the booth floor (z = 0 plane) as body `booth`.
+    cameras: fixed cameras; default `default_cameras(...)` (front, top, passes).
+    pass_dir_world: (3,) pass travel direction, aims the "passes" preset camera.
+    collision_piece_m, shell_thickness_m: size of the convex collision slabs and their thickness
+        [m] (see `_collision_pieces`).
+    Raises CellError when the robot MJCF lacks a named joint, site or body, or the poses are bad.
+    """
+    T_world_part = _check_pose(T_world_part, "T_world_part")
+    T_world_base = _check_pose(getattr(robot, "T_world_base", np.eye(4)), "robot.T_world_base")
+    if collision_piece_m <= 0 or shell_thickness_m <= 0:
+        raise CellError("collision_piece_m and shell_thickness_m must be > 0 [m]")
+
+    spec = mujoco.MjSpec()
+    spec.modelname = f"paintcell_{robot.name}_{surface.name}"
+    spec.compiler.degree = False
+    spec.option.timestep = TIMESTEP_S
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.visual.global_.offwidth = 1280
+    spec.visual.global_.offheight = 960
+    spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
+    spec.visual.headlight.diffuse = [0.5, 0.5, 0.5]
+    spec.stat.center = 0.5 * (T_world_part[:3, 3] + T_world_base[:3, 3])
+    spec.stat.extent = max(2.0, float(np.linalg.norm(T_world_part[:3, 3] - T_world_base[:3, 3])))
+
+    # --- robot ----------------------------------------------------------------------------
+    try:
+        robot_spec = mujoco.MjSpec.from_file(str(robot.mjcf_path))
+    except Exception as exc:  # mujoco raises ValueError with its own message
+        raise CellError(f"cannot read the robot MJCF {robot.mjcf_path}: {exc}") from exc
+    for key in list(robot_spec.keys):  # keyframes of the arm alone do not fit the cell's state
+        robot_spec.delete(key)
+    frame = spec.worldbody.add_frame(pos=T_world_base[:3, 3],
+                                     quat=_quat_from_matrix(T_world_base[:3, :3]))
+    spec.attach(robot_spec, prefix=ROBOT_PREFIX, frame=frame)
+
+    # --- part: visual mesh (exact surface) + thin convex collision slabs ---------------------
+    part = spec.worldbody.add_body(name=PART_BODY, pos=T_world_part[:3, 3],
+                                   quat=_quat_from_matrix(T_world_part[:3, :3]))
+    vis = spec.add_mesh(name="part_surface")
+    vis.uservert = np.ascontiguousarray(surface.vertices, float).ravel()
+    vis.userface = np.ascontiguousarray(surface.faces, np.int32).ravel()
+    vis.usernormal = np.ascontiguousarray(surface.normals, float).ravel()
+    vis.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+    part.add_geom(name="part_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname="part_surface",
+                  contype=0, conaffinity=0, group=1, density=0.0, rgba=[0.75, 0.77, 0.8, 1.0])
+    for i, cloud in enumerate(_collision_pieces(surface, collision_piece_m, shell_thickness_m)):
+        m = spec.add_mesh(name=f"part_collision_{i}")
+        m.uservert = np.ascontiguousarray(cloud, float).ravel()
+        m.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+        part.add_geom(name=f"part_collision_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
+                      meshname=f"part_collision_{i}", group=3, density=0.0,
+                      rgba=[0.5, 0.5, 0.5, 0.3])
+
+    # --- booth --------------------------------------------------------------------------------
+    if booth:
+        tex = spec.add_texture(name="booth_floor", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                               builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+                               mark=mujoco.mjtMark.mjMARK_EDGE, rgb1=[0.55, 0.57, 0.6],
+                               rgb2=[0.45, 0.47, 0.5], markrgb=[0.8, 0.8, 0.8],
+                               width=300, height=300)
+        mat = spec.add_material(name="booth_floor", texuniform=True, texrepeat=[4, 4],
+                                reflectance=0.1)
+        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = tex.name
+        floor = spec.worldbody.add_body(name=BOOTH_BODY)
+        floor.add_geom(name="booth_floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
+                       material="booth_floor")
+        # The robot's foot stands on the floor by design: not a collision.
+        spec.add_exclude(bodyname1=ROBOT_PREFIX + robot.base_body_name, bodyname2=BOOTH_BODY)
+    # MuJoCo filters parent-child contacts except for a parent welded to the world (the robot's
+    # foot): exclude the foot from its moving children too, as the arm's own parents are.
+    base_body = spec.body(ROBOT_PREFIX + robot.base_body_name)
+    if base_body is None:
+        raise CellError(f"robot MJCF has no body {robot.base_body_name!r}; fix base_body_name")
+    for child in base_body.bodies:
+        spec.add_exclude(bodyname1=base_body.name, bodyname2=child.name)
+
+    # --- lights and cameras ------------------------------------------------------------------
+    spec.worldbody.add_light(name="key", pos=[0, 0, 5], dir=[0, 0, -1],
+                             type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
+                             diffuse=[0.6, 0.6, 0.6], castshadow=False)
+    surface_world = surface.transformed(T_world_part)
+    cams = tuple(cameras) if cameras is not None else default_cameras(surface_world,
+                                                                      pass_dir_world)
+    for cam in cams:
+        pos = np.asarray(cam.pos_world, float)
+        spec.worldbody.add_camera(name=cam.name, pos=pos,
+                                  quat=_camera_quat(pos, np.asarray(cam.target_world, float)),
+                                  fovy=cam.fovy_deg)
+
+    # --- sensors: TCP pose, actuator forces, contacts -------------------------------------------
+    site_name = ROBOT_PREFIX + robot.tcp_site_name
+    base_name = ROBOT_PREFIX + robot.base_body_name
+    spec.add_sensor(name="tcp_pos", type=mujoco.mjtSensor.mjSENS_FRAMEPOS,
+                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
+    spec.add_sensor(name="tcp_quat", type=mujoco.mjtSensor.mjSENS_FRAMEQUAT,
+                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site_name)
+    joint_names = tuple(robot.joint_names)
+    for jn in joint_names:
+        spec.add_sensor(name=f"tau_{jn}", type=mujoco.mjtSensor.mjSENS_JOINTACTFRC,
+                        objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=ROBOT_PREFIX + jn)
+    partners = [PART_BODY] + ([BOOTH_BODY] if booth else [])
+    for partner in partners:
+        spec.add_sensor(name=f"contact_{partner}", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                        objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=base_name,
+                        reftype=mujoco.mjtObj.mjOBJ_BODY, refname=partner,
+                        intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
+
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise CellError(f"the cell does not compile ({exc}); check the robot MJCF names "
+                        f"(tcp site {robot.tcp_site_name!r}, base {robot.base_body_name!r})"
+                        ) from exc
+    return _index_cell(model, spec, robot, surface, T_world_part, T_world_base, cams, booth)
+
+
+def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: Any, surface: Surface,
+                T_world_part: np.ndarray, T_world_base: np.ndarray, cams: Sequence[CameraSpec],
+                booth: bool) -> Cell:
+    def oid(kind: mujoco.mjtObj, name: str) -> int:
+        i = mujoco.mj_name2id(model, kind, name)
+        if i < 0:
+            raise CellError(f"the cell has no {kind.name[6:].lower()} named {name!r}; check "
+                            "the robot MJCF against Robot.joint_names / tcp_site_name")
+        return int(i)
+
+    joint_names = tuple(robot.joint_names)
+    jids = [oid(mujoco.mjtObj.mjOBJ_JOINT, ROBOT_PREFIX + jn) for jn in joint_names]
+    act_ids = []
+    for j in jids:
+        hits = np.flatnonzero((model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT)
+                              & (model.actuator_trnid[:, 0] == j))
+        if len(hits) != 1:
+            raise CellError(f"joint {model.joint(j).name!r} has {len(hits)} actuators; the robot "
+                            "MJCF needs exactly one motor per joint")
+        act_ids.append(int(hits[0]))
+    base_id = oid(mujoco.mjtObj.mjOBJ_BODY, ROBOT_PREFIX + robot.base_body_name)
+    # Robot bodies: the base and everything below it.
+    robot_bodies = [b for b in range(model.nbody) if _is_descendant(model, b, base_id)]
+
+    def sensor_slice(name: str) -> slice:
+        s = oid(mujoco.mjtObj.mjOBJ_SENSOR, name)
+        a = int(model.sensor_adr[s])
+        return slice(a, a + int(model.sensor_dim[s]))
+
+    n = len(jids)
+    tau_first = sensor_slice(f"tau_{joint_names[0]}")
+    tau_max = np.asarray(getattr(robot, "tau_max", None) if getattr(robot, "tau_max", None)
+                         is not None else model.actuator_ctrlrange[act_ids, 1], float)
+    return Cell(
+        model=model, spec=spec, robot_name=str(robot.name), joint_names=joint_names,
+        qpos_adr=model.jnt_qposadr[jids].astype(np.int64).copy(),
+        dof_adr=model.jnt_dofadr[jids].astype(np.int64).copy(),
+        actuator_ids=np.asarray(act_ids, np.int64), tau_max=tau_max,
+        tcp_site_id=oid(mujoco.mjtObj.mjOBJ_SITE, ROBOT_PREFIX + robot.tcp_site_name),
+        tcp_site_name=ROBOT_PREFIX + robot.tcp_site_name,
+        robot_body_ids=np.asarray(robot_bodies, np.int64),
+        robot_body_names=tuple(model.body(b).name for b in robot_bodies),
+        part_body_id=oid(mujoco.mjtObj.mjOBJ_BODY, PART_BODY), part_body_name=PART_BODY,
+        booth_body_id=oid(mujoco.mjtObj.mjOBJ_BODY, BOOTH_BODY) if booth else -1,
+        booth_body_name=BOOTH_BODY if booth else "",
+        part_visual_geom_id=oid(mujoco.mjtObj.mjOBJ_GEOM, "part_visual"),
+        T_world_part=T_world_part.copy(), T_world_base=T_world_base.copy(),
+        camera_names=tuple(c.name for c in cams),
+        sensor_tcp_pos=sensor_slice("tcp_pos"), sensor_tcp_quat=sensor_slice("tcp_quat"),
+        sensor_actuator_force=slice(tau_first.start, tau_first.start + n),
+        sensor_contact_part=sensor_slice(f"contact_{PART_BODY}"),
+        sensor_contact_booth=sensor_slice(f"contact_{BOOTH_BODY}") if booth else slice(0, 0),
+        q_home=np.asarray(getattr(robot, "q_home", np.zeros(n)), float).copy(),
+        surface_name=surface.name,
+    )
+
+
+def _is_descendant(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
+    while body > 0:
+        if body == ancestor:
+            return True
+        body = int(model.body_parentid[body])
+    return ancestor == 0 and body == 0

@@ -1,0 +1,338 @@
+"""Plan versus executed: how much coat uniformity the robot lost, and why.
+
+Both thickness maps go through the same deposition model (`planning.deposition.thickness`) on the
+same surface (part frame): the plan's ideal TCP samples at planned timing (`plan.gun_samples()`)
+and the executed TCP trace (`trace.gun_samples(T_part_world)`, one sample per 1 ms step, where the
+part really was when a placement disturbance moved it). The loss is the executed σ/μ minus the
+planned σ/μ, in percentage points. Beside it: thickness differences, coverage inside the
+±tolerance window, TCP tracking and speed-following errors on paint segments, cycle time, joint
+and torque utilization, reachability and collisions — each checked against caller thresholds.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from planning.atomic_io import atomic_write_text
+from planning.deposition import thickness
+from planning.errors import PaintcellError
+from planning.metrics import uniformity
+from planning.plan import CoveragePlan
+from planning.surface import Surface
+from sim.joint_trajectory import JointTrajectory
+from sim.trace import ExecutedTrace
+
+#: contacts of the same body pair closer than this in time belong to one collision event [s].
+_EVENT_GAP_S = 0.0105
+
+
+class ValidationError(PaintcellError):
+    """Plan, trajectory and trace cannot be compared (mismatched lengths, frames, parts)."""
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Pass/fail limits of a validation (inf or None disables a check).
+
+    reachability_pct: minimum share of plan poses the robot reaches [%].
+    max_collisions: maximum number of robot–part/booth collision events.
+    max_executed_nsd_pct: maximum executed film σ/μ over the part [%].
+    max_loss_pp: maximum loss of uniformity, executed − planned σ/μ [percentage points].
+    max_cycle_time_s: maximum executed cycle time [s].
+    max_tracking_error_mm: maximum TCP position error on paint segments [mm].
+    max_speed_error_pct: maximum RMS TCP speed-following error on paint segments [%].
+    max_torque_utilization: maximum |τ|/τ_max of any joint (1 = at the actuator limit) [-].
+    max_joint_range_utilization: maximum |q − mid|/half-range of any joint (1 = at a limit) [-].
+    tolerance: half-width of the thickness window around the planned mean [fraction].
+    """
+
+    reachability_pct: float | None = 100.0
+    max_collisions: int | None = 0
+    max_executed_nsd_pct: float | None = 20.0
+    max_loss_pp: float | None = 1.0
+    max_cycle_time_s: float | None = 120.0
+    max_tracking_error_mm: float | None = None
+    max_speed_error_pct: float | None = None
+    max_torque_utilization: float | None = 1.0
+    max_joint_range_utilization: float | None = 1.0
+    tolerance: float = 0.10
+
+    def __post_init__(self) -> None:
+        if not (0 < self.tolerance < 1):
+            raise ValidationError(f"tolerance = {self.tolerance} must be a fraction in (0, 1)")
+
+
+@dataclass(frozen=True)
+class Check:
+    """One threshold check: value vs limit; kind "max" (value ≤ limit) or "min" (value ≥ limit)."""
+
+    name: str
+    value: float
+    limit: float
+    unit: str
+    passed: bool
+    kind: str = "max"
+
+
+@dataclass(frozen=True, eq=False)
+class ValidationReport:
+    """Plan-vs-executed metrics (scalars in `metrics`, report units in the key names).
+
+    metrics: JSON-safe scalars (σ/μ in %, thickness in µm, errors in mm / %, times in s).
+    checks: one `Check` per enabled threshold; passed: all checks passed.
+    reachability: summary dict from the robots' reachability report (or None).
+    collisions: collision events (bodies, start/end time [s], max depth [m], samples).
+    joint_range_utilization / torque_utilization: per joint, max fraction [-].
+    planned_thickness_m / executed_thickness_m: (N,) film per surface vertex [m] (plots only).
+    """
+
+    metrics: dict[str, Any]
+    checks: tuple[Check, ...]
+    reachability: dict[str, Any] | None
+    collisions: tuple[dict[str, Any], ...]
+    joint_range_utilization: tuple[float, ...]
+    torque_utilization: tuple[float, ...]
+    planned_thickness_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    executed_thickness_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+
+    @property
+    def passed(self) -> bool:
+        """True when every enabled check passed."""
+        return all(c.passed for c in self.checks)
+
+    @property
+    def loss_pp(self) -> float:
+        """Executed − planned σ/μ [percentage points]."""
+        return float(self.metrics["loss_pp"])
+
+    def __getattr__(self, name: str) -> Any:
+        # Scalar metrics read as attributes too (report.executed_nsd_pct).
+        metrics = self.__dict__.get("metrics", {})
+        if name in metrics:
+            return metrics[name]
+        raise AttributeError(name)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-serializable report (no thickness arrays; nan/inf → None)."""
+        d: dict[str, Any] = {k: _json_num(v) for k, v in self.metrics.items()}
+        d["passed"] = self.passed
+        d["checks"] = [{k: _json_num(v) for k, v in asdict(c).items()} for c in self.checks]
+        d["reachability"] = self.reachability
+        d["collisions"] = list(self.collisions)
+        d["joint_range_utilization"] = [_json_num(x) for x in self.joint_range_utilization]
+        d["torque_utilization"] = [_json_num(x) for x in self.torque_utilization]
+        return d
+
+    def save_json(self, path: str | Path) -> None:
+        """Write `to_dict()` as JSON atomically."""
+        atomic_write_text(path, json.dumps(self.to_dict(), indent=2, allow_nan=False))
+
+
+def _json_num(v: Any) -> Any:
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    if isinstance(v, (float, np.floating)):
+        return float(v) if math.isfinite(v) else None
+    return v
+
+
+def _inv(T: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = T[:3, :3].T
+    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return out
+
+
+def collision_events(trace: ExecutedTrace, gap_s: float = _EVENT_GAP_S) -> list[dict[str, Any]]:
+    """Group per-step contacts into events: same body pair, consecutive in time (≤ gap_s [s])."""
+    events: list[dict[str, Any]] = []
+    open_by_pair: dict[tuple[str, str], dict[str, Any]] = {}
+    for c in sorted(trace.contacts, key=lambda c: c.time_s):
+        key = (c.body1, c.body2)
+        ev = open_by_pair.get(key)
+        if ev is not None and c.time_s - ev["t_end_s"] <= gap_s:
+            ev["t_end_s"] = c.time_s
+            ev["max_depth_m"] = max(ev["max_depth_m"], c.depth_m)
+            ev["samples"] += 1
+        else:
+            ev = {"body1": c.body1, "body2": c.body2, "t_start_s": c.time_s, "t_end_s": c.time_s,
+                  "max_depth_m": c.depth_m, "samples": 1}
+            events.append(ev)
+            open_by_pair[key] = ev
+    return events
+
+
+def tracking_errors(traj: JointTrajectory, trace: ExecutedTrace) -> dict[str, float]:
+    """TCP tracking and speed-following errors (executed trace vs the trajectory's FK reference).
+
+    Returns max / RMS position error [mm] on paint samples and over the whole program, the max
+    orientation error of the spray axis [deg] on paint samples, and the speed-following error of
+    the executed TCP speed against the trajectory's planned speed on paint samples (RMS and max,
+    [%] of the planned speed).
+    """
+    if len(trace.t_s) != len(traj.t_s):
+        raise ValidationError(f"trace has {len(trace.t_s)} samples, trajectory {len(traj.t_s)}; "
+                              "validate the trace that was executed from this trajectory")
+    err = np.linalg.norm(trace.tcp_pos_world - traj.tcp_pos_world, axis=1)
+    paint = np.asarray(traj.paint_on, bool)
+    z_exec, z_ref = trace.tcp_rot_world[:, :, 2], traj.tcp_rot_world[:, :, 2]
+    cosang = np.clip(np.sum(z_exec * z_ref, axis=1), -1.0, 1.0)
+    ang = np.degrees(np.arccos(cosang))
+    v_exec = np.linalg.norm(np.gradient(trace.tcp_pos_world, trace.t_s, axis=0), axis=1)
+    v_plan = np.asarray(traj.v_tcp_planned, float)
+    use = paint & (v_plan > 1e-6)
+    rel = (v_exec[use] - v_plan[use]) / v_plan[use] if np.any(use) else np.zeros(1)
+    p = err[paint] if np.any(paint) else np.zeros(1)
+    return {
+        "tracking_error_max_mm": 1e3 * float(p.max()),
+        "tracking_error_rms_mm": 1e3 * float(np.sqrt(np.mean(p**2))),
+        "tracking_error_max_all_mm": 1e3 * float(err.max()),
+        "tracking_error_rms_all_mm": 1e3 * float(np.sqrt(np.mean(err**2))),
+        "spray_axis_error_max_deg": float(ang[paint].max()) if np.any(paint) else 0.0,
+        "speed_error_rms_pct": 100.0 * float(np.sqrt(np.mean(rel**2))),
+        "speed_error_max_pct": 100.0 * float(np.abs(rel).max()),
+        "speed_error_mean_pct": 100.0 * float(rel.mean()),
+    }
+
+
+def _utilization(trace: ExecutedTrace) -> tuple[np.ndarray, np.ndarray]:
+    """Per joint: max |q − mid| / half-range and max |τ| / τ_max (limits from `trace.meta`)."""
+    n = trace.q.shape[1]
+    lo = np.asarray(trace.meta.get("q_lower", [np.nan] * n), float)
+    hi = np.asarray(trace.meta.get("q_upper", [np.nan] * n), float)
+    tau_max = np.asarray(trace.meta.get("tau_max", [np.nan] * n), float)
+    mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q_use = np.max(np.abs(trace.q - mid) / half, axis=0)
+        tau_use = np.max(np.abs(trace.tau), axis=0) / tau_max
+    return q_use, tau_use
+
+
+def _reachability_summary(reach: dict[str, Any] | None) -> tuple[dict[str, Any] | None, float]:
+    if reach is None:
+        return None, float("nan")
+    summary = {k: v for k, v in reach.items() if k != "poses"}
+    if "reachability_pct" in reach:
+        pct = float(reach["reachability_pct"])
+    elif reach.get("n_poses"):
+        pct = 100.0 * float(reach["n_reachable"]) / float(reach["n_poses"])
+    else:
+        pct = float("nan")
+    summary["reachability_pct"] = pct
+    return summary, pct
+
+
+def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace: ExecutedTrace,
+             T_world_part: npt.ArrayLike, thresholds: Thresholds | None = None,
+             reachability: dict[str, Any] | None = None) -> ValidationReport:
+    """Compare the executed program with the plan.
+
+    plan: the coverage plan (part frame); surface: the part it covers (part frame, the same mesh
+    the cell shows); traj: the joint trajectory that was executed; trace: what MuJoCo did;
+    T_world_part: (4, 4) planned placement of the part [m] (the trace's `meta` says where the part
+    really was when a placement disturbance moved it); thresholds: pass/fail limits;
+    reachability: `ReachabilityReport.to_dict()` of the IK stage (per-pose arrays dropped).
+    """
+    thresholds = thresholds or Thresholds()
+    T_world_part = np.asarray(T_world_part, float)
+    if T_world_part.shape != (4, 4):
+        raise ValidationError(f"T_world_part has shape {T_world_part.shape}; pass a 4x4 pose")
+    T_actual = np.asarray(trace.meta.get("T_world_part_actual", T_world_part), float)
+    planned_T = trace.meta.get("T_world_part_planned")
+    if planned_T is not None and not np.allclose(planned_T, T_world_part, atol=1e-9):
+        raise ValidationError("the trace was executed with a different part placement than "
+                              "T_world_part; validate with the scenario's placement")
+    if plan.surface_name and surface.name and plan.surface_name != surface.name:
+        raise ValidationError(f"plan covers {plan.surface_name!r} but the surface is "
+                              f"{surface.name!r}; load the plan's part")
+
+    app = plan.applicator
+    pts, nrm, areas = surface.vertices, surface.normals, surface.vertex_areas
+    t_plan = thickness(app, plan.gun_samples(), pts, nrm)
+    if not np.any(trace.paint_on):
+        raise ValidationError("the trace has no paint-on samples; the trajectory never painted")
+    t_exec = thickness(app, trace.gun_samples(_inv(T_actual)), pts, nrm)
+    u_plan = uniformity(t_plan, areas, tolerance=thresholds.tolerance)
+    u_exec = uniformity(t_exec, areas, target_m=u_plan.mean_m, tolerance=thresholds.tolerance)
+    diff = t_exec - t_plan
+    rms_diff = float(np.sqrt(np.dot(areas, diff**2) / areas.sum()))
+
+    trk = tracking_errors(traj, trace)
+    q_use, tau_use = _utilization(trace)
+    reach_summary, reach_pct = _reachability_summary(reachability)
+    events = collision_events(trace)
+    dt = float(trace.t_s[1] - trace.t_s[0]) if len(trace.t_s) > 1 else 0.0
+
+    metrics: dict[str, Any] = {
+        "planned_nsd_pct": u_plan.nsd_pct,
+        "executed_nsd_pct": u_exec.nsd_pct,
+        "loss_pp": u_exec.nsd_pct - u_plan.nsd_pct,
+        "planned_mean_um": 1e6 * u_plan.mean_m,
+        "executed_mean_um": 1e6 * u_exec.mean_m,
+        "planned_min_um": 1e6 * u_plan.min_m, "planned_max_um": 1e6 * u_plan.max_m,
+        "executed_min_um": 1e6 * u_exec.min_m, "executed_max_um": 1e6 * u_exec.max_m,
+        "max_thickness_diff_um": 1e6 * float(np.abs(diff).max()),
+        "rms_thickness_diff_um": 1e6 * rms_diff,
+        "tolerance_fraction": thresholds.tolerance,
+        "planned_within_tolerance_pct": 100.0 * u_plan.within_tolerance_fraction,
+        "executed_within_tolerance_pct": 100.0 * u_exec.within_tolerance_fraction,
+        **trk,
+        "planned_cycle_time_s": traj.duration_s,
+        "executed_cycle_time_s": float(trace.t_s[-1] - trace.t_s[0]),
+        "planned_paint_time_s": plan.paint_time_s,
+        "executed_paint_time_s": dt * float(np.count_nonzero(trace.paint_on)),
+        "max_joint_range_utilization": float(np.nanmax(q_use)) if len(q_use) else float("nan"),
+        "max_torque_utilization": float(np.nanmax(tau_use)) if len(tau_use) else float("nan"),
+        "reachability_pct": reach_pct,
+        "n_collisions": len(events),
+        "n_contact_samples": len(trace.contacts),
+        "max_contact_depth_mm": 1e3 * max((c.depth_m for c in trace.contacts), default=0.0),
+        "execution_mode": trace.mode,
+        "part_placement_error_mm": 1e3 * float(np.linalg.norm(T_actual[:3, 3]
+                                                              - T_world_part[:3, 3])),
+    }
+    checks = _checks(metrics, thresholds)
+    return ValidationReport(
+        metrics=metrics, checks=tuple(checks), reachability=reach_summary,
+        collisions=tuple(events),
+        joint_range_utilization=tuple(float(x) for x in q_use),
+        torque_utilization=tuple(float(x) for x in tau_use),
+        planned_thickness_m=t_plan, executed_thickness_m=t_exec)
+
+
+def _checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
+    spec = [  # (name, metric key, limit, unit, kind)
+        ("reachability", "reachability_pct", th.reachability_pct, "%", "min"),
+        ("collisions", "n_collisions", th.max_collisions, "events", "max"),
+        ("executed σ/μ", "executed_nsd_pct", th.max_executed_nsd_pct, "%", "max"),
+        ("uniformity loss", "loss_pp", th.max_loss_pp, "pp", "max"),
+        ("cycle time", "executed_cycle_time_s", th.max_cycle_time_s, "s", "max"),
+        ("TCP tracking error", "tracking_error_max_mm", th.max_tracking_error_mm, "mm", "max"),
+        ("speed-following error", "speed_error_rms_pct", th.max_speed_error_pct, "%", "max"),
+        ("torque utilization", "max_torque_utilization", th.max_torque_utilization, "-", "max"),
+        ("joint range utilization", "max_joint_range_utilization",
+         th.max_joint_range_utilization, "-", "max"),
+    ]
+    out = []
+    for name, key, limit, unit, kind in spec:
+        if limit is None or not math.isfinite(float(limit)):
+            continue
+        value = float(m[key])
+        if not math.isfinite(value):
+            if key == "reachability_pct":  # no reachability report given: nothing to check
+                continue
+            passed = False
+        else:
+            passed = value <= limit if kind == "max" else value >= limit
+        out.append(Check(name=name, value=value, limit=float(limit), unit=unit,
+                         passed=bool(passed), kind=kind))
+    return out

@@ -1,0 +1,232 @@
+"""sim.execute: servo and kinematic execution of a joint trajectory on the MuJoCo cell.
+
+The test case (shared with tests/test_validate.py): the ABB-style arm paints a small plane with two
+back-and-forth passes made in joint space (joint 1 sweeps, a Jacobian step indexes between them);
+the plan is the trajectory's own forward kinematics at planned timing, sampled every 10 ms.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pytest
+
+from planning.applicator import Applicator
+from planning.plan import CoveragePlan, PassPlan
+from planning.surface import Surface, plane
+from robots.robot import load_robot
+from sim.cell import Cell, build_cell
+from sim.execute import Disturbances, ExecutionError, ServoSettings, execute
+from sim.joint_trajectory import APPROACH, PAINT, JointTrajectory
+from sim.trace import ExecutedTrace
+from tests.helpers import REPLAY_TCP_ATOL_MM, SERVO_TRACKING_MAX_MM
+
+DT_S = 1e-3
+PASS_S = 1.6     # duration of one pass [s]
+INDEX_S = 0.5    # index move between the passes [s]
+SWEEP_RAD = 0.15  # joint 1 sweeps ±SWEEP_RAD: ±0.19 m of TCP travel at 1.25 m radius
+INDEX_M = 0.08   # TCP index step between the passes [m]
+PLAN_STRIDE = 10  # plan samples every 10 ms
+
+
+@dataclass(frozen=True, eq=False)
+class Case:
+    robot: Any
+    surface: Surface
+    T_world_part: np.ndarray
+    traj: JointTrajectory
+    plan: CoveragePlan
+
+
+def _min_jerk(tau: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """s, ds/dτ, d²s/dτ² of the rest-to-rest minimum-jerk blend on τ ∈ [0, 1]."""
+    s = 10 * tau**3 - 15 * tau**4 + 6 * tau**5
+    ds = 30 * tau**2 - 60 * tau**3 + 30 * tau**4
+    dds = 60 * tau - 180 * tau**2 + 120 * tau**3
+    return s, ds, dds
+
+
+def _segment(qa: np.ndarray, qb: np.ndarray, T: float) -> tuple[np.ndarray, ...]:
+    tau = np.arange(round(T / DT_S)) * DT_S / T
+    s, ds, dds = _min_jerk(tau)
+    dq = qb - qa
+    return (qa + s[:, None] * dq, (ds / T)[:, None] * dq, (dds / T**2)[:, None] * dq)
+
+
+@functools.lru_cache(maxsize=4)
+def make_case(part_shift_m: float = 0.0) -> Case:
+    """Robot, plane, placement, trajectory and plan; `part_shift_m` moves the part toward the
+    robot along the spray axis (0.3 m puts it through the bell)."""
+    robot = load_robot("abb_paint")
+    q_home = robot.q_home.copy()
+    T_home = robot.fk(q_home)
+    z_home = T_home[:3, 2]
+    # Index direction: in the plane ⟂ to the spray axis and to the travel (world y at home).
+    e_index = np.cross(np.array([0.0, 1.0, 0.0]), z_home)
+    e_index /= np.linalg.norm(e_index)
+    J = robot.jacobian(q_home)
+    dq_index = np.linalg.pinv(J) @ np.concatenate([INDEX_M * e_index, np.zeros(3)])
+    sweep = np.zeros(robot.nq)
+    sweep[0] = SWEEP_RAD
+    qa0, qa1 = q_home - sweep, q_home + sweep
+    qb0, qb1 = qa1 + dq_index, qa0 + dq_index
+    segs = [_segment(qa0, qa1, PASS_S), _segment(qa1, qb0, INDEX_S), _segment(qb0, qb1, PASS_S)]
+    q = np.vstack([s[0] for s in segs] + [qb1[None]])
+    qd = np.vstack([s[1] for s in segs] + [np.zeros((1, robot.nq))])
+    qdd = np.vstack([s[2] for s in segs] + [np.zeros((1, robot.nq))])
+    K = len(q)
+    t = np.arange(K) * DT_S
+    T_tcp = robot.fk_many(q)
+    pos, rot = T_tcp[:, :3, 3], T_tcp[:, :3, :3]
+    speed = np.linalg.norm(np.gradient(pos, t, axis=0), axis=1)
+    n_pass, n_index = round(PASS_S / DT_S), round(INDEX_S / DT_S)
+    pass_index = np.full(K, -1)
+    segment = np.full(K, APPROACH)
+    paint = np.zeros(K, bool)
+    for p, start in enumerate((0, n_pass + n_index)):
+        # Brush on while the pass moves at > 40 % of its peak speed.
+        sl = slice(start, start + n_pass)
+        on = speed[sl] > 0.4 * speed[sl].max()
+        paint[sl] = on
+        pass_index[sl] = p
+        segment[sl] = PAINT
+    traj = JointTrajectory(
+        t_s=t, q=q, qd=qd, qdd=qdd, tcp_pos_world=pos, tcp_rot_world=rot,
+        v_tcp_planned=np.where(paint, speed, 0.0), paint_on=paint, pass_index=pass_index,
+        segment=segment, s_pass_m=np.full(K, np.nan), robot_name=robot.name,
+        joint_names=tuple(robot.joint_names))
+
+    # Part: a 0.55 × 0.35 m plane ⟂ to the home spray axis, at standoff, between the passes.
+    app = Applicator.default()
+    T_world_part = np.eye(4)
+    x_part = np.array([0.0, 1.0, 0.0])
+    z_part = -z_home
+    T_world_part[:3, :3] = np.column_stack([x_part, np.cross(z_part, x_part), z_part])
+    T_world_part[:3, 3] = (T_home[:3, 3] + 0.5 * INDEX_M * e_index
+                           + (app.standoff_m - part_shift_m) * z_home)
+    surface = plane(0.55, 0.35, resolution_m=0.01)
+
+    # Plan: the paint-on samples of each pass in the part frame, every PLAN_STRIDE steps.
+    R_pw, p_pw = T_world_part[:3, :3].T, -T_world_part[:3, :3].T @ T_world_part[:3, 3]
+    passes = []
+    for p in range(2):
+        idx = np.flatnonzero(paint & (pass_index == p))[::PLAN_STRIDE]
+        passes.append(PassPlan(
+            positions=pos[idx] @ R_pw.T + p_pw, spray_axes=rot[idx, :, 2] @ R_pw.T,
+            travel_dirs=rot[idx, :, 0] @ R_pw.T, speeds_m_s=speed[idx], times_s=t[idx] - t[idx[0]],
+            on_part=np.ones(len(idx), bool), paint_on=np.ones(len(idx), bool), side=p))
+    plan = CoveragePlan(surface_name=surface.name, applicator=app, passes=tuple(passes))
+    return Case(robot, surface, T_world_part, traj, plan)
+
+
+@functools.lru_cache(maxsize=4)
+def make_cell(part_shift_m: float = 0.0) -> Cell:
+    c = make_case(part_shift_m)
+    return build_cell(c.robot, c.surface, c.T_world_part)
+
+
+@functools.lru_cache(maxsize=8)
+def run(mode: str = "servo", gain_scale: float = 1.0, part_shift_m: float = 0.0,
+        disturbances: Disturbances | None = None) -> ExecutedTrace:
+    return execute(make_cell(part_shift_m), make_case(part_shift_m).traj, mode=mode,  # type: ignore[arg-type]
+                   servo=ServoSettings(gain_scale=gain_scale), disturbances=disturbances)
+
+
+def _tcp_err_mm(trace: ExecutedTrace, traj: JointTrajectory) -> np.ndarray:
+    return 1e3 * np.linalg.norm(trace.tcp_pos_world - traj.tcp_pos_world, axis=1)
+
+
+def test_kinematic_replay_follows_the_reference_exactly() -> None:
+    case = make_case()
+    tr = run("kinematic")
+    np.testing.assert_array_equal(tr.q, case.traj.q)
+    # MuJoCo's TCP site and Pinocchio's FK of the same MJCF agree to round-off.
+    assert _tcp_err_mm(tr, case.traj).max() < REPLAY_TCP_ATOL_MM
+    assert tr.mode == "kinematic" and tr.contacts == ()
+    assert tr.meta["mujoco_warnings"] == {}
+
+
+def test_servo_tracking_error_is_small_but_nonzero() -> None:
+    case = make_case()
+    tr = run("servo")
+    err = _tcp_err_mm(tr, case.traj)
+    assert 1e-4 < err.max() < SERVO_TRACKING_MAX_MM
+    assert tr.meta["mujoco_warnings"] == {}
+    # Torques respect the actuator limits and hold the arm against gravity (not zero).
+    assert np.all(np.abs(tr.tau) <= case.robot.tau_max * (1 + 1e-9))
+    assert np.abs(tr.tau[:, 1]).max() > 10.0
+
+
+def test_softer_servo_tracks_worse() -> None:
+    case = make_case()
+    e1 = _tcp_err_mm(run("servo", 1.0), case.traj)
+    e01 = _tcp_err_mm(run("servo", 0.1), case.traj)
+    assert e01.max() > 3.0 * e1.max()
+
+
+def test_without_feedforward_the_error_grows() -> None:
+    case = make_case()
+    cell = make_cell()
+    tr = execute(cell, case.traj, servo=ServoSettings(feedforward=False))
+    assert _tcp_err_mm(tr, case.traj).max() > 3.0 * _tcp_err_mm(run("servo"), case.traj).max()
+
+
+def test_part_in_the_arm_path_is_a_reported_collision() -> None:
+    tr = run("kinematic", part_shift_m=0.3)
+    assert len(tr.contacts) > 0
+    cell = make_cell(0.3)
+    for c in tr.contacts:
+        assert c.body1 in cell.robot_body_names and c.body2 == "part"
+        assert c.depth_m > 0
+    # The servo run sees (and is pushed by) the same collision.
+    assert len(run("servo", part_shift_m=0.3).contacts) > 0
+
+
+def test_disturbances_are_seeded_and_applied() -> None:
+    d = Disturbances(part_offset_m=0.01, part_rotation_rad=0.02, tcp_offset_m=0.005, seed=3)
+    T1, o1 = d.realize()
+    T2, o2 = d.realize()
+    np.testing.assert_array_equal(T1, T2)
+    np.testing.assert_array_equal(o1, o2)
+    assert np.isclose(np.linalg.norm(T1[:3, 3]), 0.01) and np.isclose(np.linalg.norm(o1), 0.005)
+    case = make_case()
+    tr = run("kinematic", disturbances=d)
+    # The TCP calibration offset moves the executed spray point by exactly its length.
+    assert np.allclose(_tcp_err_mm(tr, case.traj), 5.0, atol=1e-6)
+    actual = np.asarray(tr.meta["T_world_part_actual"])
+    assert np.isclose(np.linalg.norm(actual[:3, 3] - case.T_world_part[:3, 3]), 0.01)
+
+
+def test_bad_inputs_raise_project_errors() -> None:
+    case = make_case()
+    cell = make_cell()
+    with pytest.raises(ExecutionError, match="mode"):
+        execute(cell, case.traj, mode="teleport")  # type: ignore[arg-type]
+    coarse = JointTrajectory(**{**{k: getattr(case.traj, k)[::2] for k in JointTrajectory._ARRAYS},
+                                "robot_name": case.traj.robot_name,
+                                "joint_names": case.traj.joint_names})
+    with pytest.raises(ExecutionError, match="1 kHz"):
+        execute(cell, coarse)
+    with pytest.raises(ExecutionError, match="friction_compensation"):
+        ServoSettings(friction_compensation=1.5)
+
+
+def test_trace_save_load_round_trip(tmp_path: Any) -> None:
+    tr = run("kinematic", part_shift_m=0.3)
+    path = tmp_path / "trace.npz"
+    tr.save_npz(path)
+    back = ExecutedTrace.load_npz(path)
+    for name in ExecutedTrace._ARRAYS:
+        np.testing.assert_array_equal(getattr(back, name), getattr(tr, name))
+    assert back.contacts == tr.contacts and back.mode == tr.mode
+    assert back.meta["T_world_part_actual"] == tr.meta["T_world_part_actual"]
+
+
+def test_progress_is_reported_to_completion() -> None:
+    seen: list[float] = []
+    case = make_case()
+    execute(make_cell(), case.traj, progress=seen.append)
+    assert seen and seen[-1] == 1.0 and all(np.diff(seen) > 0)
