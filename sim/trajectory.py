@@ -297,14 +297,11 @@ def _ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarra
     """Joint paths (M_i, n) of every pass, from `ik_results` or `robots.ik`."""
     n = int(robot.nq)
     if ik_results is None:
-        from robots.ik import solve_path  # robots/ is the only IK; imported when needed
+        from robots.ik import solve_paths  # robots/ is the only IK; imported when needed
 
-        out, seed = [], q_home
-        for Tw in T_world_tcp:
-            res = solve_path(robot, Tw, q_seed=seed, free_spin=settings.ik_free_spin)
-            out.append(np.asarray(res.q, float))
-            seed = out[-1][-1]
-        ik_results = out
+        # Each pass is seeded with the end of the previous one, the first with home.
+        ik_results = solve_paths(robot, T_world_tcp, q_seed=q_home,
+                                 free_spin=settings.ik_free_spin)
     if len(ik_results) != len(T_world_tcp):
         raise TrajectoryError(f"ik_results has {len(ik_results)} passes, the plan has "
                               f"{len(T_world_tcp)}; solve IK for the same plan")
