@@ -146,15 +146,6 @@ def cold_start(robot: Robot, T_world_tcp: npt.ArrayLike, q_seed: npt.ArrayLike |
 
 
 # --- closed-form branch selection -------------------------------------------------------------
-def _fill_rows(Q: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    """Replace rows of Q (M, n) where ~ok by the nearest previous (else next) ok row."""
-    idx = np.where(ok, np.arange(len(ok)), -1)
-    idx = np.maximum.accumulate(idx)
-    first = int(np.argmax(ok))
-    idx[idx < 0] = first
-    return Q[idx]
-
-
 def opw_branches(robot: Robot, T_world_tcp: npt.ArrayLike, q_ref: npt.ArrayLike
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """All 8 closed-form branches of a pass, continuous along it.
@@ -165,34 +156,40 @@ def opw_branches(robot: Robot, T_world_tcp: npt.ArrayLike, q_ref: npt.ArrayLike
     """
     if robot.opw is None:
         raise RobotError(f"{robot.name} has no closed-form IK; use DLS (solve_path does)")
-    Q, reach = inverse(robot.opw, robot.flange_poses(T_world_tcp))
+    return opw_branches_flange(robot, robot.flange_poses(T_world_tcp), q_ref)
+
+
+def opw_branches_flange(robot: Robot, T_base_flange: np.ndarray, q_ref: npt.ArrayLike
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`opw_branches` for flange poses in the base frame, T_base_flange (M, 4, 4)."""
+    assert robot.opw is not None
+    Q, reach = inverse(robot.opw, T_base_flange)
+    return continuous_branches(robot, Q, reach, q_ref)
+
+
+def continuous_branches(robot: Robot, Q: np.ndarray, reach: np.ndarray, q_ref: npt.ArrayLike
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Closed-form solutions Q (M, 8, 6), reach (M, 8) of one pass → (Q (8, M, 6) unwrapped along
+    the pass and shifted into the limits near q_ref, reach (8, M), within (8, M))."""
     Q = np.swapaxes(Q, 0, 1).copy()                     # (8, M, 6)
     reach = reach.T.copy()
     lo, hi = robot.q_lower, robot.q_upper
-    q_ref = np.asarray(q_ref, float)
     two_pi_k = 2 * np.pi * np.arange(-3, 4)
-    within = np.zeros_like(reach)
-    for b in range(N_BRANCHES):
-        if not reach[b].any():
-            continue
-        Qb = np.unwrap(_fill_rows(Q[b], reach[b]), axis=0)
-        # Shift each joint path by 2πk: inside the limits if possible, start near q_ref.
-        cand = Qb[None] + two_pi_k[:, None, None]                   # (7, M, 6)
-        ok_pts = (cand >= lo - 1e-12) & (cand <= hi + 1e-12) & reach[b][None, :, None]
-        n_in = ok_pts.sum(axis=1)                                    # (7, 6)
-        dist = np.abs(cand[:, 0, :] - q_ref)
-        k = _best_shift(n_in, dist)
-        Qb = Qb + two_pi_k[k]
-        Q[b] = Qb
-        within[b] = reach[b] & np.all((Qb >= lo - 1e-12) & (Qb <= hi + 1e-12), axis=1)
+    # Unreachable samples take the nearest earlier (else the first) reachable row, so that the
+    # unwrap along the pass is not broken by them.
+    idx = np.maximum.accumulate(np.where(reach, np.arange(reach.shape[1]), -1), axis=1)
+    idx = np.where(idx < 0, np.argmax(reach, axis=1)[:, None], idx)
+    Q = np.unwrap(np.take_along_axis(Q, idx[:, :, None], axis=1), axis=1)
+    # Shift each joint path by 2πk: inside the limits if possible, start near q_ref.
+    cand = Q[:, None] + two_pi_k[None, :, None, None]                 # (8, 7, M, 6)
+    inside = (cand >= lo - 1e-12) & (cand <= hi + 1e-12)
+    n_in = (inside & reach[:, None, :, None]).sum(axis=2)               # (8, 7, 6)
+    dist = np.abs(cand[:, :, 0, :] - np.asarray(q_ref, float))
+    k = np.argmax(n_in * 1e3 - np.minimum(dist, 999.0), axis=1)         # (8, 6)
+    Q = Q + two_pi_k[k][:, None, :]
+    within = reach & np.all((Q >= lo - 1e-12) & (Q <= hi + 1e-12), axis=2)
     Q[~reach] = np.nan
     return Q, reach, within
-
-
-def _best_shift(n_in: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """Per joint, the shift index with the most samples inside the limits, then nearest q_ref."""
-    score = n_in * 1e3 - np.minimum(dist, 999.0)
-    return np.argmax(score, axis=0)
 
 
 def choose_branch(robot: Robot, Q: np.ndarray, within: np.ndarray,
