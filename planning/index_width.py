@@ -32,6 +32,9 @@ from planning.offset import IndexingCurve
 #: spectrally: error ~ exp(-2π²σ²/dx²) ≈ 1e-21 at dx = σ/2.5 (checked against the closed form in
 #: tests/test_index_width.py).
 _DX_PER_SIGMA = 0.4
+#: Travel range of the line integral on a curved section, in footprint radii [-] (see
+#: `cross_profiles`).
+_X_RANGE_FACTOR = 1.25
 #: Rows of gun positions per `deposition_rate` call (keeps the dense temporaries ~20 MB).
 _ROWS_PER_CALL = 8
 
@@ -64,7 +67,7 @@ def single_pass_profile(app: Applicator, lateral_m: npt.ArrayLike,
     film at (0, y) is (1/v) ∫ rate dx (which on a facing plane is ∫ f(x, y) dx / v).
     """
     y = np.asarray(lateral_m, float).reshape(-1)
-    r = app.footprint_radius_m
+    r = _X_RANGE_FACTOR * app.footprint_radius_m     # the same travel range as cross_profiles
     dx = _dx(app)
     x = np.arange(-r, r + 0.5 * dx, dx)
     gun = np.stack([x, np.zeros_like(x), np.full_like(x, app.standoff_m)], axis=1)
@@ -143,7 +146,9 @@ def cross_profiles(app: Applicator, curve: IndexingCurve, travel_dir: npt.ArrayL
     gn /= np.linalg.norm(gn, axis=1, keepdims=True)
     pn = pn - np.outer(pn @ t, t)
     pn /= np.linalg.norm(pn, axis=1, keepdims=True)
-    r = app.footprint_radius_m
+    # On a convex section the surface falls away from the reference plane (dz up to ~1.2 h inside
+    # the spray cone of a 1 m radius), so the travel range reaching a point grows as R·dz/h.
+    r = _X_RANGE_FACTOR * app.footprint_radius_m
     dx = _dx(app)
     x = np.arange(-r, r + 0.5 * dx, dx)
     nx = len(x)

@@ -235,7 +235,16 @@ def curve_through(geom: SurfaceGeometry, point: npt.ArrayLike, plane_normal: npt
     d = _signed(geom, p, nrm) if signed_d is None else signed_d
     cross, pts, nn = _crossings(geom, d)
     if len(cross) < 2:
-        return None
+        # a plane through a boundary edge of the mesh touches it without crossing: nudge it
+        # inward by a negligible distance so the boundary row itself becomes the section
+        eps = 1e-9 * geom.edge_length_m
+        if d.min() >= -eps:
+            d = d - eps
+        elif d.max() <= eps:
+            d = d + eps
+        cross, pts, nn = _crossings(geom, d)
+        if len(cross) < 2:
+            return None
     near = int(np.argmin(np.linalg.norm(pts - p, axis=1)))
     (order, closed), = _order_components(geom, d, cross, wanted=np.array([near]))
     cp, cn = _dedupe(pts[order], nn[order])

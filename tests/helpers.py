@@ -116,3 +116,17 @@ RENDER_MIN_PIXEL_STD = 5.0
 # Thin (≈10 %) and thick (≈90 %) ends of a thickness ramp, read back through the colour map: the
 # lighting shifts the nearest colour-map entry by < 0.15, so the two ends stay > 0.5 apart.
 RENDER_RAMP_MIN_LEVEL_GAP = 0.5
+
+
+# --- joint trajectories (sim.time_law, sim.moves, sim.trajectory) --------------------------------
+# Finite differences of analytically sampled trajectories average the next derivative over the
+# stencil, so they never exceed its maximum; only float64 round-off (~1e-10 relative) remains.
+FD_LIMIT_RTOL = 1e-6
+# Vectorized ruckig profile evaluation vs ruckig's own at_time, and boundary states of a move:
+# the same cubics in float64 (observed ~1e-13).
+RUCKIG_STATE_ATOL = 1e-9
+# TCP path deviation from the planned path on paint segments [m] (issue 5: < 0.5 mm).
+TCP_PATH_ATOL_M = 0.5e-3
+# TCP speed vs planned where no limit binds (issue 5: within 1 %); measured by central differences
+# of 1 kHz FK positions (chord error on a 1 m radius at 1 m/s: ~1e-8 relative).
+SPEED_FOLLOW_RTOL = 0.01

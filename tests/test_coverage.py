@@ -1,0 +1,205 @@
+"""Algorithm 1 end to end: geometry of the passes re-measured, coverage of the part, round trips."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planning import parts
+from planning.applicator import Applicator
+from planning.coverage import PlannerSettings, plan_coverage
+from planning.deposition import thickness
+from planning.errors import PlanError
+from planning.index_width import planar_index_width
+from planning.plan import CoveragePlan
+from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
+
+RES = 0.025
+FAST = PlannerSettings(optimize_speed=False, sample_spacing_m=0.025)
+APP = Applicator.default()
+
+
+def _feet(plan: CoveragePlan, i: int, on_part: bool = True) -> np.ndarray:
+    p = plan.passes[i]
+    keep = p.on_part if on_part else np.ones(len(p.on_part), bool)
+    return (p.positions + APP.standoff_m * p.spray_axes)[keep]
+
+
+@pytest.fixture(scope="module")
+def panel_plan() -> CoveragePlan:
+    return plan_coverage(parts.panel(RES), APP, FAST)
+
+
+@pytest.fixture(scope="module")
+def cylinder_plan() -> CoveragePlan:
+    s = parts.cylinder_section(RES)
+    return plan_coverage(s, APP, PlannerSettings(optimize_speed=False, sample_spacing_m=0.025,
+                                                 orientation="zero-curvature"))
+
+
+def test_settings_validate_and_round_trip() -> None:
+    st = PlannerSettings(orientation=0.3, start_position=0.4)
+    assert PlannerSettings.from_dict(st.to_dict()) == st
+    for bad in ({"u_max": 0.0}, {"w_min_m": 0.5, "w_max_m": 0.2}, {"band_curves": 4},
+                {"orientation": "diagonal"}, {"start_position": 2.0},
+                {"v_nominal_m_s": 2.0}, {"n_future": 0}):
+        with pytest.raises(PlanError):
+            PlannerSettings(**bad)
+    with pytest.raises(PlanError, match="unknown"):
+        PlannerSettings.from_dict({"speed": 1.0})
+
+
+def test_plane_passes_straight_parallel_equally_spaced(panel_plan: CoveragePlan) -> None:
+    want = planar_index_width(APP, FAST.w_min_m, FAST.w_max_m, FAST.w_res_m, FAST.u_max).width_m
+    sides = [p.side for p in panel_plan.passes]
+    assert sides == sorted(sides) and 0 in sides
+    ys = []
+    for i, p in enumerate(panel_plan.passes):
+        foot = _feet(panel_plan, i, on_part=False)
+        # straight, along x, on the plane, TCP at standoff along the normal
+        assert np.ptp(foot[:, 1]) < FLAT_GEOMETRY_ATOL_M
+        assert np.allclose(foot[:, 2], 0.0, atol=FLAT_GEOMETRY_ATOL_M)
+        assert np.allclose(p.positions[:, 2], APP.standoff_m, atol=FLAT_GEOMETRY_ATOL_M)
+        assert np.allclose(np.abs(p.travel_dirs[:, 0]), 1.0, atol=1e-12)
+        ys.append(foot[0, 1])
+        if p.side != 0:
+            assert p.index_width_m == pytest.approx(want, abs=1e-12)
+    gaps = np.abs(np.diff(ys))
+    np.testing.assert_allclose(gaps, want, atol=FLAT_GEOMETRY_ATOL_M)
+    # the passes cover the whole width: the outermost on-part passes lie within w of the edges
+    # and the edge passes beyond them (sideways overspray)
+    assert min(ys) < -0.4 + 1e-9 and max(ys) > 0.4 - 1e-9
+
+
+def test_plane_overspray_and_alternating_direction(panel_plan: CoveragePlan) -> None:
+    for i, p in enumerate(panel_plan.passes):
+        x = p.positions[:, 0]
+        assert x.max() == pytest.approx(0.5 + FAST.overspray_m, abs=1e-9)
+        assert x.min() == pytest.approx(-0.5 - FAST.overspray_m, abs=1e-9)
+        assert p.paint_on.all()
+        foot_x = x[p.on_part]
+        if len(foot_x):
+            assert np.all(np.abs(foot_x) <= 0.5 + 1e-9)
+        assert np.all(np.abs(x[~p.on_part]) > 0.5 - 1e-9) or not p.on_part.any()
+        direction = np.sign(p.travel_dirs[:, 0].mean())
+        assert direction == (1 if i % 2 == 0 else -1)
+        # constant speed: times re-measured from the path length
+        assert np.allclose(p.speeds_m_s, FAST.v_nominal_m_s)
+        assert p.duration_s == pytest.approx(p.length_m / FAST.v_nominal_m_s)
+
+
+def test_cylinder_generators_spaced_by_arc_length(cylinder_plan: CoveragePlan) -> None:
+    ths = []
+    for i, p in enumerate(cylinder_plan.passes):
+        if not p.on_part.any():
+            continue
+        foot = _feet(cylinder_plan, i)
+        # axis x, R = 1 m, centre of curvature below the part: the angle is constant on a
+        # generator and the radius is R
+        centre_z = foot[:, 2] - np.sqrt(1.0 - foot[:, 1] ** 2)
+        assert np.ptp(centre_z) < 1e-6
+        th = np.arctan2(foot[:, 1], foot[:, 2] - centre_z)
+        assert np.ptp(th) < 1e-6
+        assert np.allclose(np.abs(p.travel_dirs[:, 0]), 1.0, atol=1e-6)
+        assert p.max_geodesic_curvature_1_m < 1e-6
+        ths.append((p.side, float(th.mean()), p.index_width_m))
+    ths.sort()
+    for (s0, t0, _), (s1, t1, w1) in zip(ths, ths[1:], strict=False):
+        w = w1 if s1 > 0 else dict((s, ww) for s, _, ww in ths)[s0]
+        assert abs(t1 - t0) * 1.0 == pytest.approx(w, rel=MESH_ARC_RTOL)
+
+
+def test_cylinder_around_passes_are_circles_spaced_straight() -> None:
+    s = parts.cylinder_section(RES)
+    plan = plan_coverage(s, APP, PlannerSettings(optimize_speed=False, sample_spacing_m=0.025,
+                                                 orientation="max-curvature"))
+    xs = []
+    for i, p in enumerate(plan.passes):
+        if p.on_part.any():
+            foot = _feet(plan, i)
+            assert np.ptp(foot[:, 0]) < 1e-9              # a circle x = const
+            xs.append((p.side, foot[0, 0], p.index_width_m))
+    xs.sort()
+    gaps = np.abs(np.diff([x for _, x, _ in xs]))
+    widths = [w if sd > 0 else None for sd, _, w in xs]
+    assert np.all(gaps >= FAST.w_min_m - 1e-9) and np.all(gaps <= FAST.w_max_m + 1e-9)
+    assert any(w is not None for w in widths)
+
+
+@pytest.mark.parametrize("name", ["panel", "cylinder_section", "door"])
+def test_union_of_passes_covers_whole_part(name: str) -> None:
+    s = parts.get_part(name, RES)
+    plan = plan_coverage(s, APP, FAST)
+    film = thickness(APP, plan.gun_samples(), s.vertices, s.normals)
+    target = float(np.dot(film, s.vertex_areas) / s.vertex_areas.sum())
+    assert film.min() >= 0.5 * target, f"{name}: min {film.min() / target:.2f} of the mean"
+
+
+def test_plane_mean_film_matches_flow_over_speed_times_width(panel_plan: CoveragePlan) -> None:
+    # independent truth: parallel passes at spacing w and speed v build Q / (v w) in the interior
+    s = parts.panel(RES)
+    film = thickness(APP, panel_plan.gun_samples(), s.vertices, s.normals)
+    w = panel_plan.passes[-2].index_width_m
+    interior = (np.abs(s.vertices[:, 0]) < 0.2) & (np.abs(s.vertices[:, 1]) < 0.2)
+    want = APP.emitted_flow_m3_s / (FAST.v_nominal_m_s * w)
+    assert film[interior].mean() == pytest.approx(want, rel=0.02)
+
+
+def test_save_load_round_trip(tmp_path, panel_plan: CoveragePlan) -> None:
+    path = tmp_path / "plan.json"
+    panel_plan.save(path)
+    back = CoveragePlan.load(path)
+    assert back.start_rule == panel_plan.start_rule
+    assert back.settings == panel_plan.settings
+    assert len(back.passes) == len(panel_plan.passes)
+    for a, b in zip(panel_plan.passes, back.passes, strict=True):
+        for name in ("positions", "spray_axes", "travel_dirs", "speeds_m_s", "times_s",
+                     "on_part", "paint_on"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+        assert a.side == b.side
+        assert (a.index_width_m == b.index_width_m
+                or (np.isnan(a.index_width_m) and np.isnan(b.index_width_m)))
+    assert PlannerSettings.from_dict({k: v for k, v in back.settings.items() if k != "report"}) \
+        == FAST
+
+
+def test_planning_is_deterministic() -> None:
+    s = parts.door(0.04)
+    st = PlannerSettings(optimize_speed=False, sample_spacing_m=0.04)
+    a, b = plan_coverage(s, APP, st), plan_coverage(s, APP, st)
+    assert len(a.passes) == len(b.passes)
+    for pa, pb in zip(a.passes, b.passes, strict=True):
+        np.testing.assert_array_equal(pa.positions, pb.positions)
+
+
+def test_speed_optimized_passes_respect_bounds_and_never_worse() -> None:
+    s = parts.panel(0.04)
+    st = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=12)
+    plan = plan_coverage(s, APP, st)
+    ran = 0
+    for p in plan.passes:
+        assert np.all(p.speeds_m_s >= st.v_min_m_s * (1 - 1e-6))
+        assert np.all(p.speeds_m_s <= st.v_max_m_s * (1 + 1e-6))
+        if np.isfinite(p.nsd_optimized_pct):
+            ran += 1
+            assert p.nsd_optimized_pct <= p.nsd_constant_pct + 1e-9
+    assert ran >= 3
+    statuses = [r.get("speed_status", "") for r in plan.settings["report"]["passes"]]
+    assert any(st_.startswith("optimal") for st_ in statuses)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", parts.PART_NAMES)
+def test_algorithm1_terminates_on_every_part(name: str) -> None:
+    s = parts.get_part(name, RES)
+    plan = plan_coverage(s, APP, FAST)
+    sides = [p.side for p in plan.passes]
+    assert sides == sorted(sides) and len(set(sides)) == len(sides)
+    assert len(plan.passes) < FAST.max_passes
+    for p in plan.passes:
+        assert np.isfinite(p.max_geodesic_curvature_1_m) and p.max_geodesic_curvature_1_m >= 0
+        if p.side != 0:
+            assert FAST.w_min_m - 1e-9 <= p.index_width_m <= FAST.w_max_m + 1e-9
+    report = plan.settings["report"]
+    assert len(report["passes"]) == len(plan.passes)
+    assert report["planning_time_s"] > 0

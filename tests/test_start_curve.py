@@ -1,0 +1,193 @@
+"""Start curve (paper §2.3) and the in-surface curve geometry it is built from (planning.offset)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planning import parts
+from planning.errors import PlanError
+from planning.offset import (
+    IndexingCurve,
+    SurfaceGeometry,
+    arc_length,
+    check_offset_order,
+    geodesic_curvature,
+    indexing_curves,
+    plane_sections,
+    resample,
+    walk,
+)
+from planning.start_curve import (
+    altitude_sweep,
+    average_normal,
+    divider_offset,
+    select_start_curve,
+)
+from planning.surface import plane
+from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
+
+RES = 0.025
+
+
+def _rotated_plane(angle: float):
+    s = plane(1.2, 0.5, RES)
+    c, si = np.cos(angle), np.sin(angle)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -si], [si, c]]
+    return s.transformed(T)
+
+
+def _line_deviation(points: np.ndarray) -> float:
+    d = points[-1] - points[0]
+    d /= np.linalg.norm(d)
+    rel = points - points[0]
+    return float(np.max(np.linalg.norm(rel - np.outer(rel @ d, d), axis=1)))
+
+
+def test_plane_start_curve_is_straight_along_long_side_at_median() -> None:
+    s = parts.panel(RES)                               # 1.0 m (x) × 0.8 m (y)
+    sc = select_start_curve(s, spacing_m=0.02)
+    assert _line_deviation(sc.points) < FLAT_GEOMETRY_ATOL_M
+    assert abs(sc.pass_dir[0]) == pytest.approx(1.0, abs=1e-12)
+    assert sc.altitude_m == pytest.approx(0.8, abs=1e-9)
+    assert "area median" in sc.rule
+    # area median of a centred rectangle: the mid line, spanning the full 1 m length
+    assert sc.plane_offset_m == pytest.approx(0.0, abs=1e-9)
+    assert arc_length(sc.points)[-1] == pytest.approx(1.0, abs=1e-9)
+    assert np.all(np.diff(sc.points @ sc.pass_dir) > 0)
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 30.0, 117.0])
+def test_minimal_altitude_finds_rotation_of_a_rectangle(angle_deg: float) -> None:
+    s = _rotated_plane(np.deg2rad(angle_deg))
+    sc = select_start_curve(s)
+    long_axis = np.array([np.cos(np.deg2rad(angle_deg)), np.sin(np.deg2rad(angle_deg)), 0.0])
+    assert abs(sc.pass_dir @ long_axis) > np.cos(np.deg2rad(1.0))
+    assert sc.altitude_m == pytest.approx(0.5, rel=1e-3)
+
+
+def test_altitude_sweep_closed_form_for_rectangle() -> None:
+    s = parts.panel(RES)
+    ang, alt = altitude_sweep(s.vertices, average_normal(s))
+    # extent of a 1.0 × 0.8 rectangle across direction θ: |1.0 sin θ| + |0.8 cos θ|
+    np.testing.assert_allclose(alt, np.abs(np.sin(ang)) * 1.0 + np.abs(np.cos(ang)) * 0.8,
+                               atol=1e-9)
+
+
+def test_cylinder_principal_orientations() -> None:
+    s = parts.cylinder_section(RES)                    # axis x, R = 1 m
+    along = select_start_curve(s, "zero-curvature")
+    around = select_start_curve(s, "max-curvature")
+    assert abs(along.pass_dir[0]) > np.cos(np.deg2rad(1.0))
+    assert abs(around.pass_dir[1]) > np.cos(np.deg2rad(1.0))
+    # the generator is straight; the circle around has length R·arc = 1.2 m
+    assert _line_deviation(along.points) < 1e-9
+    assert arc_length(around.points)[-1] == pytest.approx(1.2, rel=MESH_ARC_RTOL)
+
+
+def test_gaussian_curvature_divider_splits_total_curvature() -> None:
+    s = parts.fender(RES)
+    sc = select_start_curve(s)
+    assert "gaussian-curvature divider" in sc.rule
+    proj = s.vertices @ sc.plane_normal
+    kda = s.gaussian_curvature * s.vertex_areas
+    lo, hi = kda[proj < sc.plane_offset_m].sum(), kda[proj >= sc.plane_offset_m].sum()
+    # re-measured: the halves differ by at most the K·A of one grid row next to the plane
+    near = np.abs(proj - sc.plane_offset_m) < 1.5 * RES
+    assert abs(lo - hi) <= 2 * np.abs(kda[near]).sum()
+    assert sc.total_k_rad == pytest.approx(kda.sum())
+
+
+def test_divider_offset_closed_form() -> None:
+    proj = np.array([0.0, 1.0, 2.0, 3.0])
+    assert divider_offset(proj, np.array([1.0, 1.0, 1.0, 1.0])) == pytest.approx(1.0)
+    assert divider_offset(proj, np.array([0.0, 0.0, 2.0, 2.0])) == pytest.approx(2.0)
+
+
+def test_user_overrides() -> None:
+    s = parts.panel(RES)
+    sc = select_start_curve(s, orientation=np.pi / 2, position=0.25)
+    assert abs(sc.pass_dir[1]) == pytest.approx(1.0, abs=1e-12)
+    proj = s.vertices @ sc.plane_normal
+    assert sc.plane_offset_m == pytest.approx(proj.min() + 0.25 * (proj.max() - proj.min()))
+    assert "user" in sc.rule
+    with pytest.raises(PlanError):
+        select_start_curve(s, orientation="diagonal")
+    with pytest.raises(PlanError):
+        select_start_curve(s, position=1.5)
+    with pytest.raises(PlanError):
+        select_start_curve(s, orientation="zero-curvature")   # a plane has no principal axis
+
+
+def test_plane_section_of_cylinder_is_an_arc() -> None:
+    s = parts.cylinder_section(RES)
+    geom = SurfaceGeometry.from_surface(s)
+    secs = plane_sections(geom, [0.1, 0.0, 0.0], [1.0, 0.0, 0.0])
+    assert len(secs) == 1 and not secs[0].closed
+    p = secs[0].points
+    assert np.allclose(p[:, 0], 0.1, atol=FLAT_GEOMETRY_ATOL_M)
+    assert arc_length(p)[-1] == pytest.approx(1.2, rel=MESH_ARC_RTOL)
+    assert plane_sections(geom, [5.0, 0.0, 0.0], [1.0, 0.0, 0.0]) == []
+
+
+def test_indexing_curve_walk_is_geodesic_on_cylinder() -> None:
+    s = parts.cylinder_section(RES)
+    geom = SurfaceGeometry.from_surface(s)
+    top = int(np.argmax(s.vertices[:, 2]))
+    p, n = s.vertices[top], s.normals[top]
+    (c,) = indexing_curves(geom, p[None], np.array([[1.0, 0.0, 0.0]]), n[None])
+    assert c is not None
+    for w in (0.1, 0.3, -0.25):
+        q, qn, inside = c.sample(np.array([w]))
+        assert inside[0]
+        # arc length w on R = 1 m ⇒ chord 2 sin(w/2), and the right side of +x on +z is -y
+        assert np.linalg.norm(q[0] - p) == pytest.approx(2 * np.sin(abs(w) / 2),
+                                                         rel=MESH_ARC_RTOL)
+        assert np.sign(q[0, 1] - p[1]) == -np.sign(w)
+    # beyond the boundary the curve continues straight along its end tangent
+    q, _, inside = c.sample(np.array([c.s_max + 0.1]))
+    assert not inside[0]
+    end, _, _ = c.sample(np.array([c.s_max]))
+    assert np.linalg.norm(q[0] - end[0]) == pytest.approx(0.1, rel=1e-9)
+
+
+def test_walk_handles_missing_curves() -> None:
+    s = np.linspace(-1, 1, 11)
+    c = IndexingCurve(np.stack([s, 0 * s, 0 * s], 1), np.tile([0, 0, 1.0], (11, 1)), s)
+    pts, _, inside = walk([c, None], 0.5)
+    assert inside.tolist() == [True, False]
+    assert np.isnan(pts[1]).all()
+    np.testing.assert_allclose(pts[0], [0.5, 0, 0])
+
+
+def test_geodesic_curvature_of_planar_circle() -> None:
+    r = 0.4
+    th = np.linspace(0, np.pi, 400)
+    pts = np.stack([r * np.cos(th), r * np.sin(th), 0 * th], 1)   # counter-clockwise seen from +z
+    nrm = np.tile([0.0, 0.0, 1.0], (len(th), 1))
+    kg = geodesic_curvature(pts, nrm, smoothing_m=0.02)
+    # second differences at step h on a circle: O((h/r)²) = 2.5e-3 plus chord interpolation
+    np.testing.assert_allclose(kg, 1 / r, rtol=1e-2)                # bends to the left: +1/r
+    assert np.allclose(geodesic_curvature(pts[::-1], nrm), -1 / r, rtol=1e-2)
+    line = np.stack([th, 0 * th, 0 * th], 1)
+    assert np.max(np.abs(geodesic_curvature(line, nrm))) < 1e-9
+
+
+def test_resample_keeps_ends_and_spacing() -> None:
+    pts = np.array([[0.0, 0, 0], [0.3, 0, 0], [0.3, 0.5, 0]])
+    nrm = np.tile([0, 0, 1.0], (3, 1))
+    q, qn, f = resample(pts, nrm, 0.1, np.array([True, False, True]))
+    np.testing.assert_allclose(q[[0, -1]], pts[[0, -1]])
+    np.testing.assert_allclose(np.linalg.norm(np.diff(q, axis=0), axis=1).max(), 0.1, atol=1e-3)
+    assert f[0] and f[-1]
+
+
+def test_reversing_offset_is_refused() -> None:
+    src = np.stack([np.linspace(0, 1, 11), np.zeros(11), np.zeros(11)], 1)
+    off = src + [0.0, -0.2, 0.0]
+    check_offset_order(src, off, "ok")                 # parallel: accepted
+    bad = off.copy()
+    bad[5:7, 0] = bad[5:7, 0][::-1] + [0.15, -0.15]     # a swallowtail
+    with pytest.raises(PlanError, match="self-intersects"):
+        check_offset_order(src, bad, "offset +1")
