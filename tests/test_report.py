@@ -182,3 +182,34 @@ def test_make_figures_without_cell(tmp_path):
     (tmp_path / "metrics.json").write_text(json.dumps({"passed": True, "checks": []}))
     text = report.write_report(tmp_path).read_text(encoding="utf-8")
     assert text.count("<img ") == len(files)
+
+
+@pytest.mark.slow
+def test_make_figures_with_cell_robot_and_video(tmp_path):
+    """The real paint cell: robot renders at three moments and an execution GIF."""
+    from robots import load_robot
+    from sim.cell import build_cell
+
+    s = plane(0.6, 0.4, resolution_m=0.05)
+    T = np.eye(4)
+    T[:3, 3] = [1.4, 0.0, 0.9]
+    robot = load_robot("abb_paint")
+    cell = build_cell(robot, s, T)
+    k = 3000  # 3 s at 1 kHz
+    t = np.arange(k) * 1e-3
+    q = cell.q_home + np.outer(np.sin(np.pi * t / t[-1]), np.full(cell.nq, 0.3))
+    on = (t > 0.5) & (t < 2.5)
+    trace = SimpleNamespace(t_s=t, q=q, paint_on=on)
+    planned = 20e-6 + 5e-6 * np.cos(6 * s.vertices[:, 0])
+    rep = SimpleNamespace(planned_thickness_m=planned, executed_thickness_m=planned * 0.9)
+    files = report.make_figures(tmp_path, surface=s, trace=trace, report=rep, cell=cell,
+                                size=(160, 120), video_size=(96, 72), video_max_frames=12,
+                                index_curve=False)
+    names = {f.name for f in files}
+    assert {"robot_first_paint.png", "robot_mid_paint.png", "robot_last_paint.png",
+            "execution.gif"} <= names
+    a = np.asarray(Image.open(tmp_path / "robot_first_paint.png"), int)
+    b = np.asarray(Image.open(tmp_path / "robot_mid_paint.png"), int)
+    assert np.abs(a - b).sum() > 0  # the arm moved between the two moments
+    with Image.open(tmp_path / "execution.gif") as im:
+        assert 2 <= im.n_frames <= 12
