@@ -94,6 +94,13 @@ def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: np
     if result not in (ruckig.Result.Working, ruckig.Result.Finished):
         raise TrajectoryError(f"ruckig failed on a move ({result}); check the boundary states "
                               "against the move limits")
+    if q_lower is not None and q_upper is not None:
+        # ruckig (community) does not enforce position limits: check the move's extrema.
+        lo = np.array([b.min for b in traj.position_extrema])
+        hi = np.array([b.max for b in traj.position_extrema])
+        if np.any(lo < np.asarray(q_lower) - 1e-9) or np.any(hi > np.asarray(q_upper) + 1e-9):
+            raise TrajectoryError("a move between passes would leave the joint position limits; "
+                                  "move the part or the robot base")
     move = _from_profiles(traj, n)
     _crosscheck(move, traj)
     return move

@@ -304,15 +304,7 @@ def parameterize_pass(path: JointPath, fk_pos: FkPositions, v_planned_knots_m_s:
                                           shrink * tcp_a_max_m_s2)]
         algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid,
                                        solver_wrapper="seidel")
-        sd_end = min(v_end, np.sqrt(max(xmax[-1], 0.0)))
-        for _ in range(30):  # lower the end speed until it can be reached (halving; then 0)
-            K = algo.compute_controllable_sets(sd_end, sd_end)
-            if not np.any(np.isnan(K)):
-                break
-            sd_end = 0.0 if sd_end < 1e-6 else 0.5 * sd_end
-        else:
-            raise TrajectoryError("TOPP-RA found no feasible time law for a pass (path not "
-                                  "controllable); check the joint limits and the IK path")
+        sd_end, K = _reachable_end(algo, min(v_end, np.sqrt(max(xmax[-1], 0.0))), v_start)
         sd_start = min(v_start, np.sqrt(max(K[0, 1], 0.0)) * (1 - 1e-9))
         sdd, sd, _, _ = algo.compute_parameterization(sd_start, sd_end, return_data=True)
         if sdd is None or np.any(~np.isfinite(sd)):
@@ -337,6 +329,39 @@ def parameterize_pass(path: JointPath, fk_pos: FkPositions, v_planned_knots_m_s:
         shrink = shrink / excess * (1 - 1e-3)
     raise TrajectoryError(f"the sampled pass still exceeds a limit by {100 * (excess - 1):.2f} % "
                           f"after {max_tightenings} tightenings; use a finer grid_spacing_m")
+
+
+def _reachable_end(algo: toppra.algorithm.TOPPRA, sd_end: float,
+                   sd_start: float) -> tuple[float, np.ndarray]:
+    """The requested end speed if a start at ≤ `sd_start` can reach it, else the largest one
+    that can (bisection on the backward controllable sets); with its controllable sets K."""
+
+    def ok(sd: float) -> np.ndarray | None:
+        K = algo.compute_controllable_sets(sd, sd)
+        if np.any(np.isnan(K)) or K[0, 0] > sd_start**2 + 1e-12:
+            return None
+        return K
+
+    K = ok(sd_end)
+    if K is not None:
+        return sd_end, K
+    lo, hi = 0.0, sd_end
+    K_lo = ok(0.0)
+    if K_lo is None:
+        raise TrajectoryError("TOPP-RA found no feasible time law for a pass (path not "
+                              "controllable); check the joint limits and the IK path")
+    for _ in range(30):  # bisection to ~1e-9 of the requested speed
+        mid = 0.5 * (lo + hi)
+        K_mid = ok(mid)
+        if K_mid is None:
+            hi = mid
+        else:
+            lo, K_lo = mid, K_mid
+    # Step back from the edge of feasibility: there the controllable sets shrink to points and
+    # toppra's forward pass fails on round-off.
+    sd = lo * (1 - 1e-3)
+    K = ok(sd)
+    return (sd, K) if K is not None else (lo, K_lo)
 
 
 def _sampled_excess(law: PassTimeLaw, fk_pos: FkPositions, v_lim: np.ndarray, a_lim: np.ndarray,

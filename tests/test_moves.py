@@ -1,0 +1,71 @@
+"""sim.moves: ruckig moves re-measured — boundary states, limits, agreement with ruckig itself."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import ruckig
+
+from sim.joint_trajectory import TrajectoryError
+from sim.moves import plan_move
+from tests.helpers import FD_LIMIT_RTOL, RUCKIG_STATE_ATOL
+
+N = 6
+V = np.array([3.0, 3.0, 3.0, 4.0, 4.0, 6.0])
+A = np.array([6.0, 6.0, 8.0, 20.0, 20.0, 30.0])
+J = A / 0.08
+
+
+def _random_state(rng: np.random.Generator, frac: float) -> tuple[np.ndarray, ...]:
+    return (rng.uniform(-1, 1, N), frac * rng.uniform(-1, 1, N) * V,
+            frac * rng.uniform(-1, 1, N) * A)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_move_joins_states_and_respects_limits(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    a, b = _random_state(rng, 0.9), _random_state(rng, 0.5)
+    m = plan_move(*a, *b, V, A, J)
+    q, qd, qdd = m.sample(np.array([0.0, m.duration_s]))
+    for got, want in zip((q[0], qd[0], qdd[0], q[1], qd[1], qdd[1]), (*a, *b), strict=True):
+        np.testing.assert_allclose(got, want, atol=RUCKIG_STATE_ATOL)
+    dt = 1e-3
+    t = np.arange(0.0, m.duration_s, dt)
+    q, qd, qdd = m.sample(t)
+    # Re-measure by finite differences of the sampled positions.
+    assert np.all(np.abs(np.diff(q, axis=0)) / dt <= V * (1 + FD_LIMIT_RTOL))
+    assert np.all(np.abs(np.diff(q, 2, axis=0)) / dt**2 <= A * (1 + FD_LIMIT_RTOL))
+    assert np.all(np.abs(np.diff(q, 3, axis=0)) / dt**3 <= J * (1 + FD_LIMIT_RTOL))
+    # The analytic derivatives agree with the positions' differences.
+    np.testing.assert_allclose(np.diff(q, axis=0) / dt, 0.5 * (qd[1:] + qd[:-1]),
+                               atol=J.max() * dt**2)
+
+
+def test_vectorized_sampling_matches_ruckig_at_time() -> None:
+    rng = np.random.default_rng(7)
+    a, b = _random_state(rng, 1.0), _random_state(rng, 0.3)  # start at the limits: brake phase
+    m = plan_move(*a, *b, V, A, J)
+    inp = ruckig.InputParameter(N)
+    (inp.current_position, inp.current_velocity, inp.current_acceleration, inp.target_position,
+     inp.target_velocity, inp.target_acceleration) = (x.tolist() for x in (*a, *b))
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = V.tolist(), A.tolist(), J.tolist()
+    traj = ruckig.Trajectory(N)
+    ruckig.Ruckig(N).calculate(inp, traj)
+    assert m.duration_s == pytest.approx(traj.duration, abs=1e-12)
+    ts = rng.uniform(0, m.duration_s, 50)
+    q, qd, qdd = m.sample(ts)
+    for k, t in enumerate(ts):
+        p, v, acc = traj.at_time(float(t))
+        np.testing.assert_allclose(q[k], p, atol=RUCKIG_STATE_ATOL)
+        np.testing.assert_allclose(qd[k], v, atol=RUCKIG_STATE_ATOL)
+        np.testing.assert_allclose(qdd[k], acc, atol=RUCKIG_STATE_ATOL)
+
+
+def test_move_rejects_bad_input() -> None:
+    z = np.zeros(N)
+    with pytest.raises(TrajectoryError, match="positive"):
+        plan_move(z, z, z, z + 1, z, z, V, -A, J)
+    with pytest.raises(TrajectoryError, match="finite"):
+        plan_move(z, z, z, z + np.nan, z, z, V, A, J)
+    with pytest.raises(TrajectoryError, match="position limits"):
+        plan_move(z, z, z, z + 0.5, z, z, V, A, J, q_lower=z - 1, q_upper=z + 0.2)
