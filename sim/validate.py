@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from planning.atomic_io import atomic_write_text
-from planning.deposition import thickness
+from planning.deposition import GunSamples, thickness
 from planning.errors import PaintcellError
 from planning.metrics import uniformity
 from planning.plan import CoveragePlan
@@ -231,9 +231,42 @@ def _reachability_summary(reach: dict[str, Any] | None) -> tuple[dict[str, Any] 
     return summary, pct
 
 
+def executed_gun_samples(trace: ExecutedTrace, T_part_world: np.ndarray,
+                         sample_s: float | None = 0.005) -> GunSamples:
+    """Paint-on trace samples in the part frame, merged into bins of `sample_s` [s].
+
+    Each contiguous brush-on run is cut into bins of ⌈sample_s/dt⌉ steps; a bin sits at its
+    dwell-weighted mean position with its middle step's axes and the bin's summed dwell (the
+    midpoint rule). At ≤ 1 m/s a 5 ms bin spans
+    ≤ 5 mm of travel against a footprint σ of ~50 mm; on the door program the film differs from
+    the every-step sum by < 1e-5 relative (σ/μ by 2e-5 pp) at a fifth of the cost.
+    None: every step.
+    """
+    full = trace.gun_samples(T_part_world)
+    if sample_s is None or len(trace.t_s) < 2:
+        return full
+    dt = float(trace.t_s[1] - trace.t_s[0])
+    m = max(1, int(math.ceil(sample_s / dt - 1e-9)))
+    if m == 1:
+        return full
+    idx = np.flatnonzero(np.asarray(trace.paint_on, bool))
+    run_id = np.concatenate([[0], np.cumsum(np.diff(idx) > 1)])
+    pos_in_run = np.arange(len(idx)) - np.searchsorted(run_id, run_id)
+    bin_key = run_id * (len(idx) + 1) + pos_in_run // m
+    starts = np.flatnonzero(np.concatenate([[True], bin_key[1:] != bin_key[:-1]]))
+    ends = np.append(starts[1:], len(idx))
+    mid = (starts + ends - 1) // 2
+    dwell = np.add.reduceat(full.dwell_s, starts)
+    # Time-centroid of the bin (exact midpoint also for even and partial bins at run ends).
+    pos = np.add.reduceat(full.positions * full.dwell_s[:, None], starts) / dwell[:, None]
+    return GunSamples(positions=pos, spray_axes=full.spray_axes[mid],
+                      travel_dirs=full.travel_dirs[mid], dwell_s=dwell)
+
+
 def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace: ExecutedTrace,
              T_world_part: npt.ArrayLike, thresholds: Thresholds | None = None,
-             reachability: dict[str, Any] | None = None) -> ValidationReport:
+             reachability: dict[str, Any] | None = None,
+             exec_sample_s: float | None = 0.005) -> ValidationReport:
     """Compare the executed program with the plan.
 
     plan: the coverage plan (part frame); surface: the part it covers (part frame, the same mesh
@@ -241,6 +274,8 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     T_world_part: (4, 4) planned placement of the part [m] (the trace's `meta` says where the part
     really was when a placement disturbance moved it); thresholds: pass/fail limits;
     reachability: `ReachabilityReport.to_dict()` of the IK stage (per-pose arrays dropped).
+    exec_sample_s: bin of the executed trace for the deposition sum [s] (see
+    `executed_gun_samples`; None: every 1 ms step).
     """
     thresholds = thresholds or Thresholds()
     T_world_part = np.asarray(T_world_part, float)
@@ -260,7 +295,8 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     t_plan = thickness(app, plan.gun_samples(), pts, nrm)
     if not np.any(trace.paint_on):
         raise ValidationError("the trace has no paint-on samples; the trajectory never painted")
-    t_exec = thickness(app, trace.gun_samples(_inv(T_actual)), pts, nrm)
+    t_exec = thickness(app, executed_gun_samples(trace, _inv(T_actual), exec_sample_s),
+                       pts, nrm)
     u_plan = uniformity(t_plan, areas, tolerance=thresholds.tolerance)
     u_exec = uniformity(t_exec, areas, target_m=u_plan.mean_m, tolerance=thresholds.tolerance)
     diff = t_exec - t_plan
@@ -297,6 +333,7 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "n_contact_samples": len(trace.contacts),
         "max_contact_depth_mm": 1e3 * max((c.depth_m for c in trace.contacts), default=0.0),
         "execution_mode": trace.mode,
+        "n_mujoco_warnings": int(sum(trace.meta.get("mujoco_warnings", {}).values())),
         "part_placement_error_mm": 1e3 * float(np.linalg.norm(T_actual[:3, 3]
                                                               - T_world_part[:3, 3])),
     }

@@ -9,10 +9,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from planning.deposition import thickness
 from sim.execute import Disturbances
 from sim.trace import Contact, ExecutedTrace
-from sim.validate import Thresholds, ValidationError, ValidationReport, validate
-from tests.helpers import KINEMATIC_REPLAY_LOSS_PP, LOSS_RESOLUTION_PP
+from sim.validate import (
+    Thresholds,
+    ValidationError,
+    ValidationReport,
+    executed_gun_samples,
+    validate,
+)
+from tests.helpers import BINNED_FILM_RTOL, KINEMATIC_REPLAY_LOSS_PP, LOSS_RESOLUTION_PP
 from tests.test_execute import make_case, run
 
 
@@ -103,3 +110,17 @@ def test_placement_mismatch_is_refused() -> None:
     moved[0, 3] += 0.1
     with pytest.raises(ValidationError, match="placement"):
         validate(c.plan, c.surface, c.traj, run("servo"), moved)
+
+
+def test_binned_executed_samples_match_every_step() -> None:
+    c = make_case()
+    tr = run("servo")
+    T_part_world = np.linalg.inv(c.T_world_part)
+    full = executed_gun_samples(tr, T_part_world, None)
+    binned = executed_gun_samples(tr, T_part_world, 0.005)
+    assert len(binned.dwell_s) < len(full.dwell_s) / 4
+    assert binned.dwell_s.sum() == pytest.approx(full.dwell_s.sum(), rel=1e-12)
+    app = c.plan.applicator
+    t_full = thickness(app, full, c.surface.vertices, c.surface.normals)
+    t_bin = thickness(app, binned, c.surface.vertices, c.surface.normals)
+    assert np.abs(t_bin - t_full).max() < BINNED_FILM_RTOL * t_full.max()
