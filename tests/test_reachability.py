@@ -1,0 +1,104 @@
+"""Reachability report and base placement."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from planning.plan import tcp_frames
+from robots import load_robot
+from robots.ik import combined_report, solve_paths
+from robots.placement import facing_grid, find_base_pose
+from robots.reachability import ReachabilityReport
+
+
+def _panel_raster(T_world_part: np.ndarray, width=1.0, height=1.0, n_pass=6, step=0.01,
+                  standoff=0.25) -> list[np.ndarray]:
+    """Horizontal raster passes over a width × height panel whose painted side faces part +z."""
+    paths = []
+    for k, v in enumerate(np.linspace(-height / 2, height / 2, n_pass)):
+        u = np.arange(-width / 2, width / 2 + 1e-9, step)
+        if k % 2:
+            u = u[::-1]
+        p_part = np.stack([u, np.full_like(u, v), np.full_like(u, standoff)], axis=1)
+        axis = np.tile([0.0, 0.0, -1.0], (len(u), 1))
+        travel = np.tile([1.0 if k % 2 == 0 else -1.0, 0.0, 0.0], (len(u), 1))
+        T_part = tcp_frames(p_part, axis, travel)
+        paths.append(T_world_part @ T_part)
+    return paths
+
+
+def _vertical_panel_at(x: float, z: float) -> np.ndarray:
+    """Part frame: origin at (x, 0, z), +z (painted side) facing -x world (toward a robot at 0)."""
+    T = np.eye(4)
+    T[:3, :3] = np.array([[0, 1, 0], [0, 0, -1], [-1, 0, 0]], float).T
+    T[:3, 3] = [x, 0.0, z]
+    return T
+
+
+@pytest.fixture(scope="module")
+def abb():
+    return load_robot("abb_paint")
+
+
+def test_report_measures_residuals_independently(abb):
+    Q = np.random.default_rng(20).uniform(abb.q_lower, abb.q_upper, (30, 6))
+    T = abb.fk_many(Q)
+    rep = ReachabilityReport.measure(abb, Q, T)
+    assert rep.all_reachable and np.nanmax(rep.pos_residual_m) < 1e-12
+    # Displace one target by 1 mm and rotate another by 1 mrad: the report sees exactly that.
+    T2 = T.copy()
+    T2[3, :3, 3] += [0.001, 0.0, 0.0]
+    c, s = np.cos(1e-3), np.sin(1e-3)
+    T2[7, :3, :3] = T2[7, :3, :3] @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    rep2 = ReachabilityReport.measure(abb, Q, T2)
+    assert np.isclose(rep2.pos_residual_m[3], 1e-3, rtol=1e-9)
+    assert np.isclose(rep2.rot_residual_rad[7], 1e-3, rtol=1e-6)
+    assert not rep2.reachable[3] and not rep2.reachable[7] and rep2.n_reachable == 28
+    # Manipulability and wrist distance are the Jacobian's and |sin q5|.
+    J = abb.jacobian(Q[0])
+    assert np.isclose(rep.manipulability[0], np.sqrt(np.linalg.det(J @ J.T)))
+    assert np.allclose(rep.wrist_sin, np.abs(np.sin(Q[:, 4])))
+    assert np.allclose(rep.limit_margin_rad, abb.limit_margin(Q))
+    assert np.isclose(rep.joint_jump_rad[5], np.abs(Q[5] - Q[4]).max())
+
+
+def test_report_to_dict_is_json_and_concatenates(abb):
+    T = _panel_raster(_vertical_panel_at(1.4, 1.0), width=0.6, height=0.4, n_pass=3)
+    res = solve_paths(abb, T)
+    rep = combined_report(res)
+    d = json.loads(json.dumps(rep.to_dict(), allow_nan=False))
+    assert d["n_poses"] == sum(len(p) for p in T) == rep.n_poses
+    assert d["all_reachable"] and rep.all_reachable
+    assert sorted(set(d["poses"]["pass_index"])) == [0, 1, 2]
+    assert rep.verdict.startswith("abb_paint: all reachable")
+    assert rep.joint_jump_rad[rep.pose_index == 0].max() == 0.0   # no jump across passes
+
+
+def test_placement_finds_base_for_a_1m_panel_raster(abb):
+    """A 1 m × 1 m horizontal panel (hood-like, painted side up) at 0.9 m: the search returns a
+    base from which the full IK of every pass is reachable and continuous."""
+    T_part = np.eye(4)
+    T_part[:3, 3] = [0.0, 0.0, 0.9]
+    paths = _panel_raster(T_part)
+    T_base, rep = find_base_pose(abb, paths)
+    assert rep.feasible, rep.verdict
+    assert rep.reachability.all_reachable and rep.reachability.continuous
+    assert np.isfinite(rep.scores[rep.best]) and rep.scores[rep.best] > 0.05
+    # Independent check: re-solve at the returned base.
+    again = combined_report(solve_paths(abb.placed(T_base), paths))
+    assert again.all_reachable
+    json.dumps(rep.to_dict(), allow_nan=False)
+
+
+def test_placement_reports_when_nothing_is_feasible(abb):
+    T_part = np.eye(4)
+    T_part[:3, 3] = [0.0, 0.0, 0.9]
+    paths = _panel_raster(T_part, width=5.0, height=1.0, n_pass=3, step=0.05)  # 5 m: too wide
+    T_base, rep = find_base_pose(abb, paths, candidates=facing_grid([0, 0, 0.9], dx=[-1.5, -1.0],
+                                                                    dy=[0.0], heights=[0.0]))
+    assert not rep.feasible
+    assert "NO fully reachable base" in rep.verdict
+    assert not rep.reachability.all_reachable
