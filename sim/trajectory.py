@@ -247,7 +247,8 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
     home = (q_home, zero, zero)
     first_start, _ = ends(laws[0])
     via = (None if settings.approach_clearance_m == 0 else
-           _backed_off(robot, first_start[0], settings.approach_clearance_m))
+           _backed_off(robot, first_start[0], first_start[0],
+                       settings.approach_clearance_m))
     add_moves(APPROACH, home, first_start, via)
     for i, law in enumerate(laws):
         segments.append(_Segment(PAINT, law.duration_s, pass_index=i, law=law))
@@ -255,11 +256,11 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
         if i + 1 < len(laws):
             nxt, _ = ends(laws[i + 1])
             via = (None if settings.turnaround_clearance_m == 0 else
-                   _backed_off(robot, 0.5 * (end[0] + nxt[0]), settings.turnaround_clearance_m))
+                   _backed_off(robot, end[0], nxt[0], settings.turnaround_clearance_m))
             add_moves(TURNAROUND, end, nxt, via)
         else:
             via = (None if settings.retract_clearance_m == 0 else
-                   _backed_off(robot, end[0], settings.retract_clearance_m))
+                   _backed_off(robot, end[0], end[0], settings.retract_clearance_m))
             add_moves(RETRACT, end, home, via)
     timing["ruckig"] = time.perf_counter() - t0
 
@@ -373,14 +374,21 @@ def _move_tcp_to(robot: RobotLike, q: np.ndarray, p_target: np.ndarray,
     return q
 
 
-def _backed_off(robot: RobotLike, q: np.ndarray, clearance_m: float) -> np.ndarray:
-    """Joint position (n,) [rad] with the TCP moved from FK(q) by `clearance_m` along −z of the
-    tool (away from the part), same orientation."""
-    T = robot.fk(q)
-    q_via = _move_tcp_to(robot, q, T[:3, 3] - clearance_m * T[:3, 2], T[:3, :3])
-    if np.any(q_via < robot.q_lower) or np.any(q_via > robot.q_upper):
-        raise TrajectoryError("the backed-off via pose leaves the joint limits; lower the "
-                              "approach/retract/turnaround clearance")
+def _backed_off(robot: RobotLike, q_a: np.ndarray, q_b: np.ndarray,
+                clearance_m: float) -> np.ndarray:
+    """Via joint position (n,) [rad]: the TCP at the midpoint of FK(q_a) and FK(q_b), moved by
+    `clearance_m` [m] along −z of the tool (away from the part); orientation of the joint-space
+    midpoint. For approach/retract, q_a = q_b."""
+    Ta, Tb = robot.fk(q_a), robot.fk(q_b)
+    z = Ta[:3, 2] + Tb[:3, 2]
+    z = z / max(float(np.linalg.norm(z)), 1e-12)
+    q_mid = 0.5 * (np.asarray(q_a, float) + np.asarray(q_b, float))
+    target = 0.5 * (Ta[:3, 3] + Tb[:3, 3]) - clearance_m * z
+    q_via = _move_tcp_to(robot, q_mid, target, iters=20)
+    miss = float(np.linalg.norm(robot.fk(q_via)[:3, 3] - target))
+    if miss > 1e-3 or np.any(q_via < robot.q_lower) or np.any(q_via > robot.q_upper):
+        raise TrajectoryError("the backed-off via pose is not reachable within the joint limits; "
+                              "lower the approach/retract/turnaround clearance")
     return q_via
 
 

@@ -1,0 +1,277 @@
+"""sim.trajectory: the whole program re-measured by finite differences of its 1 kHz samples."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from planning.applicator import Applicator
+from planning.plan import CoveragePlan, PassPlan
+from robots import load_robot
+from sim.joint_trajectory import (
+    APPROACH,
+    PAINT,
+    RETRACT,
+    TURNAROUND,
+    JointTrajectory,
+    TrajectoryError,
+)
+from sim.trajectory import TrajectorySettings, build_program
+from tests.helpers import FD_LIMIT_RTOL, SPEED_FOLLOW_RTOL, TCP_PATH_ATOL_M
+
+# Straight passes 1 m long, 20 mm samples (the planner's default spacing), spray straight down,
+# alternating travel direction, in front of the ABB-style arm at its base frame.
+N_PASSES, LENGTH_M, SAMPLES, OVERSPRAY_M = 3, 1.0, 51, 0.1
+
+
+def _plan(v_m_s: float | np.ndarray = 0.5, x0: float = 0.9, spacing: float = 0.2,
+          z: float = 1.0) -> CoveragePlan:
+    passes = []
+    for k in range(N_PASSES):
+        y = np.linspace(-LENGTH_M / 2, LENGTH_M / 2, SAMPLES)
+        if k % 2:
+            y = y[::-1]
+        pos = np.column_stack([np.full(SAMPLES, x0 + k * spacing), y, np.full(SAMPLES, z)])
+        speeds = np.broadcast_to(np.asarray(v_m_s, float), (SAMPLES,)).copy()
+        seg = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+        times = np.concatenate([[0.0], np.cumsum(seg / (0.5 * (speeds[1:] + speeds[:-1])))])
+        passes.append(PassPlan(
+            positions=pos, spray_axes=np.tile([0.0, 0.0, -1.0], (SAMPLES, 1)),
+            travel_dirs=np.tile([0.0, np.sign(y[-1] - y[0]), 0.0], (SAMPLES, 1)),
+            speeds_m_s=speeds, times_s=times, on_part=np.abs(y) <= LENGTH_M / 2 - OVERSPRAY_M,
+            paint_on=np.abs(y) <= LENGTH_M / 2 - OVERSPRAY_M / 2, side=k))
+    return CoveragePlan(surface_name="test-strip", applicator=Applicator.default(),
+                        passes=tuple(passes))
+
+
+def _ik(robot, T_world_tcp: np.ndarray, q0: np.ndarray) -> np.ndarray:
+    """Warm-started Gauss-Newton IK along a path (test-local, so the trajectory tests do not
+    depend on robots.ik), clipped to the joint limits."""
+    m, d, fid = robot.pin_model, robot.pin_data, robot.tcp_frame_id
+    q, out = np.array(q0, float), []
+    for T in T_world_tcp:
+        target = pin.SE3(T[:3, :3], T[:3, 3])
+        for _ in range(50):
+            pin.forwardKinematics(m, d, q)
+            err = pin.log6(pin.updateFramePlacement(m, d, fid).actInv(target)).vector
+            if np.linalg.norm(err) < 1e-11:
+                break
+            J = pin.computeFrameJacobian(m, d, q, fid, pin.ReferenceFrame.LOCAL)
+            q = np.clip(q + np.linalg.solve(J.T @ J + 1e-10 * np.eye(len(q)), J.T @ err),
+                        robot.q_lower, robot.q_upper)
+        out.append(q.copy())
+    return np.array(out)
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot("abb_paint")
+
+
+def _build(robot, plan: CoveragePlan, **kw) -> JointTrajectory:
+    ik = [_ik(robot, plan.tcp_frames(i), robot.q_home) for i in range(len(plan.passes))]
+    return build_program(robot, plan, np.eye(4), TrajectorySettings(**kw), ik_results=ik)
+
+
+@pytest.fixture(scope="module")
+def plan() -> CoveragePlan:
+    return _plan()
+
+
+@pytest.fixture(scope="module")
+def traj(robot, plan) -> JointTrajectory:
+    return _build(robot, plan)
+
+
+@pytest.fixture(scope="module")
+def fast_traj(robot) -> JointTrajectory:
+    """Planned at 2.5 m/s: beyond what the arm's joint limits allow on these passes."""
+    return _build(robot, _plan(2.5))
+
+
+def _limits(traj: JointTrajectory) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    lim = traj.meta["limits"]
+    return (np.array(lim["v_used_rad_s"]), np.array(lim["a_used_rad_s2"]),
+            np.array(lim["j_used_rad_s3"]))
+
+
+@pytest.mark.parametrize("which", ["traj", "fast_traj"])
+def test_joint_limits_hold_by_finite_differences(which: str, request) -> None:
+    tr = request.getfixturevalue(which)
+    v, a, _ = _limits(tr)
+    dt = tr.dt_s
+    assert np.all(np.abs(np.diff(tr.q, axis=0)) / dt <= v * (1 + FD_LIMIT_RTOL))
+    assert np.all(np.abs(np.diff(tr.q, 2, axis=0)) / dt**2 <= a * (1 + FD_LIMIT_RTOL))
+    # The margins are the stated fractions of the robot's limits.
+    robot_v = np.array(tr.meta["limits"]["v_max_rad_s"])
+    np.testing.assert_allclose(v, TrajectorySettings().velocity_margin * robot_v)
+
+
+def test_jerk_bounded_on_moves(traj: JointTrajectory) -> None:
+    _, _, j = _limits(traj)
+    jerk = np.diff(traj.q, 3, axis=0) / traj.dt_s**3
+    seg = traj.segment
+    window_off_paint = (seg[:-3] != PAINT) & (seg[1:-2] != PAINT) & (seg[2:-1] != PAINT) \
+        & (seg[3:] != PAINT)
+    assert window_off_paint.sum() > 1000
+    assert np.all(np.abs(jerk[window_off_paint]) <= j * (1 + FD_LIMIT_RTOL))
+
+
+def test_continuity_at_every_junction(traj: JointTrajectory) -> None:
+    v, a, j = _limits(traj)
+    dt = traj.dt_s
+    junctions = np.flatnonzero(np.diff(traj.segment) != 0) + 1
+    kinds = [(int(traj.segment[k - 1]), int(traj.segment[k])) for k in junctions]
+    assert kinds[0] == (APPROACH, PAINT) and kinds[-1] == (PAINT, RETRACT)
+    assert kinds.count((PAINT, TURNAROUND)) == N_PASSES - 1
+    for k in junctions:
+        # Over one control period, each quantity changes by at most its derivative's limit.
+        assert np.all(np.abs(traj.q[k] - traj.q[k - 1]) <= v * dt * (1 + FD_LIMIT_RTOL))
+        assert np.all(np.abs(traj.qd[k] - traj.qd[k - 1]) <= a * dt * (1 + FD_LIMIT_RTOL))
+        assert np.all(np.abs(traj.qdd[k] - traj.qdd[k - 1]) <= j * dt * (1 + FD_LIMIT_RTOL))
+        # The stored velocity is the derivative of the stored positions across the junction.
+        fd = (traj.q[k + 1] - traj.q[k - 1]) / (2 * dt)
+        np.testing.assert_allclose(fd, traj.qd[k], atol=a.max() * dt)
+
+
+def test_program_starts_and_ends_at_home_at_rest(traj: JointTrajectory, robot) -> None:
+    for k in (0, -1):
+        np.testing.assert_allclose(traj.q[k], robot.q_home, atol=1e-9)
+        np.testing.assert_allclose(traj.qd[k], 0.0, atol=1e-9)
+        np.testing.assert_allclose(traj.qdd[k], 0.0, atol=1e-6)
+
+
+def test_tcp_on_planned_path_during_paint(traj: JointTrajectory, plan: CoveragePlan) -> None:
+    worst = 0.0
+    for i, p in enumerate(plan.passes):
+        idx = traj.pass_index == i
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                                 axis=1))])
+        want = np.column_stack([np.interp(traj.s_pass_m[idx], s_plan, p.positions[:, c])
+                                for c in range(3)])
+        worst = max(worst, float(np.linalg.norm(traj.tcp_pos_world[idx] - want, axis=1).max()))
+    assert worst < TCP_PATH_ATOL_M
+    assert traj.meta["max_path_deviation_m"] < TCP_PATH_ATOL_M
+
+
+def test_tcp_speed_follows_plan_where_no_limit_binds(traj: JointTrajectory) -> None:
+    assert traj.slowdowns == ()
+    v = np.linalg.norm(traj.tcp_pos_world[2:] - traj.tcp_pos_world[:-2], axis=1) / (2 * traj.dt_s)
+    mid = (traj.segment[1:-1] == PAINT) & (traj.segment[:-2] == PAINT) \
+        & (traj.segment[2:] == PAINT)
+    np.testing.assert_allclose(v[mid], traj.v_tcp_planned[1:-1][mid], rtol=SPEED_FOLLOW_RTOL)
+    for s in traj.pass_summary:
+        assert s["time_ratio"] == pytest.approx(1.0, rel=SPEED_FOLLOW_RTOL)
+
+
+def test_varying_planned_speed_is_followed(robot) -> None:
+    y = np.linspace(0.0, 1.0, SAMPLES)
+    tr = _build(robot, _plan(0.4 + 0.3 * np.sin(np.pi * y) ** 2))
+    assert tr.slowdowns == ()
+    v = np.linalg.norm(np.diff(tr.tcp_pos_world, axis=0), axis=1) / tr.dt_s
+    both = (tr.segment[1:] == PAINT) & (tr.segment[:-1] == PAINT)
+    v_plan = 0.5 * (tr.v_tcp_planned[1:] + tr.v_tcp_planned[:-1])
+    np.testing.assert_allclose(v[both], v_plan[both], rtol=SPEED_FOLLOW_RTOL)
+
+
+def test_slowdowns_reported_when_limits_bind(fast_traj: JointTrajectory) -> None:
+    assert len(fast_traj.slowdowns) >= 1
+    names = {f"{j} {k}" for j in fast_traj.joint_names for k in ("velocity", "acceleration")}
+    names.add("TCP acceleration")
+    v = np.linalg.norm(np.diff(fast_traj.tcp_pos_world, axis=0), axis=1) / fast_traj.dt_s
+    for sd in fast_traj.slowdowns:
+        assert sd["max_speed_deficit_pct"] > 100 * TrajectorySettings().slowdown_threshold
+        assert sd["limiting"] and set(sd["limiting"]) <= names
+        assert sd["duration_s"] >= 0 and sd["s_end_m"] >= sd["s_start_m"]
+        # Re-measure: inside the reported run the TCP is slower than planned.
+        k0 = int(round(sd["t_start_s"] / fast_traj.dt_s))
+        k1 = int(round(sd["t_end_s"] / fast_traj.dt_s))
+        assert np.all(v[k0:k1] < fast_traj.v_tcp_planned[k0:k1])
+    assert any(s["time_ratio"] > 1.01 for s in fast_traj.pass_summary)
+    # Outside the reported runs the plan is still followed.
+    slow = np.zeros(len(fast_traj.t_s), bool)
+    for sd in fast_traj.slowdowns:
+        slow[int(round(sd["t_start_s"] / fast_traj.dt_s)) - 1:
+             int(round(sd["t_end_s"] / fast_traj.dt_s)) + 2] = True
+    ok = (fast_traj.segment[1:] == PAINT) & (fast_traj.segment[:-1] == PAINT) & ~slow[1:] \
+        & ~slow[:-1]
+    v_plan = 0.5 * (fast_traj.v_tcp_planned[1:] + fast_traj.v_tcp_planned[:-1])
+    np.testing.assert_allclose(v[ok], v_plan[ok], rtol=SPEED_FOLLOW_RTOL)
+
+
+def test_paint_on_exactly_over_the_planned_samples(traj: JointTrajectory,
+                                                   plan: CoveragePlan) -> None:
+    assert not np.any(traj.paint_on & (traj.segment != PAINT))
+    for i, p in enumerate(plan.passes):
+        idx = traj.pass_index == i
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                                 axis=1))])
+        on = s_plan[p.paint_on]
+        s = traj.s_pass_m[idx]
+        np.testing.assert_array_equal(traj.paint_on[idx], (s >= on[0]) & (s <= on[-1]))
+    expected = sum(
+        np.ptp(np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                               axis=1))])[p.paint_on])
+        / p.speeds_m_s[0] for p in plan.passes)
+    assert traj.paint_time_s == pytest.approx(expected, abs=N_PASSES * 2 * traj.dt_s)
+
+
+def test_arrays_are_consistent(traj: JointTrajectory) -> None:
+    off = traj.segment != PAINT
+    assert np.all(traj.pass_index[off] == -1) and np.all(np.isnan(traj.s_pass_m[off]))
+    assert np.all(traj.v_tcp_planned[off] == 0)
+    np.testing.assert_allclose(np.diff(traj.t_s), traj.dt_s)
+    assert traj.dt_s == pytest.approx(1e-3)
+    assert traj.meta["cycle_time_s"] == traj.duration_s
+    assert set(np.unique(traj.segment)) == {APPROACH, PAINT, TURNAROUND, RETRACT}
+    assert traj.meta["turnaround_max_dip_m"] < 0.05
+
+
+def test_save_load_round_trip(traj: JointTrajectory, tmp_path: Path) -> None:
+    traj.save_npz(tmp_path / "t.npz")
+    back = JointTrajectory.load_npz(tmp_path / "t.npz")
+    for name in JointTrajectory._ARRAYS:
+        np.testing.assert_array_equal(getattr(back, name), getattr(traj, name))
+    assert back.pass_summary == traj.pass_summary and back.slowdowns == traj.slowdowns
+    assert back.meta["settings"] == traj.meta["settings"]
+    traj.save_csv(tmp_path / "t.csv")
+    rows = np.loadtxt(tmp_path / "t.csv", delimiter=",", skiprows=1)
+    assert rows.shape[0] == len(traj.t_s)
+
+
+def test_build_is_deterministic(robot, plan, traj) -> None:
+    again = _build(robot, plan)
+    np.testing.assert_array_equal(again.q, traj.q)
+
+
+def test_settings_round_trip_and_validation() -> None:
+    s = TrajectorySettings(q_home=[0.0, 0.1, 0.2, 0.0, 0.5, 0.0], turnaround_clearance_m=0.05)
+    assert TrajectorySettings.from_dict(s.to_dict()) == s
+    with pytest.raises(TrajectoryError, match="acceleration_margin"):
+        TrajectorySettings(acceleration_margin=1.5)
+    with pytest.raises(TrajectoryError, match="unknown"):
+        TrajectorySettings.from_dict({"rate": 1})
+
+
+def test_wrong_ik_results_raise(robot, plan) -> None:
+    with pytest.raises(TrajectoryError, match="passes"):
+        build_program(robot, plan, np.eye(4), ik_results=[np.zeros((SAMPLES, 6))])
+    bad = [np.tile(robot.q_home, (SAMPLES, 1))] * N_PASSES
+    with pytest.raises(TrajectoryError, match="not reachable"):
+        build_program(robot, plan, np.eye(4), ik_results=bad)
+
+
+def test_turnaround_via_clearance(robot, plan) -> None:
+    tr = _build(robot, plan, turnaround_clearance_m=0.1)
+    v, a, _ = _limits(tr)
+    assert np.all(np.abs(np.diff(tr.q, 2, axis=0)) / tr.dt_s**2 <= a * (1 + FD_LIMIT_RTOL))
+    # With a via backed off 0.1 m, the turn-around rises well above the pass ends.
+    rise = []
+    for i in range(N_PASSES - 1):
+        k = np.flatnonzero(tr.pass_index == i)[-1] + 1
+        turn = np.flatnonzero(tr.segment[k:] != TURNAROUND)[0] + k
+        rise.append(tr.tcp_pos_world[k:turn, 2].max() - tr.tcp_pos_world[k - 1, 2])
+    assert min(rise) > 0.09
