@@ -15,6 +15,7 @@ Every result carries a `ReachabilityReport`, re-measured from the joint solution
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -283,7 +284,7 @@ def solve_path(robot: Robot, T_world_tcp: npt.ArrayLike, q_seed: npt.ArrayLike |
     return IKPathResult(q=q, reachability=report, branch=branch, method=method)
 
 
-def solve_paths(robot: Robot, paths: list[npt.ArrayLike], q_seed: npt.ArrayLike | None = None,
+def solve_paths(robot: Robot, paths: Sequence[npt.ArrayLike], q_seed: npt.ArrayLike | None = None,
                 free_spin: bool = False, settings: IKSettings | None = None
                 ) -> list[IKPathResult]:
     """`solve_path` for each pass in order; each pass is seeded with the end of the previous one.

@@ -11,6 +11,7 @@ path margin (−inf when a path is infeasible). Robots without closed-form IK ar
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -115,7 +116,7 @@ def path_margin(robot: Robot, Q: np.ndarray, reach: np.ndarray, settings: IKSett
     return float(margin[good].max()) if good.any() else -np.inf
 
 
-def find_base_pose(robot: Robot, paths: list[npt.ArrayLike],
+def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
                    candidates: npt.ArrayLike | None = None, *, max_poses_per_path: int = 200,
                    coarse_poses_per_path: int = 25, n_refine: int = 20, free_spin: bool = False,
                    settings: IKSettings | None = None

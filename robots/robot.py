@@ -146,9 +146,9 @@ class Robot:
         if np.any(q_upper <= q_lower):
             raise RobotError(f"{path}: every joint needs a range (lower < upper); add range=")
         tau = np.full(nq, np.inf)
-        for a in range(mj.nu):
-            j = mj.actuator_trnid[a, 0]
-            tau[j] = min(abs(mj.actuator_ctrlrange[a, 0]), abs(mj.actuator_ctrlrange[a, 1]))
+        for act in range(mj.nu):
+            j = mj.actuator_trnid[act, 0]
+            tau[j] = min(abs(mj.actuator_ctrlrange[act, 0]), abs(mj.actuator_ctrlrange[act, 1]))
         key = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_KEY, "home")
         q_home = mj.key_qpos[key].copy() if key >= 0 else np.clip(np.zeros(nq), q_lower, q_upper)
 
