@@ -223,7 +223,10 @@ def inverse_dynamics(model: mujoco.MjModel, cell: Cell, q: np.ndarray, qd: np.nd
     actuator damping included) with contacts and joint limits off (the reference's own needs).
     """
     m = copy.copy(model)
-    m.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+    # No constraints, no collision detection, no sensors: only the arm's own dynamics.
+    m.opt.disableflags |= (mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+                           | mujoco.mjtDisableBit.mjDSBL_CONTACT
+                           | mujoco.mjtDisableBit.mjDSBL_SENSOR)
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_INVDISCRETE
     d = mujoco.MjData(m)
     qa, da = cell.qpos_adr, cell.dof_adr
