@@ -26,6 +26,9 @@ from planning.errors import PlanError
 
 #: Points of a section closer than this are merged [m] (a plane through a vertex gives repeats).
 _MERGE_M = 1e-9
+#: Signed vertex distances below this count as exactly on the plane [m] (float64 round-off of
+#: differently associated dot products of ~1 m coordinates is ~1e-16).
+_ZERO_D_M = 1e-12
 #: Length over which an end tangent is measured for the straight continuation past a boundary [m].
 _END_TANGENT_M = 0.01
 
@@ -86,6 +89,7 @@ def _crossings(geom: SurfaceGeometry, d: np.ndarray) -> tuple[np.ndarray, np.nda
     Returns (edge ids (C,), points (C, 3), normals (C, 3)). Zero distances count as positive, so
     a plane through a vertex crosses each edge at most once.
     """
+    d = np.where(np.abs(d) < _ZERO_D_M, 0.0, d)      # round-off of a plane through vertices
     pos = d >= 0
     e = geom.edges
     cross = np.flatnonzero(pos[e[:, 0]] != pos[e[:, 1]])
