@@ -13,9 +13,10 @@ the whole program out inside MuJoCo.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import mujoco
 import numpy as np
@@ -37,6 +38,27 @@ _CONTACT_REDUCE_MINDIST = 1
 
 class CellError(PaintcellError):
     """The MuJoCo cell cannot be assembled from the robot, part and placement given."""
+
+
+class RobotLike(Protocol):
+    """What the cell needs of a `robots.Robot` (read-only)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def mjcf_path(self) -> str | os.PathLike[str]: ...
+    @property
+    def T_world_base(self) -> np.ndarray: ...
+    @property
+    def tcp_site_name(self) -> str: ...
+    @property
+    def base_body_name(self) -> str: ...
+    @property
+    def joint_names(self) -> tuple[str, ...]: ...
+    @property
+    def tau_max(self) -> np.ndarray: ...
+    @property
+    def q_home(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -189,14 +211,14 @@ def _collision_pieces(surface: Surface, piece_m: float, thickness_m: float) -> l
     return pieces
 
 
-def build_cell(robot: Any, surface: Surface, T_world_part: npt.ArrayLike, booth: bool = True,
+def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, booth: bool = True,
                cameras: Sequence[CameraSpec] | None = None,
                pass_dir_world: npt.ArrayLike | None = None,
                collision_piece_m: float = 0.1, shell_thickness_m: float = 0.002) -> Cell:
     """Assemble and compile the paint cell.
 
-    robot: a `robots.Robot` (uses `name`, `mjcf_path`, `T_world_base`, `tcp_site_name`,
-        `base_body_name`, `joint_names`, `tau_max`, `q_home`).
+    robot: a `robots.Robot` (`RobotLike`: name, mjcf_path, T_world_base, tcp_site_name,
+        base_body_name, joint_names, tau_max [N·m], q_home [rad]).
     surface: the part in its part frame (vertices [m], faces, normals).
     T_world_part: (4, 4) placement of the part in the world.
     booth: add the booth floor (z = 0 plane) as body `booth`.
@@ -207,7 +229,7 @@ def build_cell(robot: Any, surface: Surface, T_world_part: npt.ArrayLike, booth:
     Raises CellError when the robot MJCF lacks a named joint, site or body, or the poses are bad.
     """
     T_world_part = _check_pose(T_world_part, "T_world_part")
-    T_world_base = _check_pose(getattr(robot, "T_world_base", np.eye(4)), "robot.T_world_base")
+    T_world_base = _check_pose(robot.T_world_base, "robot.T_world_base")
     if collision_piece_m <= 0 or shell_thickness_m <= 0:
         raise CellError("collision_piece_m and shell_thickness_m must be > 0 [m]")
 
@@ -315,7 +337,7 @@ def build_cell(robot: Any, surface: Surface, T_world_part: npt.ArrayLike, booth:
     return _index_cell(model, spec, robot, surface, T_world_part, T_world_base, cams, booth)
 
 
-def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: Any, surface: Surface,
+def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, surface: Surface,
                 T_world_part: np.ndarray, T_world_base: np.ndarray, cams: Sequence[CameraSpec],
                 booth: bool) -> Cell:
     def oid(kind: mujoco.mjtObj, name: str) -> int:
@@ -346,8 +368,9 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: Any, surface:
 
     n = len(jids)
     tau_first = sensor_slice(f"tau_{joint_names[0]}")
-    tau_max = np.asarray(getattr(robot, "tau_max", None) if getattr(robot, "tau_max", None)
-                         is not None else model.actuator_ctrlrange[act_ids, 1], float)
+    tau_max = np.asarray(robot.tau_max, float)
+    if tau_max.shape != (n,) or np.any(tau_max <= 0):
+        raise CellError(f"robot.tau_max must hold {n} positive torque limits [N·m]")
     return Cell(
         model=model, spec=spec, robot_name=str(robot.name), joint_names=joint_names,
         qpos_adr=model.jnt_qposadr[jids].astype(np.int64).copy(),
@@ -367,7 +390,7 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: Any, surface:
         sensor_actuator_force=slice(tau_first.start, tau_first.start + n),
         sensor_contact_part=sensor_slice(f"contact_{PART_BODY}"),
         sensor_contact_booth=sensor_slice(f"contact_{BOOTH_BODY}") if booth else slice(0, 0),
-        q_home=np.asarray(getattr(robot, "q_home", np.zeros(n)), float).copy(),
+        q_home=np.asarray(robot.q_home, float).copy(),
         surface_name=surface.name,
     )
 

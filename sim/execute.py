@@ -79,6 +79,8 @@ class ServoSettings:
     def gains(self, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
         """(Kp (n,) [N·m/rad], Kd (n,) [N·m·s/rad]) for the cell's robot, `gain_scale` applied."""
         n = cell.nq
+        if (self.kp is None) != (self.kd is None):
+            raise ExecutionError("give both servo kp and kd, or neither (bandwidth rule)")
         if self.kp is not None and self.kd is not None:
             kp, kd = np.asarray(self.kp, float), np.asarray(self.kd, float)
             if kp.shape != (n,) or kd.shape != (n,) or np.any(kp < 0) or np.any(kd < 0):
@@ -266,7 +268,6 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         kp, kd = kp * disturbances.gain_scale, kd * disturbances.gain_scale
     _set_pd_actuators(model, cell, kp, kd)
     q_ref, qd_ref = np.asarray(traj.q, float), np.asarray(traj.qd, float)
-    K, n = q_ref.shape
     tau_id = inverse_dynamics(model, cell, q_ref, qd_ref, np.asarray(traj.qdd, float))
     # The controller's model: rigid body + armature exact, viscous friction partly (see settings).
     damping = model.dof_damping[cell.dof_adr]
@@ -295,8 +296,8 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         "realtime_factor": float((traj.t_s[-1] - traj.t_s[0] + cell.model.opt.timestep) / wall),
         "robot_name": cell.robot_name, "joint_names": list(cell.joint_names),
         "tau_max": cell.tau_max.tolist(),
-        "q_lower": model.jnt_range[model.dof_jntid[cell.dof_adr], 0].tolist(),
-        "q_upper": model.jnt_range[model.dof_jntid[cell.dof_adr], 1].tolist(),
+        "q_lower": _joint_range(model, cell)[0].tolist(),
+        "q_upper": _joint_range(model, cell)[1].tolist(),
     }
     return ExecutedTrace(
         t_s=np.asarray(traj.t_s, float).copy(), q=q, qd=qd, tau=np.ascontiguousarray(tau),
@@ -304,6 +305,15 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         tcp_rot_world=_quat_to_mat(sd / np.linalg.norm(sd, axis=1, keepdims=True)),
         paint_on=np.asarray(traj.paint_on, bool).copy(),
         pass_index=np.asarray(traj.pass_index).copy(), mode=mode, contacts=contacts, meta=meta)
+
+
+def _joint_range(model: mujoco.MjModel, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
+    """(q_lower, q_upper) (n,) [rad] of the robot joints; nan where a joint is unlimited."""
+    j = model.dof_jntid[cell.dof_adr]
+    limited = model.jnt_limited[j].astype(bool)
+    lo = np.where(limited, model.jnt_range[j, 0], np.nan)
+    hi = np.where(limited, model.jnt_range[j, 1], np.nan)
+    return lo, hi
 
 
 def _warnings(d: mujoco.MjData) -> dict[str, int]:

@@ -207,8 +207,10 @@ def tracking_errors(traj: JointTrajectory, trace: ExecutedTrace) -> dict[str, fl
 def _utilization(trace: ExecutedTrace) -> tuple[np.ndarray, np.ndarray]:
     """Per joint: max |q − mid| / half-range and max |τ| / τ_max (limits from `trace.meta`)."""
     n = trace.q.shape[1]
-    lo = np.asarray(trace.meta.get("q_lower", [np.nan] * n), float)
-    hi = np.asarray(trace.meta.get("q_upper", [np.nan] * n), float)
+    lo = np.asarray([np.nan if x is None else x for x in trace.meta.get("q_lower", [None] * n)],
+                    float)
+    hi = np.asarray([np.nan if x is None else x for x in trace.meta.get("q_upper", [None] * n)],
+                    float)
     tau_max = np.asarray(trace.meta.get("tau_max", [np.nan] * n), float)
     mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
     with np.errstate(invalid="ignore", divide="ignore"):
