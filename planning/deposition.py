@@ -14,8 +14,9 @@ Thickness is Σ_s rate_s · dwell_s.
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -195,16 +196,16 @@ def _make_blocks(p: np.ndarray, n: np.ndarray, block: int) -> _Blocks:
     ns = n[idx].copy()
     if pad:
         ns[npts:] = 0.0
-    feats = np.empty((nb * block, 8))
-    feats[:, 0:3] = ps
-    feats[:, 3] = 1.0
-    feats[:, 4:7] = ns
-    feats[:, 7] = np.einsum("ij,ij->i", ns, ps)
     pb = ps.reshape(nb, block, 3)
+    nbk = ns.reshape(nb, block, 3)
+    feats_t = np.empty((nb, 8, block))
+    feats_t[:, 0:3, :] = pb.transpose(0, 2, 1)
+    feats_t[:, 3, :] = 1.0
+    feats_t[:, 4:7, :] = nbk.transpose(0, 2, 1)
+    feats_t[:, 7, :] = np.einsum("bij,bij->bi", nbk, pb)
     lo, hi = pb.min(axis=1), pb.max(axis=1)
     centers = 0.5 * (lo + hi)
     radii = np.sqrt(np.max(np.sum((pb - centers[:, None, :]) ** 2, axis=2), axis=1))
-    feats_t = np.ascontiguousarray(feats.reshape(nb, block, 8).transpose(0, 2, 1))
     return _Blocks(order, feats_t, centers, radii)
 
 
@@ -352,8 +353,17 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
             ids, c = chunk(sl)
             out_blocks[ids] += c
     else:
+        # at most 2·threads chunks in flight (memory bound); results summed in chunk order, so
+        # the floating-point sum is the same for any thread count
         with ThreadPoolExecutor(max_workers=threads) as pool:
-            for ids, c in pool.map(chunk, chunks):      # in order: deterministic sums
+            pending: deque[Future[tuple[np.ndarray, np.ndarray]]] = deque()
+            for sl in chunks:
+                pending.append(pool.submit(chunk, sl))
+                if len(pending) >= 2 * threads:
+                    ids, c = pending.popleft().result()
+                    out_blocks[ids] += c
+            while pending:
+                ids, c = pending.popleft().result()
                 out_blocks[ids] += c
     out[blocks.order] = out_blocks.reshape(-1)[:len(p)]
     return out

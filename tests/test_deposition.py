@@ -184,8 +184,8 @@ def test_occlusion_blocks_points_behind_a_sheet(app: Applicator) -> None:
     free = thickness(app, gun, lower, nrm)
     hidden = thickness(app, gun, lower, nrm, occluder=upper)
     # a ray from (px, ·, 0) to a gun at (gx, ·, 0.35), |gx| ≤ 0.3, crosses z = 0.1 at
-    # px + (gx − px)·0.1/0.35: every ray is blocked for px < −0.12 and none for px > 0.12
-    # (visibility is sampled once per chunk of 8 samples = 8 cm of travel: 3 cm margin)
+    # px + (gx − px)·0.1/0.35: every ray is blocked for px < −0.12 and none for px > 0.12,
+    # whichever sample of a chunk the kernel tests visibility from
     under = lower[:, 0] < -0.15
     clear = lower[:, 0] > 0.15
     assert np.all(free > 0)
