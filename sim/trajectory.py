@@ -538,8 +538,9 @@ def _utilization(law: PassTimeLaw, fk_pos: Any, names: tuple[str, ...], v_lim: n
 
 
 def _turnaround_dip(traj: JointTrajectory, T_world_tcp: list[np.ndarray]) -> float:
-    """Deepest excursion of the TCP toward the part during turn-arounds [m]: displacement along
-    the spray axis of the pass just finished, measured from that pass's end point (≤ 0: none)."""
+    """Deepest excursion of the TCP toward the part during turn-arounds [m], beyond the deeper
+    of the two pass ends it joins: displacement along the mean spray axis of the two ends
+    (≤ 0: the turn-around stays behind both standoff points)."""
     dip = 0.0
     seg = traj.segment
     for i in range(len(T_world_tcp) - 1):
@@ -551,7 +552,9 @@ def _turnaround_dip(traj: JointTrajectory, T_world_tcp: list[np.ndarray]) -> flo
         k1 = k0 + (int(rest[0]) if len(rest) else len(seg) - k0)
         if k1 == k0:
             continue
-        z = T_world_tcp[i][-1, :3, 2]
-        p0 = T_world_tcp[i][-1, :3, 3]
-        dip = max(dip, float(np.max((traj.tcp_pos_world[k0:k1] - p0) @ z)))
+        z = T_world_tcp[i][-1, :3, 2] + T_world_tcp[i + 1][0, :3, 2]
+        z = z / max(float(np.linalg.norm(z)), 1e-12)
+        p_end, p_next = T_world_tcp[i][-1, :3, 3], T_world_tcp[i + 1][0, :3, 3]
+        deepest_end = max(0.0, float((p_next - p_end) @ z))
+        dip = max(dip, float(np.max((traj.tcp_pos_world[k0:k1] - p_end) @ z)) - deepest_end)
     return dip
