@@ -252,6 +252,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         raise CellError(f"cannot read the robot MJCF {robot.mjcf_path}: {exc}") from exc
     for key in list(robot_spec.keys):  # keyframes of the arm alone do not fit the cell's state
         robot_spec.delete(key)
+    robot_spec.nkey = 0
     frame = spec.worldbody.add_frame(pos=T_world_base[:3, 3],
                                      quat=_quat_from_matrix(T_world_base[:3, :3]))
     spec.attach(robot_spec, prefix=ROBOT_PREFIX, frame=frame)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import mujoco
 import numpy as np
 import pytest
@@ -95,3 +97,11 @@ def test_custom_cameras_and_bad_placement() -> None:
     bad[:3, :3] *= 2.0
     with pytest.raises(CellError, match="rigid"):
         build_cell(case.robot, case.surface, bad)
+
+
+def test_cell_compiles_without_attach_or_compiler_warnings() -> None:
+    case = make_case()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cell = build_cell(case.robot, plane(0.3, 0.3, 0.02), case.T_world_part)
+    assert cell.model.nkey == 0
