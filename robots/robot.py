@@ -70,6 +70,7 @@ def write_generated_mjcf(xml: str, stem: str) -> Path:
         fd, tmp = tempfile.mkstemp(dir=out_dir, suffix=".xml.tmp")
         with os.fdopen(fd, "w") as f:
             f.write(xml)
+        os.chmod(tmp, 0o644)
         os.replace(tmp, path)
     return path
 

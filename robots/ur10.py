@@ -69,6 +69,7 @@ def ur10_mjcf(tcp_offset: npt.ArrayLike | None = None) -> Path:
     for name in ("ee_link", "tool0", "base"):
         spec.delete(spec.body(name))
     spec.compiler.degree = False
+    spec.compiler.discardvisual = False  # (it would also drop the visual copies added below)
     spec.option.timestep = 0.001
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     joints = [j for j in spec.joints]
@@ -81,8 +82,15 @@ def ur10_mjcf(tcp_offset: npt.ArrayLike | None = None) -> Path:
         act.ctrlrange = [-tau, tau]
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
         act.gainprm[0] = 1.0
-    for g in spec.geoms:               # URDF meshes: collision class, group 3
+    # The URDF collision meshes serve twice: collision (group 3) and a massless visual copy
+    # (group 2, no contact), like the menagerie's separate visual/collision classes.
+    for g in list(spec.geoms):
         g.group = 3
+        body = g.parent
+        v = body.add_geom(type=mujoco.mjtGeom.mjGEOM_MESH, meshname=g.meshname, pos=g.pos,
+                          quat=g.quat, group=2, contype=0, conaffinity=0, density=0.0,
+                          rgba=[0.7, 0.72, 0.75, 1.0])
+        v.name = ""
     # ROS tool0: 0.0922 m along wrist_3 y, z out of the flange (Rx(-pi/2)).
     flange = spec.body("wrist_3_link").add_body(name="flange", pos=[0.0, 0.0922, 0.0],
                                                 quat=[np.sqrt(0.5), -np.sqrt(0.5), 0.0, 0.0])
