@@ -275,3 +275,30 @@ def test_turnaround_via_clearance(robot, plan) -> None:
         turn = np.flatnonzero(tr.segment[k:] != TURNAROUND)[0] + k
         rise.append(tr.tcp_pos_world[k:turn, 2].max() - tr.tcp_pos_world[k - 1, 2])
     assert min(rise) > 0.09
+
+
+def test_near_singular_wrist_pass_is_slowed_and_reported(robot) -> None:
+    # A straight pass at constant orientation that passes 20 mm beside the wrist singularity
+    # (q5 = 0): q5 dips to ~0.015 rad and joint 4 turns by ~3 rad within a few centimetres.
+    q_s = np.array([0.3, 0.2, 0.0, 0.0, 0.03, 0.0])
+    T = robot.fk(q_s)
+    m = SAMPLES
+    s = np.linspace(-0.4, 0.4, m)
+    pos = T[:3, 3] + 0.02 * T[:3, 1] + s[:, None] * T[:3, 0]
+    p = PassPlan(positions=pos, spray_axes=np.tile(T[:3, 2], (m, 1)),
+                 travel_dirs=np.tile(T[:3, 0], (m, 1)), speeds_m_s=np.full(m, 0.5),
+                 times_s=(s - s[0]) / 0.5, on_part=np.ones(m, bool), paint_on=np.ones(m, bool))
+    plan = CoveragePlan(surface_name="wrist", applicator=Applicator.default(), passes=(p,))
+    Tw = plan.tcp_frames(0)
+    mid = m // 2
+    q_mid = _ik(robot, Tw[mid:mid + 1], q_s + np.array([0, 0, 0, 0.5, 0, -0.5]))[0]
+    q = np.vstack([_ik(robot, Tw[mid::-1], q_mid)[::-1], _ik(robot, Tw[mid + 1:], q_mid)])
+    assert np.abs(q[:, 4]).min() < 0.05 and np.ptp(q[:, 3]) > 2.0  # near-singular indeed
+    tr = build_program(robot, plan, np.eye(4), TrajectorySettings(), ik_results=[q])
+    wrist = [sd for sd in tr.slowdowns if any(lim.startswith("joint4") for lim in sd["limiting"])]
+    assert wrist and max(sd["max_speed_deficit_pct"] for sd in wrist) > 10.0
+    assert tr.pass_summary[0]["time_ratio"] > 1.05
+    v, a, _ = _limits(tr)
+    assert np.all(np.abs(np.diff(tr.q, axis=0)) / tr.dt_s <= v * (1 + FD_LIMIT_RTOL))
+    assert np.all(np.abs(np.diff(tr.q, 2, axis=0)) / tr.dt_s**2 <= a * (1 + FD_LIMIT_RTOL))
+    assert tr.meta["max_path_deviation_m"] < TCP_PATH_ATOL_M
