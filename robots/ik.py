@@ -44,6 +44,8 @@ class IKSettings:
     cold_restarts: random restarts for a cold start (seeded, uniform inside the limits).
     wrist_sin_min: branch selection keeps |sin q5| above this along the pass.
     max_joint_jump_rad: branch selection rejects branches with a larger jump between samples.
+    comfort_margin_rad: branches keeping this margin to limits and wrist singularity [rad] are
+        preferred over closer-to-the-seed branches that do not.
     seed: RNG seed of the restarts.
     """
 
@@ -56,6 +58,7 @@ class IKSettings:
     cold_restarts: int = 40
     wrist_sin_min: float = 0.05
     max_joint_jump_rad: float = 0.2
+    comfort_margin_rad: float = 0.1
     seed: int = 0
 
     def thresholds(self) -> ReachabilityThresholds:
@@ -198,34 +201,38 @@ def choose_branch(robot: Robot, Q: np.ndarray, within: np.ndarray,
     """The branch (0..7) for a whole pass, from `opw_branches` output.
 
     Feasible: every pose inside the limits, |sin q5| ≥ wrist_sin_min, no jump > max_joint_jump_rad.
-    Among feasible branches: closest to q_seed (time at full speed) when given, else the largest
-    worst-case margin (joint limit [rad] or asin|sin q5|). If none is feasible: most poses inside
-    the limits, then the largest wrist margin, then the smallest jump.
+    Among feasible branches, those with a worst-case margin (joint limit [rad] or asin|sin q5|) of
+    at least `comfort_margin_rad` come first; then the one closest to q_seed (time at full speed)
+    when given, else the largest margin. If none is feasible: most poses inside the limits, then
+    the largest wrist margin, then the smallest jump.
     """
     M = Q.shape[1]
     lo, hi = robot.q_lower, robot.q_upper
     wi = robot.wrist_joint_index
     keys = []
+    margins = np.full(N_BRANCHES, -np.inf)
     for b in range(N_BRANCHES):
         n_ok = int(within[b].sum())
         if n_ok == 0:
             keys.append((0, -np.inf, -np.inf, -np.inf, False))
             continue
         Qb = Q[b][within[b]]
-        margin = float(np.minimum(Qb - lo, hi - Qb).min())
         wsin = float(np.abs(np.sin(Qb[:, wi])).min()) if wi is not None else 1.0
+        margins[b] = min(float(np.minimum(Qb - lo, hi - Qb).min()),
+                         float(np.arcsin(min(wsin, 1.0))))
         jump = float(np.abs(np.diff(Qb, axis=0)).max()) if len(Qb) > 1 else 0.0
         if q_seed is not None:
             first = Q[b][int(np.argmax(within[b]))]
             pref = -float(np.max(np.abs(first - np.asarray(q_seed)) / robot.v_max))
         else:
-            pref = min(margin, float(np.arcsin(min(wsin, 1.0))))
+            pref = float(margins[b])
         feasible = (n_ok == M and wsin >= settings.wrist_sin_min
                     and jump <= settings.max_joint_jump_rad)
         keys.append((n_ok, min(wsin, settings.wrist_sin_min), -jump, pref, feasible))
     feas = [b for b in range(N_BRANCHES) if keys[b][4]]
-    if feas:
-        return max(feas, key=lambda b: keys[b][3])
+    comfy = [b for b in feas if margins[b] >= settings.comfort_margin_rad]
+    if comfy or feas:
+        return max(comfy or feas, key=lambda b: keys[b][3])
     return max(range(N_BRANCHES), key=lambda b: keys[b][:4])
 
 

@@ -229,3 +229,22 @@ def test_bad_path_raises(abb):
         solve_path(abb, np.eye(4))
     with pytest.raises(RobotError, match="joint vector"):
         solve_path(abb, np.eye(4)[None], q_seed=np.zeros(3))
+
+
+def test_seed_selects_the_nearest_comfortable_branch(abb):
+    T = _line([1.15, -0.3, 1.0], [1.15, 0.3, 1.0], [1.0, 0, 0], [0, 1.0, 0])
+    Q, _, within = opw_branches(abb, T, abb.q_home)
+    s = IKSettings()
+    good = []
+    for b in range(8):
+        if within[b].all():
+            Qb = Q[b]
+            margin = min(np.minimum(Qb - abb.q_lower, abb.q_upper - Qb).min(),
+                         np.arcsin(np.abs(np.sin(Qb[:, 4])).min()))
+            if margin >= s.comfort_margin_rad and np.abs(np.diff(Qb, axis=0)).max() < 0.2:
+                good.append(b)
+    assert len(good) >= 2
+    for b in good:
+        res = solve_path(abb, T, q_seed=Q[b][0])
+        assert res.branch == b
+        assert np.allclose(res.q[0], Q[b][0], atol=1e-9)

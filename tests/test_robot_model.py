@@ -141,3 +141,16 @@ def test_bad_input_raises():
         robot.fk(np.zeros(5))
     with pytest.raises(RobotError, match="rigid transform"):
         load_robot("abb_paint", T_world_base=np.diag([2.0, 1, 1, 1]))
+
+
+def test_placed_robot_moves_fk_and_jacobian_with_the_base():
+    robot = load_robot("abb_paint")
+    moved = robot.placed(T_BASE)
+    q = np.array([0.2, 0.1, -0.3, 0.4, 0.9, -0.5])
+    assert np.allclose(moved.fk(q), T_BASE @ robot.fk(q), atol=FK_AGREEMENT_ATOL_M)
+    R = T_BASE[:3, :3]
+    J, Jm = robot.jacobian(q), moved.jacobian(q)
+    assert np.allclose(Jm[:3], R @ J[:3], atol=1e-12) and np.allclose(Jm[3:], R @ J[3:], atol=1e-12)
+    assert np.allclose(robot.T_world_base, np.eye(4))          # the original is untouched
+    assert np.allclose(robot.fk(q), forward(robot.opw, q[None])[0] @ robot.T_flange_tcp,
+                       atol=FK_AGREEMENT_ATOL_M)
