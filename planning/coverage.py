@@ -359,14 +359,11 @@ def plan_coverage(surface: Any, applicator: Applicator,
             curves = pl.curves_of(cur)
             sweep_curves = curves if sign > 0 else [_mirror(c) for c in curves]
             # known passes (besides C0), as positions ≤ 0 in the sweep frame
-            if widths_this_side:
-                known = list(-np.cumsum(widths_this_side[::-1]))
-                w_prev: float | None = widths_this_side[-1]
-            elif sign < 0 and right_widths:
-                known = list(-np.cumsum(right_widths))
-                w_prev = right_widths[0]
-            else:
-                known, w_prev = [], None
+            # known passes besides C0, as positions ≤ 0 in the sweep frame: back along this
+            # side to the start curve, then (left sweep) across it to the right-side passes
+            back = widths_this_side[::-1] + (right_widths if sign < 0 else [])
+            known = list(-np.cumsum(back))
+            w_prev: float | None = back[0] if back else None
             if planar_w is not None:
                 w0 = planar_w.width_m
                 info = {"rule": "planar (Fig. 5)", "feasible": planar_w.feasible,
