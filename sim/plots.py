@@ -122,6 +122,15 @@ def plot_thickness_maps(path: str | os.PathLike[str], surface: Any, planned_m: n
     return _save(fig, path)
 
 
+# Time series are drawn with at most this many points (a 1 kHz trace of a minute has 60,000):
+# more than a figure's pixel width, so nothing visible is lost, and savefig stays fast.
+MAX_PLOT_POINTS = 4000
+
+
+def _stride(n: int, max_points: int = MAX_PLOT_POINTS) -> slice:
+    return slice(None, None, max(1, -(-n // max_points)))
+
+
 def _speed(t_s: np.ndarray, pos: np.ndarray) -> np.ndarray:
     """(K,) |dp/dt| [m/s] by central differences."""
     if len(t_s) < 2:
@@ -159,15 +168,17 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
         if not np.all(np.isfinite(s)):
             s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(
                 np.asarray(trajectory.tcp_pos_world)[m], axis=0), axis=1))])
-        ax.plot(s, v_plan[m] * 1e3, "--", color=c, lw=1.2)
-        ax.plot(s, v_traj[m] * 1e3, ":", color=c, lw=1.0)
+        st = _stride(len(s), MAX_PLOT_POINTS // 4)
+        ax.plot(s[st], v_plan[m][st] * 1e3, "--", color=c, lw=1.2)
+        ax.plot(s[st], v_traj[m][st] * 1e3, ":", color=c, lw=1.0)
         if trace is not None:
             me = pidx_exe == p
             if np.count_nonzero(me) > 1:
                 pe = p_exe[me]
                 se = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pe, axis=0),
                                                                      axis=1))])
-                ax.plot(se, v_exe[me] * 1e3, "-", color=c, lw=1.0, label=f"pass {p}")
+                st = _stride(len(se), MAX_PLOT_POINTS // 4)
+                ax.plot(se[st], v_exe[me][st] * 1e3, "-", color=c, lw=1.0, label=f"pass {p}")
     handles = [Line2D([], [], ls="--", color="k", label="planned (coverage plan)"),
                Line2D([], [], ls=":", color="k", label="time law (trajectory)")]
     if trace is not None:
@@ -192,10 +203,23 @@ def tracking_error_m(trajectory: Any, trace: Any) -> tuple[np.ndarray, np.ndarra
     return t, np.linalg.norm(p - cmd, axis=1)
 
 
+def _rms_max_mm(err_m: np.ndarray, on: np.ndarray) -> tuple[float, float]:
+    if not np.any(on):
+        return float("nan"), float("nan")
+    return float(np.sqrt(np.mean(err_m[on] ** 2))) * 1e3, float(err_m[on].max()) * 1e3
+
+
 def plot_tracking_error(path: str | os.PathLike[str], trajectory: Any, trace: Any) -> Path:
     """TCP tracking error [mm] over time [s], paint-on intervals shaded, RMS/max on paint."""
     t, err = tracking_error_m(trajectory, trace)
     on = np.asarray(trace.paint_on, bool)
+    rms_max = _rms_max_mm(err, on)
+    k = _stride(len(t)).step or 1
+    if k > 1:  # keep each bin's peak so the plotted maximum is the true one
+        n = len(t) // k * k
+        t = t[:n:k]
+        err = err[:n].reshape(-1, k).max(1)
+        on = on[:n].reshape(-1, k).any(1)
     fig = Figure(figsize=(8.0, 3.6), layout="constrained")
     ax = fig.subplots()
     ax.plot(t, err * 1e3, lw=0.8, color="C3", label="|executed − commanded| TCP")
@@ -203,9 +227,8 @@ def plot_tracking_error(path: str | os.PathLike[str], trajectory: Any, trace: An
         lo, hi = float(np.nanmin(err * 1e3)), float(np.nanmax(err * 1e3))
         ax.fill_between(t, lo, hi if hi > lo else lo + 1, where=on, color="C2", alpha=0.12,
                         step="mid", label="brush on")
-        rms = float(np.sqrt(np.mean(err[on] ** 2))) * 1e3
-        ax.set_title(f"TCP tracking error (brush on: RMS {rms:.3g} mm, "
-                     f"max {float(err[on].max()) * 1e3:.3g} mm)")
+        ax.set_title(f"TCP tracking error (brush on: RMS {rms_max[0]:.3g} mm, "
+                     f"max {rms_max[1]:.3g} mm)")
     else:
         ax.set_title("TCP tracking error")
     ax.set_xlabel("time [s]")
@@ -235,6 +258,15 @@ def plot_joints(path: str | os.PathLike[str], t_s: npt.ArrayLike, q: npt.ArrayLi
         raise PlotError(f"joint arrays disagree: t {t.shape}, q {q.shape}, qd {qd.shape}, "
                         f"limits {lo.shape}/{hi.shape}/{vm.shape}")
     names = list(joint_names) if joint_names is not None else [f"joint {i + 1}" for i in range(n)]
+    # Utilizations from every sample; the curves from a decimated copy.
+    use_q = 100 * np.max(np.abs(q - 0.5 * (lo + hi)), axis=0) / np.maximum(0.5 * (hi - lo), 1e-12)
+    use_v = 100 * np.max(np.abs(qd), axis=0) / np.maximum(vm, 1e-12)
+    st = _stride(len(t))
+    t, q, qd = t[st], q[st], qd[st]
+    if q_planned is not None and t_planned_s is not None:
+        sp = _stride(len(np.asarray(t_planned_s)))
+        t_planned_s = np.asarray(t_planned_s, float)[sp]
+        q_planned = np.asarray(q_planned, float)[sp]
     fig = Figure(figsize=(9.0, 1.7 * n + 0.6), layout="constrained")
     axs = fig.subplots(n, 2, squeeze=False, sharex=True)
     deg = np.degrees
@@ -251,11 +283,8 @@ def plot_joints(path: str | os.PathLike[str], t_s: npt.ArrayLike, q: npt.ArrayLi
         for lim in (-vm[i], vm[i]):
             b.axhline(deg(lim), color="C3", ls="--", lw=0.9)
         b.set_ylabel("[deg/s]", fontsize=8)
-        use_q = 100 * float(np.max(np.abs(q[:, i] - 0.5 * (lo[i] + hi[i])))
-                            / max(0.5 * (hi[i] - lo[i]), 1e-12))
-        use_v = 100 * float(np.max(np.abs(qd[:, i])) / max(vm[i], 1e-12))
-        a.set_title(f"position ({use_q:.0f} % of half range)", fontsize=8)
-        b.set_title(f"velocity ({use_v:.0f} % of limit)", fontsize=8)
+        a.set_title(f"position ({use_q[i]:.0f} % of half range)", fontsize=8)
+        b.set_title(f"velocity ({use_v[i]:.0f} % of limit)", fontsize=8)
     axs[0, 0].legend(fontsize=7, loc="upper right")
     axs[-1, 0].set_xlabel("time [s]")
     axs[-1, 1].set_xlabel("time [s]")

@@ -149,17 +149,19 @@ def _renders(out: Path, surface: Any, planned: np.ndarray | None, executed: np.n
         if th is None or vmin_um is None or vmax_um is None:
             continue
         film = render.film_from_surface(surface, th, vmin_um, vmax_um, T)
-        with render.SceneRenderer(cell, film, size, False, presets) as r:
-            q_park = None
+        # The part alone in the booth: the robot would stand between the front camera and the
+        # painted side. The robot renders below show the film in the cell.
+        with render.SceneRenderer(None, film, size, False, presets) as r:
             cams = ["front", "along_passes"] if label == "planned" else ["front", "top",
                                                                           "along_passes"]
             for cam in cams:
-                img = render.add_colorbar(r.render(cam, q_park), vmin_um, vmax_um)
+                img = render.add_colorbar(r.render(cam), vmin_um, vmax_um)
                 p = render.write_png(out / f"render_{label}_{cam}.png", img)
                 figs.append({"file": p.name, "kind": "render",
                              "caption": f"{label} film thickness [µm], camera {cam} "
                                         f"({vmin_um:.3g}–{vmax_um:.3g} µm)"})
-            if label == "executed" and cell is not None and trace is not None:
+        if label == "executed" and cell is not None and trace is not None:
+            with render.SceneRenderer(cell, film, size, False, presets) as r:
                 for name, k in _moments(trace):
                     img = r.render(None, np.asarray(trace.q)[k])
                     img = render.add_colorbar(img, vmin_um, vmax_um)
