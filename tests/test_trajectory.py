@@ -155,6 +155,7 @@ def test_tcp_on_planned_path_during_paint(traj: JointTrajectory, plan: CoverageP
         worst = max(worst, float(np.linalg.norm(traj.tcp_pos_world[idx] - want, axis=1).max()))
     assert worst < TCP_PATH_ATOL_M
     assert traj.meta["max_path_deviation_m"] < TCP_PATH_ATOL_M
+    assert traj.meta["warnings"] == []
 
 
 def test_tcp_speed_follows_plan_where_no_limit_binds(traj: JointTrajectory) -> None:
@@ -260,7 +261,7 @@ def test_wrong_ik_results_raise(robot, plan) -> None:
     with pytest.raises(TrajectoryError, match="passes"):
         build_program(robot, plan, np.eye(4), ik_results=[np.zeros((SAMPLES, 6))])
     bad = [np.tile(robot.q_home, (SAMPLES, 1))] * N_PASSES
-    with pytest.raises(TrajectoryError, match="not reachable"):
+    with pytest.raises(TrajectoryError, match="does not move"):
         build_program(robot, plan, np.eye(4), ik_results=bad)
 
 
