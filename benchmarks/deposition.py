@@ -82,17 +82,18 @@ def plain_broadcast(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarr
 def plain_simplified(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarray,
                      chunk: int = 16) -> np.ndarray:
     """All S × N pairs with the simplified formula f(h·dx/dz, h·dy/dz)·(−n·d)·h²/dz³ written as
-    plain numpy expressions (no culling, no in-place work), `chunk` samples at a time."""
+    plain numpy expressions (GEMMs for the projections; no culling, no in-place work), `chunk`
+    samples at a time."""
     x_hat, y_hat, a = _tool_axes(gun.spray_axes, gun.travel_dirs)
     h = app.standoff_m
     out = np.zeros(len(p))
     for i in range(0, len(gun), chunk):
         sl = slice(i, i + chunk)
-        d = p[None, :, :] - gun.positions[sl, None, :]
-        dx = np.einsum("snk,sk->sn", d, x_hat[sl])
-        dy = np.einsum("snk,sk->sn", d, y_hat[sl])
-        dz = np.einsum("snk,sk->sn", d, a[sl])
-        nd = np.einsum("snk,nk->sn", d, n)
+        g = gun.positions[sl]
+        dx = x_hat[sl] @ p.T - np.sum(g * x_hat[sl], axis=1)[:, None]     # (K, N) by GEMM
+        dy = y_hat[sl] @ p.T - np.sum(g * y_hat[sl], axis=1)[:, None]
+        dz = a[sl] @ p.T - np.sum(g * a[sl], axis=1)[:, None]
+        nd = np.sum(n * p, axis=1)[None, :] - g @ n.T
         ok = (dz > 0) & (nd < 0)
         dzs = np.where(ok, dz, 1.0)
         rate = app.flux(h * dx / dzs, h * dy / dzs) * (-nd) * h * h / dzs**3
