@@ -317,10 +317,10 @@ ROBOT_NAMES = ("abb_paint", "ur10")
 
 
 def bell_tool_offset(straight_m: float = 0.16, head_m: float = 0.12,
-                     bend_rad: float = np.pi / 6) -> np.ndarray:
+                     bend_rad: float = np.pi / 4) -> np.ndarray:
     """T_flange_tcp (4,4) of a bell atomizer: `straight_m` [m] along the flange axis, then a head of
     `head_m` [m] bent by `bend_rad` about the flange y axis (toward flange +x). The default is the
-    MJCF's tool (0.16 m, 0.12 m, 30°)."""
+    MJCF's tool (0.16 m, 0.12 m, 45°)."""
     c, s = np.cos(bend_rad), np.sin(bend_rad)
     T = np.eye(4)
     T[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]

@@ -248,3 +248,25 @@ def test_seed_selects_the_nearest_comfortable_branch(abb):
         res = solve_path(abb, T, q_seed=Q[b][0])
         assert res.branch == b
         assert np.allclose(res.q[0], Q[b][0], atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def door_plan():
+    from planning.applicator import Applicator
+    from planning.coverage import PlannerSettings, plan_coverage
+    from planning.parts import get_part
+
+    surface = get_part("door", resolution_m=0.02)
+    return plan_coverage(surface, Applicator.default(), PlannerSettings(optimize_speed=False))
+
+
+def test_planned_door_passes_are_continuous(abb, door_plan):
+    """The planner's door passes, door upright 1.4 m in front of the robot (painted side facing
+    it, centre 1.0 m high): every pass reachable, no jump, residuals within tolerance."""
+    T_world_part = np.eye(4)
+    T_world_part[:3, :3] = np.array([[0, 1, 0], [0, 0, -1], [-1, 0, 0]], float).T
+    T_world_part[:3, 3] = [1.4, 0.0, 1.0]
+    paths = [T_world_part @ door_plan.tcp_frames(i) for i in range(len(door_plan.passes))]
+    results = solve_paths(abb, paths, q_seed=abb.q_home)
+    for res, T in zip(results, paths, strict=True):
+        _assert_good_path(abb, res, T)
