@@ -42,14 +42,14 @@ class JointMove:
 
     def sample(self, t: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """q (K, n) [rad], q̇ [rad/s], q̈ [rad/s²] at times t (K,) [s] (clamped to the move)."""
-        t = np.clip(np.asarray(t, float), 0.0, self.duration_s)
+        ts: np.ndarray = np.clip(np.asarray(t, float), 0.0, self.duration_s)
         n = self.t_start.shape[0]
-        q = np.empty((len(t), n))
+        q = np.empty((len(ts), n))
         qd = np.empty_like(q)
         qdd = np.empty_like(q)
         for k in range(n):  # loop over joints only; samples are vectorized
-            i = np.clip(np.searchsorted(self.t_start[k], t, side="right") - 1, 0, None)
-            tau = t - self.t_start[k, i]
+            i = np.clip(np.searchsorted(self.t_start[k], ts, side="right") - 1, 0, None)
+            tau = ts - self.t_start[k, i]
             j, a, v, p = self.j[k, i], self.a0[k, i], self.v0[k, i], self.p0[k, i]
             q[:, k] = p + tau * (v + tau * (a / 2 + tau * j / 6))
             qd[:, k] = v + tau * (a + tau * j / 2)

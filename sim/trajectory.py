@@ -37,7 +37,7 @@ import importlib.metadata
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -203,7 +203,9 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
         return robot.fk_many(Q)[:, :3, 3]
 
     t0 = time.perf_counter()
-    paths, deviations, knot_lists = [], [], []
+    paths: list[JointPath] = []
+    deviations: list[float] = []
+    knot_lists: list[np.ndarray] = []
     warnings: list[str] = []
     for Tw, qk in zip(T_world_tcp, q_paths, strict=True):
         p_plan = Tw[:, :3, 3]
@@ -236,7 +238,8 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
     zero = np.zeros(n)
 
     def move(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> JointMove:
-        return plan_move(*a, *b, v_lim, a_lim, j_lim, robot.q_lower, robot.q_upper)
+        return plan_move(a[0], a[1], a[2], b[0], b[1], b[2], v_lim, a_lim, j_lim,
+                         robot.q_lower, robot.q_upper)
 
     def ends(law: PassTimeLaw) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         _, _, q, qd, qdd = law.joint_state(np.array([0.0, law.duration_s]))
@@ -313,7 +316,7 @@ def _ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarra
         from robots.ik import solve_paths  # robots/ is the only IK; imported when needed
 
         # Each pass is seeded with the end of the previous one, the first with home.
-        ik_results = solve_paths(robot, T_world_tcp, q_seed=q_home,
+        ik_results = solve_paths(cast(Any, robot), list(T_world_tcp), q_seed=q_home,
                                  free_spin=settings.ik_free_spin)
     if len(ik_results) != len(T_world_tcp):
         raise TrajectoryError(f"ik_results has {len(ik_results)} passes, the plan has "
@@ -330,7 +333,7 @@ def _ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarra
     if reports and all(r is not None for r in reports):
         from robots.reachability import ReachabilityReport
 
-        summary = ReachabilityReport.concatenate(list(reports)).to_dict()
+        summary = ReachabilityReport.concatenate(cast(list[Any], reports)).to_dict()
         summary.pop("poses", None)
     return q_paths, summary
 
