@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from planning.applicator import Applicator
 from planning.deposition import thickness
 from sim.execute import Disturbances
 from sim.trace import Contact, ExecutedTrace
@@ -19,7 +20,12 @@ from sim.validate import (
     executed_gun_samples,
     validate,
 )
-from tests.helpers import BINNED_FILM_RTOL, KINEMATIC_REPLAY_LOSS_PP, LOSS_RESOLUTION_PP
+from tests.helpers import (
+    BINNED_FILM_RTOL,
+    KINEMATIC_REPLAY_LOSS_PP,
+    LOSS_RESOLUTION_PP,
+    SERVO_TRACKING_MAX_MM,
+)
 from tests.test_execute import make_case, run
 
 
@@ -124,3 +130,30 @@ def test_binned_executed_samples_match_every_step() -> None:
     t_full = thickness(app, full, c.surface.vertices, c.surface.normals)
     t_bin = thickness(app, binned, c.surface.vertices, c.surface.normals)
     assert np.abs(t_bin - t_full).max() < BINNED_FILM_RTOL * t_full.max()
+
+
+@pytest.mark.slow
+def test_door_program_end_to_end() -> None:
+    """Door plan → 1 kHz program → servo execution → validation, on the real pipeline."""
+    from planning.coverage import PlannerSettings, plan_coverage
+    from planning.parts import get_part
+    from robots.robot import load_robot
+    from sim.cell import build_cell
+    from sim.execute import execute
+    from sim.trajectory import TrajectorySettings, build_program
+
+    T_world_part = np.array([[0.0, 0.0, -1.0, 1.55], [-1.0, 0.0, 0.0, 0.0],
+                             [0.0, 1.0, 0.0, 1.1], [0.0, 0.0, 0.0, 1.0]])
+    surface = get_part("door", resolution_m=0.02)
+    plan = plan_coverage(surface, Applicator.default(), PlannerSettings())
+    robot = load_robot("abb_paint")
+    traj = build_program(robot, plan, T_world_part, TrajectorySettings())
+    trace = execute(build_cell(robot, surface, T_world_part), traj)
+    rep = validate(plan, surface, traj, trace, T_world_part,
+                   reachability=traj.meta.get("reachability"))
+    m = rep.metrics
+    assert m["n_collisions"] == 0 and m["n_mujoco_warnings"] == 0
+    assert m["reachability_pct"] == pytest.approx(100.0)
+    assert 0 < m["tracking_error_max_mm"] < SERVO_TRACKING_MAX_MM
+    assert abs(m["loss_pp"]) < 1.0
+    assert rep.passed, [c for c in rep.checks if not c.passed]
