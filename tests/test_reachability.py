@@ -102,3 +102,17 @@ def test_placement_reports_when_nothing_is_feasible(abb):
     assert not rep.feasible
     assert "NO fully reachable base" in rep.verdict
     assert not rep.reachability.all_reachable
+
+
+def test_placement_with_dls_for_the_ur10():
+    """Robots without closed-form IK are scored with DLS; a small panel 0.8 m in front of one of
+    the candidates, out of reach of the other, is found from the right one."""
+    ur = load_robot("ur10")
+    T_part = np.eye(4)
+    T_part[:3, :3] = np.array([[0, 1, 0], [0, 0, -1], [-1, 0, 0]], float).T   # faces -x world
+    T_part[:3, 3] = [0.0, 0.0, 0.6]
+    paths = _panel_raster(T_part, width=0.4, height=0.3, n_pass=3, step=0.02)
+    cands = facing_grid([0.0, 0.0, 0.6], dx=[-3.0, -0.75], dy=[0.0], heights=[0.0])
+    T_base, rep = find_base_pose(ur, paths, candidates=cands, n_refine=2)
+    assert rep.feasible, rep.verdict
+    assert np.isclose(T_base[0, 3], -0.75) and not np.isfinite(rep.scores[0])
