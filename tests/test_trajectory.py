@@ -303,3 +303,16 @@ def test_near_singular_wrist_pass_is_slowed_and_reported(robot) -> None:
     assert np.all(np.abs(np.diff(tr.q, axis=0)) / tr.dt_s <= v * (1 + FD_LIMIT_RTOL))
     assert np.all(np.abs(np.diff(tr.q, 2, axis=0)) / tr.dt_s**2 <= a * (1 + FD_LIMIT_RTOL))
     assert tr.meta["max_path_deviation_m"] < TCP_PATH_ATOL_M
+
+
+def test_passes_can_start_and_end_at_rest(robot, plan) -> None:
+    tr = _build(robot, plan, join_at_speed=False)
+    for i in range(N_PASSES):
+        idx = np.flatnonzero(tr.pass_index == i)
+        # First/last samples lie within one control period of the pass ends.
+        v, a, _ = _limits(tr)
+        assert np.all(np.abs(tr.qd[idx[0]]) <= a * tr.dt_s * (1 + FD_LIMIT_RTOL))
+        assert np.all(np.abs(tr.qd[idx[-1]]) <= a * tr.dt_s * (1 + FD_LIMIT_RTOL))
+    # Speeding up from rest is below the planned speed: reported, limited by acceleration.
+    assert tr.slowdowns and all(any("acceleration" in lim for lim in sd["limiting"])
+                                for sd in tr.slowdowns)
