@@ -42,8 +42,12 @@ from planning.errors import PaintcellError
 BACKENDS = ("egl", "osmesa")
 _INSTALL_HINT = ("install libosmesa6 (apt-get install -y libosmesa6) or libegl1 "
                  "(apt-get install -y libegl1), or set MUJOCO_GL=egl|osmesa")
-# Colour-map strip width [texels]: 256 levels, finer than the eye separates on a render.
+# Colour-map strip [texels]: 224 levels (finer than the eye separates on a render) padded with
+# 16 texels of each end colour, so that mipmaps (down to 1/16) and wrap-around filtering never
+# blend the thin-coat and thick-coat ends on small or steep triangles.
 _STRIP = 256
+_PAD = 16
+_LEVELS = _STRIP - 2 * _PAD
 # Film lift above the part surface [m]: 0.5 mm clears depth-buffer precision at cell scale.
 FILM_OFFSET_M = 5e-4
 DEFAULT_CMAP = "viridis"
@@ -283,8 +287,8 @@ class Film:
         """(N, 2) texture coordinates: u = normalized thickness at texel centres, v = 0.5."""
         t_um = np.nan_to_num(self.thickness_m * 1e6, nan=self.vmin_um)
         s = np.clip((t_um - self.vmin_um) / (self.vmax_um - self.vmin_um), 0.0, 1.0)
-        # Texel centres only: linear filtering with wrap-around would blend the two ends.
-        u = (0.5 + s * (_STRIP - 1)) / _STRIP
+        # Texel centres inside the padded strip (see _PAD).
+        u = (_PAD + 0.5 + s * (_LEVELS - 1)) / _STRIP
         return np.column_stack([u, np.full_like(u, 0.5)])
 
 
@@ -305,7 +309,7 @@ def film_from_surface(surface: Any, thickness_m: npt.ArrayLike, vmin_um: float, 
         vmin_um=float(vmin_um), vmax_um=float(vmax_um), cmap=cmap)
 
 
-def colormap_rgb(cmap: str, n: int = _STRIP) -> np.ndarray:
+def colormap_rgb(cmap: str, n: int = _LEVELS) -> np.ndarray:
     """(n, 3) uint8 colours of a matplotlib colormap from its low to its high end."""
     from matplotlib import colormaps
 
@@ -322,7 +326,10 @@ def add_film(spec: mujoco.MjSpec, film: Film, name: str = "film",
     """Add `film` to `spec` as a textured, non-colliding mesh geom in the world body."""
     tex = spec.add_texture(name=f"{name}_cmap", type=mujoco.mjtTexture.mjTEXTURE_2D,
                            width=_STRIP, height=1, nchannel=3)
-    tex.data = colormap_rgb(film.cmap).tobytes()
+    levels = colormap_rgb(film.cmap, _LEVELS)
+    strip = np.concatenate([np.repeat(levels[:1], _PAD, 0), levels,
+                            np.repeat(levels[-1:], _PAD, 0)])
+    tex.data = np.ascontiguousarray(strip).tobytes()
     mat = spec.add_material(name=f"{name}_mat")
     mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = f"{name}_cmap"
     # Part emission keeps colours close to the legend under any light; the rest shades shape.
@@ -351,6 +358,10 @@ def booth_spec(extent_m: float = 3.0, floor_z_m: float = -1.0) -> mujoco.MjSpec:
     spec.modelname = "booth"
     spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
     spec.visual.headlight.diffuse = [0.5, 0.5, 0.5]
+    sky = spec.add_texture(name="booth_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                           builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.93, 0.94, 0.96],
+                           rgb2=[0.72, 0.75, 0.8], width=64, height=64)
+    del sky  # a skybox texture needs no material: MuJoCo draws it as the background
     spec.worldbody.add_geom(name="booth_floor", type=mujoco.mjtGeom.mjGEOM_PLANE,
                             size=[extent_m, extent_m, 0.05], pos=[0.0, 0.0, floor_z_m],
                             rgba=[0.55, 0.57, 0.6, 1.0], contype=0, conaffinity=0)
