@@ -2,8 +2,9 @@
 
 Prints, one figure a line: problem size, fast-kernel time, pairs per second (S × N of the full
 problem, and the pairs actually evaluated after culling), the plain broadcast numpy evaluation
-(all pairs in chunks of samples: the literal formula `deposition_rate`, and the simplified
-formula as plain numpy) time, the speed-ups, and the agreement.
+(all pairs in chunks of samples: the literal formula `deposition_rate_reference`, the
+simplified formula as plain numpy, and the library's dense `deposition_rate`) time, the
+speed-ups, and the agreement.
 
     .venv/bin/python benchmarks/deposition.py [--threads 2] [--repeat 3] [--plain-fraction 0.25]
 """
@@ -24,6 +25,7 @@ from planning.deposition import (
     _make_blocks,
     _tool_axes,
     deposition_rate,
+    deposition_rate_reference,
     thickness,
 )
 
@@ -69,8 +71,19 @@ def evaluated_pairs(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarr
 
 def plain_broadcast(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarray,
                     chunk: int = 16) -> np.ndarray:
-    """All S × N pairs with the literal DESIGN.md formula (`deposition_rate`), `chunk` samples at
-    a time."""
+    """All S × N pairs with the literal DESIGN.md formula (`deposition_rate_reference`), `chunk`
+    samples at a time."""
+    out = np.zeros(len(p))
+    for i in range(0, len(gun), chunk):
+        sl = slice(i, i + chunk)
+        out += gun.dwell_s[sl] @ deposition_rate_reference(
+            app, gun.positions[sl], gun.spray_axes[sl], gun.travel_dirs[sl], p, n)
+    return out
+
+
+def dense_rate(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarray,
+               chunk: int = 64) -> np.ndarray:
+    """All S × N pairs with the library's dense `deposition_rate` (in-place, no culling)."""
     out = np.zeros(len(p))
     for i in range(0, len(gun), chunk):
         sl = slice(i, i + chunk)
@@ -135,8 +148,9 @@ def main() -> None:
                       gun.dwell_s[:sub])
     t_sub = thickness(app, gsub, p, n, threads=args.threads)
     print(f"plain references timed on: {sub} of {s} samples (time scaled by {s / sub:.2f})")
-    for name, fn in (("plain broadcast, literal formula (deposition_rate)", plain_broadcast),
-                     ("plain broadcast, simplified formula", plain_simplified)):
+    for name, fn in (("plain broadcast, literal formula", plain_broadcast),
+                     ("plain broadcast, simplified formula", plain_simplified),
+                     ("dense deposition_rate (no culling)", dense_rate)):
         t0 = time.perf_counter()
         t_plain = fn(app, gsub, p, n)
         t_pl = (time.perf_counter() - t0) * s / sub

@@ -110,13 +110,15 @@ class Applicator:
         """
         x = np.asarray(x, float)
         y = np.asarray(y, float)
-        out = self.a0_m_s * np.exp(-(x * x / (2 * self.sigma_x_m**2)
-                                     + y * y / (2 * self.sigma_y_m**2)))
+        # exponents clamped at -700: numpy's exp is 10-20x slower where it underflows, and
+        # e^-700 ≈ 1e-304 is zero for any film
+        out = self.a0_m_s * np.exp(np.maximum(-(x * x / (2 * self.sigma_x_m**2)
+                                                + y * y / (2 * self.sigma_y_m**2)), -700.0))
         r = np.hypot(x, y)
         for a, mu, s in zip(self.ring_amplitudes_m_s, self.ring_radii_m, self.ring_sigmas_m,
                             strict=True):
             if a > 0:
-                out = out + a * np.exp(-((r - mu) ** 2) / (2 * s * s))
+                out = out + a * np.exp(np.maximum(-((r - mu) ** 2) / (2 * s * s), -700.0))
         return out
 
     def radial_envelope(self, r: npt.ArrayLike) -> np.ndarray:

@@ -141,8 +141,39 @@ def deposition_rate(app: Applicator, positions: npt.ArrayLike, spray_axes: npt.A
 
     positions: (S, 3) gun positions [m]; spray_axes: (S, 3) unit; travel_dirs: (S, 3) unit ⟂ axis;
     points: (N, 3) surface points [m]; normals: (N, 3) unit normals toward the painted side.
-    Straight-line projection onto the reference plane + area magnification (DESIGN.md), written
-    literally (ω, q, cosines); memory O(S·N·3) — use `thickness` for large problems.
+    Every pair is evaluated (no culling), by the same in-place arithmetic as `thickness`, in
+    calls of ≤ `MAX_PAIRS_PER_CALL` pairs; memory is the (S, N) result.
+    """
+    g = _as_vectors(positions, "positions")
+    s = len(g)
+    x_hat, y_hat, a = _tool_axes(_as_vectors(spray_axes, "spray_axes", s),
+                                 _as_vectors(travel_dirs, "travel_dirs", s))
+    p = _as_vectors(points, "points")
+    n = _as_vectors(normals, "normals", len(p))
+    out = np.empty((s, len(p)))
+    if s == 0 or len(p) == 0:
+        return out
+    feats = np.empty((8, len(p)))
+    feats[0:3] = p.T
+    feats[3] = 1.0
+    feats[4:7] = n.T
+    feats[7] = np.einsum("ij,ij->i", n, p)
+    step_p = min(len(p), MAX_PAIRS_PER_CALL)
+    step_s = max(1, MAX_PAIRS_PER_CALL // step_p)
+    for i in range(0, s, step_s):
+        sl = slice(i, min(i + step_s, s))
+        w = _projection_rows(g[sl], x_hat[sl], y_hat[sl], a[sl])
+        for j in range(0, len(p), step_p):
+            out[sl, j:j + step_p] = _rates(app, w, feats[:, j:j + step_p])
+    out *= 1.0 / app.standoff_m
+    return out
+
+
+def deposition_rate_reference(app: Applicator, positions: npt.ArrayLike,
+                              spray_axes: npt.ArrayLike, travel_dirs: npt.ArrayLike,
+                              points: npt.ArrayLike, normals: npt.ArrayLike) -> np.ndarray:
+    """`deposition_rate` written literally from DESIGN.md (ω, q, cosines): slow (memory
+    O(S·N·3)), an independent reference for tests and checks.
     """
     g = _as_vectors(positions, "positions")
     s = len(g)
@@ -227,18 +258,37 @@ def _candidate_blocks(blocks: _Blocks, g: np.ndarray, a: np.ndarray, tan_cone: f
     return np.flatnonzero(ok.any(axis=0))
 
 
-def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndarray) -> np.ndarray:
-    """Σ_k coef_k · rate_k(points) for K samples and a batch of point blocks.
+def _projection_rows(g: np.ndarray, x_hat: np.ndarray, y_hat: np.ndarray,
+                     a: np.ndarray) -> np.ndarray:
+    """(4, K, 8) rows that map point features (p, 1, n, n·p) to dx, dy, dz and −n·d of K samples.
+    """
+    w = np.zeros((4, len(g), 8))              # p·e − g·e for e = x̂, ŷ, â; then −n·d
+    for row, e in enumerate((x_hat, y_hat, a)):
+        w[row, :, 0:3] = e
+        w[row, :, 3] = -np.einsum("ij,ij->i", g, e)
+    w[3, :, 4:7] = g                          # −n·d = n·g − n·p
+    w[3, :, 7] = -1.0
+    return w
 
-    w_mat: (4, K, 8): per sample, the rows giving dx, dy, dz and −n·d from the point features;
-    coef: (K,) dwell / h [s/m]; feats: (nb, 8, B) block features. Returns (nb, B).
-    Four batched (K, 8) @ (8, B) products into contiguous (nb, K, B) arrays (small GEMMs keep
-    BLAS single-threaded, so it does not fight the worker threads; strided views would cost
-    ~5× more per element op), then everything in place.
+
+def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndarray) -> np.ndarray:
+    """Σ_k coef_k · (h · rate_k) for K samples and a batch of point blocks: (nb, B).
+
+    w_mat: (4, K, 8) from `_projection_rows`; coef: (K,) dwell / h [s/m]; feats: (nb, 8, B).
+    """
+    return np.matmul(coef, _rates(app, w_mat, feats))
+
+
+def _rates(app: Applicator, w_mat: np.ndarray, feats: np.ndarray) -> np.ndarray:
+    """h · rate [m²/s] of K samples at points with features feats (..., 8, B): (..., K, B).
+
+    Four (batched) (K, 8) @ (8, B) products into contiguous arrays (small GEMMs keep BLAS
+    single-threaded, so it does not fight the worker threads; strided views would cost ~5× more
+    per element op), then everything in place.
     """
     h = app.standoff_m
-    shape = (feats.shape[0], len(coef), feats.shape[2])
-    dx, dy, inv, nd = (np.matmul(w_mat[i], feats) for i in range(4))   # (nb, K, B) each
+    dx, dy, inv, nd = (np.matmul(w_mat[i], feats) for i in range(4))   # (..., K, B) each
+    shape = dx.shape
     # weight (−n·d)·(h/dz)³ ≥ 0: zero for back-facing points (n·d ≥ 0); points behind the gun
     # (dz ≤ 0) get h/dz clipped to 0, and dz = +0 gives a huge h/dz where f underflows to 0.
     np.maximum(nd, 0.0, out=nd)
@@ -281,7 +331,7 @@ def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndar
     t2 *= inv
     t2 *= nd
     t1 *= t2
-    return np.matmul(coef, t1)                                 # (nb, B)
+    return t1
 
 
 def _sample_chunks(s: int, k: int) -> Iterator[slice]:
@@ -336,12 +386,7 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
         contrib = np.zeros((len(cand), BLOCK_POINTS))
         if len(cand) == 0:
             return cand, contrib
-        w = np.zeros((4, kk, 8))              # p·e − g·e for e = x̂, ŷ, â; then −n·d
-        for row, e in enumerate((x_hat[sl], y_hat[sl], ak)):
-            w[row, :, 0:3] = e
-            w[row, :, 3] = -np.einsum("ij,ij->i", gk, e)
-        w[3, :, 4:7] = gk                     # −n·d = n·g − n·p
-        w[3, :, 7] = -1.0
+        w = _projection_rows(gk, x_hat[sl], y_hat[sl], ak)
         per_call = max(1, MAX_PAIRS_PER_CALL // (kk * BLOCK_POINTS))
         for j in range(0, len(cand), per_call):
             ids = cand[j:j + per_call]

@@ -13,7 +13,13 @@ import trimesh
 from scipy import integrate
 
 from planning.applicator import Applicator
-from planning.deposition import DepositionError, GunSamples, deposition_rate, thickness
+from planning.deposition import (
+    DepositionError,
+    GunSamples,
+    deposition_rate,
+    deposition_rate_reference,
+    thickness,
+)
 
 from .helpers import DEPOSITION_EXACT_RTOL, DEPOSITION_INTEGRAL_RTOL, KERNEL_CULL_RTOL
 
@@ -44,8 +50,10 @@ def test_flat_plane_reduces_to_flux(app: Applicator) -> None:
     y_hat = np.cross(a, x_hat)
     uv = rng.uniform(-0.4, 0.4, size=(500, 2))
     pts = g + app.standoff_m * a + uv[:, :1] * x_hat + uv[:, 1:] * y_hat
-    rate = deposition_rate(app, g[None], a[None], x_hat[None], pts, np.tile(-a, (500, 1)))[0]
-    np.testing.assert_allclose(rate, app.flux(uv[:, 0], uv[:, 1]), rtol=DEPOSITION_EXACT_RTOL)
+    for fn in (deposition_rate, deposition_rate_reference):
+        rate = fn(app, g[None], a[None], x_hat[None], pts, np.tile(-a, (500, 1)))[0]
+        np.testing.assert_allclose(rate, app.flux(uv[:, 0], uv[:, 1]),
+                                   rtol=DEPOSITION_EXACT_RTOL)
     gun = GunSamples(g[None], a[None], x_hat[None], np.array([1.0]))
     t = thickness(app, gun, pts, np.tile(-a, (500, 1)))
     np.testing.assert_allclose(t, app.flux(uv[:, 0], uv[:, 1]), rtol=DEPOSITION_EXACT_RTOL)
@@ -70,6 +78,7 @@ def test_back_facing_and_behind_gun_get_nothing(app: Applicator) -> None:
     nrm = np.array([[0.0, 0, -1], [0.3, 0, -1], [0, 0, -1], [0, 0, 1.0]])  # away / behind
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
     assert np.all(deposition_rate(app, g, a, x, pts, nrm) == 0)
+    assert np.all(deposition_rate_reference(app, g, a, x, pts, nrm) == 0)
     gun = GunSamples(g, a, x, np.array([1.0]))
     assert np.all(thickness(app, gun, pts, nrm) == 0)
     assert thickness(app, gun, pts[:2], -nrm[:2]).min() > 0
@@ -145,10 +154,19 @@ def _curved_problem(seed: int) -> tuple[GunSamples, np.ndarray, np.ndarray]:
     return GunSamples(pos, axes, trav, rng.uniform(0.001, 0.01, s)), pts, nrm
 
 
+def test_dense_rate_equals_literal_formula(app: Applicator) -> None:
+    gun, pts, nrm = _curved_problem(2)
+    args = (app, gun.positions, gun.spray_axes, gun.travel_dirs, pts, nrm)
+    fast, ref = deposition_rate(*args), deposition_rate_reference(*args)
+    assert fast.shape == (len(gun), len(pts)) and ref.max() > 0
+    # same values up to round-off (both clamp exponents at -700: tails below 1e-290 differ)
+    np.testing.assert_allclose(fast, ref, rtol=1e-9, atol=1e-12 * ref.max())
+
+
 def test_fast_kernel_equals_dense(app: Applicator) -> None:
     gun, pts, nrm = _curved_problem(3)
-    dense = gun.dwell_s @ deposition_rate(app, gun.positions, gun.spray_axes, gun.travel_dirs,
-                                          pts, nrm)
+    dense = gun.dwell_s @ deposition_rate_reference(app, gun.positions, gun.spray_axes,
+                                                    gun.travel_dirs, pts, nrm)
     fast = thickness(app, gun, pts, nrm)
     assert fast.dtype == np.float64 and fast.shape == (len(pts),)
     assert dense.max() > 0 and np.all(fast >= 0)
