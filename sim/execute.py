@@ -36,6 +36,10 @@ from sim.trace import Contact, ExecutedTrace
 
 #: steps per rollout call; the progress callback is called after each (≈ 0.1 s wall).
 CHUNK_STEPS = 10_000
+#: the arm has settled when its TCP stays within this distance of the final reference [m].
+SETTLE_TOL_M = 1e-4
+#: hold the final reference at most this long after the program to measure settling [s].
+SETTLE_MAX_S = 0.5
 #: MuJoCo warnings that mean the simulation is not trustworthy (instability, bad input).
 _FATAL_WARNINGS = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC", "mjWARN_BADCTRL")
 
@@ -274,11 +278,13 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
     tau_ff = (tau_id - (1.0 - servo.friction_compensation) * damping * qd_ref
               if servo.feedforward else np.zeros_like(q_ref))
     if mode == "servo":
-        q, qd, sens, warnings = _run_servo(model, cell, q_ref, qd_ref, tau_ff, kp, kd, progress)
+        q, qd, sens, warnings, settle_s = _run_servo(model, cell, q_ref, qd_ref, tau_ff, kp, kd,
+                                                     progress)
         tau = sens[:, cell.sensor_actuator_force]
     else:
         q, qd, sens, warnings = _run_kinematic(model, cell, q_ref, qd_ref, progress)
         tau = tau_id  # the torque the motors would need to follow the reference exactly
+        settle_s = 0.0
     contacts = _contacts(model, cell, q, sens, traj.t_s)
     wall = time.perf_counter() - t0
     fatal = {k: v for k, v in warnings.items() if k in _FATAL_WARNINGS}
@@ -293,6 +299,8 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         "T_world_part_actual": T_actual.tolist(),
         "tcp_offset_tool_m": tcp_offset.tolist(),
         "mujoco_warnings": warnings, "wall_time_s": wall,
+        "settle_time_s": settle_s, "settle_tol_m": SETTLE_TOL_M,
+        "settled": bool(settle_s < SETTLE_MAX_S),
         "realtime_factor": float((traj.t_s[-1] - traj.t_s[0] + cell.model.opt.timestep) / wall),
         "robot_name": cell.robot_name, "joint_names": list(cell.joint_names),
         "tau_max": cell.tau_max.tolist(),
@@ -325,8 +333,10 @@ def _warnings(d: mujoco.MjData) -> dict[str, int]:
 def _run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.ndarray,
                tau_ff: np.ndarray, kp: np.ndarray, kd: np.ndarray,
                progress: Callable[[float], None] | None,
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int]]:
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int], float]:
+    """Roll the program out; (q, q̇, sensordata per step, warnings, settling time [s])."""
     K, _ = q_ref.shape
+    state_end = np.empty(0)
     g = model.actuator_gear[cell.actuator_ids, 0]
     # ctrl so that force = ctrl + bias = (τ_ff + Kp q_ref + Kd q̇_ref − Kp q − Kd q̇) / g.
     ctrl = np.zeros((K, model.nu))
@@ -352,12 +362,34 @@ def _run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.
             states[a + 1:b + 1] = st[0]
         else:
             states[a + 1:b] = st[0, :-1]
+            state_end = st[0, -1].copy()
         warm = d.qacc_warmstart.copy()
         if progress is not None:
             progress(b / K)
     q = states[:, 1:1 + model.nq][:, cell.qpos_adr]
     qd = states[:, 1 + model.nq:1 + model.nq + model.nv][:, cell.dof_adr]
-    return np.ascontiguousarray(q), np.ascontiguousarray(qd), sens, _warnings(d)
+    warnings = _warnings(d)
+    settle = _settle_time(model, cell, state_end, ctrl[-1], q_ref[-1])
+    return np.ascontiguousarray(q), np.ascontiguousarray(qd), sens, warnings, settle
+
+
+def _settle_time(model: mujoco.MjModel, cell: Cell, state_end: np.ndarray, ctrl_end: np.ndarray,
+                 q_end: np.ndarray) -> float:
+    """Time after the program until the TCP stays within SETTLE_TOL_M of where the final
+    reference puts it [s] (the last control held; SETTLE_MAX_S when it never settles)."""
+    n = int(round(SETTLE_MAX_S / model.opt.timestep))
+    d = mujoco.MjData(model)
+    d.qpos[cell.qpos_adr] = q_end
+    mujoco.mj_kinematics(model, d)
+    p_tcp_end = d.site_xpos[cell.tcp_site_id].copy()
+    _, sd = rollout.rollout(model, d, state_end, np.tile(ctrl_end, (1, n, 1)))
+    err = np.linalg.norm(sd[0][:, cell.sensor_tcp_pos] - p_tcp_end, axis=1)
+    outside = np.flatnonzero(err > SETTLE_TOL_M)
+    if len(outside) == 0:
+        return 0.0
+    if outside[-1] == n - 1:
+        return SETTLE_MAX_S
+    return float((outside[-1] + 1) * model.opt.timestep)
 
 
 def _run_kinematic(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.ndarray,

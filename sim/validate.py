@@ -325,7 +325,10 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "executed_within_tolerance_pct": 100.0 * u_exec.within_tolerance_fraction,
         **trk,
         "planned_cycle_time_s": traj.duration_s,
-        "executed_cycle_time_s": float(trace.t_s[-1] - trace.t_s[0]),
+        # The program's own time plus the time the arm needs to settle on its last pose.
+        "executed_cycle_time_s": float(trace.t_s[-1] - trace.t_s[0])
+        + float(trace.meta.get("settle_time_s", 0.0)),
+        "settle_time_s": float(trace.meta.get("settle_time_s", 0.0)),
         "planned_paint_time_s": plan.paint_time_s,
         "executed_paint_time_s": dt * float(np.count_nonzero(trace.paint_on)),
         "max_joint_range_utilization": float(np.nanmax(q_use)) if len(q_use) else float("nan"),

@@ -19,7 +19,7 @@ from planning.plan import CoveragePlan, PassPlan
 from planning.surface import Surface, plane
 from robots.robot import load_robot
 from sim.cell import Cell, build_cell
-from sim.execute import Disturbances, ExecutionError, ServoSettings, execute
+from sim.execute import SETTLE_MAX_S, Disturbances, ExecutionError, ServoSettings, execute
 from sim.joint_trajectory import APPROACH, PAINT, JointTrajectory
 from sim.trace import ExecutedTrace
 from tests.helpers import REPLAY_TCP_ATOL_MM, SERVO_TRACKING_MAX_MM
@@ -172,6 +172,9 @@ def test_without_feedforward_the_error_grows() -> None:
     cell = make_cell()
     tr = execute(cell, case.traj, servo=ServoSettings(feedforward=False))
     assert _tcp_err_mm(tr, case.traj).max() > 3.0 * _tcp_err_mm(run("servo"), case.traj).max()
+    # PD alone sags under gravity: the arm never settles within 0.1 mm of the last pose.
+    assert not tr.meta["settled"] and tr.meta["settle_time_s"] == SETTLE_MAX_S
+    assert run("servo").meta["settled"]
 
 
 def test_part_in_the_arm_path_is_a_reported_collision() -> None:
