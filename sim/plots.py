@@ -33,12 +33,21 @@ class PlotError(PaintcellError):
     """A plot cannot be drawn from the arrays given (shapes, NaN, empty)."""
 
 
+def readable(path: Path) -> Path:
+    """Give a file written through a temp file (mode 0600) the usual umask permissions (0644 for
+    umask 022), so that a report folder can be shared or served; returns the path."""
+    mask = os.umask(0)
+    os.umask(mask)
+    path.chmod(0o666 & ~mask)
+    return path
+
+
 def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     path = Path(path)
     FigureCanvasAgg(fig)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=DPI, format="png")
-    return path
+    return readable(path)
 
 
 def unfold(surface: Any) -> tuple[np.ndarray, tuple[str, str]]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html
 import json
+import os
 from html.parser import HTMLParser
 from types import SimpleNamespace
 
@@ -104,6 +105,9 @@ def results(tmp_path):
 def test_report_is_self_contained_html_with_every_metric(results):
     path = report.write_report(results)
     assert path == results / "report.html"
+    mask = os.umask(0)
+    os.umask(mask)
+    assert path.stat().st_mode & 0o777 == 0o666 & ~mask  # shareable, not the temp file's 0600
     text = path.read_text(encoding="utf-8")
     p = _Collect()
     p.feed(text)
