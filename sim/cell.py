@@ -163,7 +163,9 @@ def default_cameras(surface_world: Surface, pass_dir_world: npt.ArrayLike | None
     else:
         pass_dir = np.asarray(pass_dir_world, float)
         pass_dir = pass_dir / max(np.linalg.norm(pass_dir), 1e-12)
-    front = c + dist * n + np.array([0, 0, 0.05 * dist])
+    # Front: from the painted side, 30° off the normal along the passes (the robot stands on the
+    # normal and would block a straight-on view).
+    front = c + dist * (0.87 * n + 0.5 * pass_dir) + np.array([0, 0, 0.05 * dist])
     top = c + np.array([0.0, 0.0, 1.5 * dist]) + 0.02 * dist * np.array([1.0, 0, 0])
     # Along the passes: from beyond one end of the passes, a little off the painted side.
     along = c - 1.3 * dist * pass_dir + 0.4 * dist * n + np.array([0, 0, 0.3 * dist])
@@ -298,7 +300,10 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     for child in base_body.bodies:
         spec.add_exclude(bodyname1=base_body.name, bodyname2=child.name)
 
-    # --- lights and cameras ------------------------------------------------------------------
+    # --- lights, sky and cameras -------------------------------------------------------------
+    spec.add_texture(name="booth_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.85, 0.88, 0.92],
+                     rgb2=[0.35, 0.4, 0.48], width=256, height=1536)
     spec.worldbody.add_light(name="key", pos=[0, 0, 5], dir=[0, 0, -1],
                              type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
                              diffuse=[0.6, 0.6, 0.6], castshadow=False)
