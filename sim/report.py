@@ -290,8 +290,18 @@ def _table(headers: Iterable[str], rows: Iterable[Iterable[str]], cls: str = "")
     return f"<table{c}>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
 
 
+def _path_unit(key: str) -> str:
+    """Unit of a flattened key: its leaf's suffix, else the nearest parent's ("stage_times_s.plan"
+    is in s)."""
+    for part in reversed(key.split(".")):
+        u = unit_of(part.split("[", 1)[0])
+        if u:
+            return u
+    return ""
+
+
 def _kv_table(d: Any, empty: str = "none") -> str:
-    rows = [(html.escape(k), _value_cell(k, v), html.escape(unit_of(_leaf(k)) or "—"))
+    rows = [(html.escape(k), _value_cell(k, v), html.escape(_path_unit(k) or "—"))
             for k, v in flatten(d)]
     if not rows:
         return f"<p>{html.escape(empty)}</p>"
@@ -439,8 +449,7 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None) 
     name = name or (scenario or {}).get("name") or d.name
     title = title or f"paintcell report — {name}"
 
-    parts = [f"<h1>{html.escape(title)}</h1>",
-             f"<p>Results folder: <code>{html.escape(str(d.resolve()))}</code></p>"]
+    parts = [f"<h1>{html.escape(title)}</h1>"]
     passed = metrics.get("passed")
     if passed is not None:
         verdict = '<span class="pass">PASS</span>' if passed else '<span class="fail">FAIL</span>'
@@ -464,8 +473,11 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None) 
 
     figures = _read_json(d / FIGURES_JSON) if (d / FIGURES_JSON).exists() else {}
     captions = {f["file"]: f.get("caption", "") for f in figures.get("figures", [])}
-    images = sorted(p for p in d.iterdir() if p.suffix.lower() in _MIME and p.is_file()
-                    and not p.name.startswith("."))
+    # figures.json order first (how make_figures grouped them), then any other image by name
+    order = {f["file"]: i for i, f in enumerate(figures.get("figures", []))}
+    images = sorted((p for p in d.iterdir() if p.suffix.lower() in _MIME and p.is_file()
+                     and not p.name.startswith(".")),
+                    key=lambda p: (order.get(p.name, len(order)), p.name))
     renders = [p for p in images if p.name.startswith(("render_", "robot_"))
                or p.suffix.lower() == ".gif"]
     plots = [p for p in images if p not in renders]

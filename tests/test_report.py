@@ -169,6 +169,8 @@ def test_flatten_and_units():
     assert rows == {"a.b_m_s": 1.5, "a.c": "1, 2", "d[0].e_pct": 3}
     assert report.unit_of("v_max_m_s") == "m/s" and report.unit_of("nsd_pct") == "%"
     assert report.unit_of("thickness_um") == "µm" and report.unit_of("count") == ""
+    assert report._path_unit("stage_times_s.plan") == "s"
+    assert report._path_unit("settings.u_max") == ""
 
 
 def test_make_figures_without_cell(tmp_path):
