@@ -219,3 +219,20 @@ def test_make_figures_with_cell_robot_and_video(tmp_path):
     assert np.abs(a - b).sum() > 0  # the arm moved between the two moments
     with Image.open(tmp_path / "execution.gif") as im:
         assert 2 <= im.n_frames <= 12
+
+
+def test_no_gl_backend_skips_renders_but_keeps_plots(tmp_path, monkeypatch):
+    from sim import render
+
+    def no_backend() -> str:
+        raise render.RenderBackendError("no offscreen OpenGL backend: install libosmesa6")
+
+    monkeypatch.setattr(render, "backend_name", no_backend)
+    s = plane(0.6, 0.4, resolution_m=0.05)
+    planned = np.full(len(s.vertices), 2e-5)
+    rep = SimpleNamespace(planned_thickness_m=planned, executed_thickness_m=planned)
+    files = report.make_figures(tmp_path, surface=s, report=rep, index_curve=False)
+    assert [f.name for f in files] == ["thickness_maps.png"]
+    (tmp_path / "metrics.json").write_text(json.dumps({"passed": True}))
+    text = html.unescape(report.write_report(tmp_path).read_text(encoding="utf-8"))
+    assert "Skipped renders and video: no offscreen OpenGL backend: install libosmesa6" in text
