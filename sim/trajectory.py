@@ -12,12 +12,14 @@
 3. ruckig moves (`sim.moves`), jerk-limited and time-optimal, that join the full joint state
    (q, q̇, q̈) of their neighbours: approach home → first pass, a turn-around between passes, and
    retract last pass → home. Approach and retract go through a via pose backed off from the pass
-   end along the spray axis (−z of the tool) by a clearance, at rest. Turn-arounds join the two
-   pass ends directly in joint space by default: both ends are at standoff in the overspray
-   zone beyond the part edge, and the joint-space move brings the TCP closer to the part than
-   the deeper end by `meta["turnaround_max_dip_m"]` (50 mm of the 250 mm standoff on the door
-   benchmark; `sim.execute` checks collisions). `turnaround_clearance_m` > 0 adds a via pose at
-   rest, backed off from the midpoint of the two ends (door: no dip, cycle time +1.9 s).
+   end along the spray axis (−z of the tool) by a clearance, at rest. A turn-around joins the
+   two pass ends directly in joint space when that keeps the TCP within
+   `turnaround_max_dip_m` (50 mm) of the deeper end's standoff along the spray axis; otherwise
+   it backs off: at rest at a via pose `turnaround_clearance_m` (150 mm; 1/2, 1/4 of it where
+   the joint limits forbid) behind each end, reconfiguring between them. Each decision is in
+   `meta["turnarounds"]`; the measured worst dip in `meta["turnaround_max_dip_m"]`, with a
+   warning when it exceeds the limit (a joint-space reconfiguration between IK branches can
+   sweep the TCP across the part; `sim.execute` checks collisions).
 4. Sampling at the control rate on one global clock; each segment is evaluated analytically, so
    position, velocity and acceleration are continuous at every junction.
 
@@ -106,8 +108,15 @@ class TrajectorySettings:
     """Back-off of the via pose before the first pass, along −z of the tool [m] (0: none)."""
     retract_clearance_m: float = 0.10
     """Back-off of the via pose after the last pass, along −z of the tool [m] (0: none)."""
-    turnaround_clearance_m: float = 0.0
-    """Back-off of a via pose at rest between passes [m]; 0 joins the passes directly."""
+    turnaround_max_dip_m: float = 0.05
+    """A turn-around joins the two pass ends directly in joint space when its TCP comes at most
+    this much closer to the part than the deeper of the two ends [m] (20 % of the default bell's
+    250 mm standoff); otherwise it backs off (see `turnaround_clearance_m`). inf: always direct;
+    0: always backed off."""
+    turnaround_clearance_m: float = 0.15
+    """Back-off of a backed-off turn-around [m]: it stops at two via poses, the pass end and the
+    next pass start each moved along −z of the tool by this much, and reconfigures between them
+    (needed when IK changes branch between passes)."""
     grid_spacing_m: float = 0.01
     """Largest TOPP-RA grid interval along the pass [m] (every plan sample is a grid point)."""
     path_tolerance_m: float = 0.5e-3
@@ -128,7 +137,9 @@ class TrajectorySettings:
             (self.jerk_ramp_s > 0, "jerk_ramp_s must be positive [s]"),
             (self.approach_clearance_m >= 0, "approach_clearance_m must be ≥ 0 [m]"),
             (self.retract_clearance_m >= 0, "retract_clearance_m must be ≥ 0 [m]"),
-            (self.turnaround_clearance_m >= 0, "turnaround_clearance_m must be ≥ 0 [m]"),
+            (self.turnaround_clearance_m > 0, "turnaround_clearance_m must be > 0 [m]"),
+            (self.turnaround_max_dip_m >= 0, "turnaround_max_dip_m must be ≥ 0 [m] (inf: "
+             "always direct)"),
             (self.grid_spacing_m > 0, "grid_spacing_m must be positive [m]"),
             (self.path_tolerance_m > 0, "path_tolerance_m must be positive [m]"),
             (0 < self.slowdown_threshold < 1, "slowdown_threshold must be in (0, 1)"),
@@ -247,31 +258,47 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
 
     segments: list[_Segment] = []
 
-    def add_moves(kind: int, a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...],
-                  q_via: np.ndarray | None) -> None:
-        states = [a, b] if q_via is None else [a, (q_via, zero, zero), b]
+    def add_moves(kind: int, states: list[tuple[np.ndarray, ...]]) -> None:
         for x, y in zip(states[:-1], states[1:], strict=True):
             m = move(x, y)
             segments.append(_Segment(kind, m.duration_s, move=m))
 
+    def at_rest(q: np.ndarray) -> tuple[np.ndarray, ...]:
+        return (q, zero, zero)
+
     home = (q_home, zero, zero)
     first_start, _ = ends(laws[0])
-    via = (None if settings.approach_clearance_m == 0 else
-           _backed_off(robot, first_start[0], first_start[0],
-                       settings.approach_clearance_m))
-    add_moves(APPROACH, home, first_start, via)
+    add_moves(APPROACH, [home, first_start] if settings.approach_clearance_m == 0 else
+              [home, at_rest(_backed_off(robot, first_start[0], settings.approach_clearance_m)),
+               first_start])
+    turnarounds: list[dict[str, Any]] = []
     for i, law in enumerate(laws):
         segments.append(_Segment(PAINT, law.duration_s, pass_index=i, law=law))
         _, end = ends(law)
         if i + 1 < len(laws):
             nxt, _ = ends(laws[i + 1])
-            via = (None if settings.turnaround_clearance_m == 0 else
-                   _backed_off(robot, end[0], nxt[0], settings.turnaround_clearance_m))
-            add_moves(TURNAROUND, end, nxt, via)
+            direct = move(end, nxt)
+            dip = _move_dip(robot, direct, T_world_tcp[i][-1], T_world_tcp[i + 1][0], dt)
+            if dip <= settings.turnaround_max_dip_m:
+                segments.append(_Segment(TURNAROUND, direct.duration_s, move=direct))
+                mode = "direct"
+            else:
+                vias = _backed_off_pair(robot, end[0], nxt[0], settings.turnaround_clearance_m)
+                if vias is None:
+                    segments.append(_Segment(TURNAROUND, direct.duration_s, move=direct))
+                    mode = "direct (no reachable back-off)"
+                    warnings.append(f"turn-around after pass {i}: the TCP comes {1e3 * dip:.0f} "
+                                    "mm closer to the part and no backed-off via pose is "
+                                    "reachable; check collisions")
+                else:
+                    add_moves(TURNAROUND, [end, at_rest(vias[0]), at_rest(vias[1]), nxt])
+                    mode = f"backed-off {vias[2]:.3f} m"
+            turnarounds.append({"after_pass": i, "mode": mode, "direct_dip_m": dip,
+                                "direct_duration_s": direct.duration_s})
         else:
-            via = (None if settings.retract_clearance_m == 0 else
-                   _backed_off(robot, end[0], end[0], settings.retract_clearance_m))
-            add_moves(RETRACT, end, home, via)
+            add_moves(RETRACT, [end, home] if settings.retract_clearance_m == 0 else
+                      [end, at_rest(_backed_off(robot, end[0], settings.retract_clearance_m)),
+                       home])
     timing["ruckig"] = time.perf_counter() - t0
 
     # --- 4. sampling on one clock -----------------------------------------------------------
@@ -280,6 +307,10 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
     timing["sampling"] = time.perf_counter() - t0
 
     dip = _turnaround_dip(traj, T_world_tcp)
+    if dip > settings.turnaround_max_dip_m:
+        warnings.append(f"a turn-around brings the TCP {1e3 * dip:.0f} mm closer to the part "
+                        "than the pass ends (IK changes branch between passes?); check "
+                        "collisions")
     meta = dict(traj.meta)
     meta.update({
         "settings": settings.to_dict(),
@@ -291,6 +322,7 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
         "warnings": warnings,
         "max_path_deviation_m": float(max(deviations)),
         "turnaround_max_dip_m": dip,
+        "turnarounds": turnarounds,
         "cycle_time_s": traj.duration_s,
         "paint_time_s": traj.paint_time_s,
         "planned_paint_time_s": plan.paint_time_s,
@@ -394,27 +426,48 @@ def _move_tcp_to(robot: RobotLike, q: np.ndarray, p_target: np.ndarray,
         if np.linalg.norm(err) < 1e-10:
             break
         J = robot.jacobian(q)
-        q = q + J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(6), err)
+        # Projected onto the joint limits: the other joints take over the remaining error.
+        q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(6), err), robot.q_lower,
+                    robot.q_upper)
         T = robot.fk(q)
     return q
 
 
-def _backed_off(robot: RobotLike, q_a: np.ndarray, q_b: np.ndarray,
-                clearance_m: float) -> np.ndarray:
-    """Via joint position (n,) [rad]: the TCP at the midpoint of FK(q_a) and FK(q_b), moved by
-    `clearance_m` [m] along −z of the tool (away from the part); orientation of the joint-space
-    midpoint. For approach/retract, q_a = q_b."""
-    Ta, Tb = robot.fk(q_a), robot.fk(q_b)
-    z = Ta[:3, 2] + Tb[:3, 2]
-    z = z / max(float(np.linalg.norm(z)), 1e-12)
-    q_mid = 0.5 * (np.asarray(q_a, float) + np.asarray(q_b, float))
-    target = 0.5 * (Ta[:3, 3] + Tb[:3, 3]) - clearance_m * z
-    q_via = _move_tcp_to(robot, q_mid, target, iters=20)
+def _backed_off(robot: RobotLike, q: np.ndarray, clearance_m: float) -> np.ndarray:
+    """Via joint position (n,) [rad]: the TCP of FK(q) moved by `clearance_m` [m] along −z of the
+    tool (away from the part), same orientation."""
+    T = robot.fk(q)
+    target = T[:3, 3] - clearance_m * T[:3, 2]
+    q_via = _move_tcp_to(robot, q, target, T[:3, :3], iters=40)
     miss = float(np.linalg.norm(robot.fk(q_via)[:3, 3] - target))
     if miss > 1e-3 or np.any(q_via < robot.q_lower) or np.any(q_via > robot.q_upper):
-        raise TrajectoryError("the backed-off via pose is not reachable within the joint limits; "
+        raise TrajectoryError("a backed-off via pose is not reachable within the joint limits; "
                               "lower the approach/retract/turnaround clearance")
     return q_via
+
+
+def _backed_off_pair(robot: RobotLike, q_a: np.ndarray, q_b: np.ndarray, clearance_m: float
+                     ) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Via poses backed off from both turn-around ends by `clearance_m`, or by 1/2, 1/4 of it
+    when that leaves the joint limits: (q_via_a, q_via_b, clearance used [m]), or None."""
+    for c in clearance_m * np.array([1.0, 0.5, 0.25]):
+        try:
+            return _backed_off(robot, q_a, float(c)), _backed_off(robot, q_b, float(c)), float(c)
+        except TrajectoryError:
+            continue
+    return None
+
+
+def _move_dip(robot: RobotLike, move: JointMove, T_end: np.ndarray, T_next: np.ndarray,
+              dt: float) -> float:
+    """How much closer to the part [m] the TCP comes during `move` than the deeper of its two
+    end poses T_end, T_next (4, 4), along their mean spray axis (sampled every `dt` [s])."""
+    q, _, _ = move.sample(np.arange(0.0, move.duration_s + dt, dt))
+    p = robot.fk_many(q)[:, :3, 3]
+    z = T_end[:3, 2] + T_next[:3, 2]
+    z = z / max(float(np.linalg.norm(z)), 1e-12)
+    deepest_end = max(0.0, float((T_next[:3, 3] - T_end[:3, 3]) @ z))
+    return max(0.0, float(np.max((p - T_end[:3, 3]) @ z)) - deepest_end)
 
 
 # --- sampling and reports ------------------------------------------------------------------------
