@@ -190,7 +190,6 @@ def test_make_figures_without_cell(tmp_path):
     assert text.count("<img ") == len(files)
 
 
-@pytest.mark.slow
 def test_make_figures_with_cell_robot_and_video(tmp_path):
     """The real paint cell: robot renders at three moments and an execution GIF."""
     from robots import load_robot
