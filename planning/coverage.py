@@ -94,7 +94,7 @@ class PlannerSettings:
     v_min_m_s: float = 0.2
     v_max_m_s: float = 1.0
     a_max_m_s2: float = 5.0
-    n_knots: int = 24
+    n_knots: int = 12
     w_min_m: float = 0.10
     w_max_m: float = 0.45
     w_res_m: float = 0.01
@@ -106,7 +106,7 @@ class PlannerSettings:
     optimize_speed: bool = True
     sample_spacing_m: float = 0.02
     band_curves: int = 5
-    band_half_width: float = 0.5
+    band_half_width: float = 1.0
     marker_turn_rad: float = 0.25
     marker_spacing_m: float = 0.4
     max_markers: int = 7

@@ -39,6 +39,7 @@ class SurfaceGeometry:
 
     vertices: (N, 3) [m]; normals: (N, 3) unit, painted side; faces: (F, 3) int;
     edges: (E, 2) unique vertex pairs; face_edges: (F, 3) index of each face's edges in `edges`;
+    edge_faces: (E, 2) the faces on each edge (-1 where the edge is on the boundary);
     edge_length_m: median mesh edge length [m] (the mesh resolution).
     """
 
@@ -47,6 +48,7 @@ class SurfaceGeometry:
     faces: np.ndarray
     edges: np.ndarray
     face_edges: np.ndarray
+    edge_faces: np.ndarray
     edge_length_m: float
 
     @classmethod
@@ -57,8 +59,18 @@ class SurfaceGeometry:
         face_edges = np.asarray(mesh.faces_unique_edges, dtype=np.int64)
         v = np.asarray(surface.vertices, float)
         lengths = np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1)
+        # invert face -> edge: each edge gets its (at most two, manifold) faces
+        e_flat = face_edges.reshape(-1)
+        f_flat = np.repeat(np.arange(len(face_edges)), 3)
+        order = np.argsort(e_flat, kind="stable")
+        e_sorted, f_sorted = e_flat[order], f_flat[order]
+        first = np.ones(len(e_sorted), bool)
+        first[1:] = e_sorted[1:] != e_sorted[:-1]
+        edge_faces = np.full((len(edges), 2), -1, dtype=np.int64)
+        edge_faces[e_sorted[first], 0] = f_sorted[first]
+        edge_faces[e_sorted[~first], 1] = f_sorted[~first]
         return cls(v, np.asarray(surface.normals, float), np.asarray(surface.faces), edges,
-                   face_edges, float(np.median(lengths)))
+                   face_edges, edge_faces, float(np.median(lengths)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,7 +122,9 @@ def _order_components(geom: SurfaceGeometry, d: np.ndarray, cross: np.ndarray,
     n_cross = len(cross)
     node = np.full(len(geom.edges), -1, dtype=np.int64)
     node[cross] = np.arange(n_cross)
-    fn = node[geom.face_edges]                      # (F, 3) crossing-node id or -1
+    faces = np.unique(geom.edge_faces[cross])       # only faces touching a crossed edge
+    faces = faces[faces >= 0]
+    fn = node[geom.face_edges[faces]]               # (F', 3) crossing-node id or -1
     hit = fn >= 0
     two = hit.sum(axis=1) == 2
     pairs = fn[two][hit[two]].reshape(-1, 2)
