@@ -38,6 +38,15 @@ def pose(xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
     return T
 
 
+def facing_robot() -> tuple[float, float, float]:
+    """Roll-pitch-yaw [rad] that stands a part upright facing a robot at the world origin.
+
+    The part frame's painted side (+z) faces −x (toward a robot base at the origin looking along
+    +x), the part's y axis points up (+z) and its x axis runs along −y.
+    """
+    return (np.pi / 2, 0.0, -np.pi / 2)
+
+
 @dataclass(frozen=True)
 class Placement:
     """A rigid placement in the cell: position [m] and roll-pitch-yaw [rad] (fixed XYZ axes)."""
