@@ -109,15 +109,6 @@ SERVO_TRACKING_MAX_MM = 1.0
 LOSS_RESOLUTION_PP = 1e-4
 
 
-# --- rendering and plots (sim.render, sim.plots) --------------------------------------------------
-# A blank or single-colour frame has a per-channel pixel std of 0; any lit scene with a part and a
-# floor has tens of grey levels. 5 levels (of 255) separates the two with a wide margin.
-RENDER_MIN_PIXEL_STD = 5.0
-# Thin (≈10 %) and thick (≈90 %) ends of a thickness ramp, read back through the colour map: the
-# lighting shifts the nearest colour-map entry by < 0.15, so the two ends stay > 0.5 apart.
-RENDER_RAMP_MIN_LEVEL_GAP = 0.5
-
-
 # --- joint trajectories (sim.time_law, sim.moves, sim.trajectory) --------------------------------
 # Finite differences of analytically sampled trajectories average the next derivative over the
 # stencil, so they never exceed its maximum; only float64 round-off (~1e-10 relative) remains.
