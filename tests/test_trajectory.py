@@ -231,6 +231,7 @@ def test_arrays_are_consistent(traj: JointTrajectory) -> None:
     # Direct turn-arounds (this strip's dip is below the default 50 mm), each measured.
     assert traj.meta["turnaround_max_dip_m"] <= TrajectorySettings().turnaround_max_dip_m
     assert [x["mode"] for x in traj.meta["turnarounds"]] == ["direct"] * (N_PASSES - 1)
+    assert traj.meta["warnings"] == []
 
 
 def test_save_load_round_trip(traj: JointTrajectory, tmp_path: Path) -> None:
@@ -269,7 +270,8 @@ def test_wrong_ik_results_raise(robot, plan) -> None:
 
 def test_turnaround_via_clearance(robot, plan) -> None:
     tr = _build(robot, plan, turnaround_clearance_m=0.1, turnaround_max_dip_m=0.0)
-    assert all(x["mode"].startswith("backed-off") for x in tr.meta["turnarounds"])
+    assert all(x["mode"] == "backed-off" for x in tr.meta["turnarounds"])
+    assert tr.meta["turnaround_max_dip_m"] < 1e-3
     v, a, _ = _limits(tr)
     assert np.all(np.abs(np.diff(tr.q, 2, axis=0)) / tr.dt_s**2 <= a * (1 + FD_LIMIT_RTOL))
     # Backed off 0.1 m at both ends, the turn-around rises well above the pass ends.
@@ -319,3 +321,22 @@ def test_passes_can_start_and_end_at_rest(robot, plan) -> None:
     # Speeding up from rest is below the planned speed: reported, limited by acceleration.
     assert tr.slowdowns and all(any("acceleration" in lim for lim in sd["limiting"])
                                 for sd in tr.slowdowns)
+
+
+@pytest.mark.parametrize("max_dip", [np.inf, 0.005])
+def test_turnaround_choice_is_measured_and_honoured(robot, plan, max_dip: float) -> None:
+    tr = _build(robot, plan, turnaround_max_dip_m=max_dip)
+    recs = tr.meta["turnarounds"]
+    assert len(recs) == N_PASSES - 1
+    for r in recs:
+        assert r["dip_m"] <= max_dip or any(f"after pass {r['after_pass']}" in w
+                                            for w in tr.meta["warnings"])
+        assert r["mode"] == "direct" or r["direct_dip_m"] > max_dip
+    # The dip re-measured on the sampled program agrees with the per-move records (the program
+    # samples the moves on the 1 ms grid, the records at 1 ms from each move's start).
+    assert tr.meta["turnaround_max_dip_m"] == pytest.approx(max(r["dip_m"] for r in recs),
+                                                            abs=1e-3)
+    if max_dip < 0.02:
+        assert all(r["mode"] != "direct" for r in recs)
+    v, a, j = _limits(tr)
+    assert np.all(np.abs(np.diff(tr.q, 2, axis=0)) / tr.dt_s**2 <= a * (1 + FD_LIMIT_RTOL))
