@@ -117,10 +117,15 @@ def make_figures(out_dir: str | os.PathLike[str], *, surface: Any = None, plan: 
             "plot")
 
     if surface is not None:
-        figs_r, skip_r = _renders(out, surface, planned if have_film else None,
-                                  executed if have_exec else None, vmin_um, vmax_um, plan,
-                                  trace, cell, size, video, video_size, video_fps,
-                                  video_max_frames)
+        from sim.render import RenderBackendError
+
+        figs_r: list[dict[str, str]] = []
+        try:
+            skip_r = _renders(figs_r, out, surface, planned if have_film else None,
+                              executed if have_exec else None, vmin_um, vmax_um, plan, trace,
+                              cell, size, video, video_size, video_fps, video_max_frames)
+        except RenderBackendError as e:  # e.g. an explicit MUJOCO_GL that cannot start
+            skip_r = [{"figure": "remaining renders and video", "reason": str(e)}]
         figs.extend(figs_r)
         skipped.extend(skip_r)
     atomic_write_text(out / FIGURES_JSON, json.dumps({"figures": figs, "skipped": skipped},
@@ -128,17 +133,18 @@ def make_figures(out_dir: str | os.PathLike[str], *, surface: Any = None, plan: 
     return [out / f["file"] for f in figs]
 
 
-def _renders(out: Path, surface: Any, planned: np.ndarray | None, executed: np.ndarray | None,
-             vmin_um: float | None, vmax_um: float | None, plan: Any, trace: Any, cell: Any,
-             size: tuple[int, int], video: bool, video_size: tuple[int, int], video_fps: float,
-             video_max_frames: int) -> tuple[list[dict[str, str]], list[dict[str, str]]]:
+def _renders(figs: list[dict[str, str]], out: Path, surface: Any, planned: np.ndarray | None,
+             executed: np.ndarray | None, vmin_um: float | None, vmax_um: float | None,
+             plan: Any, trace: Any, cell: Any, size: tuple[int, int], video: bool,
+             video_size: tuple[int, int], video_fps: float,
+             video_max_frames: int) -> list[dict[str, str]]:
+    """Append the renders written to `figs`; return the skipped figures with reasons."""
     from sim import render
 
-    figs: list[dict[str, str]] = []
     try:
         render.backend_name()
     except render.RenderBackendError as e:
-        return figs, [{"figure": "renders and video", "reason": str(e)}]
+        return [{"figure": "renders and video", "reason": str(e)}]
     T = getattr(cell, "T_world_part", None)
     travel = None
     if plan is not None:
@@ -181,7 +187,7 @@ def _renders(out: Path, surface: Any, planned: np.ndarray | None, executed: np.n
         figs.append({"file": p.name, "kind": "video",
                      "caption": f"execution at {video_fps:g} fps, {speedup:.1f}× real time "
                                 "(part coloured by the executed film)"})
-    return figs, []
+    return []
 
 
 def _moments(trace: Any) -> list[tuple[str, int]]:
