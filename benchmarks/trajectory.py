@@ -69,8 +69,9 @@ def main() -> None:
     print(f"max TCP path deviation on passes: {1e3 * best.meta['max_path_deviation_m']:.4f} mm")
     print(f"turn-around dip toward the part: {1e3 * best.meta['turnaround_max_dip_m']:.1f} mm")
     for x in best.meta["turnarounds"]:
-        print(f"  after pass {x['after_pass']}: {x['mode']} (direct move would dip "
-              f"{1e3 * x['direct_dip_m']:.1f} mm, take {x['direct_duration_s']:.3f} s)")
+        print(f"  after pass {x['after_pass']}: {x['mode']}, dip {1e3 * x['dip_m']:.1f} mm, "
+              f"{x['duration_s']:.3f} s (direct move: dip {1e3 * x['direct_dip_m']:.1f} mm, "
+              f"{x['direct_duration_s']:.3f} s)")
     for w in best.meta["warnings"]:
         print(f"warning: {w}")
     slow = sum(s["duration_s"] for s in best.slowdowns)
