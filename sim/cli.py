@@ -179,7 +179,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 def _cmd_plan(args: argparse.Namespace) -> int:
     from planning.atomic_io import atomic_write_text
-    from sim.pipeline import load_surface, make_plan
+    from sim.pipeline import load_surface, make_plan, scenario_json
     from sim.scenario import load_scenario
 
     scn = load_scenario(args.scenario)
@@ -187,7 +187,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     surface = load_surface(scn, args.fast)
     plan = make_plan(scn, surface, args.fast)
     plan.save(out / "plan.json")
-    atomic_write_text(out / "scenario.json", json.dumps(scn.to_dict(), indent=2))
+    atomic_write_text(out / "scenario.json", scenario_json(scn, args.fast, "none"))
     print(f"{scn.name}: {len(plan.passes)} passes, paint time {plan.paint_time_s:.1f} s, "
           f"start curve: {plan.start_rule}")
     print(f"plan: {out / 'plan.json'}")
@@ -209,6 +209,7 @@ def _load_run_dir(d: Path) -> dict[str, Any]:
     scn = load_scenario(meta["source"])
     return {
         "scenario": scn,
+        "run": meta.get("run", {"fast": False, "mode": "servo"}),
         "plan": CoveragePlan.load(d / "plan.json"),
         "trajectory": JointTrajectory.load_npz(d / "trajectory.npz"),
         "trace": ExecutedTrace.load_npz(d / "trace.npz"),
@@ -222,11 +223,11 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
     f = _load_run_dir(args.dir)
     scn, plan, traj, trace = f["scenario"], f["plan"], f["trajectory"], f["trace"]
-    fast = bool(plan.settings.get("fast", False))
+    fast, mode = bool(f["run"]["fast"]), str(f["run"]["mode"])
     surface = load_surface(scn, fast)
     rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, thresholds_for(scn),
                    reachability=traj.meta.get("reachability"))
-    res = RunResult(scn, args.dir, surface, plan, traj, trace, rep)
+    res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, fast=fast, mode=mode)
     atomic_write_text(args.dir / "metrics.json",
                       json.dumps(metrics_dict(res), indent=2, default=_json_default))
     print(format_table([_row(scn.name, rep)]))

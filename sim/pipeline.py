@@ -12,7 +12,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +41,8 @@ class RunResult:
     trace: Any
     report: Any
     timings_s: dict[str, float] = field(default_factory=dict)
+    fast: bool = False
+    mode: str = "servo"
 
     @property
     def passed(self) -> bool:
@@ -152,13 +154,21 @@ def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool
     mode: "servo" (PD + inverse dynamics) or "kinematic" (ideal replay) execution.
     report: also write plots, renders and `report.html`.
     """
+    timings: dict[str, float] = {}
+    # disable=None: tqdm draws only on a terminal, so CI logs and pipes stay clean.
+    bar = tqdm(total=len(STAGES), desc=f"{scn.name}", unit="stage",
+               disable=None if progress else True, leave=False)
+    try:
+        return _run(scn, out_dir, fast, mode, report, bar, timings)
+    finally:
+        bar.close()
+
+
+def _run(scn: Scenario, out_dir: str | Path | None, fast: bool, mode: str, report: bool,
+         bar: tqdm, timings: dict[str, float]) -> RunResult:
     from sim.cell import build_cell
     from sim.execute import execute
     from sim.validate import validate
-
-    timings: dict[str, float] = {}
-    bar = tqdm(total=len(STAGES), desc=f"{scn.name}", unit="stage", disable=not progress,
-               leave=False)
 
     def stage(name: str) -> None:
         bar.set_postfix_str(name)
@@ -198,7 +208,7 @@ def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool
                        reachability=traj.meta.get("reachability"))
         done("validate", t0)
 
-        result = RunResult(scn, None, surface, plan, traj, trace, rep, timings)
+        result = RunResult(scn, None, surface, plan, traj, trace, rep, timings, fast, mode)
         if tmp is not None:
             t0 = time.perf_counter()
             stage("report")
@@ -207,7 +217,6 @@ def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool
             result.out_dir = Path(out_dir)  # type: ignore[arg-type]
         else:
             bar.update(1)
-    bar.close()
     return result
 
 
@@ -215,6 +224,11 @@ def _servo(scn: Scenario) -> Any:
     from sim.execute import ServoSettings
 
     return ServoSettings(**scn.servo)
+
+
+def scenario_json(scn: Scenario, fast: bool, mode: str) -> str:
+    """`scenario.json`: the scenario and how it was run (what later stages need to reload it)."""
+    return json.dumps({**scn.to_dict(), "run": {"fast": fast, "mode": mode}}, indent=2)
 
 
 def metrics_dict(result: RunResult) -> dict[str, Any]:
@@ -232,6 +246,7 @@ def metrics_dict(result: RunResult) -> dict[str, Any]:
         "settings": plan.settings,
     }
     d["stage_times_s"] = dict(result.timings_s)
+    d["run"] = {"fast": result.fast, "mode": result.mode}
     return d
 
 
@@ -241,8 +256,8 @@ def write_results(result: RunResult, out: Path, cell: Any = None) -> None:
     result.trajectory.save_npz(out / "trajectory.npz")
     result.trajectory.save_csv(out / "trajectory.csv")
     result.trace.save_npz(out / "trace.npz")
-    scn = replace(result.scenario)
-    atomic_write_text(out / "scenario.json", json.dumps(scn.to_dict(), indent=2))
+    atomic_write_text(out / "scenario.json", scenario_json(result.scenario, result.fast,
+                                                           result.mode))
     atomic_write_text(out / "metrics.json", json.dumps(metrics_dict(result), indent=2,
                                                        default=_json_default))
     if cell is not None:

@@ -1,0 +1,115 @@
+"""End to end through the CLI: run, validate, export, report and check on a small panel job."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from planning.plan import CoveragePlan
+from sim.joint_trajectory import JointTrajectory
+from sim.trace import ExecutedTrace
+
+SCENARIO = '''
+from sim.scenario import Placement, Scenario, Thresholds, facing_robot
+
+SCENARIO = Scenario(
+    name="{name}",
+    part="panel",
+    part_placement=Placement(xyz_m=(1.4, 0.0, 1.0), rpy_rad=facing_robot()),
+    fast_resolution_m=0.04,
+    fast_planner={{"sample_spacing_m": 0.04}},
+    trajectory={{"q_home": (0.0, -0.6, 0.3, 0.0, 0.9, 0.0)}},
+    thresholds=Thresholds(max_executed_nsd_pct={nsd}, max_loss_pp=1.0, max_cycle_time_s=90.0),
+)
+
+if __name__ == "__main__":
+    raise SystemExit(SCENARIO.main())
+'''
+
+
+def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "sim.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    d = tmp_path_factory.mktemp("e2e")
+    (d / "small_panel.py").write_text(SCENARIO.format(name="small_panel", nsd=30.0))
+    out = _cli("run", "small_panel.py", "--fast", "--out", "res", "--no-report", cwd=d)
+    assert out.returncode == 0, out.stderr
+    return d
+
+
+@pytest.mark.slow
+def test_run_writes_every_result_file(run_dir: Path) -> None:
+    res = run_dir / "res"
+    for name in ("plan.json", "plan.npz", "trajectory.npz", "trajectory.csv", "trace.npz",
+                 "metrics.json", "scenario.json"):
+        assert (res / name).is_file(), name
+    # No temp folders or temp files left behind.
+    assert not [p for p in run_dir.iterdir() if p.name.startswith(".")]
+    m = json.loads((res / "metrics.json").read_text())
+    assert m["passed"] is True and m["reachability_pct"] == 100.0
+    plan = CoveragePlan.load(res / "plan.json")
+    traj = JointTrajectory.load_npz(res / "trajectory.npz")
+    trace = ExecutedTrace.load_npz(res / "trace.npz")
+    assert m["plan_summary"]["passes"] == len(plan.passes)
+    assert m["executed_cycle_time_s"] == pytest.approx(trace.t_s[-1] - trace.t_s[0], abs=0.01)
+    # The CSV holds the same program as the npz, row for row.
+    csv = np.loadtxt(res / "trajectory.csv", delimiter=",", skiprows=1)
+    assert csv.shape[0] == len(traj.t_s)
+    assert np.allclose(csv[:, 1:7], traj.q, atol=1e-6)
+
+
+@pytest.mark.slow
+def test_validate_export_and_report_on_the_results(run_dir: Path) -> None:
+    res = run_dir / "res"
+    before = json.loads((res / "metrics.json").read_text())
+    out = _cli("validate", "res", cwd=run_dir)
+    assert out.returncode == 0, out.stderr
+    after = json.loads((res / "metrics.json").read_text())
+    assert after["executed_nsd_pct"] == pytest.approx(before["executed_nsd_pct"], rel=1e-9)
+    out = _cli("export", "res", "--rapid", "--style", "paintl", cwd=run_dir)
+    assert out.returncode == 0, out.stderr
+    text = (res / "small_panel.mod").read_text()
+    plan = CoveragePlan.load(res / "plan.json")
+    assert text.startswith("MODULE small_panel") and text.count("SetBrush 1;") == len(plan.passes)
+    out = _cli("report", "res", cwd=run_dir)
+    assert out.returncode == 0, out.stderr
+    html = (res / "report.html").read_text()
+    assert "small_panel" in html and f"{after['executed_nsd_pct']:.2f}" in html
+
+
+@pytest.mark.slow
+def test_check_exits_1_on_an_over_tight_threshold_with_junit(run_dir: Path) -> None:
+    # σ/μ ≤ 0.01 % cannot be met by any real coat: the check must fail, not crash.
+    (run_dir / "tight").mkdir()
+    (run_dir / "tight" / "tight_panel.py").write_text(
+        SCENARIO.format(name="tight_panel", nsd=0.01))
+    out = _cli("check", "tight", "--fast", "--junit", "junit.xml", cwd=run_dir)
+    assert out.returncode == 1, out.stderr
+    assert "FAIL" in out.stdout and "0 passed, 1 failed" in out.stdout
+    root = ET.parse(run_dir / "junit.xml").getroot()
+    (case,) = list(root.iter("testcase"))
+    assert case.get("name") == "tight_panel"
+    assert "executed" in case.find("failure").get("message")  # type: ignore[union-attr]
+
+
+@pytest.mark.slow
+def test_a_failed_run_keeps_the_previous_results(run_dir: Path) -> None:
+    res = run_dir / "res"
+    before = (res / "metrics.json").read_text()
+    bad = run_dir / "bad.py"
+    bad.write_text(SCENARIO.format(name="bad", nsd=30.0).replace('part="panel"',
+                                                                 'part="no_such_part"'))
+    out = _cli("run", "bad.py", "--fast", "--out", "res", cwd=run_dir)
+    assert out.returncode == 2 and "neither a library part" in out.stderr
+    assert out.stderr.count("\n") == 1
+    assert (res / "metrics.json").read_text() == before
