@@ -375,7 +375,7 @@ def plan_coverage(surface: Any, applicator: Applicator,
             check_offset_order(cur.foot[ok], pts[ok],
                                f"offset {sign * k:+d} of the {surface.name} plan")
             side = sign * k
-            if not inside.any():
+            if inside.sum() < 2:            # nothing (or a single point) left on the surface
                 if st.edge_passes and ok.sum() >= 2:
                     foot, normals, on_part = pl.build_pass(pts, nrm, np.zeros(len(pts), bool),
                                                            extend=False)
@@ -474,8 +474,11 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
         travel = tangents(pos)
         travel = _unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
         # neighbours' widths for the band and the report
-        nb = [w for w in (p.width_m, passes[side + 1].width_m if side + 1 in passes else np.nan)
-              if np.isfinite(w)]
+        # the gaps on both sides of this pass: toward the start curve it is the pass's own
+        # width; away from it, the next pass's (the start curve has a pass on each side)
+        outer = [side + 1, side - 1] if side == 0 else [side + int(np.sign(side))]
+        gaps = [p.width_m] + [passes[s].width_m for s in outer if s in passes]
+        nb = [w for w in gaps if np.isfinite(w)]
         w_local = float(np.mean(nb)) if nb else st.w_max_m
         nsd_c = nsd_o = float("nan")
         times_seg = seg_len / st.v_nominal_m_s
