@@ -203,3 +203,31 @@ def test_algorithm1_terminates_on_every_part(name: str) -> None:
     report = plan.settings["report"]
     assert len(report["passes"]) == len(plan.passes)
     assert report["planning_time_s"] > 0
+
+
+def test_fender_offsets_keep_constant_geodesic_index() -> None:
+    # constant-index restriction (paper §4.3) on a doubly curved part: every interior sample of a
+    # pass lies at the chosen width from the previous pass. The straight-line distance to the
+    # previous pass is the chord of that geodesic arc: w (1 - κ² w² / 24) ≥ 0.97 w for κ ≤ 2 1/m.
+    s = parts.fender(RES)
+    plan = plan_coverage(s, APP, FAST)
+    by_side = {p.side: i for i, p in enumerate(plan.passes)}
+    checked = 0
+    for side, i in by_side.items():
+        p = plan.passes[i]
+        prev = side - int(np.sign(side))
+        if side == 0 or not p.on_part.any() or prev not in by_side:
+            continue
+        foot = _feet(plan, i)[3:-3]                       # away from the in-surface extensions
+        other = _feet(plan, by_side[prev], on_part=False)
+        seg_a, seg_b = other[:-1], other[1:]
+        ab = seg_b - seg_a
+        t = np.clip(np.einsum("pij,ij->pi", foot[:, None, :] - seg_a[None], ab)
+                    / np.einsum("ij,ij->i", ab, ab), 0, 1)
+        d = np.linalg.norm(foot[:, None, :] - (seg_a[None] + t[..., None] * ab[None]), axis=2)
+        dist = d.min(axis=1)
+        w = p.index_width_m
+        assert np.all(dist <= w * (1 + MESH_ARC_RTOL)), (side, dist.max() / w)
+        assert np.all(dist >= 0.97 * w), (side, dist.min() / w)
+        checked += 1
+    assert checked >= 2
