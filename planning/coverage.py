@@ -464,7 +464,7 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
     for order, side in enumerate(sides):
         p = passes[side]
         foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
-                                                 st.overspray_m, st.sample_spacing_m)
+                                                 st.overspray_m, st.sample_spacing_m, h)
         pos = foot + h * normals
         axes = -normals
         seg = np.diff(pos, axis=0)
@@ -517,25 +517,27 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
 
 
 def _with_overspray(foot: np.ndarray, normals: np.ndarray, on_part: np.ndarray,
-                    overspray_m: float, spacing_m: float
+                    overspray_m: float, spacing_m: float, standoff_m: float
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Extend a pass by `overspray_m` at both ends along its end tangents (off the surface; the
-    normal stays the end normal so the TCP keeps standoff along it)."""
+    """Extend a pass by `overspray_m` at both ends, off the surface: the TCP continues straight
+    along the end tangent of its own path (no kink where the normal stops turning) and keeps
+    standoff along the end normal, so the foot point is TCP − h · n_end."""
     if overspray_m <= 0:
         return foot, normals, on_part
     n_ext = int(np.ceil(overspray_m / spacing_m - 1e-9))
     d = np.arange(1, n_ext + 1) * (overspray_m / n_ext)
-    s = arc_length(foot)
+    tcp = foot + standoff_m * normals
+    s = arc_length(tcp)
     span = min(2 * spacing_m, s[-1])
 
     def end_tangent(f: np.ndarray, ss: np.ndarray) -> np.ndarray:
         back = np.array([np.interp(ss[-1] - span, ss, f[:, k]) for k in range(3)])
         return _unit(f[-1] - back)
 
-    t1 = end_tangent(foot, s)
-    t0 = end_tangent(foot[::-1], s[-1] - s[::-1])
-    head = foot[0] + d[::-1, None] * t0
-    tail = foot[-1] + d[:, None] * t1
+    t1 = end_tangent(tcp, s)
+    t0 = end_tangent(tcp[::-1], s[-1] - s[::-1])
+    head = tcp[0] + d[::-1, None] * t0 - standoff_m * normals[0]
+    tail = tcp[-1] + d[:, None] * t1 - standoff_m * normals[-1]
     return (np.concatenate([head, foot, tail]),
             np.concatenate([np.tile(normals[0], (n_ext, 1)), normals,
                             np.tile(normals[-1], (n_ext, 1))]),
