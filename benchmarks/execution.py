@@ -1,11 +1,11 @@
 """Benchmark of MuJoCo execution and validation on the door program.
 
-Builds the door plan (`plan_coverage`), its 1 kHz joint program (`build_program`) on the ABB-style
-arm with the door standing 1.55 m in front of the robot, then times, best of `--repeat`:
+Builds the door scenario's plan and 1 kHz joint program (`scenarios/door.py` through
+`sim.pipeline`: the ABB-style arm, the door upright in front of it), then times, best of `--repeat`:
 building the cell, servo execution (split into the inverse-dynamics feed-forward and the rollout),
 kinematic replay, and the validate step. Real-time factor = simulated time ÷ wall time.
 
-    .venv/bin/python benchmarks/execution.py [--resolution 0.01] [--repeat 3]
+    .venv/bin/python benchmarks/execution.py [--fast] [--repeat 3]
 """
 
 from __future__ import annotations
@@ -13,24 +13,16 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from planning.applicator import Applicator
-from planning.coverage import PlannerSettings, plan_coverage
-from planning.parts import get_part
-from robots.robot import load_robot
 from sim.cell import build_cell
 from sim.execute import ServoSettings, _set_pd_actuators, execute, inverse_dynamics
-from sim.trajectory import TrajectorySettings, build_program
+from sim.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
+from sim.scenario import load_scenario
 from sim.validate import validate
 
-#: door placement: standing, painted side toward the robot (−x world), centre 1.55 m ahead.
-T_WORLD_DOOR = np.array([[0.0, 0.0, -1.0, 1.55],
-                         [-1.0, 0.0, 0.0, 0.0],
-                         [0.0, 1.0, 0.0, 1.1],
-                         [0.0, 0.0, 0.0, 1.0]])
+DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.py"
 
 
 def best_of(n: int, fn: Callable[[], Any]) -> tuple[float, Any]:
@@ -45,19 +37,21 @@ def best_of(n: int, fn: Callable[[], Any]) -> tuple[float, Any]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--resolution", type=float, default=0.01, help="door mesh resolution [m]")
+    ap.add_argument("--fast", action="store_true", help="the scenario's coarse CI settings")
     ap.add_argument("--repeat", type=int, default=3, help="timed repetitions (best is shown)")
     args = ap.parse_args()
 
-    surface = get_part("door", resolution_m=args.resolution)
-    plan = plan_coverage(surface, Applicator.default(), PlannerSettings())
-    robot = load_robot("abb_paint")
-    traj = build_program(robot, plan, T_WORLD_DOOR, TrajectorySettings())
+    scn = load_scenario(DOOR_SCENARIO)
+    surface = load_surface(scn, args.fast)
+    plan = make_plan(scn, surface, args.fast)
+    robot = load_robot_for(scn)
+    traj = make_trajectory(scn, robot, plan)
+    T_world_part = scn.part_placement.matrix
     sim_s = len(traj.t_s) * traj.dt_s
     print(f"door program: {len(plan.passes)} passes, {len(traj.t_s)} steps, "
           f"{sim_s:.2f} s simulated, {len(surface.vertices)} surface vertices")
 
-    t_cell, cell = best_of(args.repeat, lambda: build_cell(robot, surface, T_WORLD_DOOR))
+    t_cell, cell = best_of(args.repeat, lambda: build_cell(robot, surface, T_world_part))
     print(f"build_cell: {1e3 * t_cell:.1f} ms")
 
     t_servo, trace = best_of(args.repeat, lambda: execute(cell, traj, mode="servo"))
@@ -77,7 +71,8 @@ def main() -> None:
     t_kin, kin = best_of(args.repeat, lambda: execute(cell, traj, mode="kinematic"))
     print(f"execute kinematic replay: {t_kin:.3f} s wall, real-time factor {sim_s / t_kin:.1f} x")
 
-    t_val, rep = best_of(args.repeat, lambda: validate(plan, surface, traj, trace, T_WORLD_DOOR))
+    t_val, rep = best_of(args.repeat, lambda: validate(plan, surface, traj, trace,
+                                                                   T_world_part))
     print(f"validate (two thickness maps + metrics): {t_val:.3f} s wall, "
           f"real-time factor {sim_s / t_val:.1f} x")
     print(f"execute + validate: real-time factor {sim_s / (t_servo + t_val):.1f} x")
