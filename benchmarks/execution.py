@@ -71,8 +71,8 @@ def main() -> None:
     t_kin, kin = best_of(args.repeat, lambda: execute(cell, traj, mode="kinematic"))
     print(f"execute kinematic replay: {t_kin:.3f} s wall, real-time factor {sim_s / t_kin:.1f} x")
 
-    t_val, rep = best_of(args.repeat, lambda: validate(plan, surface, traj, trace,
-                                                                   T_world_part))
+    t_val, rep = best_of(args.repeat,
+                         lambda: validate(plan, surface, traj, trace, T_world_part))
     print(f"validate (two thickness maps + metrics): {t_val:.3f} s wall, "
           f"real-time factor {sim_s / t_val:.1f} x")
     print(f"execute + validate: real-time factor {sim_s / (t_servo + t_val):.1f} x")
