@@ -200,6 +200,12 @@ def test_algorithm1_terminates_on_every_part(name: str) -> None:
         assert np.isfinite(p.max_geodesic_curvature_1_m) and p.max_geodesic_curvature_1_m >= 0
         if p.side != 0:
             assert FAST.w_min_m - 1e-9 <= p.index_width_m <= FAST.w_max_m + 1e-9
+        # no kinks: the TCP path turns with the normal, at most |k|max per unit foot length
+        d = np.diff(p.positions, axis=0)
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        turn = np.arccos(np.clip(np.einsum("ij,ij->i", d[1:], d[:-1]), -1.0, 1.0))
+        k_max = float(np.abs(s.principal_curvatures).max())
+        assert turn.max() <= 1.5 * k_max * FAST.sample_spacing_m + 0.01, (p.side, turn.max())
     report = plan.settings["report"]
     assert len(report["passes"]) == len(plan.passes)
     assert report["planning_time_s"] > 0
