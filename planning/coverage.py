@@ -184,6 +184,7 @@ class _PassGeom:
     edge: bool = False
     curves: list[IndexingCurve | None] | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    source: tuple[list[IndexingCurve | None], float] | None = None
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -382,6 +383,8 @@ def plan_coverage(surface: Any, applicator: Applicator,
                     edge = _PassGeom(foot, normals, np.zeros(len(foot), bool), side, w0,
                                      edge=True)
                     edge.info = dict(info, edge=True)
+                    # its band lies on the part, between it and the previous pass
+                    edge.source = (curves, sign * w0)
                     passes[side] = edge
                 break
             foot, normals, on_part = pl.build_pass(pts, nrm, inside)
@@ -423,33 +426,45 @@ def _jsonable(d: dict[str, Any]) -> dict[str, Any]:
 
 
 def _band(pl: _Planner, p: _PassGeom, half_width_m: float) -> SubOffsetBand | None:
-    """Sub-offset curves of a pass: curve 0 its on-part foot points, then ± offsets walked along
-    the indexing curves; only points inside the surface, gaps split off."""
-    curves = pl.curves_of(p)
+    """Sub-offset curves of a pass: curve 0 its foot points (on-part ones; all of them for an
+    edge pass, which lies on the virtual extension), then ± offsets walked along indexing curves
+    (the pass's own, or for an edge pass the previous pass's, shifted by the width); only points
+    inside the surface, gaps split off."""
     j = pl.st.band_curves
     offs = np.linspace(-half_width_m, half_width_m, j)
-    offs = np.concatenate([[0.0], offs[np.abs(offs) > 1e-12]])
+    offs = offs[np.abs(offs) > 1e-12]
+    if p.source is None:
+        curves, base = pl.curves_of(p), 0.0
+        foot0, nrm0, keep0 = p.foot, p.normals, p.on_part.copy()
+    else:
+        curves, base = p.source
+        foot0, nrm0 = p.foot, p.normals
+        keep0 = np.ones(len(p.foot), bool)
     pts_l, nrm_l, len_l = [], [], []
-    for d in offs:                              # J ≤ ~7 curves
-        if d == 0.0:
-            pts, nrm, inside = p.foot, p.normals, p.on_part.copy()
+    for k, d in enumerate(np.concatenate([[0.0], offs])):      # J ≤ ~7 curves
+        if k == 0:
+            pts, nrm, inside = foot0, nrm0, keep0
         else:
-            pts, nrm, inside = walk(curves, d)
+            pts, nrm, inside = walk(curves, base + d)
         keep = inside & np.all(np.isfinite(pts), axis=1)
         pts, nrm = pts[keep], nrm[keep]
         if len(pts) < 2:
-            if d == 0.0:
+            if k == 0:
                 return None
             continue
         seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
         good = (seg > 1e-9) & (seg < 3.0 * pl.st.sample_spacing_m)
         if good.sum() < 1:
+            if k == 0:
+                return None
             continue
         mid = 0.5 * (pts[1:] + pts[:-1])[good]
         mn = _unit(nrm[1:] + nrm[:-1])[good]
         pts_l.append(mid)
         nrm_l.append(mn)
         len_l.append(seg[good])
+    if len(pts_l) < 2:          # nothing of the band on the part: no objective to optimize
+        return None
     return SubOffsetBand(tuple(pts_l), tuple(nrm_l), tuple(len_l))
 
 
@@ -482,8 +497,9 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
         w_local = float(np.mean(nb)) if nb else st.w_max_m
         nsd_c = nsd_o = float("nan")
         times_seg = seg_len / st.v_nominal_m_s
-        if st.optimize_speed and not p.edge:
+        if st.optimize_speed:
             band = _band(pl, p, st.band_half_width * w_local)
+            p.info["speed_status"] = "constant: no band on the part"
             if band is not None:
                 mid = 0.5 * (pos[1:] + pos[:-1])
                 ax = _unit(0.5 * (axes[1:] + axes[:-1]))
@@ -492,8 +508,6 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
                 times_seg = np.asarray(res.segment_times_s, float)
                 nsd_c, nsd_o = float(res.nsd_constant_pct), float(res.nsd_optimized_pct)
                 p.info["speed_status"] = res.status
-        elif p.edge:
-            p.info["speed_status"] = "constant: edge pass"
         else:
             p.info["speed_status"] = "constant: optimize_speed off"
         kg = geodesic_curvature(p.foot, p.normals)
