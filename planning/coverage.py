@@ -274,6 +274,8 @@ class _Planner:
     def markers(self, p: _PassGeom, valid: np.ndarray) -> np.ndarray:
         """Indices of marker samples: equal steps of turning/marker_turn + length/spacing."""
         idx = np.flatnonzero(valid)
+        if len(idx) < 3:
+            return idx[len(idx) // 2:len(idx) // 2 + 1]
         foot = p.foot[idx]
         s = arc_length(foot)
         t = tangents(foot)
@@ -312,7 +314,8 @@ class _Planner:
         searches: list[WidthSearch] = []
         for i in marks:                            # a few markers per pass
             c = curves[int(i)]
-            assert c is not None
+            if c is None:                          # markers are chosen among valid curves
+                continue
             film = self.profile(c, t_all[int(i)])
             searches.append(search_widths(film, self.st.w_res_m, self.g0, self.point_s,
                                           known_s, self.widths, self.future, self.st.n_future,
