@@ -356,7 +356,7 @@ def tangents(points: npt.ArrayLike) -> np.ndarray:
 
 
 def geodesic_curvature(points: npt.ArrayLike, normals: npt.ArrayLike,
-                       smoothing_m: float = 0.05) -> np.ndarray:
+                       smoothing_m: float = 0.1) -> np.ndarray:
     """(M,) signed geodesic curvature κ_g = (d²r/ds²) · (n × T) of a curve in the surface [1/m].
 
     points: (M, 3) curve on the surface [m]; normals: (M, 3) surface normals there.

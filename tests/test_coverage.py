@@ -244,3 +244,35 @@ def test_fender_offsets_keep_constant_geodesic_index() -> None:
         assert np.all(dist >= 0.97 * w), (side, dist.min() / w)
         checked += 1
     assert checked >= 2
+
+
+def test_sphere_cap_offsets_are_small_circles_with_closed_form_geodesic_curvature() -> None:
+    # a mesh (not a grid) with K > 0: the start curve through the cap's axis is a great circle;
+    # the plane ⟂ its tangent through a sample holds the sphere's centre, so the indexing curve
+    # is a great circle too and the offset at arc w is the small circle at angle w/R: its plane
+    # lies R sin(w/R) from the centre and κ_g = tan(w/R)/R (closed forms)
+    import trimesh
+
+    from planning.surface import Surface
+
+    radius = 0.6
+    ico = trimesh.creation.icosphere(subdivisions=5, radius=radius)     # edges ≈ 24 mm
+    keep = ico.triangles_center[:, 2] > radius * np.cos(np.radians(60))
+    cap = trimesh.Trimesh(ico.vertices, ico.faces[keep])
+    cap.remove_unreferenced_vertices()
+    s = Surface.from_mesh(cap, name="cap")
+    plan = plan_coverage(s, APP, FAST)
+    assert "gaussian-curvature divider" in plan.start_rule
+    checked = 0
+    for i, p in enumerate(plan.passes):
+        if abs(p.side) != 1 or p.on_part.sum() < 5:
+            continue
+        foot = _feet(plan, i)
+        centre = foot.mean(axis=0)
+        normal = np.linalg.svd(foot - centre)[2][2]
+        ang = p.index_width_m / radius
+        assert abs(centre @ normal) == pytest.approx(radius * np.sin(ang), rel=MESH_ARC_RTOL)
+        # max |κ_g| from second differences over 0.1 m of a faceted section: chord noise ~2 %
+        assert p.max_geodesic_curvature_1_m == pytest.approx(np.tan(ang) / radius, rel=0.03)
+        checked += 1
+    assert checked == 2
