@@ -62,7 +62,9 @@ def main() -> None:
     widths = np.arange(0.05, 0.6 + 1e-9, 0.005)
     curve = nsd_vs_index_width(app, widths)
     pw = planar_index_width(app, base.w_min_m, base.w_max_m, base.w_res_m, base.u_max)
-    i_sweet = int(np.argmin(np.where(widths > 0.3, curve, np.inf)))
+    # the sweet spot: the widest local minimum of the curve
+    minima = np.flatnonzero((curve[1:-1] < curve[:-2]) & (curve[1:-1] < curve[2:])) + 1
+    i_sweet = int(minima[-1]) if len(minima) else int(np.argmin(curve))
     print(f"fig5 sweet spot: {widths[i_sweet] * 1000:.0f} mm at sigma/mu "
           f"{curve[i_sweet] * 100:.2f} % (paper: ~525 mm for its atomizer)")
     print(f"fig5 planar index width (largest with sigma/mu <= {base.u_max * 100:.0f} % in "
