@@ -85,6 +85,9 @@ class PlannerSettings:
     max_markers: at most this many markers per pass.
     profile_spacing_m: spacing of the optimization-profile points on indexing curves [m].
     edge_passes: keep the first offset that lies completely outside as a sideways overspray pass.
+    first_side: "right" (offset to the right of the start curve first, Algorithm 1 as written),
+        "left" (the start curve reversed), or "best" (run both, keep the plan with the smaller
+        largest predicted optimization-profile σ/μ; the semi-global search depends on the order).
     max_passes: refuse to plan more passes than this (a guard against a runaway offset loop).
     """
 
@@ -112,6 +115,7 @@ class PlannerSettings:
     max_markers: int = 7
     profile_spacing_m: float = 0.01
     edge_passes: bool = True
+    first_side: str = "best"
     max_passes: int = 200
 
     def __post_init__(self) -> None:
@@ -147,6 +151,9 @@ class PlannerSettings:
                                 "'zero-curvature', 'max-curvature' or an angle [rad]")
         elif isinstance(o, bool) or not isinstance(o, int | float) or not math.isfinite(o):
             raise PlanError(f"PlannerSettings.orientation = {o!r} must be a string or an angle")
+        if self.first_side not in ("right", "left", "best"):
+            raise PlanError(f"PlannerSettings.first_side = {self.first_side!r}: use 'right', "
+                            "'left' or 'best'")
         p = self.start_position
         if p is not None and not (isinstance(p, int | float) and 0.0 <= p <= 1.0):
             raise PlanError(f"PlannerSettings.start_position = {p!r} must be None or in [0, 1]")
@@ -352,7 +359,42 @@ def plan_coverage(surface: Any, applicator: Applicator,
     if planar:
         pw = planar_index_width(applicator, st.w_min_m, st.w_max_m, st.w_res_m, st.u_max)
         planar_w = pw
-    start = _PassGeom(sc.points, sc.normals, np.ones(len(sc.points), bool), 0, float("nan"))
+    # Algorithm 1 does not say which side is offset first, and the semi-global width search
+    # (known passes on one side, free future passes on the other) depends on it: "best" runs
+    # both and keeps the one whose largest predicted optimization-profile σ/μ is smaller.
+    orders = {"right": [False], "left": [True], "best": [False, True]}[st.first_side]
+    if planar_w is not None:
+        orders = orders[:1]               # a plane is symmetric: both orders give one plan
+    candidates = []
+    for reverse in orders:
+        pts, nrm = (sc.points[::-1], sc.normals[::-1]) if reverse else (sc.points, sc.normals)
+        passes = _sweeps(pl, surface.name, pts, nrm, planar_w)
+        candidates.append((_predicted_worst(passes), reverse, passes))
+    _, reversed_start, passes = min(candidates, key=lambda c: c[0])
+    plan_passes = _time_passes(pl, passes, st)
+    report = {
+        "start_rule": sc.rule,
+        "first_side": ("left" if reversed_start else "right") + f" ({st.first_side})",
+        "predicted_worst_nsd_pct": [c[0] for c in candidates],
+        "planar": planar,
+        "planar_width_m": None if planar_w is None else planar_w.width_m,
+        "cross_profiles_computed": len(pl.cache),
+        "cross_profile_cache_hits": pl.cache_hits,
+        "planning_time_s": time.perf_counter() - t_start,
+        "passes": [dict(side=p.side, **_jsonable(passes[p.side].info)) for p in plan_passes],
+    }
+    settings_dict = st.to_dict()
+    settings_dict["report"] = report
+    return CoveragePlan(surface_name=surface.name, applicator=applicator,
+                        passes=tuple(plan_passes), start_rule=sc.rule, settings=settings_dict)
+
+
+def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarray,
+            planar_w: Any) -> dict[int, _PassGeom]:
+    """Algorithm 1's two loops from the start curve: offsets to the right (s > 0 along the
+    indexing curves, T × n), then to the left, until an offset lies completely outside."""
+    st = pl.st
+    start = _PassGeom(start_pts, start_nrm, np.ones(len(start_pts), bool), 0, float("nan"))
     start.info = {"rule": "start curve"}
     passes: dict[int, _PassGeom] = {0: start}
     right_widths: list[float] = []
@@ -362,7 +404,6 @@ def plan_coverage(surface: Any, applicator: Applicator,
         for k in range(1, st.max_passes + 1):
             curves = pl.curves_of(cur)
             sweep_curves = curves if sign > 0 else [_mirror(c) for c in curves]
-            # known passes (besides C0), as positions ≤ 0 in the sweep frame
             # known passes besides C0, as positions ≤ 0 in the sweep frame: back along this
             # side to the start curve, then (left sweep) across it to the right-side passes
             back = widths_this_side[::-1] + (right_widths if sign < 0 else [])
@@ -376,8 +417,7 @@ def plan_coverage(surface: Any, applicator: Applicator,
                 w0, info = pl.choose_width(cur, sweep_curves, known, w_prev)
             pts, nrm, inside = walk(sweep_curves, w0)
             ok = np.all(np.isfinite(pts), axis=1)
-            check_offset_order(cur.foot[ok], pts[ok],
-                               f"offset {sign * k:+d} of the {surface.name} plan")
+            check_offset_order(cur.foot[ok], pts[ok], f"offset {sign * k:+d} of the {name} plan")
             side = sign * k
             if inside.sum() < 2:            # nothing (or a single point) left on the surface
                 if st.edge_passes and ok.sum() >= 2:
@@ -401,20 +441,14 @@ def plan_coverage(surface: Any, applicator: Applicator,
                             "raise w_min_m or max_passes")
         if sign > 0:
             right_widths = widths_this_side
-    plan_passes = _time_passes(pl, passes, st)
-    report = {
-        "start_rule": sc.rule,
-        "planar": planar,
-        "planar_width_m": None if planar_w is None else planar_w.width_m,
-        "cross_profiles_computed": len(pl.cache),
-        "cross_profile_cache_hits": pl.cache_hits,
-        "planning_time_s": time.perf_counter() - t_start,
-        "passes": [dict(side=p.side, **_jsonable(passes[p.side].info)) for p in plan_passes],
-    }
-    settings_dict = st.to_dict()
-    settings_dict["report"] = report
-    return CoveragePlan(surface_name=surface.name, applicator=applicator,
-                        passes=tuple(plan_passes), start_rule=sc.rule, settings=settings_dict)
+    return passes
+
+
+def _predicted_worst(passes: dict[int, _PassGeom]) -> float:
+    """Largest predicted optimization-profile σ/μ [%] over the passes on the part."""
+    vals = [p.info.get("worst_marker_nsd_pct", p.info.get("nsd_pct", 0.0))
+            for p in passes.values() if not p.edge and p.side != 0]
+    return float(max(vals)) if vals else 0.0
 
 
 def _jsonable(d: dict[str, Any]) -> dict[str, Any]:

@@ -116,7 +116,8 @@ def principal_direction_angle(surface: Any, nbar: np.ndarray, which: str) -> flo
         raise PlanError(f"orientation {which!r} is undefined: the surface has no distinct "
                         "principal directions (plane or sphere); use 'auto' or an angle")
     c, s = w @ np.cos(2 * phi), w @ np.sin(2 * phi)
-    return float(np.mod(0.5 * np.arctan2(s, c), np.pi))
+    angle = float(np.mod(0.5 * np.arctan2(s, c), np.pi))
+    return 0.0 if np.pi - angle < 1e-9 else angle    # −0 wraps to π: same axis as 0
 
 
 def divider_offset(proj: np.ndarray, weights: np.ndarray) -> float:

@@ -40,11 +40,11 @@ def cylinder_plan() -> CoveragePlan:
 
 
 def test_settings_validate_and_round_trip() -> None:
-    st = PlannerSettings(orientation=0.3, start_position=0.4)
+    st = PlannerSettings(orientation=0.3, start_position=0.4, first_side="left")
     assert PlannerSettings.from_dict(st.to_dict()) == st
     for bad in ({"u_max": 0.0}, {"w_min_m": 0.5, "w_max_m": 0.2}, {"band_curves": 4},
                 {"orientation": "diagonal"}, {"start_position": 2.0},
-                {"v_nominal_m_s": 2.0}, {"n_future": 0}):
+                {"v_nominal_m_s": 2.0}, {"n_future": 0}, {"first_side": "up"}):
         with pytest.raises(PlanError):
             PlannerSettings(**bad)
     with pytest.raises(PlanError, match="unknown"):
@@ -276,3 +276,15 @@ def test_sphere_cap_offsets_are_small_circles_with_closed_form_geodesic_curvatur
         assert p.max_geodesic_curvature_1_m == pytest.approx(np.tan(ang) / radius, rel=0.03)
         checked += 1
     assert checked == 2
+
+
+def test_best_first_side_keeps_the_better_predicted_order() -> None:
+    s = parts.door(0.04)
+    base = PlannerSettings(optimize_speed=False, sample_spacing_m=0.04)
+    plans = {side: plan_coverage(s, APP, replace(base, first_side=side))
+             for side in ("right", "left", "best")}
+    pred = {k: max(r["worst_marker_nsd_pct"] for r in p.settings["report"]["passes"]
+                   if not r.get("edge") and r["side"] != 0) for k, p in plans.items()}
+    assert pred["best"] == pytest.approx(min(pred["right"], pred["left"]))
+    assert plans["best"].settings["report"]["predicted_worst_nsd_pct"] == pytest.approx(
+        [pred["right"], pred["left"]])
