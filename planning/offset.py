@@ -29,6 +29,9 @@ _MERGE_M = 1e-9
 #: Signed vertex distances below this count as exactly on the plane [m] (float64 round-off of
 #: differently associated dot products of ~1 m coordinates is ~1e-16).
 _ZERO_D_M = 1e-12
+#: An offset chord running backward by more than this fraction of its source step is a reversal
+#: (a cusp: the offset self-intersects) [-].
+_REVERSAL_FRACTION = 0.02
 #: Length over which an end tangent is measured for the straight continuation past a boundary [m].
 _END_TANGENT_M = 0.01
 
@@ -389,9 +392,13 @@ def check_offset_order(source_points: np.ndarray, offset_points: np.ndarray,
     ds = np.diff(source_points, axis=0)
     do = np.diff(offset_points, axis=0)
     ok = np.all(np.isfinite(do), axis=1)
-    dots = np.einsum("ij,ij->i", ds[ok], do[ok])
-    if np.any(dots < 0):
-        i = int(np.flatnonzero(ok)[np.argmax(dots < 0)])
+    step = np.linalg.norm(ds[ok], axis=1)
+    # backward progress of the offset along the source direction; a few 0.1 mm of it is the
+    # noise of mesh sections near a focal point, a real cusp goes back by a good part of a step
+    back = -np.einsum("ij,ij->i", ds[ok], do[ok]) / np.where(step > 0, step, 1.0)
+    bad = back > _REVERSAL_FRACTION * step
+    if np.any(bad):
+        i = int(np.flatnonzero(ok)[np.argmax(bad)])
         s = float(arc_length(source_points)[i])
         raise PlanError(f"{label} self-intersects (the offset reverses direction {s:.3f} m along "
                         "the current pass; geodesic curvature too high): narrow the index range "

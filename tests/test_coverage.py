@@ -288,3 +288,20 @@ def test_best_first_side_keeps_the_better_predicted_order() -> None:
     assert pred["best"] == pytest.approx(min(pred["right"], pred["left"]))
     assert plans["best"].settings["report"]["predicted_worst_nsd_pct"] == pytest.approx(
         [pred["right"], pred["left"]])
+
+
+def test_offset_past_a_focal_point_is_refused() -> None:
+    # a start curve far off the hemisphere's axis is a small circle of high geodesic curvature;
+    # its offsets toward the small circle's pole shrink and then pass through it (a cusp)
+    import trimesh
+
+    from planning.surface import Surface
+
+    ico = trimesh.creation.icosphere(subdivisions=4, radius=0.5)
+    keep = ico.triangles_center[:, 2] > 0.02
+    dome = trimesh.Trimesh(ico.vertices, ico.faces[keep])
+    dome.remove_unreferenced_vertices()
+    s = Surface.from_mesh(dome, name="dome")
+    with pytest.raises(PlanError, match="self-intersects"):
+        plan_coverage(s, APP, PlannerSettings(optimize_speed=False, start_position=0.2,
+                                              sample_spacing_m=0.04))
