@@ -366,10 +366,17 @@ def plan_coverage(surface: Any, applicator: Applicator,
     if planar_w is not None:
         orders = orders[:1]               # a plane is symmetric: both orders give one plan
     candidates = []
+    errors: list[PlanError] = []
     for reverse in orders:
         pts, nrm = (sc.points[::-1], sc.normals[::-1]) if reverse else (sc.points, sc.normals)
-        passes = _sweeps(pl, surface.name, pts, nrm, planar_w)
+        try:
+            passes = _sweeps(pl, surface.name, pts, nrm, planar_w)
+        except PlanError as e:          # "best" keeps the order that works
+            errors.append(e)
+            continue
         candidates.append((_predicted_worst(passes), reverse, passes))
+    if not candidates:
+        raise errors[0]
     _, reversed_start, passes = min(candidates, key=lambda c: c[0])
     plan_passes = _time_passes(pl, passes, st)
     report = {
