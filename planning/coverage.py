@@ -164,8 +164,10 @@ class PlannerSettings:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PlannerSettings:
-        """Inverse of `to_dict`; unknown keys raise PlanError."""
+        """Inverse of `to_dict` (also reads `CoveragePlan.settings`, whose planner `report`
+        entry is skipped); unknown keys raise PlanError."""
         names = {f.name for f in fields(cls)}
+        d = {k: v for k, v in d.items() if k != "report"}
         extra = set(d) - names
         if extra:
             raise PlanError(f"unknown planner settings {sorted(extra)}; valid: {sorted(names)}")

@@ -161,8 +161,7 @@ def test_save_load_round_trip(tmp_path, panel_plan: CoveragePlan) -> None:
         assert a.side == b.side
         assert (a.index_width_m == b.index_width_m
                 or (np.isnan(a.index_width_m) and np.isnan(b.index_width_m)))
-    assert PlannerSettings.from_dict({k: v for k, v in back.settings.items() if k != "report"}) \
-        == FAST
+    assert PlannerSettings.from_dict(back.settings) == FAST
 
 
 def test_planning_is_deterministic() -> None:
