@@ -1,20 +1,27 @@
 """Run a `JointTrajectory` on the MuJoCo cell: a realistic servo, or an ideal kinematic replay.
 
-Servo mode (1 kHz, one control update per physics step):
+Servo mode (1 kHz digital servo, one control update per physics step, d = latency_steps):
 
-    τ = clip( τ_ff(q_ref, q̇_ref, q̈_ref) + Kp (q_ref − q) + Kd (q̇_ref − q̇),  ±τ_max )
+    τ_k = clip( τ_ff,k + Kp (q_ref,k−d − q_k−d) + Kd (q̇_ref,k−d − q̇_k−d),  ±τ_max )
 
-τ_ff is MuJoCo's inverse dynamics (`mj_inverse`, discrete-time, constraints off) of the reference
-state on the same model, so armature, joint damping and gravity are exactly the robot MJCF's.
-Because τ_ff, q_ref and q̇_ref are known before the run, the PD law is written into each joint's
-actuator as an affine force (gain 1, bias −Kp·q − Kd·q̇, force range ±τ_max) and the whole program
-is rolled out inside MuJoCo (`mujoco.rollout`) — the feedback is still evaluated by MuJoCo at every
-step from the current state; implicitfast integrates the Kd term implicitly, like a velocity loop
-running faster than the position loop. TCP pose, joint torques and robot-vs-part/booth contacts
-come from sensors at every step; steps where a contact sensor fires are re-evaluated to name the
-bodies and the depth.
+held over step k. The PD acts on the state measured d control periods earlier (drive-bus and
+computation latency), compared with the reference of that same instant. τ_ff is MuJoCo's inverse
+dynamics (`mj_inverse`, discrete-time, constraints off) of the reference on the *controller's*
+model — a copy of the plant whose link masses/inertias are off by a seeded `model_error` and
+whose tool is `payload_error` too light — plus the compensated shares of the viscous
+(`friction_compensation`) and Coulomb (`coulomb_compensation`) joint friction. The plant is the
+robot MJCF with joint Coulomb friction added (`frictionloss`, `coulomb_friction` × τ_max).
+`ServoSettings.ideal()` switches every imperfection off.
 
-Kinematic mode sets q, q̇ to the reference each step (the control case); torques are τ_ff.
+The torque of step k needs states up to t_{k−d} only, so the program is rolled out inside MuJoCo
+(`mujoco.rollout`) in exact chunks of d + 1 steps, each chunk's controls computed with one
+matrix product from the states the previous chunks produced. TCP pose, joint torques and
+robot-vs-part/booth contacts come from sensors at every step; steps where a contact sensor fires
+are re-evaluated to name the bodies and the depth. After the program the last reference is held
+for SETTLE_MAX_S in the same loop to measure settling.
+
+Kinematic mode sets q, q̇ to the reference each step (the control case); torques are the exact
+inverse dynamics of the plant.
 """
 
 from __future__ import annotations
@@ -40,6 +47,9 @@ CHUNK_STEPS = 10_000
 SETTLE_TOL_M = 1e-4
 #: hold the final reference at most this long after the program to measure settling [s].
 SETTLE_MAX_S = 0.5
+#: velocity scale of the smoothed sign in the Coulomb-friction feed-forward [rad/s]: below it the
+#: compensation fades out, as controllers do to avoid chattering at velocity reversals (estimate).
+FRICTION_SMOOTH_RAD_S = 0.01
 #: MuJoCo warnings that mean the simulation is not trustworthy (instability, bad input).
 _FATAL_WARNINGS = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC", "mjWARN_BADCTRL")
 
@@ -50,7 +60,7 @@ class ExecutionError(PaintcellError):
 
 @dataclass(frozen=True)
 class ServoSettings:
-    """Joint PD + inverse-dynamics feed-forward servo.
+    """Joint PD + inverse-dynamics feed-forward servo, with the imperfections of a real one.
 
     bandwidth_hz: position-loop natural frequency f; per joint Kp = J ω², Kd = 2 ζ J ω with
         ω = 2π f and J the joint's diagonal inertia (armature included) at the home pose. 15 Hz is
@@ -60,9 +70,32 @@ class ServoSettings:
     gain_scale: multiplies Kp and Kd (0.1 = a 10× softer servo).
     feedforward: add the inverse-dynamics torque of the reference (False: PD only).
     friction_compensation: share of the viscous joint friction (the MJCF's joint damping) that
-        the feed-forward model compensates; rigid-body dynamics and armature are compensated
-        exactly. Gear friction is identified to within 20–30 % in practice, so 0.8 by default:
-        the remainder is what the PD loop has to reject, and where a softer servo loses accuracy.
+        the feed-forward model compensates. Gear friction is identified to within 20–30 % in
+        practice, so 0.8 by default: the remainder is what the PD loop has to reject.
+    latency_steps: control periods (1 ms each) between sampling the joint encoders and the torque
+        reaching the motors; the PD acts on the measured state this old, compared with the
+        reference of the same instant (the controller delays its reference to match, as industrial
+        controllers do, so latency costs phase margin and disturbance rejection, not a time
+        shift). Default 2: one 1 ms drive-bus cycle (EtherCAT / SERCOS III run industrial drives
+        at 1 kHz or faster) plus one cycle of controller computation — 1–2 ms is the usual
+        encoder-to-torque latency of an industrial robot controller (estimate). 0: ideal.
+    model_error: each robot link's mass and inertia in the controller's model is off by a
+        seeded factor uniform in [1 − e, 1 + e]; the feed-forward is the inverse dynamics of that
+        model while the plant is the robot MJCF. Default 0.05: CAD link masses leave out cables,
+        grease and casting tolerances, and identified rigid-body parameters of industrial arms
+        typically agree with the real arm to a few percent (estimate).
+    payload_error: the controller's tool (the body carrying the TCP: the bell) is this fraction
+        lighter than the real one, mass and inertia. Default 0.10: the load data of a bell come
+        from its datasheet, while paint in the cup and the hose dress pack add ≈ 0.5–1 kg to a
+        7 kg turbine bell (estimate).
+    coulomb_friction: joint Coulomb friction in the plant (MuJoCo `frictionloss`) as a fraction
+        of each joint's torque limit. Default 0.02: identified Coulomb friction of industrial
+        gearboxes (RV / harmonic drives) is 1–5 % of the rated output torque (estimate from
+        published friction identifications of industrial arms; the robot MJCF has none).
+    coulomb_compensation: share of that Coulomb friction the feed-forward compensates (a smoothed
+        sign of the reference velocity). Default 0.7: gear friction drifts ±30 % with temperature
+        and load, so a model identified once compensates it only partly (estimate).
+    seed: seeds the model-error draw; the same seed gives the same controller model.
     """
 
     bandwidth_hz: float = 15.0
@@ -72,13 +105,33 @@ class ServoSettings:
     gain_scale: float = 1.0
     feedforward: bool = True
     friction_compensation: float = 0.8
+    latency_steps: int = 2
+    model_error: float = 0.05
+    payload_error: float = 0.10
+    coulomb_friction: float = 0.02
+    coulomb_compensation: float = 0.7
+    seed: int = 0
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.friction_compensation <= 1.0:
-            raise ExecutionError("servo friction_compensation must be in [0, 1] (a fraction)")
+        for name in ("friction_compensation", "coulomb_compensation"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ExecutionError(f"servo {name} must be in [0, 1] (a fraction)")
+        for name in ("model_error", "payload_error", "coulomb_friction"):
+            if not 0.0 <= getattr(self, name) < 1.0:
+                raise ExecutionError(f"servo {name} must be in [0, 1) (a fraction)")
         if not (self.bandwidth_hz > 0 and self.damping_ratio >= 0 and self.gain_scale > 0):
             raise ExecutionError("servo bandwidth_hz and gain_scale must be > 0, damping_ratio "
                                  ">= 0; fix ServoSettings")
+        if not (isinstance(self.latency_steps, int) and 0 <= self.latency_steps <= 100):
+            raise ExecutionError("servo latency_steps must be an int in [0, 100] (control "
+                                 "periods)")
+
+    @classmethod
+    def ideal(cls, **kw: Any) -> ServoSettings:
+        """The servo without imperfections: no latency, exact model, no Coulomb friction."""
+        base: dict[str, Any] = dict(latency_steps=0, model_error=0.0, payload_error=0.0,
+                                    coulomb_friction=0.0, friction_compensation=1.0)
+        return cls(**{**base, **kw})
 
     def gains(self, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
         """(Kp (n,) [N·m/rad], Kd (n,) [N·m·s/rad]) for the cell's robot, `gain_scale` applied."""
@@ -221,6 +274,32 @@ def _set_pd_actuators(model: mujoco.MjModel, cell: Cell, kp: np.ndarray, kd: np.
     model.actuator_forcerange[a, 1] = cell.tau_max / np.abs(g)
 
 
+def _set_torque_actuators(model: mujoco.MjModel, cell: Cell) -> None:
+    """Actuator force = ctrl (the whole servo law computed per step), clamped to ±τ_max/g."""
+    _set_pd_actuators(model, cell, np.zeros(cell.nq), np.zeros(cell.nq))
+
+
+def _coulomb_friction(cell: Cell, servo: ServoSettings) -> np.ndarray:
+    """(n,) joint Coulomb friction of the plant [N·m]."""
+    return servo.coulomb_friction * np.asarray(cell.tau_max, float)
+
+
+def _controller_model(model: mujoco.MjModel, cell: Cell, servo: ServoSettings) -> mujoco.MjModel:
+    """The controller's idea of the plant `model`: link masses and inertias scaled by seeded
+    factors in [1 − model_error, 1 + model_error], the tool body by (1 − payload_error)."""
+    m = copy.copy(model)
+    tool = int(model.site_bodyid[cell.tcp_site_id])
+    links = [int(b) for b in np.sort(cell.robot_body_ids) if model.body_mass[b] > 0 and b != tool]
+    rng = np.random.default_rng(servo.seed)
+    scale = 1.0 + servo.model_error * rng.uniform(-1.0, 1.0, size=len(links))
+    for b, f in zip(links, scale, strict=True):
+        m.body_mass[b] *= f
+        m.body_inertia[b] *= f
+    m.body_mass[tool] *= 1.0 - servo.payload_error
+    m.body_inertia[tool] *= 1.0 - servo.payload_error
+    return m
+
+
 def inverse_dynamics(model: mujoco.MjModel, cell: Cell, q: np.ndarray, qd: np.ndarray,
                      qdd: np.ndarray) -> np.ndarray:
     """(K, n) joint torques [N·m] that make the model follow (q, q̇, q̈) (K, n) exactly.
@@ -270,18 +349,26 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
     kp, kd = servo.gains(cell)
     if disturbances is not None:
         kp, kd = kp * disturbances.gain_scale, kd * disturbances.gain_scale
-    _set_pd_actuators(model, cell, kp, kd)
     q_ref, qd_ref = np.asarray(traj.q, float), np.asarray(traj.qd, float)
-    tau_id = inverse_dynamics(model, cell, q_ref, qd_ref, np.asarray(traj.qdd, float))
-    # The controller's model: rigid body + armature exact, viscous friction partly (see settings).
-    damping = model.dof_damping[cell.dof_adr]
-    tau_ff = (tau_id - (1.0 - servo.friction_compensation) * damping * qd_ref
-              if servo.feedforward else np.zeros_like(q_ref))
+    qdd_ref = np.asarray(traj.qdd, float)
     if mode == "servo":
+        # The plant: the robot MJCF plus joint Coulomb friction; the controller's feed-forward
+        # model: a perturbed copy of it (model_error, payload_error), friction partly known.
+        fc = _coulomb_friction(cell, servo)
+        model.dof_frictionloss[cell.dof_adr] = fc
+        _set_torque_actuators(model, cell)
+        tau_id = inverse_dynamics(_controller_model(model, cell, servo), cell, q_ref, qd_ref,
+                                  qdd_ref)
+        damping = model.dof_damping[cell.dof_adr]
+        tau_ff = (tau_id - (1.0 - servo.friction_compensation) * damping * qd_ref
+                  + servo.coulomb_compensation * fc * np.tanh(qd_ref / FRICTION_SMOOTH_RAD_S)
+                  if servo.feedforward else np.zeros_like(q_ref))
         q, qd, sens, warnings, settle_s = _run_servo(model, cell, q_ref, qd_ref, tau_ff, kp, kd,
-                                                     progress)
+                                                     servo.latency_steps, progress)
         tau = sens[:, cell.sensor_actuator_force]
     else:
+        _set_pd_actuators(model, cell, kp, kd)
+        tau_id = inverse_dynamics(model, cell, q_ref, qd_ref, qdd_ref)
         q, qd, sens, warnings = _run_kinematic(model, cell, q_ref, qd_ref, progress)
         tau = tau_id  # the torque the motors would need to follow the reference exactly
         settle_s = 0.0
@@ -331,63 +418,97 @@ def _warnings(d: mujoco.MjData) -> dict[str, int]:
 
 
 def _run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.ndarray,
-               tau_ff: np.ndarray, kp: np.ndarray, kd: np.ndarray,
+               tau_ff: np.ndarray, kp: np.ndarray, kd: np.ndarray, latency: int,
                progress: Callable[[float], None] | None,
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int], float]:
-    """Roll the program out; (q, q̇, sensordata per step, warnings, settling time [s])."""
-    K, _ = q_ref.shape
-    state_end = np.empty(0)
+    """Roll the program out, then hold its last reference for SETTLE_MAX_S; (q, q̇, sensordata
+    per program step, warnings, settling time [s]). `model` has torque actuators
+    (`_set_torque_actuators`).
+
+    A digital servo: the torque held over step k is computed from the state sampled at t_{k−d}
+    (d = latency). So the controls of d + 1 consecutive steps depend only on states already
+    known, and rollouts of d + 1 steps are exact: each chunk's controls come from states the
+    previous chunks produced (before t0 the arm rests at q_ref[0]).
+    """
+    K, n = q_ref.shape
+    H = int(round(SETTLE_MAX_S / model.opt.timestep))
     g = model.actuator_gear[cell.actuator_ids, 0]
-    # ctrl so that force = ctrl + bias = (τ_ff + Kp q_ref + Kd q̇_ref − Kp q − Kd q̇) / g.
-    ctrl = np.zeros((K, model.nu))
-    ctrl[:, cell.actuator_ids] = (tau_ff + kp * q_ref + kd * qd_ref) / g
+    # The program, then the final reference held (last feed-forward, zero velocity).
+    q_r = np.vstack([q_ref, np.tile(q_ref[-1], (H, 1))])
+    qd_r = np.vstack([qd_ref, np.zeros((H, n))])
+    ff = np.vstack([tau_ff, np.tile(tau_ff[-1], (H, 1))])
+    N = K + H
     d = mujoco.MjData(model)
     d.qpos[cell.qpos_adr] = q_ref[0]
     d.qvel[cell.dof_adr] = qd_ref[0]
     mujoco.mj_forward(model, d)
     spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
     nstate = mujoco.mj_stateSize(model, spec)
-    state0 = np.empty(nstate)
-    mujoco.mj_getState(model, d, state0, spec)
-    states = np.empty((K, nstate))
-    sens = np.empty((K, model.nsensordata))
-    states[0] = state0
-    warm = d.qacc_warmstart.copy()
-    for a in range(0, K, CHUNK_STEPS):
-        b = min(a + CHUNK_STEPS, K)
-        st, sd = rollout.rollout(model, d, states[a], ctrl[None, a:b], initial_warmstart=warm)
-        # Sensors of step k are evaluated before it integrates: they belong to the state at t_k.
-        sens[a:b] = sd[0]
-        if b < K:
-            states[a + 1:b + 1] = st[0]
-        else:
-            states[a + 1:b] = st[0, :-1]
-            state_end = st[0, -1].copy()
-        warm = d.qacc_warmstart.copy()
-        if progress is not None:
-            progress(b / K)
-    q = states[:, 1:1 + model.nq][:, cell.qpos_adr]
-    qd = states[:, 1 + model.nq:1 + model.nq + model.nv][:, cell.dof_adr]
+    lag = max(latency, 0)
+    # S[lag + k] is the state at t_k; the first lag rows stand for the rest before t0.
+    S = np.empty((lag + N + 1, nstate))
+    mujoco.mj_getState(model, d, S[0], spec)
+    S[:lag + 1] = S[0]
+    sens = np.empty((N, model.nsensordata))
+    ctrl = np.zeros((N, model.nu))
+    act = cell.actuator_ids
+    # Reference of the same instant as the (delayed) measurement; feed-forward on time.
+    q_del = np.vstack([np.tile(q_r[0], (lag, 1)), q_r[:N - lag]])
+    qd_del = np.vstack([np.tile(qd_r[0], (lag, 1)), qd_r[:N - lag]])
+    base = np.zeros((N, model.nu))
+    base[:, act] = (ff + kp * q_del + kd * qd_del) / g
+    # ctrl[k] = base[k] − S[k] @ W: the measured state of t_{k−lag} times the gains, one product.
+    W = np.zeros((nstate, model.nu))
+    W[1 + cell.qpos_adr, act] = kp / g
+    W[1 + model.nq + cell.dof_adr, act] = kd / g
+    step = lag + 1
+    # Measured joint state columns of the full-physics state (time, qpos, qvel, ...).
+    iq = 1 + cell.qpos_adr
+    iv = 1 + model.nq + cell.dof_adr
+    fb = np.empty((step, model.nu))
+    runner = rollout.Rollout(nthread=0)
+    models, datas = [model], [d]
+    warm = d.qacc_warmstart.reshape(1, -1)
+    next_report, reported = CHUNK_STEPS, 0.0
+    try:
+        for a in range(0, N, step):
+            b = min(a + step, N)
+            np.matmul(S[a:b], W, out=fb[:b - a])
+            np.subtract(base[a:b], fb[:b - a], out=ctrl[a:b])
+            # With nthread=0 the rollout steps `d` itself, so d.qacc_warmstart carries over.
+            runner.rollout(models, datas, S[None, lag + a], ctrl[None, a:b], skip_checks=True,
+                           nstep=b - a, initial_warmstart=warm,
+                           state=S[None, lag + a + 1:lag + b + 1], sensordata=sens[None, a:b],
+                           chunk_size=1)
+            if progress is not None and b >= next_report and b < K:
+                reported = b / K
+                progress(reported)
+                next_report += CHUNK_STEPS
+    finally:
+        runner.close()
+    if progress is not None and reported < 1.0:
+        progress(1.0)
+    # Sensors of step k are evaluated before it integrates: they belong to the state at t_k.
+    q = S[lag:lag + K, iq]
+    qd = S[lag:lag + K, iv]
     warnings = _warnings(d)
-    settle = _settle_time(model, cell, state_end, ctrl[-1], q_ref[-1])
-    return np.ascontiguousarray(q), np.ascontiguousarray(qd), sens, warnings, settle
+    settle = _settle_time(model, cell, sens[K:], q_ref[-1])
+    return np.ascontiguousarray(q), np.ascontiguousarray(qd), sens[:K], warnings, settle
 
 
-def _settle_time(model: mujoco.MjModel, cell: Cell, state_end: np.ndarray, ctrl_end: np.ndarray,
+def _settle_time(model: mujoco.MjModel, cell: Cell, sens_hold: np.ndarray,
                  q_end: np.ndarray) -> float:
     """Time after the program until the TCP stays within SETTLE_TOL_M of where the final
-    reference puts it [s] (the last control held; SETTLE_MAX_S when it never settles)."""
-    n = int(round(SETTLE_MAX_S / model.opt.timestep))
+    reference puts it [s] (SETTLE_MAX_S when it never settles). sens_hold: (H, nsensordata)."""
     d = mujoco.MjData(model)
     d.qpos[cell.qpos_adr] = q_end
     mujoco.mj_kinematics(model, d)
     p_tcp_end = d.site_xpos[cell.tcp_site_id].copy()
-    _, sd = rollout.rollout(model, d, state_end, np.tile(ctrl_end, (1, n, 1)))
-    err = np.linalg.norm(sd[0][:, cell.sensor_tcp_pos] - p_tcp_end, axis=1)
+    err = np.linalg.norm(sens_hold[:, cell.sensor_tcp_pos] - p_tcp_end, axis=1)
     outside = np.flatnonzero(err > SETTLE_TOL_M)
     if len(outside) == 0:
         return 0.0
-    if outside[-1] == n - 1:
+    if outside[-1] == len(err) - 1:
         return SETTLE_MAX_S
     return float((outside[-1] + 1) * model.opt.timestep)
 

@@ -52,13 +52,19 @@ def test_servo_loss_is_reported_and_small() -> None:
     assert 0 < m["tracking_error_max_mm"] < 1.0
     assert 0 < m["speed_error_rms_pct"] < 1.0
     assert np.isfinite(m["loss_pp"]) and abs(m["loss_pp"]) < KINEMATIC_REPLAY_LOSS_PP
-    assert m["executed_cycle_time_s"] == pytest.approx(m["planned_cycle_time_s"])
+    # The arm needs a few ms at the end to settle within 0.1 mm (friction, model error).
+    assert 0 < m["settle_time_s"] < 0.1
+    assert m["executed_cycle_time_s"] == pytest.approx(m["planned_cycle_time_s"]
+                                                       + m["settle_time_s"])
     assert 0 < m["max_torque_utilization"] < 1 and 0 < m["max_joint_range_utilization"] < 1
 
 
 def test_ten_times_softer_servo_loses_more() -> None:
     stiff, soft = report("servo", 1.0), report("servo", 0.1)
     assert soft.loss_pp > stiff.loss_pp + LOSS_RESOLUTION_PP
+    # Measured on the test case: 0.088 pp vs 0.0063 pp (×14); the loss of the realistic servo
+    # is itself of the size of the plan-sampling floor (±0.008 pp here), hence the |·|.
+    assert soft.loss_pp > 0.05 and soft.loss_pp > 5.0 * abs(stiff.loss_pp)
     assert soft.metrics["tracking_error_max_mm"] > 3 * stiff.metrics["tracking_error_max_mm"]
     assert soft.metrics["speed_error_rms_pct"] > 3 * stiff.metrics["speed_error_rms_pct"]
     kin = report("kinematic").executed_thickness_m
