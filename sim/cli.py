@@ -155,16 +155,18 @@ def _cmd_check(args: argparse.Namespace) -> int:
     scripts = find_scenarios(args.paths)
     rows, cases = [], []
     for script in scripts:
-        scn = load_scenario(script)
         t0 = time.perf_counter()
-        out = None if args.out is None else args.out / scn.name
+        name = script.stem
         try:
+            scn = load_scenario(script)
+            name = scn.name
+            out = None if args.out is None else args.out / scn.name
             res = run_scenario(scn, out, fast=args.fast, report=False)
         except PaintcellError as exc:
-            # A scenario that cannot be planned or reached is a failed check, not a crash.
-            rows.append({"name": scn.name, "error": _one_line(exc), "passed": False,
-                         "checks": []})
-            cases.append((scn.name, time.perf_counter() - t0, [], _one_line(exc)))
+            # A scenario that cannot be loaded, planned or reached is a failed check, not a
+            # crash: the other scenarios still run and the JUnit file is still written.
+            rows.append({"name": name, "error": _one_line(exc), "passed": False, "checks": []})
+            cases.append((name, time.perf_counter() - t0, [], _one_line(exc)))
             continue
         row = _row(scn.name, res.report)
         rows.append(row)
@@ -218,14 +220,14 @@ def _load_run_dir(d: Path) -> dict[str, Any]:
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     from planning.atomic_io import atomic_write_text
-    from sim.pipeline import RunResult, _json_default, load_surface, metrics_dict, thresholds_for
+    from sim.pipeline import RunResult, _json_default, load_surface, metrics_dict
     from sim.validate import validate
 
     f = _load_run_dir(args.dir)
     scn, plan, traj, trace = f["scenario"], f["plan"], f["trajectory"], f["trace"]
     fast, mode = bool(f["run"]["fast"]), str(f["run"]["mode"])
     surface = load_surface(scn, fast)
-    rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, thresholds_for(scn),
+    rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
                    reachability=traj.meta.get("reachability"))
     res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, fast=fast, mode=mode)
     atomic_write_text(args.dir / "metrics.json",

@@ -12,7 +12,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +24,7 @@ from planning.atomic_io import atomic_write_text
 from planning.errors import PaintcellError
 from planning.plan import CoveragePlan
 from planning.surface import Surface
-from sim.scenario import Scenario
+from sim.scenario import Scenario, ScenarioError
 
 STAGES = ("surface", "plan", "trajectory", "execute", "validate", "report")
 
@@ -76,6 +76,16 @@ def load_applicator(scn: Scenario) -> Applicator:
     return Applicator.from_toml(path)
 
 
+def settings_from(cls: type, values: dict[str, Any], what: str) -> Any:
+    """An instance of the settings dataclass `cls` from a scenario's dict, with a clear error
+    naming the valid keys when one is misspelt."""
+    names = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise ScenarioError(f"unknown {what} setting(s) {unknown}; valid: {sorted(names)}")
+    return cls(**values)
+
+
 def planner_settings(scn: Scenario, fast: bool = False) -> Any:
     """`PlannerSettings` of the scenario (with the fast overrides when `fast`)."""
     from planning.coverage import PlannerSettings
@@ -83,7 +93,7 @@ def planner_settings(scn: Scenario, fast: bool = False) -> Any:
     kw = dict(scn.planner)
     if fast:
         kw.update(scn.fast_planner)
-    return PlannerSettings(**kw)
+    return settings_from(PlannerSettings, kw, "planner")
 
 
 def make_plan(scn: Scenario, surface: Surface, fast: bool = False) -> CoveragePlan:
@@ -105,21 +115,7 @@ def make_trajectory(scn: Scenario, robot: Any, plan: CoveragePlan) -> Any:
     from sim.trajectory import TrajectorySettings, build_program
 
     return build_program(robot, plan, scn.part_placement.matrix,
-                         TrajectorySettings(**scn.trajectory))
-
-
-def thresholds_for(scn: Scenario) -> Any:
-    """The validation thresholds of the scenario as `sim.validate.Thresholds`."""
-    from sim.validate import Thresholds
-
-    t = scn.thresholds
-    return Thresholds(
-        reachability_pct=t.reachability_pct,
-        max_collisions=t.max_collisions,
-        max_executed_nsd_pct=t.max_executed_nsd_pct,
-        max_loss_pp=t.max_loss_pp,
-        max_cycle_time_s=t.max_cycle_time_s,
-    )
+                         settings_from(TrajectorySettings, scn.trajectory, "trajectory"))
 
 
 @contextmanager
@@ -204,7 +200,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool, mode: str, repor
 
         t0 = time.perf_counter()
         stage("validate")
-        rep = validate(plan, surface, traj, trace, T_world_part, thresholds_for(scn),
+        rep = validate(plan, surface, traj, trace, T_world_part, scn.thresholds,
                        reachability=traj.meta.get("reachability"))
         done("validate", t0)
 
@@ -223,7 +219,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool, mode: str, repor
 def _servo(scn: Scenario) -> Any:
     from sim.execute import ServoSettings
 
-    return ServoSettings(**scn.servo)
+    return settings_from(ServoSettings, scn.servo, "servo")
 
 
 def scenario_json(scn: Scenario, fast: bool, mode: str) -> str:

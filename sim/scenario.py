@@ -17,6 +17,10 @@ from typing import Any
 import numpy as np
 
 from planning.errors import PaintcellError
+from sim.validate import Thresholds
+
+__all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "find_scenarios",
+           "load_scenario", "pose"]
 
 
 class ScenarioError(PaintcellError):
@@ -54,28 +58,17 @@ class Placement:
     xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
+    def __post_init__(self) -> None:
+        for name in ("xyz_m", "rpy_rad"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ScenarioError(f"Placement.{name} = {getattr(self, name)!r} must be three "
+                                    "finite numbers")
+
     @property
     def matrix(self) -> np.ndarray:
         """(4, 4) homogeneous transform."""
         return pose(self.xyz_m, self.rpy_rad)
-
-
-@dataclass(frozen=True)
-class Thresholds:
-    """What a scenario must achieve to pass `paintcell check`.
-
-    reachability_pct: minimum share of plan poses the robot reaches [%].
-    max_collisions: maximum number of robot–part/booth contacts during execution.
-    max_executed_nsd_pct: maximum executed film-thickness σ/μ over the part [%].
-    max_loss_pp: maximum sim-to-plan loss of uniformity [percentage points of σ/μ].
-    max_cycle_time_s: maximum executed cycle time [s].
-    """
-
-    reachability_pct: float = 100.0
-    max_collisions: int = 0
-    max_executed_nsd_pct: float = 20.0
-    max_loss_pp: float = 1.0
-    max_cycle_time_s: float = 120.0
 
 
 @dataclass(frozen=True)
@@ -93,7 +86,9 @@ class Scenario:
     fast_planner: planner overrides applied on top of `planner` for `--fast` runs.
     trajectory: keyword arguments for `sim.trajectory.TrajectorySettings`.
     servo: keyword arguments for `sim.execute.ServoSettings`.
-    thresholds: what `paintcell check` holds the run to.
+    thresholds: what `paintcell check` holds the run to (`sim.validate.Thresholds`: reachability,
+        collisions, executed σ/μ, loss, cycle time, and optionally tracking error, speed error,
+        torque and joint-range utilization).
     source: the file the scenario was declared in (filled in by `load_scenario`).
     """
 
@@ -111,6 +106,23 @@ class Scenario:
     servo: dict[str, Any] = field(default_factory=dict)
     thresholds: Thresholds = Thresholds()
     source: str | None = None
+
+    def __post_init__(self) -> None:
+        if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
+            raise ScenarioError(f"scenario name {self.name!r} must be non-empty letters, digits, "
+                                "'_' or '-' (it names the results folder)")
+        if not self.part:
+            raise ScenarioError("scenario part is empty; give a library part name or a mesh path")
+        for name in ("resolution_m", "fast_resolution_m"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v) \
+                    or v <= 0:
+                raise ScenarioError(f"Scenario.{name} = {v!r} must be a positive length [m]")
+        for name in ("planner", "fast_planner", "trajectory", "servo"):
+            if not isinstance(getattr(self, name), dict):
+                raise ScenarioError(f"Scenario.{name} must be a dict of setting names to values")
+        if not isinstance(self.thresholds, Thresholds):
+            raise ScenarioError("Scenario.thresholds must be a sim.scenario.Thresholds")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe description of the scenario (for reports)."""
@@ -139,7 +151,13 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ScenarioError(f"cannot import scenario {path}")
     module = importlib.util.module_from_spec(spec)
     # Run the script as a module, not as __main__, so it does not start a run on import.
-    spec.loader.exec_module(module)
+    try:
+        spec.loader.exec_module(module)
+    except PaintcellError as exc:
+        raise ScenarioError(f"scenario {path} is invalid: {exc}") from exc
+    except Exception as exc:  # a syntax or name error in the user's script
+        raise ScenarioError(f"cannot import scenario {path}: {type(exc).__name__}: {exc}") \
+            from exc
     scenario = getattr(module, "SCENARIO", None)
     if not isinstance(scenario, Scenario):
         raise ScenarioError(f"{path} defines no SCENARIO (a sim.scenario.Scenario); add one")

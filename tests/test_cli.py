@@ -66,3 +66,31 @@ def test_junit_xml_is_valid_with_one_case_per_scenario(tmp_path: Path) -> None:
     assert cases["door"].find("failure") is None
     assert "loss_pp" in cases["hood"].find("failure").get("message")  # type: ignore[union-attr]
     assert cases["roof"].find("error") is not None
+
+
+BROKEN = {
+    "typo.py": '''
+from sim.scenario import Placement, Scenario
+SCENARIO = Scenario(name="typo", part="panel", part_placement=Placement(),
+                    planner={"v_nominl_m_s": 0.4})
+''',
+    "syntax.py": "SCENARIO = Scenario(\n",
+    "badvalue.py": '''
+from sim.scenario import Placement, Scenario
+SCENARIO = Scenario(name="badvalue", part="panel", part_placement=Placement(),
+                    fast_resolution_m=-0.01)
+''',
+}
+
+
+def test_check_reports_broken_scenarios_as_errors_and_still_writes_junit(tmp_path: Path) -> None:
+    for name, text in BROKEN.items():
+        (tmp_path / name).write_text(text)
+    out = _run("check", str(tmp_path), "--fast", "--junit", str(tmp_path / "j.xml"))
+    assert out.returncode == 1, out.stderr
+    assert "Traceback" not in out.stderr + out.stdout
+    assert "unknown planner setting(s) ['v_nominl_m_s']" in out.stdout
+    assert "cannot import scenario" in out.stdout and "SyntaxError" in out.stdout
+    assert "fast_resolution_m = -0.01 must be a positive length" in out.stdout
+    root = ET.parse(tmp_path / "j.xml").getroot()
+    assert root.get("tests") == "3" and root.get("errors") == "3"
