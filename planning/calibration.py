@@ -206,15 +206,17 @@ def fit_applicator_from_grid(x_m: npt.ArrayLike, y_m: npt.ArrayLike, values: npt
                              fit_center: bool = True) -> CalibrationResult:
     """Fit all model parameters to a 2-D static spray pattern on a flat panel at the standoff.
 
-    x_m, y_m: positions [m] broadcastable to `values`' shape (x along the later travel direction);
-    values: the measured rate [m/s], or thickness [m] after a static exposure of `exposure_s` [s];
+    x_m, y_m: positions [m] (x along the later travel direction), either the grid's 1-D axes,
+        x of length nx and y of length ny for `values` of shape (ny, nx) (`np.meshgrid(x, y)`,
+        indexing "xy"), or 2-D arrays of `values`' shape;
+    values: (ny, nx) the measured rate [m/s], or thickness [m] after a static exposure of
+        `exposure_s` [s];
     initial: starting model (default: the shipped bell's shape scaled to the pattern);
     fit_center: also fit the pattern centre (x0, y0) (reported in `center_offset_m`).
     The residual is reported in the unit of `values`.
     """
-    vals = np.asarray(values, float)
-    x, y, vals = (np.asarray(a, float).reshape(-1) for a in np.broadcast_arrays(
-        np.asarray(x_m, float), np.asarray(y_m, float), vals))
+    xg, yg, vals = _grid_points(x_m, y_m, values)
+    x, y, vals = xg.reshape(-1), yg.reshape(-1), vals.reshape(-1)
     _check_data(x, y, vals)
     if not standoff_m > 0:
         raise ApplicatorError("standoff_m must be > 0")
@@ -259,3 +261,27 @@ def fit_applicator_from_grid(x_m: npt.ArrayLike, y_m: npt.ArrayLike, values: npt
     center = (float(th[9]), float(th[10])) if fit_center else (0.0, 0.0)
     return CalibrationResult(app, rms, rms / (peak * scale_t), center, bool(res.success),
                              str(res.message))
+
+
+def _grid_points(x_m: npt.ArrayLike, y_m: npt.ArrayLike,
+                 values: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(ny, nx) x, y and values of a measured grid from 1-D axes or equal-shape 2-D arrays.
+
+    Plain broadcasting is refused: 1-D axes of equal length would pair points along the
+    diagonal instead of spanning the grid.
+    """
+    x = np.asarray(x_m, float)
+    y = np.asarray(y_m, float)
+    v = np.asarray(values, float)
+    if v.ndim != 2:
+        raise ApplicatorError(f"values must be a 2-D grid (ny, nx), got shape {v.shape}; "
+                              "reshape the measurement to rows of constant y")
+    ny, nx = v.shape
+    if x.ndim == 1 and y.ndim == 1 and x.shape == (nx,) and y.shape == (ny,):
+        xg, yg = np.meshgrid(x, y, indexing="xy")
+        return xg, yg, v
+    if x.shape == v.shape and y.shape == v.shape:
+        return x, y, v
+    raise ApplicatorError(
+        f"grid axes of shapes x {x.shape}, y {y.shape} do not match values {v.shape}; give 1-D "
+        f"x ({nx},) and y ({ny},) axes or 2-D x and y of shape {v.shape}")

@@ -95,17 +95,31 @@ class GunSamples:
         sample spacing [m]; dwell by the trapezoid rule (half intervals at the ends)."""
         a = np.asarray(start_m, float)
         b = np.asarray(end_m, float)
+        z = np.asarray(spray_axis, float)
+        for name, v in (("start_m", a), ("end_m", b), ("spray_axis", z)):
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise DepositionError(f"straight_pass: {name} = {v.tolist()} must be a finite "
+                                      "3-vector; give finite coordinates [m]")
+        for name, x_ in (("speed_m_s", speed_m_s), ("spacing_m", spacing_m)):
+            if not (isinstance(x_, int | float | np.floating) and math.isfinite(x_) and x_ > 0):
+                raise DepositionError(f"straight_pass: {name} = {x_!r} must be a finite number "
+                                      "> 0")
         length = float(np.linalg.norm(b - a))
-        if length <= 0 or speed_m_s <= 0 or spacing_m <= 0:
-            raise DepositionError("straight_pass needs distinct end points, speed > 0, spacing > 0")
+        nz = float(np.linalg.norm(z))
+        if length <= 0 or nz <= 0:
+            raise DepositionError("straight_pass needs distinct end points and a nonzero spray "
+                                  "axis; check start_m, end_m and spray_axis")
+        z = z / nz
+        x = (b - a) / length
+        x = x - np.dot(x, z) * z
+        nx = float(np.linalg.norm(x))
+        if nx < 1e-9:
+            raise DepositionError("straight_pass: the spray axis is parallel to the travel "
+                                  "direction end_m - start_m; give a spray axis across the pass")
+        x = x / nx
         n = max(2, int(math.ceil(length / spacing_m)) + 1)
         t = np.linspace(0.0, 1.0, n)
         pos = a + t[:, None] * (b - a)
-        x = (b - a) / length
-        z = np.asarray(spray_axis, float)
-        z = z / np.linalg.norm(z)
-        x = x - np.dot(x, z) * z
-        x = x / np.linalg.norm(x)
         dt = length / (n - 1) / speed_m_s
         dwell = np.full(n, dt)
         dwell[[0, -1]] = dt / 2
@@ -121,6 +135,22 @@ def _as_vectors(x: npt.ArrayLike, name: str, rows: int | None = None) -> np.ndar
     if not np.all(np.isfinite(arr)):
         raise DepositionError(f"{name} contains NaN or inf")
     return arr
+
+
+#: |‖n‖ − 1| allowed for a surface normal: the rate scales with |n·ω|, so a non-unit normal
+#: scales the film by ‖n‖; 1e-6 admits float32-stored unit normals (eps 6e-8) with margin.
+UNIT_NORMAL_TOL = 1e-6
+
+
+def _as_normals(x: npt.ArrayLike, rows: int) -> np.ndarray:
+    n = _as_vectors(x, "normals", rows)
+    bad = np.abs(np.linalg.norm(n, axis=1) - 1.0) > UNIT_NORMAL_TOL
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DepositionError(
+            f"normals must be unit vectors (|n| - 1 within {UNIT_NORMAL_TOL:g}); {int(bad.sum())} "
+            f"are not (first: row {i}, |n| = {np.linalg.norm(n[i]):.6g}); normalize them")
+    return n
 
 
 def _tool_axes(spray_axes: np.ndarray, travel_dirs: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -149,7 +179,7 @@ def deposition_rate(app: Applicator, positions: npt.ArrayLike, spray_axes: npt.A
     x_hat, y_hat, a = _tool_axes(_as_vectors(spray_axes, "spray_axes", s),
                                  _as_vectors(travel_dirs, "travel_dirs", s))
     p = _as_vectors(points, "points")
-    n = _as_vectors(normals, "normals", len(p))
+    n = _as_normals(normals, len(p))
     out = np.empty((s, len(p)))
     if s == 0 or len(p) == 0:
         return out
@@ -180,7 +210,7 @@ def deposition_rate_reference(app: Applicator, positions: npt.ArrayLike,
     x_hat, y_hat, a = _tool_axes(_as_vectors(spray_axes, "spray_axes", s),
                                  _as_vectors(travel_dirs, "travel_dirs", s))
     p = _as_vectors(points, "points")
-    n = _as_vectors(normals, "normals", len(p))
+    n = _as_normals(normals, len(p))
     h = app.standoff_m
     d = p[None, :, :] - g[:, None, :]                        # (S, N, 3)
     dist = np.linalg.norm(d, axis=2)
@@ -362,7 +392,7 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
     if not isinstance(gun, GunSamples):
         raise DepositionError(f"gun must be a GunSamples, got {type(gun).__name__}")
     p = _as_vectors(points, "points")
-    n = _as_vectors(normals, "normals", len(p))
+    n = _as_normals(normals, len(p))
     out = np.zeros(len(p))
     keep = gun.dwell_s > 0
     if len(p) == 0 or not np.any(keep):

@@ -69,7 +69,11 @@ def uniformity(thickness_m: npt.ArrayLike, areas_m2: npt.ArrayLike,
         raise MetricsError("the evaluation region is empty (no vertex or zero area); widen it")
     mean = float(np.dot(w, t) / area)
     var = float(np.dot(w, (t - mean) ** 2) / area)
-    nsd = 100.0 * np.sqrt(var) / mean if mean > 0 else float("inf")
+    if not mean > 0:
+        # σ/μ is undefined and every vertex would sit "within tolerance" of a zero target
+        raise MetricsError("mean film thickness is zero: nothing was painted in the evaluation "
+                           "region; check the plan, the mask and the gun samples")
+    nsd = 100.0 * np.sqrt(var) / mean
     target = mean if target_m is None else float(target_m)
     inside = np.abs(t - target) <= tolerance * abs(target)
     return UniformityMetrics(

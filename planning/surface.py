@@ -191,6 +191,11 @@ def load_clean_mesh(path_or_mesh: str | os.PathLike[str] | trimesh.Trimesh,
             raise SurfaceError(f"cannot read mesh {path} ({type(exc).__name__}: {exc}); "
                                "export it as STL, OBJ or PLY") from exc
         name = path.stem
+        if not isinstance(src, trimesh.Trimesh) or len(src.faces) == 0 \
+                or len(src.vertices) == 0:
+            # trimesh returns an empty mesh (no exception) for many unparseable files
+            raise SurfaceError(f"could not read {path} as a triangle mesh (no triangles found); "
+                               "export the part surface as an STL, OBJ or PLY triangle mesh")
     if not isinstance(src, trimesh.Trimesh) or len(src.faces) == 0 or len(src.vertices) == 0:
         raise SurfaceError("mesh is empty (no triangles); export the part surface as triangles")
     v = np.asarray(src.vertices, dtype=float)

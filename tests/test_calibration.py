@@ -109,4 +109,28 @@ def test_bad_calibration_data_raise() -> None:
     with pytest.raises(ApplicatorError, match="> 0"):
         fit_applicator_from_stripe(y, np.ones(50), 0.0, 0.25)
     with pytest.raises(ApplicatorError, match="exposure"):
-        fit_applicator_from_grid(y, y, np.ones(50), 0.25, exposure_s=-1.0)
+        fit_applicator_from_grid(y, y, np.ones((50, 50)), 0.25, exposure_s=-1.0)
+
+
+@pytest.mark.parametrize("nx,ny", [(41, 41), (61, 41)])
+def test_grid_from_1d_axes_recovers_parameters(nx: int, ny: int) -> None:
+    # 1-D axes span the grid (meshgrid, indexing "xy": values[iy, ix]); broadcasting equal-length
+    # axes would pair the points along the diagonal and fit the wrong pattern
+    true = Applicator(standoff_m=0.25, a0_m_s=2.0e-5, sigma_x_m=0.045, sigma_y_m=0.065,
+                      ring_amplitudes_m_s=[2.5e-5, 1.6e-5], ring_radii_m=[0.11, 0.21],
+                      ring_sigmas_m=[0.028, 0.033])
+    x = np.linspace(-0.35, 0.35, nx)
+    y = np.linspace(-0.35, 0.35, ny)
+    rate = true.flux(x[None, :], y[:, None])                 # (ny, nx)
+    res = fit_applicator_from_grid(x, y, rate, 0.25)
+    errs = _rel_errors(res.applicator, true, stripe=False)
+    assert max(abs(v) for v in errs.values()) < 1e-5, errs
+    assert res.success and res.residual_rel < 1e-8
+
+
+def test_grid_shape_mismatch_names_expected_shapes() -> None:
+    x = np.linspace(-0.3, 0.3, 41)
+    with pytest.raises(ApplicatorError, match=r"give 1-D x \(41,\) and y \(31,\)"):
+        fit_applicator_from_grid(x, x[:30], np.ones((31, 41)), 0.25)
+    with pytest.raises(ApplicatorError, match="2-D grid"):
+        fit_applicator_from_grid(x, x, np.ones(41), 0.25)

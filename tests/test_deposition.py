@@ -251,3 +251,26 @@ def test_self_occlusion_of_a_convex_side_is_none(app: Applicator) -> None:
     free = thickness(app, gun, surf.vertices, surf.normals)
     hidden = thickness(app, gun, surf.vertices, surf.normals, occluder=surf)
     np.testing.assert_allclose(hidden, free, rtol=0, atol=KERNEL_CULL_RTOL * free.max())
+
+
+@pytest.mark.parametrize("scale", [3.0, 0.0, 1.0 + 1e-4])
+def test_non_unit_normals_raise(app: Applicator, scale: float) -> None:
+    # the rate scales with |n·ω|: ×3 normals would triple the film, zero normals paint nothing
+    gun, pts, nrm = _curved_problem(5)
+    bad = nrm.copy()
+    bad[3] *= scale
+    args = (app, gun.positions, gun.spray_axes, gun.travel_dirs, pts, bad)
+    for call in (lambda: thickness(app, gun, pts, bad), lambda: deposition_rate(*args),
+                 lambda: deposition_rate_reference(*args)):
+        with pytest.raises(DepositionError, match="normals must be unit vectors.*normalize them"):
+            call()
+
+
+def test_straight_pass_bad_input_messages() -> None:
+    z = [0.0, 0.0, -1.0]
+    with pytest.raises(DepositionError, match="end_m .* must be a finite 3-vector"):
+        GunSamples.straight_pass([0.0, 0, 0.25], [np.nan, 0, 0.25], z, 0.5)
+    with pytest.raises(DepositionError, match="speed_m_s .* finite number > 0"):
+        GunSamples.straight_pass([0.0, 0, 0.25], [0.1, 0, 0.25], z, math.inf)
+    with pytest.raises(DepositionError, match="spray axis is parallel to the travel direction"):
+        GunSamples.straight_pass([0.0, 0, 0.25], [0.0, 0, 0.0], z, 0.5)

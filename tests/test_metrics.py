@@ -80,3 +80,11 @@ def test_boundary_helpers_on_a_grid() -> None:
 def test_bad_input_raises(call) -> None:
     with pytest.raises(MetricsError):
         call()
+
+
+def test_unpainted_region_raises() -> None:
+    # a zero film has no σ/μ and must not count as 100 % within tolerance
+    with pytest.raises(MetricsError, match="mean film thickness is zero.*;"):
+        uniformity(np.zeros(4), np.ones(4))
+    with pytest.raises(MetricsError, match="nothing was painted"):
+        uniformity([0.0, 1.0], [1.0, 1.0], mask=np.array([True, False]))

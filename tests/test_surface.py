@@ -293,8 +293,8 @@ def test_from_mesh_refusals(tmp_path) -> None:
     _expect_error(tmp_path / "missing.stl", "does not exist")
     garbage = tmp_path / "junk.stl"
     garbage.write_text("not a mesh at all")
-    with pytest.raises(SurfaceError):
-        Surface.from_mesh(garbage)
+    msg = _expect_error(garbage, "could not read .*junk.stl as a triangle mesh")
+    assert "STL, OBJ or PLY" in msg and "empty" not in msg
 
 
 def test_from_mesh_components() -> None:
