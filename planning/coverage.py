@@ -21,7 +21,6 @@ surface, the first offset that lies completely outside is kept as a sideways ove
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
@@ -47,11 +46,13 @@ from planning.offset import (
     indexing_curves,
     resample,
     tangents,
+    unit,
     walk,
 )
-from planning.plan import CoveragePlan, PassPlan
+from planning.plan import CoveragePlan, PassPlan, times_from_speeds
 from planning.speed_qp import SpeedSettings, SubOffsetBand, optimize_pass_speed
 from planning.start_curve import select_start_curve
+from planning.surface import Surface
 
 #: A surface whose principal curvatures stay below this everywhere is planar [1/m] (a 1 km
 #: radius; the discrete curvature of a flat grid is ~1e-12).
@@ -129,7 +130,8 @@ class PlannerSettings:
                 raise PlanError(f"PlannerSettings.{name} = {v!r} must be a finite number > 0")
         for name in ("overspray_m", "width_change_weight", "band_half_width"):
             v = getattr(self, name)
-            if not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
+                    or v < 0:
                 raise PlanError(f"PlannerSettings.{name} = {v!r} must be a finite number >= 0")
         for name, lo in (("n_knots", 2), ("n_future", 1), ("future_grid_n", 1),
                          ("band_curves", 1), ("max_markers", 1), ("max_passes", 1)):
@@ -151,11 +153,16 @@ class PlannerSettings:
                                 "'zero-curvature', 'max-curvature' or an angle [rad]")
         elif isinstance(o, bool) or not isinstance(o, int | float) or not math.isfinite(o):
             raise PlanError(f"PlannerSettings.orientation = {o!r} must be a string or an angle")
+        for name in ("optimize_speed", "edge_passes"):
+            if not isinstance(getattr(self, name), bool):
+                raise PlanError(f"PlannerSettings.{name} = {getattr(self, name)!r} must be "
+                                "True or False")
         if self.first_side not in ("right", "left", "best"):
             raise PlanError(f"PlannerSettings.first_side = {self.first_side!r}: use 'right', "
                             "'left' or 'best'")
         p = self.start_position
-        if p is not None and not (isinstance(p, int | float) and 0.0 <= p <= 1.0):
+        if p is not None and (isinstance(p, bool) or not isinstance(p, int | float)
+                              or not 0.0 <= p <= 1.0):
             raise PlanError(f"PlannerSettings.start_position = {p!r} must be None or in [0, 1]")
 
     def to_dict(self) -> dict[str, Any]:
@@ -194,11 +201,6 @@ class _PassGeom:
     curves: list[IndexingCurve | None] | None = None
     info: dict[str, Any] = field(default_factory=dict)
     source: tuple[list[IndexingCurve | None], float] | None = None
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)
 
 
 def _mirror(c: IndexingCurve | None) -> IndexingCurve | None:
@@ -240,9 +242,9 @@ class _Planner:
         s = arc_length(foot)
         back = np.interp(s[-1] - min(2 * sp, s[-1]), s, np.arange(len(s)))
         j = int(np.floor(back))
-        t = _unit(foot[-1] - foot[j])
+        t = unit(foot[-1] - foot[j])
         n = normals[-1]
-        t = _unit(t - (t @ n) * n)
+        t = unit(t - (t @ n) * n)
         c = curve_through(self.geom, foot[-1], np.cross(t, n), t)
         if c is None or c.s_max <= 0.5 * sp:
             return np.zeros((0, 3)), np.zeros((0, 3))
@@ -300,7 +302,7 @@ class _Planner:
         pts, nrm, _ = curve.sample(self.gun_s)
         o, _, _ = curve.sample(np.array([0.0]))
         n0 = nrm[self.g0]
-        t = _unit(travel - (travel @ n0) * n0)
+        t = unit(travel - (travel @ n0) * n0)
         frame = np.stack([t, np.cross(n0, t), n0])
         key = np.concatenate([np.rint((pts - o[0]) @ frame.T / 1e-4),
                               np.rint(nrm @ frame.T / 1e-4)]).astype(np.int64).tobytes()
@@ -339,7 +341,7 @@ def _is_planar(surface: Any) -> bool:
     return bool(np.max(np.abs(surface.principal_curvatures)) < PLANAR_CURVATURE_1_M)
 
 
-def plan_coverage(surface: Any, applicator: Applicator,
+def plan_coverage(surface: Surface, applicator: Applicator,
                   settings: PlannerSettings | None = None) -> CoveragePlan:
     """Plan uniform coverage of `surface` with `applicator` (paper Algorithm 1).
 
@@ -348,11 +350,21 @@ def plan_coverage(surface: Any, applicator: Applicator,
     Returns a `CoveragePlan` in the part frame: passes in execution order (side −k … +k,
     alternating direction), TCP at standoff along the normal, speeds and times, on_part /
     paint_on flags, index widths, the start-curve rule and the settings (with a `report` entry:
-    per-pass width choice, markers, speed-QP status, planning time).
+    per-pass width choice, markers, speed-QP status). The plan holds no wall-clock timing, so
+    the same input gives a byte-identical saved plan (the pipeline records stage times).
     Raises PlanError when an offset self-intersects or the loop does not terminate.
     """
+    if not isinstance(surface, Surface):
+        raise PlanError(f"plan_coverage needs a planning.surface.Surface, got "
+                        f"{type(surface).__name__}; build one with Surface.from_mesh or "
+                        "planning.parts.get_part")
+    if not isinstance(applicator, Applicator):
+        raise PlanError(f"plan_coverage needs a planning.applicator.Applicator, got "
+                        f"{type(applicator).__name__}; use Applicator.default() or from_toml")
+    if settings is not None and not isinstance(settings, PlannerSettings):
+        raise PlanError(f"plan_coverage settings must be PlannerSettings or None, got "
+                        f"{type(settings).__name__}; use PlannerSettings.from_dict for a dict")
     st = PlannerSettings() if settings is None else settings
-    t_start = time.perf_counter()
     pl = _Planner(surface, applicator, st)
     sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
                             geom=pl.geom)
@@ -389,7 +401,6 @@ def plan_coverage(surface: Any, applicator: Applicator,
         "planar_width_m": None if planar_w is None else planar_w.width_m,
         "cross_profiles_computed": len(pl.cache),
         "cross_profile_cache_hits": pl.cache_hits,
-        "planning_time_s": time.perf_counter() - t_start,
         "passes": [dict(side=p.side, **_jsonable(passes[p.side].info)) for p in plan_passes],
     }
     settings_dict = st.to_dict()
@@ -505,7 +516,7 @@ def _band(pl: _Planner, p: _PassGeom, half_width_m: float) -> SubOffsetBand | No
                 return None
             continue
         mid = 0.5 * (pts[1:] + pts[:-1])[good]
-        mn = _unit(nrm[1:] + nrm[:-1])[good]
+        mn = unit(nrm[1:] + nrm[:-1])[good]
         pts_l.append(mid)
         nrm_l.append(mn)
         len_l.append(seg[good])
@@ -533,7 +544,7 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
         if np.any(seg_len <= 0):
             raise PlanError(f"pass {side} has repeated TCP samples; refine the mesh")
         travel = tangents(pos)
-        travel = _unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
+        travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
         # neighbours' widths for the band and the report
         # the gaps on both sides of this pass: toward the start curve it is the pass's own
         # width; away from it, the next pass's (the start curve has a pass on each side)
@@ -548,8 +559,8 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
             p.info["speed_status"] = "constant: no band on the part"
             if band is not None:
                 mid = 0.5 * (pos[1:] + pos[:-1])
-                ax = _unit(0.5 * (axes[1:] + axes[:-1]))
-                tr = _unit(seg - np.sum(seg * ax, axis=1, keepdims=True) * ax)
+                ax = unit(0.5 * (axes[1:] + axes[:-1]))
+                tr = unit(seg - np.sum(seg * ax, axis=1, keepdims=True) * ax)
                 res = optimize_pass_speed(app, mid, ax, tr, seg_len, band, speed_settings)
                 times_seg = np.asarray(res.segment_times_s, float)
                 nsd_c, nsd_o = float(res.nsd_constant_pct), float(res.nsd_optimized_pct)
@@ -566,7 +577,10 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
         speeds = np.empty(len(pos))
         speeds[0], speeds[-1] = v_seg[0], v_seg[-1]
         speeds[1:-1] = 0.5 * (v_seg[1:] + v_seg[:-1])
-        times = np.concatenate([[0.0], np.cumsum(times_seg)])
+        # One timing for film and robot (PassPlan): the TCP follows the sample speeds at constant
+        # acceleration between samples, so the times come from the speeds, not from the QP's
+        # per-segment times (they differ by up to ~3 % where the optimized slowness kinks).
+        times = times_from_speeds(pos, speeds)
         out.append(PassPlan(
             positions=np.ascontiguousarray(pos), spray_axes=np.ascontiguousarray(axes),
             travel_dirs=np.ascontiguousarray(travel), speeds_m_s=speeds, times_s=times,
@@ -592,7 +606,7 @@ def _with_overspray(foot: np.ndarray, normals: np.ndarray, on_part: np.ndarray,
 
     def end_tangent(f: np.ndarray, ss: np.ndarray) -> np.ndarray:
         back = np.array([np.interp(ss[-1] - span, ss, f[:, k]) for k in range(3)])
-        return _unit(f[-1] - back)
+        return unit(f[-1] - back)
 
     t1 = end_tangent(tcp, s)
     t0 = end_tangent(tcp[::-1], s[-1] - s[::-1])

@@ -89,7 +89,8 @@ class Section:
     closed: bool
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
+def unit(v: np.ndarray) -> np.ndarray:
+    """Rows of `v` (..., 3) scaled to unit length; zero rows stay zero."""
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     return v / np.where(n > 0, n, 1.0)
 
@@ -111,7 +112,7 @@ def _crossings(geom: SurfaceGeometry, d: np.ndarray) -> tuple[np.ndarray, np.nda
     a, b = e[cross, 0], e[cross, 1]
     t = (d[a] / (d[a] - d[b]))[:, None]
     pts = geom.vertices[a] + t * (geom.vertices[b] - geom.vertices[a])
-    nrm = _unit(geom.normals[a] + t * (geom.normals[b] - geom.normals[a]))
+    nrm = unit(geom.normals[a] + t * (geom.normals[b] - geom.normals[a]))
     return cross, pts, nrm
 
 
@@ -164,7 +165,7 @@ def plane_sections(geom: SurfaceGeometry, origin: npt.ArrayLike,
     Returns the components (possibly none), longest first.
     """
     o = np.asarray(origin, float)
-    nrm = _unit(np.asarray(plane_normal, float))
+    nrm = unit(np.asarray(plane_normal, float))
     d = _signed(geom, o, nrm)
     cross, pts, nn = _crossings(geom, d)
     if len(cross) < 2:
@@ -210,14 +211,14 @@ class IndexingCurve:
         q = np.atleast_1d(np.asarray(s_query, float))
         s, p, n = self.s, self.points, self.normals
         pts = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
-        nrm = _unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
+        nrm = unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
         lo, hi = q < s[0], q > s[-1]
         if lo.any():
-            t0 = _unit(p[0] - self._at(s[0] + min(_END_TANGENT_M, s[-1] - s[0])))
+            t0 = unit(p[0] - self._at(s[0] + min(_END_TANGENT_M, s[-1] - s[0])))
             pts[lo] = p[0] + (s[0] - q[lo])[:, None] * t0
             nrm[lo] = n[0]
         if hi.any():
-            t1 = _unit(p[-1] - self._at(s[-1] - min(_END_TANGENT_M, s[-1] - s[0])))
+            t1 = unit(p[-1] - self._at(s[-1] - min(_END_TANGENT_M, s[-1] - s[0])))
             pts[hi] = p[-1] + (q[hi] - s[-1])[:, None] * t1
             nrm[hi] = n[-1]
         return pts, nrm, ~(lo | hi)
@@ -252,7 +253,7 @@ def curve_through(geom: SurfaceGeometry, point: npt.ArrayLike, plane_normal: npt
     Closed sections are cut open opposite the point. Returns None when there is no section there.
     """
     p = np.asarray(point, float)
-    nrm = _unit(np.asarray(plane_normal, float))
+    nrm = unit(np.asarray(plane_normal, float))
     d = _signed(geom, p, nrm) if signed_d is None else signed_d
     cross, pts, nn = _crossings(geom, d)
     if len(cross) < 2:
@@ -294,9 +295,9 @@ def indexing_curves(geom: SurfaceGeometry, points: npt.ArrayLike, tangents: npt.
     normals: (S, 3) surface normals. Returns S curves (None where no section passes the point).
     """
     p = np.asarray(points, float)
-    n = _unit(np.asarray(normals, float))
+    n = unit(np.asarray(normals, float))
     t = np.asarray(tangents, float)
-    t = _unit(t - np.sum(t * n, axis=1, keepdims=True) * n)
+    t = unit(t - np.sum(t * n, axis=1, keepdims=True) * n)
     right = np.cross(t, n)
     d_all = geom.vertices @ t.T - np.sum(p * t, axis=1)      # (N, S) signed distances
     return [curve_through(geom, p[i], t[i], right[i], signed_d=d_all[:, i])
@@ -344,7 +345,7 @@ def resample(points: npt.ArrayLike, normals: npt.ArrayLike, spacing_m: float,
         raise PlanError("cannot resample a curve of zero length; the pass degenerated to a point")
     q = np.linspace(0.0, s[-1], max(2, int(np.ceil(s[-1] / spacing_m - 1e-9)) + 1))
     pts = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
-    nrm = _unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
+    nrm = unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
     idx = np.clip(np.searchsorted(s, q), 0, len(s) - 1)
     prev = np.clip(idx - 1, 0, len(s) - 1)
     nearest = np.where(np.abs(s[prev] - q) <= np.abs(s[idx] - q), prev, idx)
@@ -355,7 +356,7 @@ def tangents(points: npt.ArrayLike) -> np.ndarray:
     """(M, 3) unit tangents of a polyline by central differences (one-sided at the ends)."""
     p = np.asarray(points, float)
     t = np.gradient(p, axis=0)
-    return _unit(t)
+    return unit(t)
 
 
 def geodesic_curvature(points: npt.ArrayLike, normals: npt.ArrayLike,
@@ -375,8 +376,8 @@ def geodesic_curvature(points: npt.ArrayLike, normals: npt.ArrayLike,
     q = np.linspace(0.0, s[-1], m)
     h = q[1] - q[0]
     r = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
-    nq = _unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
-    t = _unit(r[2:] - r[:-2])
+    nq = unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
+    t = unit(r[2:] - r[:-2])
     k_vec = (r[2:] - 2.0 * r[1:-1] + r[:-2]) / (h * h)
     kg = np.einsum("ij,ij->i", k_vec, np.cross(nq[1:-1], t))
     return np.interp(s, q[1:-1], kg)

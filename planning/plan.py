@@ -7,8 +7,10 @@ settings, a sibling `.npz` for the arrays).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,10 +21,22 @@ import numpy.typing as npt
 from planning.applicator import Applicator
 from planning.atomic_io import atomic_write_npz, atomic_write_text
 from planning.deposition import GunSamples
-from planning.errors import PlanError
+from planning.errors import ApplicatorError, PlanError
 
 _PASS_ARRAYS = ("positions", "spray_axes", "travel_dirs", "speeds_m_s", "times_s", "on_part",
                 "paint_on")
+_VECTOR_ARRAYS = ("positions", "spray_axes", "travel_dirs")
+_BOOL_ARRAYS = ("on_part", "paint_on")
+
+#: | |v| − 1 | allowed for spray axes and travel directions, and |x·z| between them: the
+#: deposition model (`GunSamples`) holds them to the same 1e-6.
+UNIT_TOL = 1e-6
+#: Relative disagreement allowed between an interval of times_s and 2 Δs / (v_i + v_{i+1}): the
+#: planner sets times from the speeds (round-off only, ~1e-15); plans resampled from a
+#: jerk-limited time law agree to ~5e-5 (tests/test_execute.py); the inconsistency this guards
+#: against was 3 % (QP segment times beside averaged sample speeds).
+TIMING_RTOL = 1e-3
+_FORMAT = "paintcell.CoveragePlan/1"
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,6 +48,11 @@ class PassPlan:
     travel_dirs: (M, 3) unit travel directions (tool +x), orthogonal to the spray axis.
     speeds_m_s: (M,) planned TCP speed at each sample [m/s], > 0.
     times_s: (M,) planned time of each sample from the start of the pass [s], increasing.
+        Timing is one definition for the film and for the robot: between samples the TCP moves
+        at constant tangential acceleration (speed² linear in arc length, what `sim.trajectory`
+        follows), so each interval is the trapezoid rule in time on the TCP polyline,
+        Δt_i = 2 Δs_i / (v_i + v_{i+1}) with Δs_i = |positions[i+1] − positions[i]|; checked to
+        `TIMING_RTOL`.
     on_part: (M,) True where the sample's foot point lies on the part (False on overspray).
     paint_on: (M,) True where the brush is on (the part plus the overspray extension).
     side: 0 for the start curve, +k for the k-th pass to its right, -k to its left.
@@ -58,19 +77,58 @@ class PassPlan:
     nsd_optimized_pct: float = float("nan")
 
     def __post_init__(self) -> None:
-        m = len(self.positions)
-        if m < 2:
-            raise PlanError(f"a pass needs at least 2 samples, got {m}")
+        arrays = {}
         for name in _PASS_ARRAYS:
-            arr = getattr(self, name)
-            if len(arr) != m:
-                raise PlanError(f"pass array {name} has {len(arr)} rows, expected {m}")
+            arr = np.asarray(getattr(self, name))
+            if name in _BOOL_ARRAYS:
+                if arr.dtype != bool:
+                    raise PlanError(f"pass array {name} must be bool, got dtype {arr.dtype}; "
+                                    "give True/False flags")
+            else:
+                try:
+                    arr = arr.astype(float, copy=False)
+                except (TypeError, ValueError) as exc:
+                    raise PlanError(f"pass array {name} is not numeric ({exc}); give floats"
+                                    ) from exc
+            arrays[name] = arr
+        pos = arrays["positions"]
+        if pos.ndim != 2 or pos.shape[1] != 3:
+            raise PlanError(f"pass positions must have shape (M, 3), got {pos.shape}")
+        m = len(pos)
+        if m < 2:
+            raise PlanError(f"a pass needs at least 2 samples, got {m}; plan a longer pass")
+        for name, arr in arrays.items():
+            want = (m, 3) if name in _VECTOR_ARRAYS else (m,)
+            if arr.shape != want:
+                raise PlanError(f"pass array {name} has shape {arr.shape}, expected {want} "
+                                "(one row a sample)")
             if arr.dtype != bool and not np.all(np.isfinite(arr)):
                 raise PlanError(f"pass array {name} contains NaN or inf; re-plan the pass")
-        if np.any(self.speeds_m_s <= 0):
+        axes, trav = arrays["spray_axes"], arrays["travel_dirs"]
+        for name, v in (("spray_axes", axes), ("travel_dirs", trav)):
+            err = float(np.max(np.abs(np.linalg.norm(v, axis=1) - 1.0)))
+            if err > UNIT_TOL:
+                raise PlanError(f"pass {name} must be unit vectors (| |v| - 1 | = {err:.3g} > "
+                                f"{UNIT_TOL:g}); normalize them")
+        dots = float(np.max(np.abs(np.sum(axes * trav, axis=1))))
+        if dots > UNIT_TOL:
+            raise PlanError(f"pass travel_dirs must be orthogonal to spray_axes (|x·z| = "
+                            f"{dots:.3g} > {UNIT_TOL:g}); project them onto the tool xy plane")
+        speeds, times = arrays["speeds_m_s"], arrays["times_s"]
+        if np.any(speeds <= 0):
             raise PlanError("pass speeds must be positive [m/s]; check v_min/v_max settings")
-        if np.any(np.diff(self.times_s) <= 0):
-            raise PlanError("pass times must strictly increase")
+        dt = np.diff(times)
+        if np.any(dt <= 0):
+            raise PlanError("pass times must strictly increase; re-plan the pass")
+        ds = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+        dt_speed = 2.0 * ds / (speeds[1:] + speeds[:-1])
+        rel = float(np.max(np.abs(dt_speed - dt) / dt))
+        if rel > TIMING_RTOL:
+            raise PlanError(f"pass times_s and speeds_m_s disagree by {100 * rel:.3g} % on a "
+                            f"segment (> {100 * TIMING_RTOL:g} %); set times_s from the speeds "
+                            "by Δt = 2 Δs / (v_i + v_i+1) (`times_from_speeds`)")
+        for name, arr in arrays.items():
+            object.__setattr__(self, name, arr)
 
     @property
     def duration_s(self) -> float:
@@ -165,7 +223,7 @@ class CoveragePlan:
                 "length_m": p.length_m,
             })
         meta = {
-            "format": "paintcell.CoveragePlan/1",
+            "format": _FORMAT,
             "frame": "part",
             "surface_name": self.surface_name,
             "applicator": self.applicator.to_dict(),
@@ -173,6 +231,7 @@ class CoveragePlan:
             "settings": self.settings,
             "paint_time_s": self.paint_time_s,
             "arrays": path.with_suffix(".npz").name,
+            "arrays_sha256": arrays_digest(arrays),
             "passes": meta_passes,
         }
         atomic_write_npz(path.with_suffix(".npz"), arrays)
@@ -180,20 +239,34 @@ class CoveragePlan:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> CoveragePlan:
-        """Read a plan written by `save`."""
+        """Read a plan written by `save`; PlanError (naming the file) when the JSON is unreadable
+        or the `.npz` beside it does not belong to it."""
         path = Path(path)
         if not path.exists():
             raise PlanError(f"plan file {path} does not exist; run `paintcell plan` first")
-        meta = json.loads(path.read_text())
-        if meta.get("format") != "paintcell.CoveragePlan/1":
-            raise PlanError(f"{path} is not a paintcell plan (format {meta.get('format')!r})")
-        npz_path = path.parent / meta["arrays"]
-        if not npz_path.exists():
-            raise PlanError(f"plan arrays {npz_path} are missing; re-run `paintcell plan`")
-        with np.load(npz_path) as z:
+        rerun = "re-run `paintcell plan`"
+        try:
+            meta = json.loads(path.read_text())
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            raise PlanError(f"plan file {path} is not valid JSON (truncated or corrupt: {exc}); "
+                            f"{rerun}") from exc
+        if not isinstance(meta, dict) or meta.get("format") != _FORMAT:
+            fmt = meta.get("format") if isinstance(meta, dict) else None
+            raise PlanError(f"{path} is not a paintcell plan (format {fmt!r}); give a plan.json "
+                            f"written by `paintcell plan` or {rerun}")
+        try:
+            npz_path = path.parent / meta["arrays"]
+            if not npz_path.exists():
+                raise PlanError(f"plan arrays {npz_path} are missing; {rerun}")
+            with np.load(npz_path) as z:
+                arrays = {k: z[k] for k in z.files}
+            digest = meta.get("arrays_sha256")      # absent in plans saved before it existed
+            if digest is not None and digest != arrays_digest(arrays):
+                raise PlanError(f"plan arrays {npz_path} do not match {path} (content hash "
+                                f"differs: a file of another plan run?); {rerun}")
             passes = []
             for i, mp in enumerate(meta["passes"]):
-                kw = {name: z[f"p{i}_{name}"] for name in _PASS_ARRAYS}
+                kw = {name: arrays[f"p{i}_{name}"] for name in _PASS_ARRAYS}
                 passes.append(PassPlan(
                     **kw,
                     side=int(mp["side"]),
@@ -202,13 +275,47 @@ class CoveragePlan:
                     nsd_constant_pct=_unnum(mp["nsd_constant_pct"]),
                     nsd_optimized_pct=_unnum(mp["nsd_optimized_pct"]),
                 ))
-        return cls(
-            surface_name=meta["surface_name"],
-            applicator=Applicator.from_dict(meta["applicator"]),
-            passes=tuple(passes),
-            start_rule=meta["start_rule"],
-            settings=meta["settings"],
-        )
+            return cls(
+                surface_name=meta["surface_name"],
+                applicator=Applicator.from_dict(meta["applicator"]),
+                passes=tuple(passes),
+                start_rule=meta["start_rule"],
+                settings=meta["settings"],
+            )
+        except PlanError as exc:
+            if str(path) in str(exc):
+                raise
+            raise PlanError(f"plan {path}: {exc}") from exc
+        except (KeyError, TypeError, ValueError, OSError, zipfile.BadZipFile,
+                ApplicatorError) as exc:
+            raise PlanError(f"plan {path} and its arrays do not match or are corrupt "
+                            f"({type(exc).__name__}: {exc}); {rerun}") from exc
+
+
+def times_from_speeds(positions: npt.ArrayLike, speeds_m_s: npt.ArrayLike) -> np.ndarray:
+    """(M,) sample times [s] from 0 of a pass at constant tangential acceleration between samples.
+
+    positions: (M, 3) TCP positions [m]; speeds_m_s: (M,) TCP speeds [m/s] > 0.
+    Each interval is Δt_i = 2 Δs_i / (v_i + v_{i+1}) (the `PassPlan` timing definition).
+    """
+    p = np.asarray(positions, float)
+    v = np.asarray(speeds_m_s, float)
+    ds = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    return np.concatenate([[0.0], np.cumsum(2.0 * ds / (v[1:] + v[:-1]))])
+
+
+def arrays_digest(arrays: dict[str, np.ndarray]) -> str:
+    """Short sha256 (16 hex digits) of named arrays: names, dtypes, shapes and bytes.
+
+    Hashes content, not the `.npz` file (zip entries carry a time stamp), so the JSON that
+    stores it is byte-for-byte reproducible.
+    """
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()[:16]
 
 
 def tcp_frames(positions: npt.ArrayLike, spray_axes: npt.ArrayLike,
