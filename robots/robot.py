@@ -20,6 +20,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from planning.atomic_io import atomic_write_text
+from planning.transforms import check_pose, quat_wxyz_from_matrix
 from robots.errors import RobotError
 from robots.opw import OPWParameters
 
@@ -27,19 +29,11 @@ ROBOTS_DIR = Path(__file__).resolve().parent
 
 
 def _as_pose(T: npt.ArrayLike | None, what: str) -> np.ndarray:
-    """(4,4) float64 rigid transform, checked; identity when None."""
+    """(4,4) float64 rigid transform, checked (`planning.transforms.check_pose`); identity when
+    None."""
     if T is None:
         return np.eye(4)
-    T = np.array(T, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise RobotError(f"{what} must be a finite (4, 4) homogeneous transform, got shape "
-                         f"{T.shape}; pass e.g. np.eye(4)")
-    R = T[:3, :3]
-    if (np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0
-            or np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-12):
-        raise RobotError(f"{what} is not a rigid transform (rotation not orthonormal or last row "
-                         f"not [0 0 0 1]); orthonormalize the rotation")
-    return T
+    return check_pose(T, what, error=RobotError).copy()
 
 
 def _mj_pose(pos: np.ndarray, quat: np.ndarray) -> np.ndarray:
@@ -49,12 +43,6 @@ def _mj_pose(pos: np.ndarray, quat: np.ndarray) -> np.ndarray:
     T[:3, :3] = R.reshape(3, 3)
     T[:3, 3] = pos
     return T
-
-
-def _quat_from_R(R: np.ndarray) -> np.ndarray:
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).reshape(9))
-    return q
 
 
 def write_generated_mjcf(xml: str, stem: str) -> Path:
@@ -67,11 +55,7 @@ def write_generated_mjcf(xml: str, stem: str) -> Path:
     digest = hashlib.sha1(xml.encode()).hexdigest()[:12]
     path = out_dir / f"{stem}_{digest}.xml"
     if not path.exists():
-        fd, tmp = tempfile.mkstemp(dir=out_dir, suffix=".xml.tmp")
-        with os.fdopen(fd, "w") as f:
-            f.write(xml)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
+        atomic_write_text(path, xml)
     return path
 
 
@@ -84,7 +68,7 @@ def with_tcp_offset(mjcf_path: Path, tcp_site_name: str, T_flange_tcp: npt.Array
     if site is None:
         raise RobotError(f"site {tcp_site_name!r} not in {mjcf_path}; name the TCP site there")
     site.pos = T[:3, 3]
-    site.quat = _quat_from_R(T[:3, :3])
+    site.quat = quat_wxyz_from_matrix(T[:3, :3])
     spec.compile()
     return write_generated_mjcf(spec.to_xml(), stem)
 

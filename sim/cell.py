@@ -24,6 +24,7 @@ import numpy.typing as npt
 
 from planning.errors import PaintcellError
 from planning.surface import Surface
+from planning.transforms import check_pose, quat_wxyz_from_matrix
 
 #: physics and control rate: 1 kHz (DESIGN.md, execution).
 TIMESTEP_S = 1e-3
@@ -127,22 +128,6 @@ class Cell:
         return mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY, int(body_id)) or ""
 
 
-def _quat_from_matrix(R: np.ndarray) -> np.ndarray:
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, float).ravel())
-    return q
-
-
-def _check_pose(T: npt.ArrayLike, name: str) -> np.ndarray:
-    T = np.asarray(T, float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise CellError(f"{name} has shape {T.shape}; pass a finite 4x4 rigid transform")
-    R = T[:3, :3]
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise CellError(f"{name} is not rigid; its rotation block must be orthonormal, det +1")
-    return T
-
-
 def default_cameras(surface_world: Surface, pass_dir_world: npt.ArrayLike | None = None,
                     ) -> tuple[CameraSpec, ...]:
     """Front, top and along-the-passes presets framing a part placed in the world.
@@ -188,7 +173,7 @@ def _camera_quat(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
     x = np.cross(up, z)
     x /= np.linalg.norm(x)
     y = np.cross(z, x)
-    return _quat_from_matrix(np.column_stack([x, y, z]))
+    return quat_wxyz_from_matrix(np.column_stack([x, y, z]))
 
 
 def _collision_pieces(surface: Surface, piece_m: float, thickness_m: float) -> list[np.ndarray]:
@@ -230,8 +215,13 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         [m] (see `_collision_pieces`).
     Raises CellError when the robot MJCF lacks a named joint, site or body, or the poses are bad.
     """
-    T_world_part = _check_pose(T_world_part, "T_world_part")
-    T_world_base = _check_pose(robot.T_world_base, "robot.T_world_base")
+    if not isinstance(surface, Surface):
+        raise CellError(f"surface must be a planning.surface.Surface (the part in its part "
+                        f"frame), got {type(surface).__name__}; load one with "
+                        "planning.parts.get_part or Surface.from_mesh")
+    T_world_part = check_pose(T_world_part, "T_world_part", error=CellError)
+    T_world_base = check_pose(robot.T_world_base, "robot.T_world_base",
+                              error=CellError)
     if collision_piece_m <= 0 or shell_thickness_m <= 0:
         raise CellError("collision_piece_m and shell_thickness_m must be > 0 [m]")
 
@@ -256,12 +246,12 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         robot_spec.delete(key)
     robot_spec.nkey = 0
     frame = spec.worldbody.add_frame(pos=T_world_base[:3, 3],
-                                     quat=_quat_from_matrix(T_world_base[:3, :3]))
+                                     quat=quat_wxyz_from_matrix(T_world_base[:3, :3]))
     spec.attach(robot_spec, prefix=ROBOT_PREFIX, frame=frame)
 
     # --- part: visual mesh (exact surface) + thin convex collision slabs ---------------------
     part = spec.worldbody.add_body(name=PART_BODY, pos=T_world_part[:3, 3],
-                                   quat=_quat_from_matrix(T_world_part[:3, :3]))
+                                   quat=quat_wxyz_from_matrix(T_world_part[:3, :3]))
     vis = spec.add_mesh(name="part_surface")
     vis.uservert = np.ascontiguousarray(surface.vertices, float).ravel()
     vis.userface = np.ascontiguousarray(surface.faces, np.int32).ravel()

@@ -105,3 +105,11 @@ def test_cell_compiles_without_attach_or_compiler_warnings() -> None:
         warnings.simplefilter("error")
         cell = build_cell(case.robot, plane(0.3, 0.3, 0.02), case.T_world_part)
     assert cell.model.nkey == 0
+
+
+@pytest.mark.parametrize("surface", [None, "door", np.zeros((3, 3))])
+def test_surface_type_is_checked_at_entry(surface) -> None:
+    from robots import load_robot
+
+    with pytest.raises(CellError, match="surface must be a planning.surface.Surface"):
+        build_cell(load_robot("abb_paint"), surface, np.eye(4))

@@ -154,3 +154,32 @@ def test_placed_robot_moves_fk_and_jacobian_with_the_base():
     assert np.allclose(robot.T_world_base, np.eye(4))          # the original is untouched
     assert np.allclose(robot.fk(q), forward(robot.opw, q[None])[0] @ robot.T_flange_tcp,
                        atol=FK_AGREEMENT_ATOL_M)
+
+
+def test_generated_mjcf_write_leaves_no_temp_file_on_failure(tmp_path, monkeypatch):
+    """`write_generated_mjcf` writes through `planning.atomic_io`: a failed rename removes the
+    temp file instead of leaking it."""
+    import os
+    import tempfile
+
+    from robots.robot import write_generated_mjcf
+
+    monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
+
+    def fail(*_args, **_kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", fail)
+    with pytest.raises(OSError, match="disk full"):
+        write_generated_mjcf("<mujoco/>", "leak")
+    assert list((tmp_path / "paintcell-robots").iterdir()) == []
+    monkeypatch.undo()
+    monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
+    path = write_generated_mjcf("<mujoco/>", "leak")
+    assert path.read_text() == "<mujoco/>"
+    assert [p.name for p in (tmp_path / "paintcell-robots").iterdir()] == [path.name]
+
+
+def test_tcp_offset_must_be_rigid():
+    with pytest.raises(RobotError, match="tcp_offset is not a rigid transform"):
+        load_robot("abb_paint", tcp_offset=np.diag([1.0, 1.0, 2.0, 1.0]))
