@@ -17,13 +17,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from planning.transforms import check_poses
 from robots.errors import RobotError
-from robots.opw import N_BRANCHES, inverse
+from robots.opw import inverse
 from robots.reachability import ReachabilityReport, ReachabilityThresholds
 from robots.robot import Robot
 
@@ -61,10 +63,35 @@ class IKSettings:
     comfort_margin_rad: float = 0.1
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        checks = [
+            (self.pos_tol_m > 0, "pos_tol_m must be > 0 [m]"),
+            (self.rot_tol_rad > 0, "rot_tol_rad must be > 0 [rad]"),
+            (self.damping >= 0, "damping must be >= 0"),
+            (self.max_step_rad > 0, "max_step_rad must be > 0 [rad]"),
+            (_is_int(self.warm_iters) and self.warm_iters >= 1, "warm_iters must be an int >= 1"),
+            (_is_int(self.cold_iters) and self.cold_iters >= 1, "cold_iters must be an int >= 1"),
+            (_is_int(self.cold_restarts) and self.cold_restarts >= 0,
+             "cold_restarts must be an int >= 0"),
+            (0 <= self.wrist_sin_min < 1, "wrist_sin_min must be in [0, 1)"),
+            (self.max_joint_jump_rad > 0, "max_joint_jump_rad must be > 0 [rad]"),
+            (self.comfort_margin_rad >= 0, "comfort_margin_rad must be >= 0 [rad]"),
+            (_is_int(self.seed), "seed must be an int"),
+        ]
+        for ok, msg in checks:
+            # `not ok` is also true for NaN: every comparison with NaN is False.
+            if not ok:
+                raise RobotError(f"invalid IKSettings: {msg}; the defaults are "
+                                 "IKSettings() (see its docstring)")
+
     def thresholds(self) -> ReachabilityThresholds:
         """The report's thresholds, consistent with these settings."""
         return ReachabilityThresholds(self.pos_tol_m, self.rot_tol_rad, self.wrist_sin_min,
                                       self.max_joint_jump_rad)
+
+
+def _is_int(x: object) -> bool:
+    return isinstance(x, int | np.integer) and not isinstance(x, bool)
 
 
 @dataclass(frozen=True, eq=False)
@@ -196,53 +223,90 @@ def continuous_branches(robot: Robot, Q: np.ndarray, reach: np.ndarray, q_ref: n
     return Q, reach, within
 
 
+class BranchStats(NamedTuple):
+    """Per closed-form branch of one pass, over its poses inside the limits (`within`).
+
+    n_ok: (8,) int, poses inside the limits. wrist_sin: (8,) smallest |sin q5| (1 for arms
+    without a wrist joint; −inf when n_ok = 0). jump: (8,) largest joint step [rad] between
+    consecutive poses inside the limits (0 for one pose; inf when n_ok = 0). margin: (8,)
+    worst-case margin [rad]: min(joint-limit margin, asin(wrist_sin)) (−inf when n_ok = 0).
+    feasible: (8,) every pose inside, wrist_sin ≥ wrist_sin_min, jump ≤ max_joint_jump_rad·scale.
+    """
+
+    n_ok: np.ndarray
+    wrist_sin: np.ndarray
+    jump: np.ndarray
+    margin: np.ndarray
+    feasible: np.ndarray
+
+
+def branch_feasibility(robot: Robot, Q: np.ndarray, within: np.ndarray, settings: IKSettings,
+                       jump_scale: float = 1.0) -> BranchStats:
+    """Feasibility and margins of every branch at once, from `opw_branches` output Q (B, M, n)
+    [rad] (NaN where unreachable) and within (B, M). jump_scale: the path is subsampled by this
+    factor, so the joint-jump threshold grows by it. Used by `choose_branch` and
+    `robots.placement.path_margin`."""
+    B, M = within.shape
+    n_ok = within.sum(axis=1)
+    empty = n_ok == 0
+    wi = robot.wrist_joint_index
+    if wi is not None:
+        wsin = np.where(within, np.abs(np.sin(np.where(within, Q[:, :, wi], 0.0))), np.inf)
+        wrist_sin = wsin.min(axis=1)
+    else:
+        wrist_sin = np.ones(B)
+    Qw = np.where(within[:, :, None], Q, 0.0)
+    lim = np.where(within, np.minimum(Qw - robot.q_lower, robot.q_upper - Qw).min(axis=2), np.inf)
+    margin = np.minimum(lim.min(axis=1), np.arcsin(np.minimum(wrist_sin, 1.0)))
+    # Step from the previous pose inside the limits (poses outside are skipped, not joined).
+    last = np.maximum.accumulate(np.where(within, np.arange(M), -1), axis=1)
+    prev = np.concatenate([np.full((B, 1), -1), last[:, :-1]], axis=1)
+    Qp = np.take_along_axis(Qw, np.maximum(prev, 0)[:, :, None], axis=1)
+    step = np.abs(Qw - Qp).max(axis=2)
+    jump = np.where(within & (prev >= 0), step, 0.0).max(axis=1)
+    wrist_sin = np.where(empty, -np.inf, wrist_sin)
+    jump = np.where(empty, np.inf, jump)
+    margin = np.where(empty, -np.inf, margin)
+    feasible = ((n_ok == M) & (wrist_sin >= settings.wrist_sin_min)
+                & (jump <= settings.max_joint_jump_rad * jump_scale))
+    return BranchStats(n_ok, wrist_sin, jump, margin, feasible)
+
+
 def choose_branch(robot: Robot, Q: np.ndarray, within: np.ndarray,
                   q_seed: npt.ArrayLike | None, settings: IKSettings) -> int:
     """The branch (0..7) for a whole pass, from `opw_branches` output.
 
-    Feasible: every pose inside the limits, |sin q5| ≥ wrist_sin_min, no jump > max_joint_jump_rad.
-    Among feasible branches, those with a worst-case margin (joint limit [rad] or asin|sin q5|) of
-    at least `comfort_margin_rad` come first; then the one closest to q_seed (time at full speed)
-    when given, else the largest margin. If none is feasible: most poses inside the limits, then
-    the largest wrist margin, then the smallest jump.
+    Feasible (`branch_feasibility`): every pose inside the limits, |sin q5| ≥ wrist_sin_min, no
+    jump > max_joint_jump_rad. Among feasible branches, those with a worst-case margin (joint
+    limit [rad] or asin|sin q5|) of at least `comfort_margin_rad` come first; then the one closest
+    to q_seed (time at full speed) when given, else the largest margin. If none is feasible: most
+    poses inside the limits, then the largest wrist margin, then the smallest jump.
     """
-    M = Q.shape[1]
-    lo, hi = robot.q_lower, robot.q_upper
-    wi = robot.wrist_joint_index
-    keys = []
-    margins = np.full(N_BRANCHES, -np.inf)
-    for b in range(N_BRANCHES):
-        n_ok = int(within[b].sum())
-        if n_ok == 0:
-            keys.append((0, -np.inf, -np.inf, -np.inf, False))
-            continue
-        Qb = Q[b][within[b]]
-        wsin = float(np.abs(np.sin(Qb[:, wi])).min()) if wi is not None else 1.0
-        margins[b] = min(float(np.minimum(Qb - lo, hi - Qb).min()),
-                         float(np.arcsin(min(wsin, 1.0))))
-        jump = float(np.abs(np.diff(Qb, axis=0)).max()) if len(Qb) > 1 else 0.0
-        if q_seed is not None:
-            first = Q[b][int(np.argmax(within[b]))]
-            pref = -float(np.max(np.abs(first - np.asarray(q_seed)) / robot.v_max))
-        else:
-            pref = float(margins[b])
-        feasible = (n_ok == M and wsin >= settings.wrist_sin_min
-                    and jump <= settings.max_joint_jump_rad)
-        keys.append((n_ok, min(wsin, settings.wrist_sin_min), -jump, pref, feasible))
-    feas = [b for b in range(N_BRANCHES) if keys[b][4]]
-    comfy = [b for b in feas if margins[b] >= settings.comfort_margin_rad]
+    st = branch_feasibility(robot, Q, within, settings)
+    B = len(st.n_ok)
+    if q_seed is not None:
+        first = Q[np.arange(B), np.argmax(within, axis=1)]
+        pref = -np.max(np.abs(first - np.asarray(q_seed)) / robot.v_max, axis=1)
+        pref = np.where(st.n_ok == 0, -np.inf, pref)
+    else:
+        pref = st.margin
+    feas = [b for b in range(B) if st.feasible[b]]
+    comfy = [b for b in feas if st.margin[b] >= settings.comfort_margin_rad]
     if comfy or feas:
-        return max(comfy or feas, key=lambda b: keys[b][3])
-    return max(range(N_BRANCHES), key=lambda b: keys[b][:4])
+        return max(comfy or feas, key=lambda b: pref[b])
+    w_cap = settings.wrist_sin_min
+    return max(range(B), key=lambda b: (st.n_ok[b], min(st.wrist_sin[b], w_cap), -st.jump[b],
+                                        pref[b]))
 
 
 # --- paths ------------------------------------------------------------------------------------
 def _check_path(robot: Robot, T_world_tcp: npt.ArrayLike) -> np.ndarray:
     T = np.asarray(T_world_tcp, float)
-    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0 or not np.all(np.isfinite(T)):
+    if T.ndim != 3 or T.shape[1:] != (4, 4) or len(T) == 0:
         raise RobotError(f"{robot.name}: a path must be a non-empty finite (M, 4, 4) array of "
                          f"T_world_tcp poses, got shape {T.shape}")
-    return T
+    # A scaled or sheared pose is no TCP pose: reject it rather than report it unreachable.
+    return check_poses(T, f"{robot.name}: T_world_tcp", error=RobotError)
 
 
 def solve_path(robot: Robot, T_world_tcp: npt.ArrayLike, q_seed: npt.ArrayLike | None = None,

@@ -19,7 +19,13 @@ import numpy as np
 import numpy.typing as npt
 
 from robots.errors import RobotError
-from robots.ik import IKSettings, combined_report, continuous_branches, solve_paths
+from robots.ik import (
+    IKSettings,
+    branch_feasibility,
+    combined_report,
+    continuous_branches,
+    solve_paths,
+)
 from robots.opw import inverse
 from robots.reachability import ReachabilityReport
 from robots.robot import Robot
@@ -102,18 +108,8 @@ def path_margin(robot: Robot, Q: np.ndarray, reach: np.ndarray, settings: IKSett
     feasible), from `robots.opw.inverse` output Q (M, 8, 6), reach (M, 8). jump_scale: the path is
     subsampled by this factor, so the joint-jump threshold grows by it."""
     Qc, _, within = continuous_branches(robot, Q, reach, robot.q_home)
-    ok = within.all(axis=1)
-    if not ok.any():
-        return -np.inf
-    Qc = Qc[ok]                                                   # (B, M, 6)
-    wi = robot.wrist_joint_index
-    wsin = np.abs(np.sin(Qc[:, :, wi])).min(axis=1) if wi is not None else np.ones(len(Qc))
-    jump = (np.abs(np.diff(Qc, axis=1)).max(axis=(1, 2)) if Qc.shape[1] > 1
-            else np.zeros(len(Qc)))
-    limit = np.minimum(Qc - robot.q_lower, robot.q_upper - Qc).min(axis=(1, 2))
-    margin = np.minimum(limit, np.arcsin(np.minimum(wsin, 1.0)))
-    good = (wsin >= settings.wrist_sin_min) & (jump <= settings.max_joint_jump_rad * jump_scale)
-    return float(margin[good].max()) if good.any() else -np.inf
+    st = branch_feasibility(robot, Qc, within, settings, jump_scale)
+    return float(st.margin[st.feasible].max()) if st.feasible.any() else -np.inf
 
 
 def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],

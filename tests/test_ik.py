@@ -7,7 +7,15 @@ import pytest
 
 from planning.plan import tcp_frames
 from robots import RobotError, load_robot
-from robots.ik import IKSettings, cold_start, dls, opw_branches, solve_path, solve_paths
+from robots.ik import (
+    IKSettings,
+    branch_feasibility,
+    cold_start,
+    dls,
+    opw_branches,
+    solve_path,
+    solve_paths,
+)
 from robots.opw import IRB4600_60_205, fit_to_limits, forward, inverse, wrap_pi
 from tests.helpers import IK_POS_TOL_M, IK_ROT_TOL_RAD, OPW_ROUND_TRIP_ATOL
 
@@ -270,3 +278,67 @@ def test_planned_door_passes_are_continuous(abb, door_plan):
     results = solve_paths(abb, paths, q_seed=abb.q_home)
     for res, T in zip(results, paths, strict=True):
         _assert_good_path(abb, res, T)
+
+
+@pytest.mark.parametrize(("field", "value"), [
+    ("pos_tol_m", -1.0), ("rot_tol_rad", 0.0), ("damping", -1e-4), ("max_step_rad", 0.0),
+    ("warm_iters", -3), ("warm_iters", 2.5), ("cold_iters", 0), ("cold_restarts", -1),
+    ("wrist_sin_min", 1.5), ("max_joint_jump_rad", 0.0), ("comfort_margin_rad", -0.1),
+    ("seed", 1.5), ("pos_tol_m", float("nan")),
+])
+def test_ik_settings_are_validated(field: str, value: float) -> None:
+    with pytest.raises(RobotError, match=f"invalid IKSettings: {field}"):
+        IKSettings(**{field: value})
+
+
+def test_non_rigid_or_non_finite_pose_is_rejected(abb):
+    T = _line([1.15, -0.2, 1.0], [1.15, 0.2, 1.0], [1.0, 0, 0], [0, 1.0, 0])
+    scaled = T.copy()
+    scaled[10, :3, :3] *= 2.0                # a scale-2 "pose": not a TCP pose at all
+    with pytest.raises(RobotError, match=r"T_world_tcp \(pose 10\) is not a rigid transform"):
+        solve_path(abb, scaled)
+    nan = T.copy()
+    nan[3, 0, 3] = np.nan
+    with pytest.raises(RobotError, match=r"pose 3\) is not a rigid transform: non-finite"):
+        solve_path(abb, nan, free_spin=True)
+
+
+def _branch_stats_loop(robot, Q, within, s, jump_scale=1.0):
+    """Per-branch reference of `branch_feasibility` (the loop `choose_branch` used to run)."""
+    out = []
+    for b in range(Q.shape[0]):
+        Qb = Q[b][within[b]]
+        if len(Qb) == 0:
+            out.append((0, -np.inf, np.inf, -np.inf, False))
+            continue
+        wsin = float(np.abs(np.sin(Qb[:, 4])).min())
+        margin = min(float(np.minimum(Qb - robot.q_lower, robot.q_upper - Qb).min()),
+                     float(np.arcsin(min(wsin, 1.0))))
+        jump = float(np.abs(np.diff(Qb, axis=0)).max()) if len(Qb) > 1 else 0.0
+        feas = (len(Qb) == Q.shape[1] and wsin >= s.wrist_sin_min
+                and jump <= s.max_joint_jump_rad * jump_scale)
+        out.append((len(Qb), wsin, jump, margin, feas))
+    return out
+
+
+def test_branch_feasibility_matches_a_per_branch_loop(abb):
+    """One vectorized feasibility function serves `choose_branch` and `placement.path_margin`;
+    it equals the per-branch computation exactly, also with poses outside the limits."""
+    rng = np.random.default_rng(30)
+    s = IKSettings()
+    n_partial = 0
+    for k in range(60):
+        q0 = rng.uniform(abb.q_lower, abb.q_upper)
+        Q = np.linspace(q0, q0 + rng.normal(0, 0.3 if k % 2 else 1.5, 6), int(rng.integers(1, 25)))
+        T = abb.fk_many(Q)
+        if k % 3 == 0:
+            T[:, :3, 3] *= rng.uniform(0.8, 1.6)      # push part of the path out of reach
+        Qc, _, within = opw_branches(abb, T, abb.q_home)
+        n_partial += int(np.any(within.any(axis=1) & ~within.all(axis=1)))
+        for scale in (1.0, 3.0):
+            st = branch_feasibility(abb, Qc, within, s, scale)
+            ref = _branch_stats_loop(abb, Qc, within, s, scale)
+            got = list(zip(st.n_ok, st.wrist_sin, st.jump, st.margin, st.feasible, strict=True))
+            assert [tuple(float(x) for x in r) for r in got] == \
+                [tuple(float(x) for x in r) for r in ref]
+    assert n_partial > 5    # the masked (partly outside the limits) case is exercised
