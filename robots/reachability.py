@@ -165,21 +165,35 @@ class ReachabilityReport:
 
     @property
     def verdict(self) -> str:
-        """One line: reachable or not, where it is worst, the margins."""
+        """One line: reachable or not, where it is worst and by how much, the margins (only
+        finite numbers: a margin no pose has is left out)."""
         if self.n_poses == 0:
             return "no poses"
         p, i = self.worst_pose()
-        margin = float(np.nanmin(self.limit_margin_rad)) if self.n_reachable else float("nan")
-        head = ("all reachable" if self.all_reachable
-                else f"UNREACHABLE {self.n_poses - self.n_reachable}/{self.n_poses} poses")
-        tail = (f"; {self.n_jumps} joint jumps > {self.thresholds.max_joint_jump_rad:g} rad"
-                if self.n_jumps else "")
-        sing = (f"; {self.n_near_singular} poses near the wrist singularity"
-                if self.n_near_singular else "")
-        return (f"{self.robot_name}: {head} ({self.n_poses} poses, "
-                f"{len(np.unique(self.pass_index))} passes); worst pass {p} pose {i}; "
-                f"min joint-limit margin {margin:.3f} rad; "
-                f"min |sin q5| {np.nanmin(self.wrist_sin):.3f}{sing}{tail}")
+        k = int(np.flatnonzero((self.pass_index == p) & (self.pose_index == i))[0])
+        if self.all_reachable:
+            head = "all reachable"
+            worst = f"worst pass {p} pose {i}"
+        else:
+            head = f"UNREACHABLE {self.n_poses - self.n_reachable}/{self.n_poses} poses"
+            pos, rot = self.pos_residual_m[k], self.rot_residual_rad[k]
+            worst = (f"worst pass {p} pose {i} is {pos:.3f} m out of reach (position residual), "
+                     f"orientation residual {rot:.3f} rad" if np.isfinite(pos)
+                     else f"worst pass {p} pose {i} has no joint solution")
+        parts = [f"{self.robot_name}: {head} ({self.n_poses} poses, "
+                 f"{len(np.unique(self.pass_index))} passes); {worst}"]
+        if self.n_reachable:
+            margin = _nanmin(self.limit_margin_rad[self.reachable])
+            if margin is not None:
+                parts.append(f"min joint-limit margin {margin:.3f} rad")
+        wsin = _nanmin(self.wrist_sin)
+        if wsin is not None:
+            parts.append(f"min |sin q5| {wsin:.3f}")
+        if self.n_near_singular:
+            parts.append(f"{self.n_near_singular} poses near the wrist singularity")
+        if self.n_jumps:
+            parts.append(f"{self.n_jumps} joint jumps > {self.thresholds.max_joint_jump_rad:g} rad")
+        return "; ".join(parts)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe summary plus the per-pose arrays as lists (nan → None)."""

@@ -28,7 +28,9 @@
 
 IK: unreachable poses get a best-effort joint path from `robots.ik`; such passes are timed as
 they are, named in `meta["warnings"]`, and the combined reachability summary is stored in
-`meta["reachability"]` for `sim.validate`.
+`meta["reachability"]` for `sim.validate`. When no pose is reachable, or a later stage fails
+while some poses are unreachable (a move leaving the joint limits, an unreachable via pose), a
+`robots.errors.UnreachableError` carries the IK verdict and the fix (move the part or the base).
 
 Speed following: where the planned speed can be followed it is (TOPP-RA is time-optimal and the
 planned speed is its velocity bound); where a limit binds, the runs of samples slower than
@@ -49,6 +51,7 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from planning.plan import CoveragePlan
+from robots.errors import UnreachableError
 from sim.joint_trajectory import (
     APPROACH,
     PAINT,
@@ -59,6 +62,9 @@ from sim.joint_trajectory import (
 )
 from sim.moves import JointMove, plan_move
 from sim.time_law import JointPath, PassTimeLaw, parameterize_pass, tcp_path_derivatives
+
+# The fix named by an `UnreachableError`.
+_MOVE_PART = "move the part or the robot base (see robots.placement.find_base_pose)"
 
 # TCP deviation [m] of a pass's joint path from the plan above which `meta["warnings"]` names
 # the pass (the path is still timed: the loss is measured downstream by `sim.validate`, with the
@@ -194,21 +200,43 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
     if T_wp.shape != (4, 4) or not np.all(np.isfinite(T_wp)):
         raise TrajectoryError("T_world_part must be a finite (4, 4) pose")
     n = int(robot.nq)
-    v_max = np.asarray(robot.v_max, float)
-    a_max = np.asarray(robot.a_max, float)
-    v_lim = settings.velocity_margin * v_max
-    a_lim = settings.acceleration_margin * a_max
-    j_lim = a_lim / settings.jerk_ramp_s
     q_home = np.asarray(robot.q_home if settings.q_home is None else settings.q_home, float)
     if q_home.shape != (n,):
         raise TrajectoryError(f"q_home must have {n} joint values [rad], got {q_home.shape}")
     timing = {"ik": 0.0, "path": 0.0, "toppra": 0.0, "ruckig": 0.0, "sampling": 0.0}
 
-    # --- 1. IK and joint paths ------------------------------------------------------------
+    # --- 1. IK (then joint paths in `_build`) ----------------------------------------------
+    # Nothing reachable, or a failure while poses are unreachable, is an `UnreachableError` that
+    # carries the IK verdict; a partly unreachable plan that can be timed is (with warnings).
     T_world_tcp = [T_wp @ plan.tcp_frames(i) for i in range(len(plan.passes))]
     t0 = time.perf_counter()
     q_paths, reachability = _ik_paths(robot, T_world_tcp, q_home, settings, ik_results)
     timing["ik"] = time.perf_counter() - t0
+    if reachability is not None and reachability["n_reachable"] == 0:
+        raise UnreachableError(f"{reachability['verdict']}; {_MOVE_PART}")
+    try:
+        return _build(robot, plan, settings, T_world_tcp, q_paths, reachability, q_home, timing)
+    except TrajectoryError as exc:
+        if reachability is None or reachability["all_reachable"]:
+            raise
+        # A move or time law that fails on a partly unreachable plan fails because of it: say so
+        # (the joint-limit message of a move alone would hide the IK report).
+        cause = str(exc).split(";")[0]
+        raise UnreachableError(f"{reachability['verdict']}; the program cannot be built "
+                               f"({cause}); {_MOVE_PART}") from exc
+
+
+def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
+           T_world_tcp: list[np.ndarray], q_paths: list[np.ndarray],
+           reachability: dict[str, Any] | None, q_home: np.ndarray,
+           timing: dict[str, float]) -> JointTrajectory:
+    """Stages 1 (joint paths) to 4 of `build_program`, after IK."""
+    n = int(robot.nq)
+    v_max = np.asarray(robot.v_max, float)
+    a_max = np.asarray(robot.a_max, float)
+    v_lim = settings.velocity_margin * v_max
+    a_lim = settings.acceleration_margin * a_max
+    j_lim = a_lim / settings.jerk_ramp_s
 
     def fk_pos(Q: np.ndarray) -> np.ndarray:
         return robot.fk_many(Q)[:, :3, 3]

@@ -116,3 +116,26 @@ def test_placement_with_dls_for_the_ur10():
     T_base, rep = find_base_pose(ur, paths, candidates=cands, n_refine=2)
     assert rep.feasible, rep.verdict
     assert np.isclose(T_base[0, 3], -0.75) and not np.isfinite(rep.scores[0])
+
+
+def test_unreachable_verdict_says_where_and_how_far(abb):
+    """All poses out of reach (panel 8 m away): the one-line verdict names the worst pose and
+    its position residual [m], and holds no nan (no reachable pose has a limit margin)."""
+    T = _panel_raster(_vertical_panel_at(8.0, 1.0), width=0.4, height=0.2, n_pass=2, step=0.05)
+    rep = combined_report(solve_paths(abb, T))
+    assert rep.n_reachable == 0
+    v = rep.verdict
+    p, i = rep.worst_pose()
+    k = int(np.flatnonzero((rep.pass_index == p) & (rep.pose_index == i))[0])
+    assert "nan" not in v.lower() and "\n" not in v
+    assert f"worst pass {p} pose {i} is {rep.pos_residual_m[k]:.3f} m out of reach" in v
+    assert rep.pos_residual_m[k] > 5.0 and "joint-limit margin" not in v
+    # Partly reachable: the margin is that of the reachable poses, still finite.
+    Q = np.random.default_rng(21).uniform(abb.q_lower, abb.q_upper, (10, 6))
+    T2 = abb.fk_many(Q)
+    T2[4, :3, 3] += [0.0, 0.0, 0.25]
+    rep2 = ReachabilityReport.measure(abb, Q, T2)
+    assert "worst pass 0 pose 4 is 0.250 m out of reach" in rep2.verdict
+    assert f"min joint-limit margin {abb.limit_margin(np.delete(Q, 4, 0)).min():.3f}" in \
+        rep2.verdict
+    assert "nan" not in rep2.verdict.lower()

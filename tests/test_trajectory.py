@@ -11,6 +11,7 @@ import pytest
 from planning.applicator import Applicator
 from planning.plan import CoveragePlan, PassPlan
 from robots import load_robot
+from robots.errors import UnreachableError
 from sim.joint_trajectory import (
     APPROACH,
     PAINT,
@@ -340,3 +341,52 @@ def test_turnaround_choice_is_measured_and_honoured(robot, plan, max_dip: float)
         assert all(r["mode"] != "direct" for r in recs)
     v, a, j = _limits(tr)
     assert np.all(np.abs(np.diff(tr.q, 2, axis=0)) / tr.dt_s**2 <= a * (1 + FD_LIMIT_RTOL))
+
+
+def _far(dx_m: float) -> np.ndarray:
+    T = np.eye(4)
+    T[0, 3] = dx_m
+    return T
+
+
+def test_part_out_of_reach_raises_unreachable_with_the_ik_verdict(robot, plan) -> None:
+    """Panel 8 m away: no pose is reachable, so the error is the IK verdict and the fix, not a
+    joint-limit message of some move between passes."""
+    with pytest.raises(UnreachableError) as info:
+        build_program(robot, plan, _far(8.0))
+    msg = str(info.value)
+    assert "UNREACHABLE 153/153 poses" in msg and "m out of reach" in msg
+    assert "robots.placement.find_base_pose" in msg and "\n" not in msg
+    assert "nan" not in msg.lower()
+
+
+def test_partly_unreachable_plan_that_cannot_be_built_raises_unreachable(robot, plan) -> None:
+    """0.8 m further: 2 of 3 passes out of reach; the moves between them leave the joint limits.
+    The error says so and carries the verdict (a `TrajectoryError` used to hide it)."""
+    from robots.ik import solve_paths
+
+    T = _far(0.8)
+    ik = solve_paths(robot, [T @ plan.tcp_frames(i) for i in range(N_PASSES)],
+                     q_seed=robot.q_home)
+    with pytest.raises(UnreachableError, match=r"UNREACHABLE \d+/153 poses.*the program cannot "
+                                               r"be built \(.+\); move the part or the robot "
+                                               r"base"):
+        build_program(robot, plan, T, ik_results=ik)
+
+
+def test_partly_unreachable_plan_is_still_timed_with_warnings(robot, plan) -> None:
+    """A few poses off by millimetres: the program is built, the pass is named in
+    meta['warnings'] and the reachability summary says not all poses are reachable."""
+    from robots.ik import IKPathResult, solve_paths
+    from robots.reachability import ReachabilityReport
+
+    paths = [plan.tcp_frames(i) for i in range(N_PASSES)]
+    ik = solve_paths(robot, paths, q_seed=robot.q_home)
+    q = ik[1].q.copy()
+    q[24:27, 1] += 0.004                     # ~ 5 mm off the path at three samples
+    rep = ReachabilityReport.measure(robot, q, paths[1])
+    ik[1] = IKPathResult(q=q, reachability=rep, branch=ik[1].branch, method=ik[1].method)
+    tr = build_program(robot, plan, np.eye(4), ik_results=ik)
+    assert not tr.meta["reachability"]["all_reachable"]
+    assert tr.meta["reachability"]["n_unreachable"] == 3
+    assert any(w.startswith("pass 1: joint path") for w in tr.meta["warnings"])
