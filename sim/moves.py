@@ -106,47 +106,32 @@ def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: np
     return move
 
 
+def _phase_table(prof: ruckig.Profile) -> np.ndarray:
+    """(P, 5) rows (t_start [s], p0, v0, a0, j) of one joint's profile: the brake pre-profile's
+    phases (those with a duration), the seven constant-jerk phases, then a hold of the final
+    state with jerk 0 after the profile (ruckig's own convention: the final acceleration holds)."""
+    b = prof.brake
+    brake = [(b.t[k], b.p[k], b.v[k], b.a[k], b.j[k])
+             for k in range(2) if b.duration > 0 and b.t[k] > 0]
+    main = [(prof.t[k], prof.p[k], prof.v[k], prof.a[k], prof.j[k]) for k in range(7)]
+    rows = np.array(brake + main + [(0.0, prof.p[7], prof.v[7], prof.a[7], 0.0)], float)
+    # Phase start times: the running sum of the durations before each phase.
+    rows[:, 0] = np.concatenate([[0.0], np.cumsum(rows[:-1, 0])])
+    return rows
+
+
 def _from_profiles(traj: ruckig.Trajectory, n: int) -> JointMove:
-    """Phase tables of a one-section ruckig trajectory."""
+    """Phase tables of a one-section ruckig trajectory (joints padded to the same phase count
+    with phases that start at t = inf)."""
     if len(traj.profiles) != 1:
         raise TrajectoryError("internal: expected a ruckig trajectory without waypoints")
-    rows = []
-    for prof in traj.profiles[0]:
-        ts, ps, vs, as_, js = [], [], [], [], []
-        t = 0.0
-        b = prof.brake
-        if b.duration > 0:
-            for k in range(2):
-                if b.t[k] > 0:
-                    ts.append(t)
-                    ps.append(b.p[k])
-                    vs.append(b.v[k])
-                    as_.append(b.a[k])
-                    js.append(b.j[k])
-                    t += b.t[k]
-        for k in range(7):
-            ts.append(t)
-            ps.append(prof.p[k])
-            vs.append(prof.v[k])
-            as_.append(prof.a[k])
-            js.append(prof.j[k])
-            t += prof.t[k]
-        # After the profile: hold the final acceleration (ruckig's own convention), jerk 0.
-        ts.append(t)
-        ps.append(prof.p[7])
-        vs.append(prof.v[7])
-        as_.append(prof.a[7])
-        js.append(0.0)
-        rows.append((ts, ps, vs, as_, js))
-    width = max(len(r[0]) for r in rows)
-
-    def pad(x: list[float], last_t: bool = False) -> list[float]:
-        return x + [np.inf if last_t else x[-1]] * (width - len(x))
-
-    t_start = np.array([pad(r[0], True) for r in rows])
-    return JointMove(duration_s=float(traj.duration), t_start=t_start,
-                     p0=np.array([pad(r[1]) for r in rows]), v0=np.array([pad(r[2]) for r in rows]),
-                     a0=np.array([pad(r[3]) for r in rows]), j=np.array([pad(r[4]) for r in rows]))
+    tables = [_phase_table(prof) for prof in traj.profiles[0]]
+    width = max(len(tb) for tb in tables)
+    pad = np.array([np.vstack([tb, np.tile(tb[-1], (width - len(tb), 1))]) for tb in tables])
+    for k, tb in enumerate(tables):
+        pad[k, len(tb):, 0] = np.inf
+    return JointMove(duration_s=float(traj.duration), t_start=pad[:, :, 0], p0=pad[:, :, 1],
+                     v0=pad[:, :, 2], a0=pad[:, :, 3], j=pad[:, :, 4])
 
 
 def _crosscheck(move: JointMove, traj: ruckig.Trajectory) -> None:

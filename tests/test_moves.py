@@ -69,3 +69,38 @@ def test_move_rejects_bad_input() -> None:
         plan_move(z, z, z, z + np.nan, z, z, V, A, J)
     with pytest.raises(TrajectoryError, match="position limits"):
         plan_move(z, z, z, z + 0.5, z, z, V, A, J, q_lower=z - 1, q_upper=z + 0.2)
+
+
+def test_phase_tables_cover_brake_and_hold() -> None:
+    """One phase-table helper for every joint: brake phases (when ruckig brakes first), the seven
+    constant-jerk phases, then the hold (jerk 0); start times are the running phase durations."""
+    from sim.moves import _phase_table
+
+    rng = np.random.default_rng(7)
+    a, b = _random_state(rng, 1.0), _random_state(rng, 0.3)  # at the limits: a brake phase
+    a = (a[0], 1.2 * V * np.sign(a[1]), a[2])                # faster than v_max: must brake
+    inp = ruckig.InputParameter(N)
+    (inp.current_position, inp.current_velocity, inp.current_acceleration, inp.target_position,
+     inp.target_velocity, inp.target_acceleration) = (x.tolist() for x in (*a, *b))
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = V.tolist(), A.tolist(), J.tolist()
+    traj = ruckig.Trajectory(N)
+    ruckig.Ruckig(N).calculate(inp, traj)
+    n_brake = 0
+    for prof in traj.profiles[0]:
+        tb = _phase_table(prof)
+        brake = [t for t in prof.brake.t if t > 0] if prof.brake.duration > 0 else []
+        n_brake += len(brake)
+        durations = [*brake, *prof.t]
+        assert tb.shape == (len(durations) + 1, 5)
+        np.testing.assert_allclose(tb[:, 0], np.concatenate([[0.0], np.cumsum(durations)]),
+                                   atol=1e-15)
+        assert tb[-1, 4] == 0.0 and tb[-1, 1] == prof.p[7] and tb[-1, 3] == prof.a[7]
+    assert n_brake > 0
+    m = plan_move(*a, *b, V, A, J)
+    ts = np.linspace(0.0, m.duration_s, 40)
+    q, qd, qdd = m.sample(ts)
+    for k, t in enumerate(ts):
+        p, v, acc = traj.at_time(float(t))
+        np.testing.assert_allclose(q[k], p, atol=RUCKIG_STATE_ATOL)
+        np.testing.assert_allclose(qd[k], v, atol=RUCKIG_STATE_ATOL)
+        np.testing.assert_allclose(qdd[k], acc, atol=RUCKIG_STATE_ATOL)
