@@ -24,6 +24,7 @@ from scipy.interpolate import BSpline, CubicSpline
 
 from planning.atomic_io import atomic_write_npz
 from planning.errors import SurfaceError
+from planning.transforms import check_pose
 
 _FORMAT = "paintcell.Surface/1"
 _ARRAY_FIELDS = ("vertices", "faces", "normals", "vertex_areas", "gaussian_curvature",
@@ -103,13 +104,8 @@ class Surface:
         Positions, normals and principal directions are moved; curvature, uv and areas are rigid
         invariants and are kept.
         """
-        T = np.asarray(T_new_part, dtype=float)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise SurfaceError(f"transform has shape {T.shape}; pass a finite 4x4 rigid transform")
+        T = check_pose(T_new_part, "surface transform", tol=1e-9, error=SurfaceError)
         R, t = T[:3, :3], T[:3, 3]
-        if (not np.allclose(R @ R.T, np.eye(3), atol=1e-9) or np.linalg.det(R) < 0
-                or not np.allclose(T[3], [0, 0, 0, 1])):
-            raise SurfaceError("transform is not rigid (R must be a rotation, last row 0 0 0 1)")
         return replace(
             self,
             vertices=self.vertices @ R.T + t,

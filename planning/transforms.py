@@ -62,33 +62,18 @@ def check_pose(T: npt.ArrayLike, name: str, tol: float = POSE_TOL,
 
 
 def quat_wxyz_from_matrix(R: npt.ArrayLike) -> np.ndarray:
-    """Unit quaternion (4,) (w, x, y, z), w ≥ 0, of a rotation matrix R (3, 3).
+    """Unit quaternions (..., 4) (w, x, y, z), w ≥ 0, of rotation matrices R (..., 3, 3).
 
-    Shepperd's method: the largest of the four squared components is taken from the diagonal,
-    the others from off-diagonal sums, so no branch divides by a small number.
+    scipy's `Rotation.from_matrix` does the conversion (Shepperd-style, no division by a small
+    number); only the order (MuJoCo's and ABB RAPID's w-first) and the sign (w ≥ 0) are ours.
     """
+    from scipy.spatial.transform import Rotation
+
     M = np.asarray(R, dtype=float)
-    if M.shape != (3, 3) or not np.all(np.isfinite(M)):
-        raise TransformError(f"rotation has shape {M.shape} or non-finite entries; pass a "
-                             "finite 3x3 rotation matrix")
-    tr = float(np.trace(M))
-    d = np.array([tr, M[0, 0], M[1, 1], M[2, 2]])
-    k = int(np.argmax(d))
-    if k == 0:
-        s = 2.0 * np.sqrt(max(1.0 + tr, 0.0))
-        q = np.array([0.25 * s, (M[2, 1] - M[1, 2]) / s, (M[0, 2] - M[2, 0]) / s,
-                      (M[1, 0] - M[0, 1]) / s])
-    elif k == 1:
-        s = 2.0 * np.sqrt(max(1.0 + M[0, 0] - M[1, 1] - M[2, 2], 0.0))
-        q = np.array([(M[2, 1] - M[1, 2]) / s, 0.25 * s, (M[0, 1] + M[1, 0]) / s,
-                      (M[0, 2] + M[2, 0]) / s])
-    elif k == 2:
-        s = 2.0 * np.sqrt(max(1.0 - M[0, 0] + M[1, 1] - M[2, 2], 0.0))
-        q = np.array([(M[0, 2] - M[2, 0]) / s, (M[0, 1] + M[1, 0]) / s, 0.25 * s,
-                      (M[1, 2] + M[2, 1]) / s])
-    else:
-        s = 2.0 * np.sqrt(max(1.0 - M[0, 0] - M[1, 1] + M[2, 2], 0.0))
-        q = np.array([(M[1, 0] - M[0, 1]) / s, (M[0, 2] + M[2, 0]) / s,
-                      (M[1, 2] + M[2, 1]) / s, 0.25 * s])
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0 else -q
+    if M.ndim < 2 or M.shape[-2:] != (3, 3) or not np.all(np.isfinite(M)):
+        raise TransformError(f"rotation has shape {M.shape} or non-finite entries; pass finite "
+                             "3x3 rotation matrices")
+    xyzw = Rotation.from_matrix(M.reshape(-1, 3, 3)).as_quat()
+    q = np.column_stack([xyzw[:, 3], xyzw[:, :3]])
+    q[q[:, 0] < 0] *= -1.0
+    return q.reshape(*M.shape[:-2], 4)

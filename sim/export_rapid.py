@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from planning.transforms import quat_wxyz_from_matrix
 from sim.joint_trajectory import PAINT, JointTrajectory
 
 _EXT = "[9E9,9E9,9E9,9E9,9E9,9E9]"
@@ -34,16 +35,6 @@ class RapidTarget:
     conf: tuple[int, int, int, int]
     speed_mm_s: float
     brush: int | None  # 1: switch on at this target, 0: switch off, None: no change
-
-
-def rot_to_quat_wxyz(R: np.ndarray) -> np.ndarray:
-    """(…, 3, 3) rotation matrices → (…, 4) unit quaternions [w, x, y, z] with w ≥ 0."""
-    from scipy.spatial.transform import Rotation
-
-    q = Rotation.from_matrix(np.asarray(R).reshape(-1, 3, 3)).as_quat()  # x, y, z, w
-    q = np.column_stack([q[:, 3], q[:, :3]])
-    q[q[:, 0] < 0] *= -1.0
-    return q.reshape(*np.shape(R)[:-2], 4)
 
 
 def confdata(q: np.ndarray) -> tuple[int, int, int, int]:
@@ -84,7 +75,7 @@ def _pass_targets(traj: JointTrajectory, T_base_world: np.ndarray, idx: np.ndarr
     R_bw, p_bw = T_base_world[:3, :3], T_base_world[:3, 3]
     pos_b = (pos_w[keep] @ R_bw.T + p_bw) * 1000.0
     rot_b = np.einsum("ij,kjl->kil", R_bw, traj.tcp_rot_world[idx][keep])
-    quats = rot_to_quat_wxyz(rot_b)
+    quats = quat_wxyz_from_matrix(rot_b)
     t = traj.t_s[idx][keep]
     targets = []
     for j, i in enumerate(keep):
@@ -123,7 +114,7 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
         raise ValueError("target spacing must be positive [m]")
     T_base_world = np.linalg.inv(np.asarray(robot.T_world_base, float))
     T_flange_tcp = np.asarray(getattr(robot, "T_flange_tcp", np.eye(4)), float)
-    tq = rot_to_quat_wxyz(T_flange_tcp[:3, :3])
+    tq = quat_wxyz_from_matrix(T_flange_tcp[:3, :3])
     tp = T_flange_tcp[:3, 3] * 1000.0
 
     passes = sorted(int(k) for k in np.unique(traj.pass_index[traj.segment == PAINT]) if k >= 0)

@@ -8,7 +8,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sim.export_rapid import confdata, rapid_module, rot_to_quat_wxyz
+from planning.transforms import quat_wxyz_from_matrix
+from sim.export_rapid import confdata, rapid_module
 from sim.joint_trajectory import APPROACH, PAINT, RETRACT, TURNAROUND, JointTrajectory
 
 DT = 1e-3
@@ -117,7 +118,7 @@ def test_quaternion_and_confdata_conventions() -> None:
     from scipy.spatial.transform import Rotation
 
     R = Rotation.from_euler("xyz", [0.3, -0.2, 1.1]).as_matrix()
-    q = rot_to_quat_wxyz(R)
+    q = quat_wxyz_from_matrix(R)
     w, x, y, z = q
     R2 = Rotation.from_quat([x, y, z, w]).as_matrix()
     assert np.allclose(R, R2, atol=1e-12) and w >= 0
