@@ -22,7 +22,7 @@ SCENARIO = Scenario(
     base=Placement(xyz_m=(-0.26, 0.3, 0.75), rpy_rad=(0.0, 0.0, -0.197)),
     trajectory={"q_home": (0.0, -0.4, 1.0, 0.0, 0.5, 0.0), "ik_free_spin": True,
                 "retract_clearance_m": 0.3},
-    # Achieved (fast / full): executed σ/μ 7.53 / 7.25 %, loss −0.37 / −0.38 pp (the spun bell
+    # Achieved (fast / full): executed σ/μ 7.53 / 7.25 %, loss −0.38 / −0.39 pp (the spun bell
     # lays a slightly more even film than planned), cycle 21.45 / 21.46 s. Limits: σ/μ + ~2
     # points, loss + ~0.5 pp, cycle time + ~15 %.
     thresholds=Thresholds(

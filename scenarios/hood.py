@@ -1,18 +1,18 @@
-"""Hood: gently doubly curved B-spline, planform 1.5 m (along the car) × 1.2 m, crowned (radii
-≈ 6 m along the car, ≈ 3.5 m across), painted from above.
+"""Hood: gently doubly curved B-spline, planform 1.5 m (along the car) × 1.2 m, crowned (radii ≈ 6 m
+along the car, ≈ 3.5 m across), painted from above.
 
-Cell: the hood lies horizontal, painted side up, centre 1.2 m in front of the origin at 0.8 m,
-its 1.5 m side across the robot's view; the passes run across the view (1.8 m long with the
-overspray) and step away from the robot over 1.33 m (edge passes included). That is the edge of
-this arm's envelope: the far pass ends are 2.0 m from the base, the near pass 0.2 m from it. The
-robot stands on a 0.35 m pedestal 0.9 m behind the hood centre — the `find_base_pose` optimum
-(0.065 rad worst-case margin, fixed bell spin) among the bases whose IK samples are free of
-robot–part and robot–robot contact: lower bases swing the upper arm through the hood's near
-edge, higher ones (or free bell spin) fold the wrist into the robot's own base on the near
-pass. Passes start and end at rest: the at-speed exit of the far pass carried the upper arm
-into the hood's near edge during the retract; the retract cannot back off (the far pass end is
-at full stretch). Offsetting the right side first gives 7 passes (the left first, 8: an
-extra edge pass 0.26 m outside, out of reach) at the same predicted σ/μ.
+Cell: the hood lies horizontal, painted side up, centre 1.2 m in front of the origin at 0.8 m, its
+1.5 m side across the robot's view; the passes run across the view (1.8 m long with the overspray)
+and step away from the robot over 1.33 m (edge passes included). That is the edge of this arm's
+envelope: the far pass ends are 1.8 m from the base axis, the near pass 0.23 m from it. The robot
+stands on a 0.35 m pedestal 0.9 m behind the hood centre — the `find_base_pose` optimum (0.065 rad
+worst-case margin, fixed bell spin) among the bases whose IK samples are free of robot–part and
+robot–robot contact: lower bases swing the upper arm through the hood's near edge, higher ones (or
+free bell spin) fold the wrist into the robot's own base on the near pass. Passes start and end at
+rest: the at-speed exit of the far pass carried the upper arm into the hood's near edge during the
+retract; the retract cannot back off (the far pass end is at full stretch). Offsetting the right
+side first gives 7 passes (the left first, 8: an extra edge pass 0.26 m outside, out of reach) at
+the same predicted σ/μ.
 """
 
 from sim.scenario import Placement, Scenario, Thresholds

@@ -1,17 +1,18 @@
-"""Roof: gently curved B-spline, planform 1.6 m (along the car) × 1.3 m (across), radii ≈ 8 m
-along the car and 3 m → 1 m toward the side rails, painted from above.
+"""Roof: gently curved B-spline, planform 1.6 m (along the car) × 1.3 m (across), radii ≈ 8 m along
+the car and 3 m → 1 m toward the side rails, painted from above.
 
-Cell: the roof lies horizontal, painted side up, centre 1.2 m in front of the origin at 1.0 m,
-its 1.6 m side across the view; the 5 passes (1.9 m long with the overspray) step over 1.68 m
-(the edge passes sit outside the rails, where the normals lean out). No floor or pedestal base
-reaches that: this arm covers ~1.3 m of depth at ±0.95 m across (`find_base_pose`, 0 of 1275
-floor/pedestal bases up to 2 m feasible, with or without bell spin). So the robot hangs
-inverted from an overhead beam 3.2 m up, over the near third of the roof (x = 0.8 m) — the
-`find_base_pose` optimum over inverted bases (free bell spin, worst-case margin 0.14 rad), as
-ceiling-mounted paint robots paint roofs. The bell may spin about its axis (fixed spin leaves no
-feasible base). Home holds the bell pointing down 0.75 m above the roof; the approach and retract
-back off 0.3 m (0.1 m swept the flange into the roof). The turn-around after pass 2 reconfigures
-the arm and comes ~0.19 m closer to the roof than the pass ends (brush off; no contact).
+Cell: the roof lies horizontal, painted side up, centre 1.2 m in front of the origin at 1.0 m, its
+1.6 m side across the view; the 5 passes (1.9 m long with the overspray) step over 1.68 m (the edge
+passes sit outside the rails, where the normals lean out). No floor or pedestal base reaches that:
+this arm covers ~1.3 m of depth at ±0.95 m across (`find_base_pose`: 0 of 1275 floor/pedestal bases
+up to 2 m high feasible with the bell's spin fixed, 0 of 336 on pedestals of 0.5–2 m with free
+spin). So the robot hangs inverted from an overhead beam 3.2 m up, over the near third of the roof
+(x = 0.8 m) — the `find_base_pose` optimum over inverted bases (free bell spin, worst-case margin
+0.14 rad), as ceiling-mounted paint robots paint roofs. The bell may spin about its axis (fixed
+spin leaves no feasible base). Home holds the bell pointing down 0.75 m above the roof; the
+approach and retract back off 0.3 m (0.1 m swept the flange into the roof). The turn-around after
+pass 2 reconfigures the arm and comes ~0.2 m closer to the roof than the pass ends (brush off; no
+contact).
 """
 
 from sim.scenario import Placement, Scenario, Thresholds
