@@ -279,7 +279,8 @@ def _fmt(v: Any) -> str:
     if v is None:
         return "-"
     if isinstance(v, float):
-        return f"{v:.2f}"
+        # Counts (collisions) and whole percentages print without decimals.
+        return f"{v:.0f}" if v.is_integer() and abs(v) < 1e9 else f"{v:.2f}"
     return str(v)
 
 
