@@ -7,8 +7,14 @@ model evaluates), with collision geometry made of thin convex slabs (the open sh
 `shell_thickness_m` and cut into pieces of about `collision_piece_m`, because MuJoCo collides
 meshes through their convex hulls and the hull of a curved shell would be a solid lens).
 The booth is a floor plane (its own static body, so contacts name it). Sensors on the TCP site,
-the actuator forces and robot-vs-part / robot-vs-booth contact detectors let `sim.execute` roll
-the whole program out inside MuJoCo.
+the actuator forces and robot-vs-part / robot-vs-booth / robot-vs-robot (self-collision) contact
+detectors let `sim.execute` roll the whole program out inside MuJoCo.
+
+Self-collision: every robot collision geom collides with every other (`_COLLISION_BIT` in both
+contype and conaffinity), except what MuJoCo filters (parent–child bodies, bodies welded together)
+and the excluded pairs — the robot MJCF's own `<contact><exclude>` neighbours, whose collision
+capsules overlap by construction at a joint, and the foot against its moving children (below).
+The `contact_self` sensor (robot subtree against the same subtree) sees exactly those contacts.
 """
 
 from __future__ import annotations
@@ -35,6 +41,11 @@ BOOTH_BODY = "booth"
 #: contact sensor data: found (1) + dist (8) (MuJoCo mjtConDataField bits), reduce = mindist.
 _CONTACT_DATA_FOUND_DIST = 1 | 8
 _CONTACT_REDUCE_MINDIST = 1
+#: contype/conaffinity bit shared by the robot's collision geoms, the part slabs and the floor
+#: (MuJoCo's default 1): any two of them collide, the robot's links with each other included.
+_COLLISION_BIT = 1
+#: name of the robot-vs-robot (self-collision) contact sensor.
+SELF_CONTACT_SENSOR = "contact_self"
 
 
 class CellError(PaintcellError):
@@ -84,7 +95,8 @@ class Cell:
     tcp_site_id, tcp_site_name: the TCP site (spray point; z = spray axis, x = travel).
     robot_body_ids: (B,) ids of every robot body; part_body_id, booth_body_id; names likewise.
     part_visual_geom_id: the mesh geom that shows the painted surface (vertex order of `surface`).
-    sensor slices: tcp_pos / tcp_quat / actuator forces / contact (found, dist) per partner.
+    sensor slices: tcp_pos / tcp_quat / actuator forces / contact (found, dist) per partner:
+        part, booth (empty slice without a booth) and the robot itself (self-collision).
     T_world_part, T_world_base: (4, 4) placements [m].
     camera_names: fixed cameras (front, top, passes presets unless overridden).
     """
@@ -114,6 +126,7 @@ class Cell:
     sensor_actuator_force: slice
     sensor_contact_part: slice
     sensor_contact_booth: slice
+    sensor_contact_self: slice
     q_home: np.ndarray
     surface_name: str = ""
     meta: dict[str, Any] = field(default_factory=dict)
@@ -248,6 +261,14 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     frame = spec.worldbody.add_frame(pos=T_world_base[:3, 3],
                                      quat=quat_wxyz_from_matrix(T_world_base[:3, :3]))
     spec.attach(robot_spec, prefix=ROBOT_PREFIX, frame=frame)
+    # The robot's collision geoms (those with a contype or conaffinity bit; visual geoms have
+    # neither) must collide with each other, not only with the part and the floor: a robot MJCF
+    # may split the bits (contype 2 / conaffinity 1 is a common way to switch self-collision off).
+    # Only the robot's geoms exist at this point.
+    for geom in spec.geoms:
+        if geom.contype or geom.conaffinity:
+            geom.contype |= _COLLISION_BIT
+            geom.conaffinity |= _COLLISION_BIT
 
     # --- part: visual mesh (exact surface) + thin convex collision slabs ---------------------
     part = spec.worldbody.add_body(name=PART_BODY, pos=T_world_part[:3, 3],
@@ -283,7 +304,12 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         # The robot's foot stands on the floor by design: not a collision.
         spec.add_exclude(bodyname1=ROBOT_PREFIX + robot.base_body_name, bodyname2=BOOTH_BODY)
     # MuJoCo filters parent-child contacts except for a parent welded to the world (the robot's
-    # foot): exclude the foot from its moving children too, as the arm's own parents are.
+    # foot): exclude the foot from its moving children too, as the arm's own parents are (the
+    # rotating base stands in the foot plate by construction, e.g. the ABB link1 cylinder
+    # overlaps the foot box by 20 mm). Neighbours two joints apart whose collision geoms overlap
+    # by construction are excluded by the robot MJCF itself (`<contact><exclude>`, e.g. the ABB
+    # link1/link3, link3/link5, link4/flange); no other robot pair touches at the home pose
+    # (tests/test_cell.py checks this for every robot), so self-contacts are real collisions.
     base_body = spec.body(ROBOT_PREFIX + robot.base_body_name)
     if base_body is None:
         raise CellError(f"robot MJCF has no body {robot.base_body_name!r}; fix base_body_name")
@@ -323,6 +349,14 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
                         objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=base_name,
                         reftype=mujoco.mjtObj.mjOBJ_BODY, refname=partner,
                         intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
+    # Self-collision: the robot subtree against the same subtree matches the contacts whose two
+    # geoms both belong to the robot (MuJoCo 4.0 contact-sensor matching: each side's criterion
+    # must hold for one of the two geoms). Only contacts MuJoCo generated are seen, so the
+    # filtered (parent-child, welded) and excluded pairs never count.
+    spec.add_sensor(name=SELF_CONTACT_SENSOR, type=mujoco.mjtSensor.mjSENS_CONTACT,
+                    objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=base_name,
+                    reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=base_name,
+                    intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
 
     try:
         model = spec.compile()
@@ -386,6 +420,7 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
         sensor_actuator_force=slice(tau_first.start, tau_first.start + n),
         sensor_contact_part=sensor_slice(f"contact_{PART_BODY}"),
         sensor_contact_booth=sensor_slice(f"contact_{BOOTH_BODY}") if booth else slice(0, 0),
+        sensor_contact_self=sensor_slice(SELF_CONTACT_SENSOR),
         q_home=np.asarray(robot.q_home, float).copy(),
         surface_name=surface.name,
     )

@@ -16,9 +16,9 @@ robot MJCF with joint Coulomb friction added (`frictionloss`, `coulomb_friction`
 The torque of step k needs states up to t_{k−d} only, so the program is rolled out inside MuJoCo
 (`mujoco.rollout`) in exact chunks of d + 1 steps, each chunk's controls computed with one
 matrix product from the states the previous chunks produced. TCP pose, joint torques and
-robot-vs-part/booth contacts come from sensors at every step; steps where a contact sensor fires
-are re-evaluated to name the bodies and the depth. After the program the last reference is held
-for SETTLE_MAX_S in the same loop to measure settling.
+robot-vs-part/booth and robot-vs-robot (self-collision) contacts come from sensors at every step;
+steps where a contact sensor fires are re-evaluated to name the bodies and the depth. After the
+program the last reference is held for SETTLE_MAX_S in the same loop to measure settling.
 
 Kinematic mode sets q, q̇ to the reference each step (the control case); torques are the exact
 inverse dynamics of the plant.
@@ -542,10 +542,17 @@ def _run_kinematic(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref:
 
 def _contacts(model: mujoco.MjModel, cell: Cell, q: np.ndarray, sens: np.ndarray,
               t_s: np.ndarray) -> tuple[Contact, ...]:
-    """Name the bodies of every robot-vs-part/booth contact the sensors saw (deepest per pair)."""
+    """Name the bodies of every robot-vs-part/booth and robot-vs-robot contact the sensors saw
+    (deepest per body pair and step).
+
+    Robot-vs-part/booth: body1 is the robot body, body2 the part or booth. Self-collision: both
+    are robot bodies, body1 the one farther out along the chain (bodies are numbered depth-first,
+    so a descendant has the larger id), e.g. ("robot/link5", "robot/base_link").
+    """
     found = sens[:, cell.sensor_contact_part.start] > 0
-    if cell.sensor_contact_booth.stop > cell.sensor_contact_booth.start:
-        found |= sens[:, cell.sensor_contact_booth.start] > 0
+    for sl in (cell.sensor_contact_booth, cell.sensor_contact_self):
+        if sl.stop > sl.start:
+            found |= sens[:, sl.start] > 0
     steps = np.flatnonzero(found)
     if len(steps) == 0:
         return ()
@@ -562,9 +569,12 @@ def _contacts(model: mujoco.MjModel, cell: Cell, q: np.ndarray, sens: np.ndarray
             continue
         bodies = model.geom_bodyid[d.contact.geom[:nc]]
         depth = -d.contact.dist[:nc]
-        swap = robot[bodies[:, 1]] & ~robot[bodies[:, 0]]
+        both = robot[bodies[:, 0]] & robot[bodies[:, 1]]
+        # Robot body first; between two robot bodies, the distal one (larger id) first.
+        swap = np.where(both, bodies[:, 0] < bodies[:, 1],
+                        robot[bodies[:, 1]] & ~robot[bodies[:, 0]])
         bodies[swap] = bodies[swap][:, ::-1]
-        keep = robot[bodies[:, 0]] & np.isin(bodies[:, 1], partners)
+        keep = both | (robot[bodies[:, 0]] & np.isin(bodies[:, 1], partners))
         deepest: dict[tuple[int, int], float] = {}
         for (b1, b2), dep in zip(bodies[keep].tolist(), depth[keep].tolist(), strict=True):
             deepest[(b1, b2)] = max(deepest.get((b1, b2), 0.0), dep)

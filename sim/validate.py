@@ -42,7 +42,8 @@ class Thresholds:
     """Pass/fail limits of a validation (inf or None disables a check).
 
     reachability_pct: minimum share of plan poses the robot reaches [%].
-    max_collisions: maximum number of robot–part/booth collision events.
+    max_collisions: maximum number of collision events: robot–part, robot–booth and robot–robot
+        (self-collision, e.g. the wrist driven into the robot's base).
     max_executed_nsd_pct: maximum executed film σ/μ over the part [%].
     max_loss_pp: maximum loss of uniformity, executed − planned σ/μ [percentage points].
     max_cycle_time_s: maximum executed cycle time [s].
@@ -153,7 +154,10 @@ def _inv(T: np.ndarray) -> np.ndarray:
 
 
 def collision_events(trace: ExecutedTrace, gap_s: float = _EVENT_GAP_S) -> list[dict[str, Any]]:
-    """Group per-step contacts into events: same body pair, consecutive in time (≤ gap_s [s])."""
+    """Group per-step contacts into events: same body pair, consecutive in time (≤ gap_s [s]).
+
+    Self-collisions (both bodies robot links, the distal one as body1) are events like any other.
+    """
     events: list[dict[str, Any]] = []
     open_by_pair: dict[tuple[str, str], dict[str, Any]] = {}
     for c in sorted(trace.contacts, key=lambda c: c.time_s):

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import warnings
+from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 import pytest
 
 from planning.surface import plane
-from sim.cell import CameraSpec, CellError, build_cell
+from sim.cell import CameraSpec, Cell, CellError, build_cell
 from tests.test_execute import make_case, make_cell
 
 
@@ -67,6 +69,98 @@ def test_robot_at_home_touches_nothing() -> None:
     mujoco.mj_forward(cell.model, d)
     assert d.sensordata[cell.sensor_contact_part.start] == 0
     assert d.sensordata[cell.sensor_contact_booth.start] == 0
+    assert d.sensordata[cell.sensor_contact_self.start] == 0
+
+
+def _robot_contacts(cell: Cell, q: np.ndarray) -> dict[tuple[str, str], float]:
+    """{(body, body): min distance [m]} of the robot-vs-robot contacts MuJoCo finds at q."""
+    m, d = cell.model, mujoco.MjData(cell.model)
+    d.qpos[cell.qpos_adr] = q
+    mujoco.mj_forward(m, d)
+    robot = set(cell.robot_body_ids.tolist())
+    out: dict[tuple[str, str], float] = {}
+    for c in (d.contact[i] for i in range(d.ncon)):
+        b = tuple(int(x) for x in m.geom_bodyid[c.geom])
+        if b[0] in robot and b[1] in robot:
+            key = tuple(sorted(m.body(x).name for x in b))
+            out[key] = min(out.get(key, 0.0), float(c.dist))  # type: ignore[index]
+    return out
+
+
+@pytest.mark.parametrize("name", ["abb_paint", "ur10"])
+def test_no_robot_links_overlap_by_construction(name: str) -> None:
+    """Self-contacts are real collisions: at the home pose no two robot bodies touch (a pair whose
+    collision geoms overlap by construction at a joint would touch at every pose), and no pair
+    touches in every one of a set of random poses within the joint limits."""
+    from robots import load_robot
+
+    case = make_case()
+    cell = build_cell(load_robot(name), case.surface, case.T_world_part)
+    assert _robot_contacts(cell, cell.q_home) == {}
+    m = cell.model
+    j = m.dof_jntid[cell.dof_adr]
+    lo = np.where(m.jnt_limited[j], m.jnt_range[j, 0], -np.pi)
+    hi = np.where(m.jnt_limited[j], m.jnt_range[j, 1], np.pi)
+    rng = np.random.default_rng(0)
+    seen = [set(_robot_contacts(cell, rng.uniform(lo, hi))) for _ in range(200)]
+    assert set.intersection(*seen) == set()
+
+
+def test_self_contact_sensor_sees_self_collisions_only() -> None:
+    """The robot-vs-robot sensor fires when the bell is folded into the upper arm (J3 at its
+    limit, J5 bent back), with that depth, and ignores what MuJoCo filters or the cell excludes:
+    the foot plate and the rotating base overlap by construction at every pose."""
+    cell = make_cell()
+    m = cell.model
+    d = mujoco.MjData(m)
+    folded = np.array([0.0, -0.2, 1.3, 0.0, 2.0, 0.0])
+    hits = _robot_contacts(cell, folded)
+    assert set(hits) == {("robot/flange", "robot/link2")} and hits[("robot/flange",
+                                                                     "robot/link2")] < -0.05
+    d.qpos[cell.qpos_adr] = folded
+    mujoco.mj_forward(m, d)
+    assert d.sensordata[cell.sensor_contact_self.start] > 0
+    assert d.sensordata[cell.sensor_contact_self.start + 1] == pytest.approx(
+        hits[("robot/flange", "robot/link2")])
+    assert d.sensordata[cell.sensor_contact_part.start] == 0
+    # The excluded foot/base pair really overlaps at home; the sensor does not count it.
+    d.qpos[cell.qpos_adr] = cell.q_home
+    mujoco.mj_forward(m, d)
+    body = m.geom_bodyid
+    foot = [g for g in range(m.ngeom) if m.body(body[g]).name == "robot/base_link"
+            and m.geom_contype[g]]
+    link1 = [g for g in range(m.ngeom) if m.body(body[g]).name == "robot/link1"
+             and m.geom_contype[g]]
+    assert foot and link1
+    assert mujoco.mj_geomDistance(m, d, foot[0], link1[0], 0.1, None) < 0
+    assert d.sensordata[cell.sensor_contact_self.start] == 0
+
+
+def test_robot_geoms_collide_with_each_other_whatever_their_bits(tmp_path: Path) -> None:
+    """A robot MJCF that switches self-collision off with split bits (contype 2, conaffinity 1:
+    the links still hit the part) gets its collision geoms colliding with each other again."""
+    from robots import load_robot
+
+    robot = load_robot("abb_paint")
+    xml = Path(robot.mjcf_path).read_text()
+    old = '<geom type="capsule" group="3"'
+    assert old in xml
+    split = tmp_path / "abb_paint_split_bits.xml"
+    split.write_text(xml.replace(old, '<geom type="capsule" group="3" contype="2" conaffinity="1"'))
+
+    class SplitBits:
+        def __getattr__(self, name: str) -> Any:
+            return split if name == "mjcf_path" else getattr(robot, name)
+
+    case = make_case()
+    cell = build_cell(SplitBits(), case.surface, case.T_world_part)  # type: ignore[arg-type]
+    m = cell.model
+    coll = [g for g in range(m.ngeom) if m.geom_bodyid[g] in cell.robot_body_ids
+            and (m.geom_contype[g] or m.geom_conaffinity[g])]
+    assert len(coll) >= 7 and all(m.geom_contype[g] & m.geom_conaffinity[h]
+                                  for g in coll for h in coll)
+    assert ("robot/flange", "robot/link2") in _robot_contacts(
+        cell, np.array([0.0, -0.2, 1.3, 0.0, 2.0, 0.0]))
 
 
 def test_part_collision_slabs_cover_the_shell() -> None:

@@ -236,6 +236,49 @@ def test_part_in_the_arm_path_is_a_reported_collision() -> None:
     assert len(run("servo", part_shift_m=0.3).contacts) > 0
 
 
+#: J3 at its limit and J5 bent back: the bell folded into the upper arm (10 cm deep).
+Q_FOLDED = (0.0, -0.2, 1.3, 0.0, 2.0, 0.0)
+
+
+@functools.lru_cache(maxsize=1)
+def make_fold() -> tuple[Cell, JointTrajectory]:
+    """A cell with the part 3 m behind the robot (out of reach) and a 1.5 s rest-to-rest move
+    from home to Q_FOLDED: the arm folds into itself and touches nothing else."""
+    case = make_case()
+    robot = case.robot
+    T_away = case.T_world_part.copy()
+    T_away[:3, 3] = (-3.0, 0.0, 1.0)
+    cell = build_cell(robot, case.surface, T_away)
+    q, qd, qdd = _segment(robot.q_home, np.array(Q_FOLDED), 1.5)
+    q, qd = np.vstack([q, Q_FOLDED]), np.vstack([qd, np.zeros((1, robot.nq))])
+    qdd = np.vstack([qdd, np.zeros((1, robot.nq))])
+    K = len(q)
+    T_tcp = robot.fk_many(q)
+    traj = JointTrajectory(
+        t_s=np.arange(K) * DT_S, q=q, qd=qd, qdd=qdd, tcp_pos_world=T_tcp[:, :3, 3],
+        tcp_rot_world=T_tcp[:, :3, :3], v_tcp_planned=np.zeros(K), paint_on=np.zeros(K, bool),
+        pass_index=np.full(K, -1), segment=np.full(K, APPROACH), s_pass_m=np.full(K, np.nan),
+        robot_name=robot.name, joint_names=tuple(robot.joint_names))
+    return cell, traj
+
+
+@pytest.mark.parametrize("mode", ["kinematic", "servo"])
+def test_arm_folded_into_itself_is_a_reported_self_collision(mode: str) -> None:
+    cell, traj = make_fold()
+    tr = execute(cell, traj, mode=mode)  # type: ignore[arg-type]
+    assert len(tr.contacts) > 0
+    # Both bodies are the robot's, the distal one first; the part and the floor are not touched.
+    assert {(c.body1, c.body2) for c in tr.contacts} == {("robot/flange", "robot/link2")}
+    assert all(c.depth_m > 0 for c in tr.contacts)
+    # The bell reaches the upper arm after 1.08 s of the 1.5 s move (kinematic depth at the end:
+    # 105 mm; the servo is stopped by the contact within millimetres).
+    assert min(c.time_s for c in tr.contacts) == pytest.approx(1.081, abs=0.01)
+    deepest = max(c.depth_m for c in tr.contacts)
+    assert deepest == pytest.approx(0.105, abs=0.002) if mode == "kinematic" else deepest < 0.02
+    # A normal program folds nothing: no contact of any kind, in either mode.
+    assert run(mode).contacts == ()
+
+
 def test_disturbances_are_seeded_and_applied() -> None:
     d = Disturbances(part_offset_m=0.01, part_rotation_rad=0.02, tcp_offset_m=0.005, seed=3)
     T1, o1 = d.realize()

@@ -11,12 +11,13 @@ import pytest
 
 from planning.applicator import Applicator
 from planning.deposition import thickness
-from sim.execute import Disturbances
+from sim.execute import Disturbances, execute
 from sim.trace import Contact, ExecutedTrace
 from sim.validate import (
     Thresholds,
     ValidationError,
     ValidationReport,
+    collision_events,
     executed_gun_samples,
     validate,
 )
@@ -26,7 +27,7 @@ from tests.helpers import (
     LOSS_RESOLUTION_PP,
     SERVO_TRACKING_MAX_MM,
 )
-from tests.test_execute import make_case, run
+from tests.test_execute import make_case, make_fold, run
 
 
 @functools.lru_cache(maxsize=8)
@@ -95,6 +96,26 @@ def test_collisions_are_counted_as_events_and_fail() -> None:
                    Thresholds(max_executed_nsd_pct=50.0))
     assert rep.metrics["n_collisions"] == 2 and rep.metrics["n_contact_samples"] == 4
     assert [e["samples"] for e in rep.collisions] == [3, 1]
+    assert not rep.passed and "collisions" in [ch.name for ch in rep.checks if not ch.passed]
+
+
+def test_self_collision_is_a_collision_event_with_both_robot_bodies() -> None:
+    """The contacts of the arm folded into itself (tests/test_execute.py) fail validation like a
+    robot–part collision: one event, both robot bodies named, its depth."""
+    c = make_case()
+    cell, traj = make_fold()
+    folded = execute(cell, traj, mode="kinematic")
+    events = collision_events(folded)
+    assert [(e["body1"], e["body2"]) for e in events] == [("robot/flange", "robot/link2")]
+    assert events[0]["samples"] == len(folded.contacts)
+    assert events[0]["max_depth_m"] == pytest.approx(max(h.depth_m for h in folded.contacts))
+    tr = run("kinematic")
+    bumped = ExecutedTrace(**{k: getattr(tr, k) for k in ExecutedTrace._ARRAYS}, mode=tr.mode,
+                           contacts=folded.contacts, meta=tr.meta)
+    rep = validate(c.plan, c.surface, c.traj, bumped, c.T_world_part,
+                   Thresholds(max_executed_nsd_pct=50.0))
+    assert rep.metrics["n_collisions"] == 1 and rep.metrics["max_contact_depth_mm"] > 100.0
+    assert rep.collisions[0]["body2"] == "robot/link2"
     assert not rep.passed and "collisions" in [ch.name for ch in rep.checks if not ch.passed]
 
 
