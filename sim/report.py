@@ -380,7 +380,7 @@ def _collisions_html(metrics: dict[str, Any], d: Path) -> str:
                    "t_end_s": c.time_s, "max_depth_m": c.depth_m, "samples": 1}
                   for c in trace.contacts]
     if not events:
-        return "<p>No robot–part or robot–booth contact during execution.</p>"
+        return "<p>No robot contact with the part, the booth or itself during execution.</p>"
     rows = [(html.escape(str(e.get("body1", ""))), html.escape(str(e.get("body2", ""))),
              html.escape(format_value(e.get("t_start_s"))),
              html.escape(format_value(e.get("t_end_s"))),

@@ -20,7 +20,7 @@ class TraceError(PaintcellError):
 
 @dataclass(frozen=True)
 class Contact:
-    """One contact between the robot and the part or booth during execution.
+    """One contact of the robot with the part, the booth or itself during execution.
 
     time_s: simulation time [s]; body1/body2: MuJoCo body names; depth_m: penetration [m] (> 0).
     """
@@ -38,7 +38,7 @@ class ExecutedTrace:
     t_s: (K,) time [s]; q, qd: (K, n) joint positions [rad] and velocities [rad/s];
     tau: (K, n) applied joint torques [N·m]; tcp_pos_world: (K, 3) TCP site position [m];
     tcp_rot_world: (K, 3, 3) TCP site orientation; paint_on: (K,) brush; pass_index: (K,);
-    mode: "kinematic" (ideal replay) or "servo"; contacts: every robot contact with part/booth.
+    mode: "kinematic" (ideal replay) or "servo"; contacts: every robot contact with part, booth or itself.
     """
 
     t_s: np.ndarray
