@@ -38,7 +38,8 @@ class ExecutedTrace:
     t_s: (K,) time [s]; q, qd: (K, n) joint positions [rad] and velocities [rad/s];
     tau: (K, n) applied joint torques [N·m]; tcp_pos_world: (K, 3) TCP site position [m];
     tcp_rot_world: (K, 3, 3) TCP site orientation; paint_on: (K,) brush; pass_index: (K,);
-    mode: "kinematic" (ideal replay) or "servo"; contacts: every robot contact with part, booth or itself.
+    mode: "kinematic" (ideal replay) or "servo"; contacts: every robot contact with the part,
+    the booth or itself.
     """
 
     t_s: np.ndarray
