@@ -12,6 +12,7 @@ import json
 import sys
 import time
 import traceback
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="servo: PD + inverse-dynamics control at 1 kHz; kinematic: ideal replay")
     r.add_argument("--no-report", action="store_true",
                    help="skip renders, plots and report.html (data files only)")
+    r.add_argument("--disturb", action="append", default=[], metavar="KEY=VALUE",
+                   help="robustness study: a sim.execute.Disturbances setting on top of the "
+                   "scenario's, repeatable: part_offset_m [m], part_rotation_rad [rad], "
+                   "tcp_offset_m [m], gain_scale [-], seed [int]; e.g. --disturb "
+                   "part_offset_m=0.005 --disturb seed=3")
 
     c = sub.add_parser("check", formatter_class=fmt,
                        help="run every scenario and hold it to its thresholds (CI)",
@@ -141,11 +147,32 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from sim.scenario import load_scenario
 
     scn = load_scenario(args.scenario)
+    if args.disturb:
+        scn = replace(scn, disturbances={**scn.disturbances, **_key_values(args.disturb)})
     out = args.out or _default_out(scn.name)
     res = run_scenario(scn, out, fast=args.fast, mode=args.mode, report=not args.no_report)
     print(format_table([_row(scn.name, res.report)]))
     print(f"results: {out}" + ("" if args.no_report else f" (report: {out / 'report.html'})"))
     return EXIT_OK if res.passed else EXIT_FAIL
+
+
+def _key_values(items: list[str]) -> dict[str, Any]:
+    """Parse KEY=VALUE options; values are ints, floats or strings."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, raw = item.partition("=")
+        if not sep or not key:
+            raise PaintcellError(f"option value {item!r} is not KEY=VALUE (e.g. "
+                                 "part_offset_m=0.005)")
+        value: Any = raw
+        for conv in (int, float):
+            try:
+                value = conv(raw)
+                break
+            except ValueError:
+                continue
+        out[key.strip()] = value
+    return out
 
 
 def _cmd_check(args: argparse.Namespace) -> int:

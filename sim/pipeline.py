@@ -194,8 +194,8 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool, mode: str, repor
         stage("execute")
         T_world_part = scn.part_placement.matrix
         cell = build_cell(robot, surface, T_world_part)
-        trace = execute(cell, traj, mode=mode, **({} if not scn.servo else
-                                                  {"servo": _servo(scn)}))
+        trace = execute(cell, traj, mode=mode, servo=_servo(scn),
+                        disturbances=_disturbances(scn))
         done("execute", t0)
 
         t0 = time.perf_counter()
@@ -220,6 +220,13 @@ def _servo(scn: Scenario) -> Any:
     from sim.execute import ServoSettings
 
     return settings_from(ServoSettings, scn.servo, "servo")
+
+
+def _disturbances(scn: Scenario) -> Any:
+    from sim.execute import Disturbances
+
+    return settings_from(Disturbances, scn.disturbances, "disturbances") \
+        if scn.disturbances else None
 
 
 def scenario_json(scn: Scenario, fast: bool, mode: str) -> str:

@@ -86,6 +86,8 @@ class Scenario:
     fast_planner: planner overrides applied on top of `planner` for `--fast` runs.
     trajectory: keyword arguments for `sim.trajectory.TrajectorySettings`.
     servo: keyword arguments for `sim.execute.ServoSettings`.
+    disturbances: keyword arguments for `sim.execute.Disturbances` (seeded part placement error,
+        TCP calibration offset, gain scaling) to study robustness; empty: the nominal cell.
     thresholds: what `paintcell check` holds the run to (`sim.validate.Thresholds`: reachability,
         collisions, executed σ/μ, loss, cycle time, and optionally tracking error, speed error,
         torque and joint-range utilization).
@@ -104,6 +106,7 @@ class Scenario:
     fast_planner: dict[str, Any] = field(default_factory=dict)
     trajectory: dict[str, Any] = field(default_factory=dict)
     servo: dict[str, Any] = field(default_factory=dict)
+    disturbances: dict[str, Any] = field(default_factory=dict)
     thresholds: Thresholds = Thresholds()
     source: str | None = None
 
@@ -118,7 +121,7 @@ class Scenario:
             if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v) \
                     or v <= 0:
                 raise ScenarioError(f"Scenario.{name} = {v!r} must be a positive length [m]")
-        for name in ("planner", "fast_planner", "trajectory", "servo"):
+        for name in ("planner", "fast_planner", "trajectory", "servo", "disturbances"):
             if not isinstance(getattr(self, name), dict):
                 raise ScenarioError(f"Scenario.{name} must be a dict of setting names to values")
         if not isinstance(self.thresholds, Thresholds):

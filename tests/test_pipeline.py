@@ -115,3 +115,21 @@ def test_a_failed_run_keeps_the_previous_results(run_dir: Path) -> None:
     assert out.returncode == 2 and "neither a library part" in out.stderr
     assert out.stderr.count("\n") == 1
     assert (res / "metrics.json").read_text() == before
+
+
+@pytest.mark.slow
+def test_disturbed_run_loses_more_uniformity(run_dir: Path) -> None:
+    # A 30 mm part placement error and a 10 mm TCP calibration error must cost uniformity that the
+    # nominal run does not lose (the plan was made for the nominal placement).
+    nominal = json.loads((run_dir / "res" / "metrics.json").read_text())
+    out = _cli("run", "small_panel.py", "--fast", "--out", "dist", "--no-report",
+               "--disturb", "part_offset_m=0.03", "--disturb", "tcp_offset_m=0.01",
+               "--disturb", "seed=1", cwd=run_dir)
+    assert out.returncode in (0, 1), out.stderr
+    m = json.loads((run_dir / "dist" / "metrics.json").read_text())
+    assert m["part_placement_error_mm"] == pytest.approx(30.0, rel=1e-6)
+    assert abs(m["loss_pp"]) > abs(nominal["loss_pp"]) + 0.01
+    out = _cli("run", "small_panel.py", "--fast", "--disturb", "part_offset_m", cwd=run_dir)
+    assert out.returncode == 2 and "KEY=VALUE" in out.stderr
+    out = _cli("run", "small_panel.py", "--fast", "--disturb", "wobble=1", cwd=run_dir)
+    assert out.returncode == 2 and "unknown disturbances setting(s) ['wobble']" in out.stderr
