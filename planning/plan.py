@@ -204,14 +204,21 @@ class CoveragePlan:
         return tcp_frames(p.positions, p.spray_axes, p.travel_dirs)
 
     # --- persistence -----------------------------------------------------------------------
+    def _arrays(self) -> dict[str, np.ndarray]:
+        return {f"p{i}_{name}": getattr(p, name)
+                for i, p in enumerate(self.passes) for name in _PASS_ARRAYS}
+
+    def content_digest(self) -> str:
+        """Short sha256 of the plan's arrays (what `save` stores as `arrays_sha256`); trajectories
+        and traces carry it so that files of different runs are never mixed up."""
+        return arrays_digest(self._arrays())
+
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write `path` (JSON) and `path` with suffix `.npz` (arrays), each atomically."""
         path = Path(path)
-        arrays: dict[str, np.ndarray] = {}
+        arrays = self._arrays()
         meta_passes = []
-        for i, p in enumerate(self.passes):
-            for name in _PASS_ARRAYS:
-                arrays[f"p{i}_{name}"] = getattr(p, name)
+        for p in self.passes:
             meta_passes.append({
                 "side": p.side,
                 "index_width_m": _num(p.index_width_m),

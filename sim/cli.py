@@ -29,15 +29,34 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(EXIT_USAGE)
 
 
+class _Help(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows a default only where it tells something (not None, False or an empty list)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default in (None, False, [], argparse.SUPPRESS) or action.required:
+            return action.help
+        return super()._get_help_string(action)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand (its --help is the reference)."""
-    fmt = argparse.ArgumentDefaultsHelpFormatter
+    fmt = _Help
+    # --debug works before or after the subcommand (SUPPRESS keeps the main parser's value).
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the full traceback on errors instead of one line")
     p = _Parser(prog="paintcell", formatter_class=fmt, description=(
         "Plan uniform spray-paint coverage for a car-body part, execute it on a simulated paint "
         "robot in MuJoCo and measure the film-thickness uniformity lost from plan to execution."))
     p.add_argument("--debug", action="store_true",
                    help="show the full traceback on errors instead of one line")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    _add = sub.add_parser
+
+    def add_parser(name: str, **kw: Any) -> argparse.ArgumentParser:
+        return _add(name, parents=[common], **kw)
+
+    sub.add_parser = add_parser  # type: ignore[method-assign]
 
     r = sub.add_parser("run", formatter_class=fmt, help="run one scenario end to end",
                        description="Plan → IK → trajectory → MuJoCo execution → validation → "
@@ -48,7 +67,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", type=Path, default=None,
                    help="results folder (default: results/<scenario name>)")
     r.add_argument("--fast", action="store_true",
-                   help="coarse mesh resolution and fast planner settings (CI budget)")
+                   help="the scenario's coarse mesh resolution (fast_resolution_m, 25 mm unless "
+                   "the scenario says otherwise) and fast planner overrides (CI budget)")
     r.add_argument("--mode", choices=("servo", "kinematic"), default="servo",
                    help="servo: PD + inverse-dynamics control at 1 kHz; kinematic: ideal replay")
     r.add_argument("--no-report", action="store_true",
@@ -68,7 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="scenario scripts or folders of them")
     c.add_argument("--junit", type=Path, default=None, help="also write JUnit XML to this file")
     c.add_argument("--fast", action="store_true",
-                   help="coarse mesh resolution and fast planner settings (CI budget)")
+                   help="each scenario's coarse mesh resolution (fast_resolution_m, 25 mm unless "
+                   "the scenario says otherwise) and fast planner overrides (CI budget)")
     c.add_argument("--out", type=Path, default=None,
                    help="also write each scenario's results under this folder (no report)")
 
@@ -78,7 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
     pl.add_argument("scenario", help="scenario script, e.g. scenarios/door.py")
     pl.add_argument("--out", type=Path, default=None,
                     help="output folder (default: results/<scenario name>)")
-    pl.add_argument("--fast", action="store_true", help="coarse resolution and fast settings")
+    pl.add_argument("--fast", action="store_true",
+                    help="the scenario's coarse mesh resolution (fast_resolution_m) and fast "
+                    "planner overrides")
 
     v = sub.add_parser("validate", formatter_class=fmt,
                        help="recompute metrics.json from a results folder",
@@ -224,6 +247,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def _load_run_dir(d: Path) -> dict[str, Any]:
+    """Plan, trajectory, trace and scenario of a results folder; one clear error per bad file."""
     from planning.plan import CoveragePlan
     from sim.joint_trajectory import JointTrajectory
     from sim.scenario import load_scenario
@@ -231,23 +255,44 @@ def _load_run_dir(d: Path) -> dict[str, Any]:
 
     if not d.is_dir():
         raise PaintcellError(f"results folder {d} does not exist; run `paintcell run` first")
-    scn_json = d / "scenario.json"
-    if not scn_json.exists():
-        raise PaintcellError(f"{scn_json} is missing; {d} was not written by `paintcell run`")
-    meta = json.loads(scn_json.read_text())
-    scn = load_scenario(meta["source"])
-    return {
-        "scenario": scn,
+
+    def read(name: str, loader: Any) -> Any:
+        path = d / name
+        if not path.exists():
+            raise PaintcellError(f"{path} is missing; {d} was not written by `paintcell run` "
+                                 "(re-run it)")
+        try:
+            return loader(path)
+        except PaintcellError:
+            raise
+        except Exception as exc:
+            raise PaintcellError(f"cannot read {path} ({type(exc).__name__}: {_one_line(exc)}); "
+                                 "re-run `paintcell run`") from exc
+
+    meta = read("scenario.json", lambda p: json.loads(p.read_text()))
+    if not isinstance(meta, dict) or "source" not in meta:
+        raise PaintcellError(f"{d / 'scenario.json'} names no scenario source; re-run "
+                             "`paintcell run`")
+    files = {
+        "scenario": load_scenario(meta["source"]),
         "run": meta.get("run", {"fast": False, "mode": "servo"}),
-        "plan": CoveragePlan.load(d / "plan.json"),
-        "trajectory": JointTrajectory.load_npz(d / "trajectory.npz"),
-        "trace": ExecutedTrace.load_npz(d / "trace.npz"),
+        "plan": read("plan.json", CoveragePlan.load),
+        "trajectory": read("trajectory.npz", JointTrajectory.load_npz),
+        "trace": read("trace.npz", ExecutedTrace.load_npz),
     }
+    # The three files must come from one run: the trajectory and trace carry the plan's digest.
+    digest = files["plan"].content_digest()
+    for name in ("trajectory", "trace"):
+        tagged = files[name].meta.get("plan_digest")
+        if tagged is not None and tagged != digest:
+            raise PaintcellError(f"{d / (name + '.npz')} was made from another plan than "
+                                 f"{d / 'plan.json'}; re-run `paintcell run` on {d}")
+    return files
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     from planning.atomic_io import atomic_write_text
-    from sim.pipeline import RunResult, _json_default, load_surface, metrics_dict
+    from sim.pipeline import RunResult, json_default, load_surface, metrics_dict
     from sim.validate import validate
 
     f = _load_run_dir(args.dir)
@@ -256,9 +301,12 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     surface = load_surface(scn, fast)
     rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
                    reachability=traj.meta.get("reachability"))
-    res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, fast=fast, mode=mode)
+    old = args.dir / "metrics.json"
+    stage_times = json.loads(old.read_text()).get("stage_times_s", {}) if old.exists() else {}
+    res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, timings_s=stage_times,
+                    fast=fast, mode=mode)
     atomic_write_text(args.dir / "metrics.json",
-                      json.dumps(metrics_dict(res), indent=2, default=_json_default))
+                      json.dumps(metrics_dict(res), indent=2, default=json_default))
     print(format_table([_row(scn.name, rep)]))
     return EXIT_OK if rep.passed else EXIT_FAIL
 

@@ -7,6 +7,7 @@ results folder only when the run finished: a run that fails never leaves a half-
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import tempfile
 import time
@@ -118,15 +119,36 @@ def make_trajectory(scn: Scenario, robot: Any, plan: CoveragePlan) -> Any:
                          settings_from(TrajectorySettings, scn.trajectory, "trajectory"))
 
 
+#: Files that mark a folder as paintcell results (only such a folder may be replaced).
+RESULT_MARKERS = ("scenario.json", "metrics.json")
+
+
+def check_out_dir(out_dir: Path) -> None:
+    """Refuse to replace an existing folder that is not empty and not paintcell results."""
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise PaintcellError(f"--out {out_dir} is a file; give a folder for the results")
+        if any(out_dir.iterdir()) and not any((out_dir / m).exists() for m in RESULT_MARKERS):
+            raise PaintcellError(f"--out {out_dir} exists and is not a paintcell results folder "
+                                 "(no scenario.json); choose another folder or empty it")
+
+
 @contextmanager
 def staged_dir(out_dir: Path | None) -> Iterator[Path | None]:
-    """Yield a temporary folder that replaces `out_dir` when the block succeeds."""
+    """Yield a temporary folder that replaces `out_dir` when the block succeeds.
+
+    Only an empty folder or an earlier paintcell results folder is replaced (`check_out_dir`).
+    """
     if out_dir is None:
         yield None
         return
     out_dir = Path(out_dir)
+    check_out_dir(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=out_dir.parent, prefix=f".{out_dir.name}.tmp-"))
+    mask = os.umask(0)
+    os.umask(mask)
+    tmp.chmod(0o777 & ~mask)  # mkdtemp makes 0700; results are meant to be shared
     try:
         yield tmp
     except BaseException:
@@ -188,6 +210,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool, mode: str, repor
         stage("trajectory")
         robot = load_robot_for(scn)
         traj = make_trajectory(scn, robot, plan)
+        traj.meta["plan_digest"] = plan.content_digest()
         done("trajectory", t0)
 
         t0 = time.perf_counter()
@@ -196,6 +219,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool, mode: str, repor
         cell = build_cell(robot, surface, T_world_part)
         trace = execute(cell, traj, mode=mode, servo=_servo(scn),
                         disturbances=_disturbances(scn))
+        trace.meta["plan_digest"] = traj.meta["plan_digest"]
         done("execute", t0)
 
         t0 = time.perf_counter()
@@ -262,7 +286,7 @@ def write_results(result: RunResult, out: Path, cell: Any = None) -> None:
     atomic_write_text(out / "scenario.json", scenario_json(result.scenario, result.fast,
                                                            result.mode))
     atomic_write_text(out / "metrics.json", json.dumps(metrics_dict(result), indent=2,
-                                                       default=_json_default))
+                                                       default=json_default))
     if cell is not None:
         from sim.report import make_figures, write_report
 
@@ -271,7 +295,8 @@ def write_results(result: RunResult, out: Path, cell: Any = None) -> None:
         write_report(out)
 
 
-def _json_default(o: Any) -> Any:
+def json_default(o: Any) -> Any:
+    """`json.dumps` default for numpy scalars and arrays."""
     if isinstance(o, np.generic):
         return o.item()
     if isinstance(o, np.ndarray):

@@ -94,3 +94,10 @@ def test_check_reports_broken_scenarios_as_errors_and_still_writes_junit(tmp_pat
     assert "fast_resolution_m = -0.01 must be a positive length" in out.stdout
     root = ET.parse(tmp_path / "j.xml").getroot()
     assert root.get("tests") == "3" and root.get("errors") == "3"
+
+
+def test_help_shows_only_meaningful_defaults() -> None:
+    for cmd in COMMANDS:
+        text = _run(cmd, "--help").stdout
+        assert "(default: None)" not in text and "(default: False)" not in text
+        assert "(default: [])" not in text and "--debug" in text

@@ -133,3 +133,38 @@ def test_disturbed_run_loses_more_uniformity(run_dir: Path) -> None:
     assert out.returncode == 2 and "KEY=VALUE" in out.stderr
     out = _cli("run", "small_panel.py", "--fast", "--disturb", "wobble=1", cwd=run_dir)
     assert out.returncode == 2 and "unknown disturbances setting(s) ['wobble']" in out.stderr
+
+
+@pytest.mark.slow
+def test_out_dir_that_is_not_results_is_never_replaced(run_dir: Path) -> None:
+    docs = run_dir / "mydocs"
+    docs.mkdir()
+    (docs / "thesis.txt").write_text("precious")
+    out = _cli("run", "small_panel.py", "--fast", "--out", "mydocs", "--no-report", cwd=run_dir)
+    assert out.returncode == 2 and "not a paintcell results folder" in out.stderr
+    assert (docs / "thesis.txt").read_text() == "precious"
+    # The results folder itself gets ordinary permissions (mkdtemp would leave 0700).
+    assert (run_dir / "res").stat().st_mode & 0o055 == 0o055
+
+
+@pytest.mark.slow
+def test_files_of_different_runs_are_not_mixed(run_dir: Path, tmp_path: Path) -> None:
+    import shutil
+
+    mixed = tmp_path / "mixed"
+    shutil.copytree(run_dir / "res", mixed)
+    # A full-resolution plan (the run was --fast) dropped beside the old trajectory and trace.
+    out = _cli("plan", str(run_dir / "small_panel.py"), "--out", str(tmp_path / "other"),
+               cwd=run_dir)
+    assert out.returncode == 0, out.stderr
+    for name in ("plan.json", "plan.npz"):
+        shutil.copy(tmp_path / "other" / name, mixed / name)
+    out = _cli("validate", str(mixed), cwd=run_dir)
+    assert out.returncode == 2 and "made from another plan" in out.stderr
+    # A truncated trace is named in one line, not a zip traceback.
+    shutil.copytree(run_dir / "res", tmp_path / "broken")
+    trace = tmp_path / "broken" / "trace.npz"
+    trace.write_bytes(trace.read_bytes()[:100])
+    out = _cli("validate", str(tmp_path / "broken"), "--debug", cwd=run_dir)
+    assert out.returncode == 2 and "cannot read" in out.stderr and "trace.npz" in out.stderr
+    assert "Traceback" in out.stderr  # --debug after the subcommand works too
