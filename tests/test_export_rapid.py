@@ -51,7 +51,19 @@ def _traj() -> JointTrajectory:
         robot_name="test", joint_names=tuple(f"j{i}" for i in range(6)))
 
 
-ROBOT = SimpleNamespace(T_world_base=np.eye(4), T_flange_tcp=np.eye(4))
+def _pose(rotvec: list[float], xyz: list[float]) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    T[:3, 3] = xyz
+    return T
+
+
+# A turned, raised base and a bent tool, so a missing inverse or a swapped frame shows.
+ROBOT = SimpleNamespace(T_world_base=_pose([0.0, 0.0, 0.4], [-0.3, 0.2, 0.5]),
+                        T_flange_tcp=_pose([0.0, np.pi / 4, 0.0], [0.085, 0.0, 0.245]))
+LOAD = (7.0, np.array([0.0, 0.0, 0.12]))
 
 
 def _decls(text: str) -> dict[str, str]:
@@ -63,19 +75,27 @@ def _decls(text: str) -> dict[str, str]:
 @pytest.mark.parametrize("style", ["trigg", "paintl"])
 def test_module_structure_and_declared_identifiers(style: str) -> None:
     traj = _traj()
-    text = rapid_module(traj, ROBOT, module_name="door 1", style=style, max_spacing_m=0.1)
+    text = rapid_module(traj, ROBOT, load=LOAD, module_name="door 1", style=style,
+                        max_spacing_m=0.1)
     lines = text.strip().splitlines()
     assert lines[0] == "MODULE door_1" and lines[-1] == "ENDMODULE"
     assert text.count("PROC main()") == 1 and text.count("ENDPROC") == 1
     decls = _decls(text)
+    # Flying moves everywhere but at the start and the end of the program.
+    main = text[text.index("PROC main()"):]
+    zones = re.findall(r", (fine|z\d+), tBell;", main)
+    assert zones[0] == "fine" and zones[-1] == "fine" and "fine" not in zones[1:-1]
     # Every target and speed used in a move instruction is declared with the right type.
     moves = re.findall(r"^\s*(MoveL|TriggL|PaintL) (\w+), (\w+),", text, re.M)
     assert moves
     for _, target, speed in moves:
         assert decls[target] == "robtarget"
         assert decls[speed] == "speeddata"
-    for target in re.findall(r"^\s*MoveAbsJ (\w+),", text, re.M):
+    vias = re.findall(r"^\s*MoveAbsJ (\w+), (\w+),", text, re.M)
+    assert len(vias) > 3  # home, the approach, the turn-around and the retract
+    for target, speed in vias:
         assert decls[target] == "jointtarget"
+        assert speed == "v1000" or decls[speed] == "speeddata"
     # Every statement line inside the module ends with a semicolon.
     body = [ln.strip() for ln in lines[1:-1] if ln.strip() and not ln.strip().startswith("!")]
     for ln in body:
@@ -85,24 +105,85 @@ def test_module_structure_and_declared_identifiers(style: str) -> None:
         assert abs(np.linalg.norm(np.array(quat[:4], float)) - 1.0) < 1e-5
 
 
-def test_brush_events_once_on_and_off_per_pass() -> None:
-    text = rapid_module(_traj(), ROBOT, style="trigg")
-    assert len(re.findall(r"TriggL \w+, \w+, tBrushOn,", text)) == 2
-    assert len(re.findall(r"TriggL \w+, \w+, tBrushOff,", text)) == 2
-    text = rapid_module(_traj(), ROBOT, style="paintl")
+def _targets_world(text: str) -> dict[str, np.ndarray]:
+    """Exported robtargets mapped back to world coordinates [m] through the base pose."""
+    out = {}
+    for n, v in re.findall(r"CONST robtarget (\w+) := \[\[([-\d.,]+)\]", text):
+        p_base = np.array(v.split(","), float) / 1000.0
+        out[n] = ROBOT.T_world_base[:3, :3] @ p_base + ROBOT.T_world_base[:3, 3]
+    return out
+
+
+def test_targets_lie_on_the_trajectory_in_world_frame() -> None:
+    traj = _traj()
+    text = rapid_module(traj, ROBOT, load=LOAD)
+    for name, p in _targets_world(text).items():
+        d = np.linalg.norm(traj.tcp_pos_world - p, axis=1)
+        assert d.min() < 1e-5, name  # 0.01 mm: the 2-decimal mm rounding
+    # Orientation: each quaternion maps back to the trajectory's TCP rotation.
+    from scipy.spatial.transform import Rotation
+
+    for n, q in re.findall(r"CONST robtarget (\w+) := \[\[[-\d.,]+\],\[([-\d.,]+)\]", text):
+        w, x, y, z = np.array(q.split(","), float)
+        R_world = ROBOT.T_world_base[:3, :3] @ Rotation.from_quat([x, y, z, w]).as_matrix()
+        i = int(np.argmin(np.linalg.norm(traj.tcp_pos_world - _targets_world(text)[n], axis=1)))
+        assert np.allclose(R_world, traj.tcp_rot_world[i], atol=1e-5), n
+
+
+def test_tool_data_carries_the_tcp_and_the_load() -> None:
+    text = rapid_module(_traj(), ROBOT, load=LOAD)
+    (tool,) = re.findall(r"PERS tooldata tBell := \[TRUE,\[\[([-\d.,]+)\],\[([-\d.,]+)\]\],"
+                         r"\[([\d.]+),\[([-\d.,]+)\]", text)
+    assert np.allclose(np.array(tool[0].split(","), float), [85.0, 0.0, 245.0])
+    w, x, y, z = np.array(tool[1].split(","), float)
+    assert np.allclose([w, x, y, z], [np.cos(np.pi / 8), 0, np.sin(np.pi / 8), 0], atol=1e-6)
+    assert float(tool[2]) == 7.0 and np.allclose(np.array(tool[3].split(","), float), [0, 0, 120])
+
+
+def test_tool_load_comes_from_the_robot_model() -> None:
+    from robots import load_robot
+    from sim.export_rapid import tool_load
+
+    mass, cog = tool_load(load_robot("abb_paint"))
+    # abb_paint.xml: the bell (7 kg, centre of mass 120 mm out along the flange axis).
+    assert mass == pytest.approx(7.0) and np.allclose(cog, [0.0, 0.0, 0.12])
+
+
+def test_brush_events_fire_where_the_trajectory_switches_paint() -> None:
+    traj = _traj()
+    text = rapid_module(traj, ROBOT, load=LOAD, style="trigg")
+    on = re.findall(r"TriggL (\w+), \w+, tBrushOn, z1,", text)
+    off = re.findall(r"TriggL (\w+), \w+, tBrushOff, z1,", text)
+    assert len(on) == 2 and len(off) == 2
+    # Pass 0's brush switches on 100 samples into the pass (see _traj): the brush-on target is
+    # that sample, not the pass start.
+    first_on = int(np.flatnonzero(traj.paint_on)[0])
+    p = _targets_world(text)[on[0]]
+    assert np.linalg.norm(traj.tcp_pos_world[first_on] - p) < 1e-5
+    # ... and off at the last painted sample of each pass.
+    for k, name in enumerate(off):
+        last_on = int(np.flatnonzero(traj.paint_on & (traj.pass_index == k))[-1])
+        assert np.linalg.norm(traj.tcp_pos_world[last_on] - _targets_world(text)[name]) < 1e-5
+    # PaintL style: SetBrush follows the move that reaches the switching target (it acts from
+    # the start of the next move, i.e. at that target).
+    text = rapid_module(traj, ROBOT, load=LOAD, style="paintl")
+    sets = re.findall(r"PaintL (\w+), \w+, z1, tBell;\n    SetBrush (\d);", text)
+    assert [n for n, b in sets if b == "1"] == on and [n for n, b in sets if b == "0"] == off
+    text = rapid_module(_traj(), ROBOT, load=LOAD, style="paintl")
     assert text.count("SetBrush 1;") == 2 and text.count("SetBrush 0;") == 2
 
 
 def test_speeds_reproduce_trajectory_tcp_speed() -> None:
     traj = _traj()
-    text = rapid_module(traj, ROBOT, max_spacing_m=0.05)
+    text = rapid_module(traj, ROBOT, load=LOAD, max_spacing_m=0.05)
     targets = {n: np.array(v.split(","), float) for n, v in
                re.findall(r"CONST robtarget (\w+) := \[\[([-\d.,]+)\]", text)}
     speeds = {n: float(v) for n, v in re.findall(r"CONST speeddata v_(\w+) := \[([\d.]+),", text)}
     # Re-measure: distance between consecutive targets of pass 0 over the trajectory's time.
     names = sorted((n for n in targets if n.startswith("p0_")), key=lambda n: int(n.split("_")[1]))
     idx = np.flatnonzero(traj.pass_index == 0)
-    pos_mm = traj.tcp_pos_world[idx] * 1000
+    T_base_world = np.linalg.inv(ROBOT.T_world_base)
+    pos_mm = (traj.tcp_pos_world[idx] @ T_base_world[:3, :3].T + T_base_world[:3, 3]) * 1000
     for a, b in zip(names[:-1], names[1:], strict=True):
         ia = int(np.argmin(np.linalg.norm(pos_mm - targets[a], axis=1)))
         ib = int(np.argmin(np.linalg.norm(pos_mm - targets[b], axis=1)))
@@ -128,6 +209,7 @@ def test_quaternion_and_confdata_conventions() -> None:
 
 def test_bad_options_raise() -> None:
     with pytest.raises(ValueError, match="style"):
-        rapid_module(_traj(), ROBOT, style="kuka")
-    with pytest.raises(ValueError, match="spacing"):
-        rapid_module(_traj(), ROBOT, max_spacing_m=0.0)
+        rapid_module(_traj(), ROBOT, load=LOAD, style="kuka")
+    for bad in (0.0, float("nan"), -1.0):
+        with pytest.raises(ValueError, match="spacing"):
+            rapid_module(_traj(), ROBOT, load=LOAD, max_spacing_m=bad)
