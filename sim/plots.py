@@ -160,8 +160,8 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
     if not passes:
         raise PlotError("the trajectory has no paint pass (pass_index all -1)")
     shown = passes[:max_passes]
-    fig = Figure(figsize=(8.0, 4.5), layout="constrained")
-    ax = fig.subplots()
+    fig = Figure(figsize=(8.0, 6.5), layout="constrained")
+    ax, ax_dev = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
     colours = [f"C{i % 10}" for i in range(len(shown))]
     v_plan = np.asarray(trajectory.v_tcp_planned, float)
     t_traj = np.asarray(trajectory.t_s, float)
@@ -180,6 +180,15 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
         st = _stride(len(s), MAX_PLOT_POINTS // 4)
         ax.plot(s[st], v_plan[m][st] * 1e3, "--", color=c, lw=1.2)
         ax.plot(s[st], v_traj[m][st] * 1e3, ":", color=c, lw=1.0)
+        # The curves overlap at this scale: the lower panel shows the deviations from the plan.
+        ok = v_plan[m] > 0
+        dev_traj = np.where(ok, (v_traj[m] - v_plan[m]) / np.where(ok, v_plan[m], 1.0), np.nan)
+        ax_dev.plot(s[st], dev_traj[st] * 100.0, ":", color=c, lw=1.0)
+        if trace is not None and len(t_exe) >= len(t_traj):
+            # The trace is sampled at the program's steps (plus a final hold).
+            v_e = v_exe[: len(t_traj)][m]
+            dev_exe = np.where(ok, (v_e - v_plan[m]) / np.where(ok, v_plan[m], 1.0), np.nan)
+            ax_dev.plot(s[st], dev_exe[st] * 100.0, "-", color=c, lw=1.0)
         if trace is not None:
             me = pidx_exe == p
             if np.count_nonzero(me) > 1:
@@ -193,8 +202,10 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
     if trace is not None:
         handles.append(Line2D([], [], ls="-", color="k", label="executed (MuJoCo)"))
     ax.legend(handles=handles, loc="lower center", fontsize=8)
-    ax.set_xlabel("arc length along the pass [m]")
+    ax_dev.set_xlabel("arc length along the pass [m]")
     ax.set_ylabel("TCP speed [mm/s]")
+    ax_dev.set_ylabel("deviation from plan [%]")
+    ax_dev.grid(alpha=0.3)
     extra = f" (first {len(shown)} of {len(passes)} passes)" if len(shown) < len(passes) else ""
     ax.set_title(f"TCP speed along each pass, colour = pass{extra}")
     ax.grid(alpha=0.3)
