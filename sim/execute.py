@@ -18,15 +18,21 @@ The torque of step k needs states up to t_{k−d} only, so the program is rolled
 matrix product from the states the previous chunks produced. TCP pose, joint torques and
 robot-vs-part/booth and robot-vs-robot (self-collision) contacts come from sensors at every step;
 steps where a contact sensor fires are re-evaluated to name the bodies and the depth. After the
-program the last reference is held for SETTLE_MAX_S in the same loop to measure settling.
+program the last reference is held for SETTLE_MAX_S in the same loop to measure settling; contacts
+during that hold are recorded too (times past the program's end).
 
-Kinematic mode sets q, q̇ to the reference each step (the control case); torques are the exact
-inverse dynamics of the plant.
+The trace keeps both the applied joint torque (`tau`, after the ±τ_max clamp, so never above the
+limit) and the torque the servo law demanded before the clamp (`tau_demand`): |τ_demand| / τ_max
+is the torque utilization (above 1 where the actuator saturated).
+
+Kinematic mode sets q, q̇ to the reference each step (the control case); torques (applied and
+demanded) are the exact inverse dynamics of the plant.
 """
 
 from __future__ import annotations
 
 import copy
+import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -183,10 +189,20 @@ class Disturbances:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if min(self.part_offset_m, self.part_rotation_rad, self.tcp_offset_m) < 0:
-            raise ExecutionError("disturbance magnitudes must be >= 0 [m, rad]")
+        for name in ("part_offset_m", "part_rotation_rad", "tcp_offset_m", "gain_scale"):
+            v = getattr(self, name)
+            if (isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating)
+                    or not math.isfinite(v) or v < 0):
+                raise ExecutionError(f"disturbance {name} = {v!r} must be a finite number >= 0 "
+                                     "[m, rad, factor]")
+            object.__setattr__(self, name, float(v))  # JSON-safe in to_dict()
         if self.gain_scale <= 0:
-            raise ExecutionError("disturbance gain_scale must be > 0")
+            raise ExecutionError(f"disturbance gain_scale = {self.gain_scale!r} must be > 0 "
+                                 "(a factor on the servo gains)")
+        seed = self.seed
+        if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+            raise ExecutionError(f"disturbance seed = {seed!r} must be an int")
+        object.__setattr__(self, "seed", int(seed))
 
     def realize(self) -> tuple[np.ndarray, np.ndarray]:
         """(T_nominal_actual (4, 4) part placement error, tcp_offset_tool (3,) [m])."""
@@ -368,19 +384,26 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         tau_ff = (tau_id - (1.0 - servo.friction_compensation) * damping * qd_ref
                   + servo.coulomb_compensation * fc * np.tanh(qd_ref / FRICTION_SMOOTH_RAD_S)
                   if servo.feedforward else np.zeros_like(q_ref))
-        q, qd, sens, warnings, settle_s = _run_servo(model, cell, q_ref, qd_ref, tau_ff, kp, kd,
-                                                     int(servo.latency_steps), progress)
+        q_all, qd_all, sens_all, tau_demand, warnings, settle_s = _run_servo(
+            model, cell, q_ref, qd_ref, tau_ff, kp, kd, int(servo.latency_steps), progress)
+        K = len(q_ref)
+        q, qd, sens = q_all[:K], qd_all[:K], sens_all[:K]
         tau = sens[:, cell.sensor_actuator_force]
+        # Contacts of the program and of the settling hold after it (times past the end).
+        t_all = traj.t_s[0] + np.arange(len(q_all)) * cell.model.opt.timestep
+        contacts = _contacts(model, cell, q_all, sens_all, t_all)
     else:
         _set_pd_actuators(model, cell, kp, kd)
         tau_id = inverse_dynamics(model, cell, q_ref, qd_ref, qdd_ref)
         q, qd, sens, warnings = _run_kinematic(model, cell, q_ref, qd_ref, progress)
         tau = tau_id  # the torque the motors would need to follow the reference exactly
+        tau_demand = tau_id
         settle_s = 0.0
-    contacts = _contacts(model, cell, q, sens, traj.t_s)
+        contacts = _contacts(model, cell, q, sens, traj.t_s)
     wall = time.perf_counter() - t0
     fatal = {k: v for k, v in warnings.items() if k in _FATAL_WARNINGS}
-    if fatal or not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))):
+    if fatal or not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
+                     and np.all(np.isfinite(tau_demand))):
         raise ExecutionError(f"MuJoCo went unstable ({fatal or 'NaN state'}); lower the servo "
                              "gains or check the trajectory's accelerations")
     sd = sens[:, cell.sensor_tcp_quat]
@@ -404,7 +427,8 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         tcp_pos_world=np.ascontiguousarray(sens[:, cell.sensor_tcp_pos]),
         tcp_rot_world=_quat_to_mat(sd / np.linalg.norm(sd, axis=1, keepdims=True)),
         paint_on=np.asarray(traj.paint_on, bool).copy(),
-        pass_index=np.asarray(traj.pass_index).copy(), mode=mode, contacts=contacts, meta=meta)
+        pass_index=np.asarray(traj.pass_index).copy(), mode=mode, contacts=contacts, meta=meta,
+        tau_demand=np.ascontiguousarray(tau_demand))
 
 
 def _joint_range(model: mujoco.MjModel, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
@@ -425,9 +449,10 @@ def _warnings(d: mujoco.MjData) -> dict[str, int]:
 def _run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.ndarray,
                tau_ff: np.ndarray, kp: np.ndarray, kd: np.ndarray, latency: int,
                progress: Callable[[float], None] | None,
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int], float]:
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, int], float]:
     """Roll the program out, then hold its last reference for SETTLE_MAX_S; (q, q̇, sensordata
-    per program step, warnings, settling time [s]). `model` has torque actuators
+    per step of the program and the hold (K + H rows), joint torque demanded before the clamp
+    per program step (K, n) [N·m], warnings, settling time [s]). `model` has torque actuators
     (`_set_torque_actuators`).
 
     A digital servo: the torque held over step k is computed from the state sampled at t_{k−d}
@@ -494,11 +519,14 @@ def _run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.
     if progress is not None and reported < 1.0:
         progress(1.0)
     # Sensors of step k are evaluated before it integrates: they belong to the state at t_k.
-    q = S[lag:lag + K, iq]
-    qd = S[lag:lag + K, iv]
+    q = S[lag:lag + N, iq]
+    qd = S[lag:lag + N, iv]
+    # The servo law's torque before the actuator clamp (ctrl is in actuator units: × gear).
+    tau_demand = ctrl[:K, act] * g
     warnings = _warnings(d)
     settle = _settle_time(model, cell, sens[K:], q_ref[-1])
-    return np.ascontiguousarray(q), np.ascontiguousarray(qd), sens[:K], warnings, settle
+    return (np.ascontiguousarray(q), np.ascontiguousarray(qd), sens, tau_demand, warnings,
+            settle)
 
 
 def _settle_time(model: mujoco.MjModel, cell: Cell, sens_hold: np.ndarray,

@@ -39,7 +39,10 @@ class ExecutedTrace:
     tau: (K, n) applied joint torques [N·m]; tcp_pos_world: (K, 3) TCP site position [m];
     tcp_rot_world: (K, 3, 3) TCP site orientation; paint_on: (K,) brush; pass_index: (K,);
     mode: "kinematic" (ideal replay) or "servo"; contacts: every robot contact with the part,
-    the booth or itself.
+    the booth or itself (also during the settling hold after the program: times past t_s[-1]);
+    tau_demand: (K, n) joint torques the controller demanded before the actuator limits clamped
+    them [N·m] (kinematic replay: the inverse dynamics of the reference); None in traces written
+    before it was recorded. |tau_demand| > τ_max where the actuator saturated.
     """
 
     t_s: np.ndarray
@@ -53,8 +56,11 @@ class ExecutedTrace:
     mode: str
     contacts: tuple[Contact, ...] = ()
     meta: dict[str, Any] = field(default_factory=dict)
+    tau_demand: np.ndarray | None = None
 
     _ARRAYS = ("t_s", "q", "qd", "tau", "tcp_pos_world", "tcp_rot_world", "paint_on", "pass_index")
+    #: arrays that may be None (absent from older files).
+    _OPTIONAL_ARRAYS = ("tau_demand",)
 
     def gun_samples(self, T_part_world: np.ndarray | None = None) -> GunSamples:
         """Paint-on samples as `GunSamples` in the part frame (dwell = step time).
@@ -74,6 +80,8 @@ class ExecutedTrace:
     def save_npz(self, path: str | Path) -> None:
         """Write arrays, contacts and metadata to one `.npz` atomically."""
         arrays = {name: getattr(self, name) for name in self._ARRAYS}
+        arrays.update({name: getattr(self, name) for name in self._OPTIONAL_ARRAYS
+                       if getattr(self, name) is not None})
         arrays["_json"] = np.array(json.dumps({
             "format": "paintcell.ExecutedTrace/1", "mode": self.mode, "meta": self.meta,
             "contacts": [vars(c) for c in self.contacts]}))
@@ -90,5 +98,6 @@ class ExecutedTrace:
             if meta.get("format") != "paintcell.ExecutedTrace/1":
                 raise TraceError(f"{path} is not a paintcell executed trace")
             arrays = {name: z[name] for name in cls._ARRAYS}
+            arrays.update({name: z[name] for name in cls._OPTIONAL_ARRAYS if name in z.files})
         return cls(**arrays, mode=meta["mode"], meta=meta["meta"],
                    contacts=tuple(Contact(**c) for c in meta["contacts"]))

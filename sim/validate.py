@@ -1,12 +1,24 @@
 """Plan versus executed: how much coat uniformity the robot lost, and why.
 
-Both thickness maps go through the same deposition model (`planning.deposition.thickness`) on the
-same surface (part frame): the plan's ideal TCP samples at planned timing (`plan.gun_samples()`)
-and the executed TCP trace (`trace.gun_samples(T_part_world)`, one sample per 1 ms step, where the
-part really was when a placement disturbance moved it). The loss is the executed σ/μ minus the
-planned σ/μ, in percentage points. Beside it: thickness differences, coverage inside the
-±tolerance window, TCP tracking and speed-following errors on paint segments, cycle time, joint
-and torque utilization, reachability and collisions — each checked against caller thresholds.
+Three thickness maps go through the same deposition model (`planning.deposition.thickness`) on
+the same surface (part frame):
+
+- plan: the plan's ideal TCP samples at planned timing (`plan.gun_samples()`);
+- trajectory: the `JointTrajectory`'s own paint-on TCP samples (ideal kinematics, at the time law's
+  timing: TOPP-RA slowdowns, the free bell spin IK chose, turn-around timing), where the part was
+  planned to be;
+- executed: the executed TCP trace (`trace.gun_samples(T_part_world)`, where the part really was
+  when a placement disturbance moved it).
+
+The trajectory and executed maps use the same 1 ms samples merged into the same bins, so a
+kinematic replay gives the same film to round-off. The loss (executed − planned σ/μ, percentage
+points) splits into its two causes: `loss_time_law_pp` = trajectory − plan (what the time law and
+IK did to the plan) and `loss_servo_pp` = executed − trajectory (what execution did: servo
+tracking, and any disturbance of the part or TCP); `loss_pp` is their sum, exactly. Beside it:
+thickness differences, coverage inside the ±tolerance window, TCP tracking and speed-following
+errors on paint segments, cycle time, joint and torque utilization (torque from what the servo
+demanded before the actuator clamp, so it exceeds 1 when a joint saturates), reachability and
+collisions — each checked against caller thresholds.
 """
 
 from __future__ import annotations
@@ -46,10 +58,13 @@ class Thresholds:
         (self-collision, e.g. the wrist driven into the robot's base).
     max_executed_nsd_pct: maximum executed film σ/μ over the part [%].
     max_loss_pp: maximum loss of uniformity, executed − planned σ/μ [percentage points].
+    max_abs_loss_pp: maximum |executed − planned σ/μ| [percentage points]: a large negative loss
+        (executed more uniform than planned) is a departure from the plan too. None: unchecked.
     max_cycle_time_s: maximum executed cycle time [s].
     max_tracking_error_mm: maximum TCP position error on paint segments [mm].
     max_speed_error_pct: maximum RMS TCP speed-following error on paint segments [%].
-    max_torque_utilization: maximum |τ|/τ_max of any joint (1 = at the actuator limit) [-].
+    max_torque_utilization: maximum |τ_demand|/τ_max of any joint, τ_demand the torque the
+        controller demanded before the actuator clamp (> 1: the joint saturated) [-].
     max_joint_range_utilization: maximum |q − mid|/half-range of any joint (1 = at a limit) [-].
     tolerance: half-width of the thickness window around the planned mean [fraction].
     """
@@ -58,6 +73,7 @@ class Thresholds:
     max_collisions: int | None = 0
     max_executed_nsd_pct: float | None = 20.0
     max_loss_pp: float | None = 1.0
+    max_abs_loss_pp: float | None = None
     max_cycle_time_s: float | None = 120.0
     max_tracking_error_mm: float | None = None
     max_speed_error_pct: float | None = None
@@ -90,8 +106,12 @@ class ValidationReport:
     checks: one `Check` per enabled threshold; passed: all checks passed.
     reachability: summary dict from the robots' reachability report (or None).
     collisions: collision events (bodies, start/end time [s], max depth [m], samples).
-    joint_range_utilization / torque_utilization: per joint, max fraction [-].
-    planned_thickness_m / executed_thickness_m: (N,) film per surface vertex [m] (plots only).
+    joint_range_utilization / torque_utilization: per joint, max fraction [-] (torque: demanded
+        before the actuator clamp, so > 1 where the joint saturated).
+    torque_saturation_pct: per joint, share of program steps whose demanded torque exceeded
+        τ_max [%].
+    planned_thickness_m / executed_thickness_m / trajectory_thickness_m: (N,) film per surface
+        vertex [m] (plots only).
     """
 
     metrics: dict[str, Any]
@@ -102,6 +122,8 @@ class ValidationReport:
     torque_utilization: tuple[float, ...]
     planned_thickness_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     executed_thickness_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    trajectory_thickness_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    torque_saturation_pct: tuple[float, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -129,6 +151,7 @@ class ValidationReport:
         d["collisions"] = list(self.collisions)
         d["joint_range_utilization"] = [_json_num(x) for x in self.joint_range_utilization]
         d["torque_utilization"] = [_json_num(x) for x in self.torque_utilization]
+        d["torque_saturation_pct"] = [_json_num(x) for x in self.torque_saturation_pct]
         return d
 
     def save_json(self, path: str | Path) -> None:
@@ -208,8 +231,10 @@ def tracking_errors(traj: JointTrajectory, trace: ExecutedTrace) -> dict[str, fl
     }
 
 
-def _utilization(trace: ExecutedTrace) -> tuple[np.ndarray, np.ndarray]:
-    """Per joint: max |q − mid| / half-range and max |τ| / τ_max (limits from `trace.meta`)."""
+def _utilization(trace: ExecutedTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per joint: max |q − mid| / half-range, max |τ_demand| / τ_max and the share of steps with
+    |τ_demand| > τ_max [%] (limits from `trace.meta`; traces without `tau_demand` fall back to
+    the applied torque, which the clamp keeps ≤ τ_max)."""
     n = trace.q.shape[1]
     lo = np.asarray([np.nan if x is None else x for x in trace.meta.get("q_lower", [None] * n)],
                     float)
@@ -217,10 +242,12 @@ def _utilization(trace: ExecutedTrace) -> tuple[np.ndarray, np.ndarray]:
                     float)
     tau_max = np.asarray(trace.meta.get("tau_max", [np.nan] * n), float)
     mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    tau = np.abs(trace.tau if trace.tau_demand is None else trace.tau_demand)
     with np.errstate(invalid="ignore", divide="ignore"):
         q_use = np.max(np.abs(trace.q - mid) / half, axis=0)
-        tau_use = np.max(np.abs(trace.tau), axis=0) / tau_max
-    return q_use, tau_use
+        tau_use = np.max(tau, axis=0) / tau_max
+        saturated = 100.0 * np.mean(tau > tau_max, axis=0)
+    return q_use, tau_use, np.where(np.isfinite(tau_max), saturated, np.nan)
 
 
 def _reachability_summary(reach: dict[str, Any] | None) -> tuple[dict[str, Any] | None, float]:
@@ -248,14 +275,30 @@ def executed_gun_samples(trace: ExecutedTrace, T_part_world: np.ndarray,
     the every-step sum by < 1e-5 relative (σ/μ by 2e-5 pp) at a fifth of the cost.
     None: every step.
     """
-    full = trace.gun_samples(T_part_world)
-    if sample_s is None or len(trace.t_s) < 2:
+    return _binned(trace.gun_samples(T_part_world), trace.t_s, trace.paint_on, sample_s)
+
+
+def trajectory_gun_samples(traj: JointTrajectory, T_part_world: np.ndarray,
+                           sample_s: float | None = 0.005) -> GunSamples:
+    """The trajectory's own paint-on TCP samples (ideal kinematics at the time law's timing) in
+    the part frame, sampled and binned exactly as `executed_gun_samples` does a trace."""
+    ideal = ExecutedTrace(
+        t_s=traj.t_s, q=traj.q, qd=traj.qd, tau=np.zeros_like(traj.q),
+        tcp_pos_world=traj.tcp_pos_world, tcp_rot_world=traj.tcp_rot_world,
+        paint_on=traj.paint_on, pass_index=traj.pass_index, mode="kinematic")
+    return executed_gun_samples(ideal, T_part_world, sample_s)
+
+
+def _binned(full: GunSamples, t_s: np.ndarray, paint_on: np.ndarray,
+            sample_s: float | None) -> GunSamples:
+    """`full` (one sample per paint-on step of `t_s`) merged into bins of `sample_s` [s]."""
+    if sample_s is None or len(t_s) < 2:
         return full
-    dt = float(trace.t_s[1] - trace.t_s[0])
+    dt = float(t_s[1] - t_s[0])
     m = max(1, int(math.ceil(sample_s / dt - 1e-9)))
     if m == 1:
         return full
-    idx = np.flatnonzero(np.asarray(trace.paint_on, bool))
+    idx = np.flatnonzero(np.asarray(paint_on, bool))
     run_id = np.concatenate([[0], np.cumsum(np.diff(idx) > 1)])
     pos_in_run = np.arange(len(idx)) - np.searchsorted(run_id, run_id)
     bin_key = run_id * (len(idx) + 1) + pos_in_run // m
@@ -280,8 +323,8 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     T_world_part: (4, 4) planned placement of the part [m] (the trace's `meta` says where the part
     really was when a placement disturbance moved it); thresholds: pass/fail limits;
     reachability: `ReachabilityReport.to_dict()` of the IK stage (per-pose arrays dropped).
-    exec_sample_s: bin of the executed trace for the deposition sum [s] (see
-    `executed_gun_samples`; None: every 1 ms step).
+    exec_sample_s: bin of the executed trace and of the trajectory for the deposition sum [s]
+    (see `executed_gun_samples`; None: every 1 ms step).
     """
     thresholds = thresholds or Thresholds()
     T_world_part = np.asarray(T_world_part, float)
@@ -301,25 +344,39 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     t_plan = thickness(app, plan.gun_samples(), pts, nrm)
     if not np.any(trace.paint_on):
         raise ValidationError("the trace has no paint-on samples; the trajectory never painted")
+    if not np.any(traj.paint_on):
+        raise ValidationError("the trajectory has no paint-on samples; rebuild it from the plan")
     t_exec = thickness(app, executed_gun_samples(trace, _inv(T_actual), exec_sample_s),
+                       pts, nrm)
+    # The program as built: its own TCP samples where the part was planned to be.
+    t_traj = thickness(app, trajectory_gun_samples(traj, _inv(T_world_part), exec_sample_s),
                        pts, nrm)
     u_plan = uniformity(t_plan, areas, tolerance=thresholds.tolerance)
     u_exec = uniformity(t_exec, areas, target_m=u_plan.mean_m, tolerance=thresholds.tolerance)
+    u_traj = uniformity(t_traj, areas, target_m=u_plan.mean_m, tolerance=thresholds.tolerance)
+    loss_time_law = u_traj.nsd_pct - u_plan.nsd_pct
+    loss_servo = u_exec.nsd_pct - u_traj.nsd_pct
     diff = t_exec - t_plan
     rms_diff = float(np.sqrt(np.dot(areas, diff**2) / areas.sum()))
 
     trk = tracking_errors(traj, trace)
-    q_use, tau_use = _utilization(trace)
+    q_use, tau_use, tau_sat = _utilization(trace)
     reach_summary, reach_pct = _reachability_summary(reachability)
     events = collision_events(trace)
     dt = float(trace.t_s[1] - trace.t_s[0]) if len(trace.t_s) > 1 else 0.0
 
     metrics: dict[str, Any] = {
         "planned_nsd_pct": u_plan.nsd_pct,
+        "trajectory_nsd_pct": u_traj.nsd_pct,
         "executed_nsd_pct": u_exec.nsd_pct,
-        "loss_pp": u_exec.nsd_pct - u_plan.nsd_pct,
+        # executed − planned, split into its two causes; the sum is the headline, exactly.
+        "loss_pp": loss_time_law + loss_servo,
+        "loss_time_law_pp": loss_time_law,
+        "loss_servo_pp": loss_servo,
+        "abs_loss_pp": abs(loss_time_law + loss_servo),
         "planned_mean_um": 1e6 * u_plan.mean_m,
         "executed_mean_um": 1e6 * u_exec.mean_m,
+        "trajectory_mean_um": 1e6 * u_traj.mean_m,
         "planned_min_um": 1e6 * u_plan.min_m, "planned_max_um": 1e6 * u_plan.max_m,
         "executed_min_um": 1e6 * u_exec.min_m, "executed_max_um": 1e6 * u_exec.max_m,
         "max_thickness_diff_um": 1e6 * float(np.abs(diff).max()),
@@ -327,6 +384,7 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "tolerance_fraction": thresholds.tolerance,
         "planned_within_tolerance_pct": 100.0 * u_plan.within_tolerance_fraction,
         "executed_within_tolerance_pct": 100.0 * u_exec.within_tolerance_fraction,
+        "trajectory_within_tolerance_pct": 100.0 * u_traj.within_tolerance_fraction,
         **trk,
         "planned_cycle_time_s": traj.duration_s,
         # The program's own time plus the time the arm needs to settle on its last pose.
@@ -337,6 +395,9 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "executed_paint_time_s": dt * float(np.count_nonzero(trace.paint_on)),
         "max_joint_range_utilization": float(np.nanmax(q_use)) if len(q_use) else float("nan"),
         "max_torque_utilization": float(np.nanmax(tau_use)) if len(tau_use) else float("nan"),
+        "max_torque_saturation_pct": (float(np.nanmax(tau_sat)) if len(tau_sat)
+                                      else float("nan")),
+        "torque_source": "applied" if trace.tau_demand is None else "demanded",
         "reachability_pct": reach_pct,
         "n_collisions": len(events),
         "n_contact_samples": len(trace.contacts),
@@ -352,7 +413,8 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         collisions=tuple(events),
         joint_range_utilization=tuple(float(x) for x in q_use),
         torque_utilization=tuple(float(x) for x in tau_use),
-        planned_thickness_m=t_plan, executed_thickness_m=t_exec)
+        planned_thickness_m=t_plan, executed_thickness_m=t_exec, trajectory_thickness_m=t_traj,
+        torque_saturation_pct=tuple(float(x) for x in tau_sat))
 
 
 def _checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
@@ -361,6 +423,7 @@ def _checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
         ("collisions", "n_collisions", th.max_collisions, "events", "max"),
         ("executed σ/μ", "executed_nsd_pct", th.max_executed_nsd_pct, "%", "max"),
         ("uniformity loss", "loss_pp", th.max_loss_pp, "pp", "max"),
+        ("|uniformity loss|", "abs_loss_pp", th.max_abs_loss_pp, "pp", "max"),
         ("cycle time", "executed_cycle_time_s", th.max_cycle_time_s, "s", "max"),
         ("TCP tracking error", "tracking_error_max_mm", th.max_tracking_error_mm, "mm", "max"),
         ("speed-following error", "speed_error_rms_pct", th.max_speed_error_pct, "%", "max"),

@@ -7,6 +7,7 @@ the plan is the trajectory's own forward kinematics at planned timing, sampled e
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 from typing import Any
@@ -21,7 +22,7 @@ from robots.robot import load_robot
 from sim.cell import Cell, build_cell
 from sim.execute import SETTLE_MAX_S, Disturbances, ExecutionError, ServoSettings, execute
 from sim.joint_trajectory import APPROACH, PAINT, JointTrajectory
-from sim.trace import ExecutedTrace
+from sim.trace import ExecutedTrace, TraceError
 from tests.helpers import REPLAY_TCP_ATOL_MM, SERVO_TRACKING_MAX_MM
 
 DT_S = 1e-3
@@ -279,6 +280,56 @@ def test_arm_folded_into_itself_is_a_reported_self_collision(mode: str) -> None:
     assert run(mode).contacts == ()
 
 
+def test_torque_demand_is_recorded_before_the_clamp() -> None:
+    """`tau` is the applied (clamped) torque, `tau_demand` what the servo law asked for: equal
+    where no joint saturates, and the clamp of the demand where one does."""
+    case = make_case()
+    tr = run("servo")
+    assert tr.tau_demand is not None and tr.tau_demand.shape == tr.tau.shape
+    tau_max = case.robot.tau_max
+    np.testing.assert_allclose(tr.tau, np.clip(tr.tau_demand, -tau_max, tau_max), rtol=1e-12,
+                               atol=1e-9)
+    # Joint 1 limited to 1.2 % of its torque: it saturates on the sweep's accelerations, the
+    # demand runs past the limit while the applied torque stays at it.
+    scale = np.ones(case.robot.nq)
+    scale[0] = 0.012
+    weak = dataclasses.replace(make_cell(), tau_max=make_cell().tau_max * scale)
+    sat = execute(weak, case.traj)
+    assert sat.tau_demand is not None
+    assert np.abs(sat.tau).max(axis=0)[0] == pytest.approx(weak.tau_max[0], rel=1e-9)
+    assert np.abs(sat.tau_demand).max(axis=0)[0] > 2.0 * weak.tau_max[0]
+    np.testing.assert_allclose(sat.tau, np.clip(sat.tau_demand, -weak.tau_max, weak.tau_max),
+                               rtol=1e-12, atol=1e-9)
+    # Kinematic replay: the demand is the inverse dynamics, the torque it reports.
+    kin = run("kinematic")
+    assert kin.tau_demand is not None
+    np.testing.assert_array_equal(kin.tau_demand, kin.tau)
+
+
+def test_contacts_during_the_settling_hold_are_reported() -> None:
+    """The program stops 0.08 s before the bell would reach the upper arm on the fold move
+    (make_fold), its last sample stepping to the folded pose: the servo gets there only during
+    the settling hold after the program, and that collision is reported (times past the end)."""
+    cell, fold = make_fold()
+    robot = make_case().robot
+    k = round(1.0 / DT_S)
+    q = np.vstack([fold.q[:k], np.array(Q_FOLDED)[None]])
+    qd = np.vstack([fold.qd[:k], np.zeros((1, robot.nq))])
+    qdd = np.vstack([fold.qdd[:k], np.zeros((1, robot.nq))])
+    K = len(q)
+    T_tcp = robot.fk_many(q)
+    traj = JointTrajectory(
+        t_s=np.arange(K) * DT_S, q=q, qd=qd, qdd=qdd, tcp_pos_world=T_tcp[:, :3, 3],
+        tcp_rot_world=T_tcp[:, :3, :3], v_tcp_planned=np.zeros(K), paint_on=np.zeros(K, bool),
+        pass_index=np.full(K, -1), segment=np.full(K, APPROACH), s_pass_m=np.full(K, np.nan),
+        robot_name=robot.name, joint_names=tuple(robot.joint_names))
+    tr = execute(cell, traj)
+    assert len(tr.contacts) > 0
+    assert {(c.body1, c.body2) for c in tr.contacts} == {("robot/flange", "robot/link2")}
+    assert min(c.time_s for c in tr.contacts) > traj.t_s[-1]
+    assert max(c.time_s for c in tr.contacts) <= traj.t_s[-1] + SETTLE_MAX_S + 1e-9
+
+
 def test_disturbances_are_seeded_and_applied() -> None:
     d = Disturbances(part_offset_m=0.01, part_rotation_rad=0.02, tcp_offset_m=0.005, seed=3)
     T1, o1 = d.realize()
@@ -312,15 +363,44 @@ def test_bad_inputs_raise_project_errors() -> None:
         ServoSettings(latency_steps=-1)
 
 
+@pytest.mark.parametrize("kw, field", [
+    ({"seed": 1.5}, "seed"), ({"seed": True}, "seed"), ({"seed": "3"}, "seed"),
+    ({"gain_scale": "abc"}, "gain_scale"), ({"gain_scale": 0.0}, "gain_scale"),
+    ({"gain_scale": float("inf")}, "gain_scale"), ({"part_offset_m": float("nan")}, "part_offset"),
+    ({"part_offset_m": -0.01}, "part_offset"), ({"part_rotation_rad": "0.1"}, "part_rotation"),
+    ({"tcp_offset_m": float("inf")}, "tcp_offset"), ({"tcp_offset_m": None}, "tcp_offset"),
+    ({"part_offset_m": True}, "part_offset"),
+])
+def test_bad_disturbances_raise_one_line_errors(kw: dict[str, Any], field: str) -> None:
+    with pytest.raises(ExecutionError, match=field) as exc:
+        Disturbances(**kw)
+    assert "\n" not in str(exc.value)
+
+
+def test_disturbances_accept_numpy_and_int_values() -> None:
+    d = Disturbances(part_offset_m=np.float64(0.01), tcp_offset_m=0, gain_scale=2,
+                     seed=np.int64(4))
+    assert d.to_dict() == {"part_offset_m": 0.01, "part_rotation_rad": 0.0, "tcp_offset_m": 0.0,
+                           "gain_scale": 2.0, "seed": 4}
+    assert all(type(v) in (float, int) for v in d.to_dict().values())
+
+
 def test_trace_save_load_round_trip(tmp_path: Any) -> None:
     tr = run("kinematic", part_shift_m=0.3)
     path = tmp_path / "trace.npz"
     tr.save_npz(path)
     back = ExecutedTrace.load_npz(path)
-    for name in ExecutedTrace._ARRAYS:
+    for name in ExecutedTrace._ARRAYS + ExecutedTrace._OPTIONAL_ARRAYS:
         np.testing.assert_array_equal(getattr(back, name), getattr(tr, name))
+    assert back.tau_demand is not None
     assert back.contacts == tr.contacts and back.mode == tr.mode
     assert back.meta["T_world_part_actual"] == tr.meta["T_world_part_actual"]
+    # A trace without the demanded torque (written before it was recorded) still loads.
+    old = dataclasses.replace(tr, tau_demand=None)
+    old.save_npz(tmp_path / "old.npz")
+    assert ExecutedTrace.load_npz(tmp_path / "old.npz").tau_demand is None
+    with pytest.raises(TraceError, match="does not exist"):
+        ExecutedTrace.load_npz(tmp_path / "missing.npz")
 
 
 def test_progress_is_reported_to_completion() -> None:

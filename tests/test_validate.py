@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 from pathlib import Path
@@ -11,6 +12,7 @@ import pytest
 
 from planning.applicator import Applicator
 from planning.deposition import thickness
+from planning.plan import CoveragePlan, times_from_speeds
 from sim.execute import Disturbances, execute
 from sim.trace import Contact, ExecutedTrace
 from sim.validate import (
@@ -27,7 +29,7 @@ from tests.helpers import (
     LOSS_RESOLUTION_PP,
     SERVO_TRACKING_MAX_MM,
 )
-from tests.test_execute import make_case, make_fold, run
+from tests.test_execute import make_case, make_cell, make_fold, run
 
 
 @functools.lru_cache(maxsize=8)
@@ -58,6 +60,87 @@ def test_servo_loss_is_reported_and_small() -> None:
     assert m["executed_cycle_time_s"] == pytest.approx(m["planned_cycle_time_s"]
                                                        + m["settle_time_s"])
     assert 0 < m["max_torque_utilization"] < 1 and 0 < m["max_joint_range_utilization"] < 1
+    assert m["torque_source"] == "demanded" and m["max_torque_saturation_pct"] == 0.0
+    assert rep.torque_saturation_pct == (0.0,) * 6
+
+
+def test_saturated_joint_fails_the_torque_check() -> None:
+    """Joint 1 limited to 1.2 % of its torque saturates on the sweep's accelerations: the
+    torque the servo demanded (not the clamped one it got, ≤ τ_max by construction) is checked,
+    so utilization exceeds 1 and the check fails — here the only one that does."""
+    c = make_case()
+    scale = np.ones(6)
+    scale[0] = 0.012
+    weak = dataclasses.replace(make_cell(), tau_max=make_cell().tau_max * scale)
+    tr = execute(weak, c.traj)
+    assert np.abs(tr.tau).max() <= weak.tau_max.max() * (1 + 1e-9)
+    rep = validate(c.plan, c.surface, c.traj, tr, c.T_world_part,
+                   Thresholds(max_executed_nsd_pct=50.0))
+    m = rep.metrics
+    # Measured: 28.8 × τ_max demanded at the peak, saturated on 19 % of the steps.
+    assert m["max_torque_utilization"] > 2.0 and rep.torque_utilization[0] > 2.0
+    assert 5.0 < rep.torque_saturation_pct[0] < 50.0
+    assert m["max_torque_saturation_pct"] == rep.torque_saturation_pct[0]
+    assert rep.torque_saturation_pct[1:] == (0.0,) * 5
+    assert [ch.name for ch in rep.checks if not ch.passed] == ["torque utilization"]
+    assert m["n_collisions"] == 0
+
+
+def _retimed_plan(plan: CoveragePlan, factor: float) -> CoveragePlan:
+    """The plan with its speeds × factor over the middle third of each pass (same path, times
+    re-derived by the plan's timing rule): the trajectory, built for the original plan, runs
+    slower (factor > 1) or faster (< 1) than this plan there, as a time law does."""
+    passes = []
+    for p in plan.passes:
+        w = np.ones(len(p.speeds_m_s))
+        w[len(w) // 3: 2 * len(w) // 3] = factor
+        v = p.speeds_m_s * w
+        passes.append(dataclasses.replace(p, speeds_m_s=v,
+                                          times_s=times_from_speeds(p.positions, v)))
+    return dataclasses.replace(plan, passes=tuple(passes))
+
+
+def test_loss_splits_into_time_law_and_servo() -> None:
+    """A plan 25 % faster mid-pass than the trajectory that was built (what a joint-limit
+    slowdown does): the whole difference is the time law's, the kinematic replay adds nothing,
+    and the servo's share does not depend on the plan. The shares add up to the loss exactly."""
+    c = make_case()
+    fast = _retimed_plan(c.plan, 1.25)
+    th = Thresholds(max_executed_nsd_pct=50.0)
+    kin = validate(fast, c.surface, c.traj, run("kinematic"), c.T_world_part, th).metrics
+    # Measured: 0.351 pp from the time law (vs −0.009 pp, the plan-sampling floor, unretimed).
+    assert kin["loss_time_law_pp"] > 0.2
+    assert abs(kin["loss_servo_pp"]) < 1e-6
+    servo = validate(fast, c.surface, c.traj, run("servo"), c.T_world_part, th).metrics
+    base = report("servo").metrics
+    assert servo["loss_time_law_pp"] == kin["loss_time_law_pp"]
+    assert servo["loss_servo_pp"] == pytest.approx(base["loss_servo_pp"], abs=1e-12)
+    assert abs(base["loss_time_law_pp"]) < KINEMATIC_REPLAY_LOSS_PP
+    for m in (kin, servo, base):
+        assert m["loss_time_law_pp"] + m["loss_servo_pp"] == m["loss_pp"]  # exactly
+        assert m["loss_pp"] == pytest.approx(m["executed_nsd_pct"] - m["planned_nsd_pct"],
+                                             abs=1e-12)
+        assert m["loss_time_law_pp"] == m["trajectory_nsd_pct"] - m["planned_nsd_pct"]
+        assert m["loss_servo_pp"] == m["executed_nsd_pct"] - m["trajectory_nsd_pct"]
+    rep = report("kinematic")
+    np.testing.assert_allclose(rep.trajectory_thickness_m, rep.executed_thickness_m,
+                               rtol=1e-9, atol=1e-12 * rep.executed_thickness_m.max())
+
+
+def test_large_negative_loss_fails_only_the_abs_loss_check() -> None:
+    """A plan 20 % slower mid-pass than its trajectory is less uniform than what is executed:
+    a negative loss (−0.47 pp measured) passes `max_loss_pp` but fails `max_abs_loss_pp`."""
+    c = make_case()
+    slow = _retimed_plan(c.plan, 0.8)
+    tr = run("kinematic")
+    rep = validate(slow, c.surface, c.traj, tr, c.T_world_part,
+                   Thresholds(max_executed_nsd_pct=50.0, max_loss_pp=0.1, max_abs_loss_pp=0.1))
+    assert rep.loss_pp < -0.3 and rep.metrics["abs_loss_pp"] == -rep.loss_pp
+    assert [ch.name for ch in rep.checks if not ch.passed] == ["|uniformity loss|"]
+    # Off by default: the same comparison passes without it.
+    assert "|uniformity loss|" not in [ch.name for ch in report("kinematic").checks]
+    assert validate(slow, c.surface, c.traj, tr, c.T_world_part,
+                    Thresholds(max_executed_nsd_pct=50.0, max_loss_pp=0.1)).passed
 
 
 def test_ten_times_softer_servo_loses_more() -> None:
@@ -183,4 +266,6 @@ def test_door_program_end_to_end() -> None:
     assert m["reachability_pct"] == pytest.approx(100.0)
     assert 0 < m["tracking_error_max_mm"] < SERVO_TRACKING_MAX_MM
     assert abs(m["loss_pp"]) < 1.0
+    assert m["loss_time_law_pp"] + m["loss_servo_pp"] == m["loss_pp"]
+    assert m["torque_source"] == "demanded" and m["max_torque_utilization"] < 1.0
     assert rep.passed, [c for c in rep.checks if not c.passed]
