@@ -15,7 +15,10 @@ cost penalizes small widths and |w0 − w−1|. The new pass is the offset of ev
 current pass by w0 along its indexing curve (geodesic), continued within the surface to the
 boundary and beyond it by `overspray_m` along the tangent. After the last pass that touches the
 surface, the first offset that lies completely outside is kept as a sideways overspray pass
-(`edge_passes`), painted over the virtual extension of the surface.
+(`edge_passes`), painted over the virtual extension of the surface. Where the current pass's end
+samples have no offset there (their indexing curves left the surface along the boundary the pass
+ends at, `planning.offset.walk`), the edge pass continues straight along its own path as far as
+the current pass reaches, then by the overspray.
 """
 
 from __future__ import annotations
@@ -201,12 +204,13 @@ class _PassGeom:
     curves: list[IndexingCurve | None] | None = None
     info: dict[str, Any] = field(default_factory=dict)
     source: tuple[list[IndexingCurve | None], float] | None = None
+    #: straight continuation beyond (head, tail) before the overspray [m]: the stretch of the
+    #: source pass whose offsets are undefined (curves that left along the boundary)
+    extra_m: tuple[float, float] = (0.0, 0.0)
 
 
 def _mirror(c: IndexingCurve | None) -> IndexingCurve | None:
-    if c is None:
-        return None
-    return IndexingCurve(c.points[::-1].copy(), c.normals[::-1].copy(), -c.s[::-1])
+    return None if c is None else c.reversed()
 
 
 class _Planner:
@@ -445,6 +449,12 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                                                            extend=False)
                     edge = _PassGeom(foot, normals, np.zeros(len(foot), bool), side, w0,
                                      edge=True)
+                    # samples at the ends of the current pass whose indexing curves left the
+                    # surface along the boundary it ends at have no offset: the edge pass goes
+                    # on straight there (as its overspray does), as far as the current pass did
+                    i_ok = np.flatnonzero(ok)
+                    s_cur = arc_length(cur.foot)
+                    edge.extra_m = (float(s_cur[i_ok[0]]), float(s_cur[-1] - s_cur[i_ok[-1]]))
                     edge.info = dict(info, edge=True)
                     # its band lies on the part, between it and the previous pass
                     edge.source = (curves, sign * w0)
@@ -536,7 +546,9 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
     for order, side in enumerate(sides):
         p = passes[side]
         foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
-                                                 st.overspray_m, st.sample_spacing_m, h)
+                                                 (st.overspray_m + p.extra_m[0],
+                                                  st.overspray_m + p.extra_m[1]),
+                                                 st.sample_spacing_m, h)
         pos = foot + h * normals
         axes = -normals
         seg = np.diff(pos, axis=0)
@@ -591,28 +603,35 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
 
 
 def _with_overspray(foot: np.ndarray, normals: np.ndarray, on_part: np.ndarray,
-                    overspray_m: float, spacing_m: float, standoff_m: float
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Extend a pass by `overspray_m` at both ends, off the surface: the TCP continues straight
-    along the end tangent of its own path (no kink where the normal stops turning) and keeps
-    standoff along the end normal, so the foot point is TCP − h · n_end."""
-    if overspray_m <= 0:
-        return foot, normals, on_part
-    n_ext = int(np.ceil(overspray_m / spacing_m - 1e-9))
-    d = np.arange(1, n_ext + 1) * (overspray_m / n_ext)
+                    overspray_m: float | tuple[float, float], spacing_m: float,
+                    standoff_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Extend a pass by `overspray_m` at both ends (or (head, tail) [m]), off the surface: the TCP
+    continues straight along the end tangent of its own path (no kink where the normal stops
+    turning) and keeps standoff along the end normal, so the foot point is TCP − h · n_end."""
+    if isinstance(overspray_m, tuple):
+        head_m, tail_m = overspray_m
+    else:
+        head_m = tail_m = overspray_m
     tcp = foot + standoff_m * normals
     s = arc_length(tcp)
     span = min(2 * spacing_m, s[-1])
+
+    def steps(length_m: float) -> np.ndarray:
+        if length_m <= 0:
+            return np.zeros(0)
+        n_ext = int(np.ceil(length_m / spacing_m - 1e-9))
+        return np.arange(1, n_ext + 1) * (length_m / n_ext)
 
     def end_tangent(f: np.ndarray, ss: np.ndarray) -> np.ndarray:
         back = np.array([np.interp(ss[-1] - span, ss, f[:, k]) for k in range(3)])
         return unit(f[-1] - back)
 
+    d0, d1 = steps(head_m), steps(tail_m)
     t1 = end_tangent(tcp, s)
     t0 = end_tangent(tcp[::-1], s[-1] - s[::-1])
-    head = tcp[0] + d[::-1, None] * t0 - standoff_m * normals[0]
-    tail = tcp[-1] + d[:, None] * t1 - standoff_m * normals[-1]
+    head = tcp[0] + d0[::-1, None] * t0 - standoff_m * normals[0]
+    tail = tcp[-1] + d1[:, None] * t1 - standoff_m * normals[-1]
     return (np.concatenate([head, foot, tail]),
-            np.concatenate([np.tile(normals[0], (n_ext, 1)), normals,
-                            np.tile(normals[-1], (n_ext, 1))]),
-            np.concatenate([np.zeros(n_ext, bool), on_part, np.zeros(n_ext, bool)]))
+            np.concatenate([np.tile(normals[0], (len(d0), 1)), normals,
+                            np.tile(normals[-1], (len(d1), 1))]),
+            np.concatenate([np.zeros(len(d0), bool), on_part, np.zeros(len(d1), bool)]))

@@ -10,6 +10,11 @@ distance in the surface, not a straight shift: on a cylinder, passes around it a
 Crossing points lie on mesh edges; their normals are the linear interpolation of the vertex
 normals (renormalized). Beyond the surface boundary an indexing curve is continued along its end
 tangent with the end normal (the "virtual extension" that overspray and edge passes paint on).
+That continuation is only an extension of the surface *beside* the pass where the curve leaves
+through a boundary that crosses it. A curve that leaves through a boundary running along it (a
+pass sample on, or next to, the boundary the pass itself ends at: the section plane nearly
+contains that boundary, and whether the section hugs it or leaves at once is decided by
+round-off) says nothing about the surface there; `walk` gives no offset beyond such an end.
 """
 
 from __future__ import annotations
@@ -34,6 +39,14 @@ _ZERO_D_M = 1e-12
 _REVERSAL_FRACTION = 0.02
 #: Length over which an end tangent is measured for the straight continuation past a boundary [m].
 _END_TANGENT_M = 0.01
+#: A boundary vertex normal within this of the one-sided face average is that estimate [-]
+#: (identical up to round-off when `Surface.from_mesh` computed it; an analytic normal of a curved
+#: patch differs by ~κ·h/2 ≥ 1e-5).
+_FACE_AVERAGE_TOL = 1e-9
+#: A curve leaves the surface *along* the boundary (not across it) when its end tangent is within
+#: this angle of the boundary's direction there: 45°, the boundary is then closer to the indexing
+#: direction than to the pass direction, so it is the boundary the pass ends at, not its side.
+_ALONG_BOUNDARY_COS = float(np.cos(np.pi / 4))
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,7 +56,10 @@ class SurfaceGeometry:
     vertices: (N, 3) [m]; normals: (N, 3) unit, painted side; faces: (F, 3) int;
     edges: (E, 2) unique vertex pairs; face_edges: (F, 3) index of each face's edges in `edges`;
     edge_faces: (E, 2) the faces on each edge (-1 where the edge is on the boundary);
-    edge_length_m: median mesh edge length [m] (the mesh resolution).
+    edge_length_m: median mesh edge length [m] (the mesh resolution);
+    boundary_dir: (E, 3) unit direction of the boundary at each boundary edge (the chord from
+        the previous to the next boundary vertex, so a staircase boundary reads as its trend),
+        zero on interior edges; None: not computed (no boundary test).
     """
 
     vertices: np.ndarray
@@ -53,6 +69,7 @@ class SurfaceGeometry:
     face_edges: np.ndarray
     edge_faces: np.ndarray
     edge_length_m: float
+    boundary_dir: np.ndarray | None = None
 
     @classmethod
     def from_surface(cls, surface: Any) -> SurfaceGeometry:
@@ -72,8 +89,89 @@ class SurfaceGeometry:
         edge_faces = np.full((len(edges), 2), -1, dtype=np.int64)
         edge_faces[e_sorted[first], 0] = f_sorted[first]
         edge_faces[e_sorted[~first], 1] = f_sorted[~first]
-        return cls(v, np.asarray(surface.normals, float), np.asarray(surface.faces), edges,
-                   face_edges, edge_faces, float(np.median(lengths)))
+        faces = np.asarray(surface.faces, dtype=np.int64)
+        normals = boundary_normals(surface, edges, edge_faces)
+        return cls(v, normals, faces, edges, face_edges, edge_faces,
+                   float(np.median(lengths)), _boundary_directions(v, faces, edges, edge_faces))
+
+
+def boundary_normals(surface: Any, edges: np.ndarray, edge_faces: np.ndarray) -> np.ndarray:
+    """(N, 3) the surface's unit normals, with boundary-vertex normals that are one-sided face
+    averages re-estimated from the interior.
+
+    A vertex normal estimated as the area-weighted mean of its faces' normals
+    (`planning.curvature.vertex_normals`, what `Surface.from_mesh` gives) is centred at an
+    interior vertex but lags by about κ·h/2 at a boundary vertex, whose faces all lie on one side
+    (up to 1° on the fender at 20 mm): a TCP at standoff h_s then steps sideways by h_s·κ·h/2
+    at every pass end, a kink. Such normals are replaced by the extrapolation from each interior
+    neighbour j, n_j + S_j (x_b − x_j) with the shape operator S = Σ k_i d_i d_iᵀ of the
+    surface's curvature (dn = S dr in its sign convention), averaged; boundary vertices without
+    interior neighbours (corners) then extrapolate from corrected boundary neighbours. Normals
+    that are not face averages (analytic, from a parametric patch) are kept as they are.
+    """
+    from planning.curvature import vertex_normals
+
+    v = np.asarray(surface.vertices, float)
+    n = np.asarray(surface.normals, float)
+    bnd_e = edge_faces[:, 1] < 0
+    if not bnd_e.any():
+        return n
+    boundary = np.zeros(len(v), bool)
+    boundary[edges[bnd_e].ravel()] = True
+    est = vertex_normals(v, np.asarray(surface.faces, dtype=np.int64))
+    todo = boundary & (np.linalg.norm(n - est, axis=1) < _FACE_AVERAGE_TOL)
+    if not todo.any():
+        return n
+    k = np.asarray(surface.principal_curvatures, float)
+    d = np.asarray(surface.principal_directions, float)
+    S = (k[:, 0, None, None] * d[:, 0, :, None] * d[:, 0, None, :]
+         + k[:, 1, None, None] * d[:, 1, :, None] * d[:, 1, None, :])
+    a = np.concatenate([edges[:, 0], edges[:, 1]])   # a <- b: extrapolate b's normal to a
+    b = np.concatenate([edges[:, 1], edges[:, 0]])
+    out = n.copy()
+    known = ~todo
+    for _ in range(4):                  # interior neighbours first, then along the boundary
+        use = todo[a] & known[b] & ~known[a]
+        if not use.any():
+            break
+        ext = out[b[use]] + np.einsum("mij,mj->mi", S[b[use]], v[a[use]] - v[b[use]])
+        acc = np.zeros_like(out)
+        np.add.at(acc, a[use], ext)
+        new = np.unique(a[use])
+        cand = unit(acc[new])
+        # keep a normal the re-estimate would move by less than round-off (flat boundary)
+        moved = np.linalg.norm(cand - out[new], axis=1) > _FACE_AVERAGE_TOL
+        out[new[moved]] = cand[moved]
+        known[new] = True
+    return out
+
+
+def _boundary_directions(v: np.ndarray, faces: np.ndarray, edges: np.ndarray,
+                         edge_faces: np.ndarray) -> np.ndarray:
+    """(E, 3) unit boundary direction per boundary edge (zero elsewhere): the chord from the
+    boundary vertex before the edge to the one after it, following the faces' winding."""
+    out = np.zeros((len(edges), 3))
+    bnd = np.flatnonzero(edge_faces[:, 1] < 0)
+    if len(bnd) == 0:
+        return out
+    n = len(v)
+    # the boundary half-edges, oriented as their face winds them: loops of consistent direction
+    he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key_he = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])
+    key_b = edges[bnd, 0] * n + edges[bnd, 1]       # edges_unique rows are sorted pairs
+    order = np.argsort(key_b)
+    pos = np.searchsorted(key_b[order], key_he)
+    pos = np.clip(pos, 0, len(bnd) - 1)
+    hit = key_b[order][pos] == key_he
+    a, b = he[hit, 0], he[hit, 1]
+    eid = bnd[order][pos[hit]]
+    nxt = np.arange(n)
+    prv = np.arange(n)
+    nxt[a] = b                                      # a manifold boundary vertex: one each way
+    prv[b] = a
+    chord = v[nxt[b]] - v[prv[a]]
+    out[eid] = unit(chord)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -186,11 +284,15 @@ class IndexingCurve:
     points: (K, 3) polyline on the surface [m]; normals: (K, 3) unit normals;
     s: (K,) arc length [m], increasing, 0 at the source point (its foot on the polyline);
     positive s lies on the requested side ("right" of the pass for an indexing curve).
+    extends: (before the first point, after the last) whether the straight virtual extension
+        beyond that end continues the surface beside the pass: False where the curve left the
+        surface along the boundary (see the module docstring); `walk` gives no offset there.
     """
 
     points: np.ndarray
     normals: np.ndarray
     s: np.ndarray
+    extends: tuple[bool, bool] = (True, True)
 
     @property
     def s_min(self) -> float:
@@ -225,6 +327,27 @@ class IndexingCurve:
 
     def _at(self, s0: float) -> np.ndarray:
         return np.array([np.interp(s0, self.s, self.points[:, k]) for k in range(3)])
+
+    def end_tangents(self) -> tuple[np.ndarray, np.ndarray]:
+        """Unit outward tangents (3,) at the first and the last point: the directions of the
+        virtual extension beyond each end (measured over the last `_END_TANGENT_M`)."""
+        span = min(_END_TANGENT_M, self.s_max - self.s_min)
+        return (unit(self.points[0] - self._at(self.s_min + span)),
+                unit(self.points[-1] - self._at(self.s_max - span)))
+
+    def reversed(self) -> IndexingCurve:
+        """The same curve with s negated (its left and right sides swapped)."""
+        return IndexingCurve(self.points[::-1].copy(), self.normals[::-1].copy(), -self.s[::-1],
+                             (self.extends[1], self.extends[0]))
+
+
+def _leaves_across(geom: SurfaceGeometry, edge: int, tangent: np.ndarray) -> bool:
+    """Whether a section ending on mesh edge `edge` with outward tangent (3,) leaves the surface
+    across the boundary (True; also for an interior edge or no boundary data) rather than along
+    it (within 45° of the boundary's direction there)."""
+    if geom.boundary_dir is None or geom.edge_faces[edge, 1] >= 0:
+        return True
+    return bool(abs(float(geom.boundary_dir[edge] @ tangent)) < _ALONG_BOUNDARY_COS)
 
 
 def _foot_on_polyline(points: np.ndarray, p: np.ndarray) -> tuple[float, float]:
@@ -279,11 +402,16 @@ def curve_through(geom: SurfaceGeometry, point: npt.ArrayLike, plane_normal: npt
     if gap > (2.0 * geom.edge_length_m if max_gap_m is None else max_gap_m):
         return None
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(cp, axis=0), axis=1))]) - s0
+    curve = IndexingCurve(cp, cn, s)
+    if not closed:      # how each end leaves the surface: across the boundary or along it
+        t0, t1 = curve.end_tangents()
+        curve = IndexingCurve(cp, cn, s, (_leaves_across(geom, int(cross[order[0]]), t0),
+                                          _leaves_across(geom, int(cross[order[-1]]), t1)))
     # orientation: the local tangent at the source point must point along `forward`
     i = int(np.clip(np.searchsorted(s, 0.0), 1, len(s) - 1))
     if np.dot(cp[i] - cp[i - 1], np.asarray(forward, float)) < 0:
-        cp, cn, s = cp[::-1], cn[::-1], -s[::-1]
-    return IndexingCurve(cp, cn, s)
+        curve = curve.reversed()
+    return curve
 
 
 def indexing_curves(geom: SurfaceGeometry, points: npt.ArrayLike, tangents: npt.ArrayLike,
@@ -307,7 +435,8 @@ def indexing_curves(geom: SurfaceGeometry, points: npt.ArrayLike, tangents: npt.
 def walk(curves: list[IndexingCurve | None], distance_m: float | np.ndarray
          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points (S, 3), normals (S, 3) and inside (S,) reached at arc length `distance_m` along each
-    curve (scalar or (S,) [m], signed: > 0 to the right). Missing curves give NaN points and
+    curve (scalar or (S,) [m], signed: > 0 to the right). Missing curves, and distances beyond
+    an end the curve left along the boundary (`IndexingCurve.extends`), give NaN points and
     inside = False."""
     m = len(curves)
     dist = np.broadcast_to(np.asarray(distance_m, float), (m,))
@@ -316,6 +445,8 @@ def walk(curves: list[IndexingCurve | None], distance_m: float | np.ndarray
     inside = np.zeros(m, bool)
     for i, c in enumerate(curves):
         if c is None:
+            continue
+        if (dist[i] < c.s_min and not c.extends[0]) or (dist[i] > c.s_max and not c.extends[1]):
             continue
         a, b, ok = c.sample(dist[i:i + 1])
         pts[i], nrm[i], inside[i] = a[0], b[0], ok[0]

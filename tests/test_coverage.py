@@ -14,6 +14,7 @@ from planning.deposition import thickness
 from planning.errors import PlanError
 from planning.index_width import nsd_vs_index_width, planar_index_width
 from planning.plan import CoveragePlan
+from planning.surface import Surface
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
 
 RES = 0.025
@@ -372,3 +373,77 @@ def test_offset_past_a_focal_point_is_refused() -> None:
     with pytest.raises(PlanError, match="self-intersects"):
         plan_coverage(s, APP, PlannerSettings(optimize_speed=False, start_position=0.2,
                                               sample_spacing_m=0.04))
+
+
+def _turn_limit_rad(curvature_1_m: float, spacing_m: float) -> float:
+    """The no-kink criterion: the TCP path turns with the normal, at most |k|max per unit foot
+    length (with the margin of `test_algorithm1_terminates_on_every_part_and_covers_it`)."""
+    return 1.5 * curvature_1_m * spacing_m + 0.01
+
+
+def _max_turn_rad(positions: np.ndarray) -> float:
+    d = np.diff(positions, axis=0)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    return float(np.arccos(np.clip(np.einsum("ij,ij->i", d[1:], d[:-1]), -1.0, 1.0)).max())
+
+
+MESH_RES = 0.02
+MESH_ST = PlannerSettings(orientation="zero-curvature")
+
+
+@pytest.mark.parametrize("name", ["door", "fender"])
+def test_part_from_a_mesh_file_plans_like_the_parametric_part(name: str, tmp_path) -> None:
+    # The same part exported as a bare mesh (no (u, v), normals and sections from the triangles).
+    # Before: the edge pass of the door kinked 42° at its end (the indexing curve through the
+    # pass's last sample, on the boundary the pass ends at, left the mesh at once along that
+    # boundary, and its straight extension was taken as the offset) and its speed ran to v_max;
+    # the fender's passes turned 7° at their ends (one-sided boundary vertex normals).
+    lib = parts.get_part(name, MESH_RES)
+    path = tmp_path / f"{name}.stl"
+    lib.mesh.export(path)
+    mesh = Surface.from_mesh(path)
+    want = plan_coverage(lib, APP, MESH_ST)
+    plan = plan_coverage(mesh, APP, MESH_ST)
+    assert sorted(p.side for p in plan.passes) == sorted(p.side for p in want.passes)
+    assert sum(not p.on_part.any() for p in plan.passes) == 2         # both edge passes
+    k_max = float(np.abs(lib.principal_curvatures).max())         # the part's true curvature
+    limit = _turn_limit_rad(k_max, MESH_ST.sample_spacing_m)
+    ref = {p.side: p for p in want.passes}
+    for p in plan.passes:
+        assert _max_turn_rad(p.positions) <= limit, (name, p.side, _max_turn_rad(p.positions))
+        axes = np.einsum("ij,ij->i", p.spray_axes[1:], p.spray_axes[:-1])
+        assert np.degrees(np.arccos(np.clip(axes.min(), -1, 1))) < 2.5, (name, p.side)
+        # the edge passes reach as far as the library part's (no end sample dropped for good)
+        length = arc_length_m(p.positions)
+        assert length == pytest.approx(arc_length_m(ref[p.side].positions), abs=0.03)
+        # speeds within the QP's bounds, and the pass ends at the speed the QP gives the
+        # parametric part there (not run up to v_max by a kink)
+        assert np.all(p.speeds_m_s >= MESH_ST.v_min_m_s * (1 - 1e-6))
+        assert np.all(p.speeds_m_s <= MESH_ST.v_max_m_s * (1 + 1e-6))
+        ends = sorted([p.speeds_m_s[0], p.speeds_m_s[-1]])
+        ref_ends = sorted([ref[p.side].speeds_m_s[0], ref[p.side].speeds_m_s[-1]])
+        np.testing.assert_allclose(ends, ref_ends, atol=0.05, err_msg=f"{name} {p.side}")
+        assert p.speeds_m_s.max() <= ref[p.side].speeds_m_s.max() + 0.1, (name, p.side)
+
+
+def arc_length_m(points: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+def test_door_from_a_mesh_file_gives_a_robot_program(tmp_path) -> None:
+    # the trajectory stage used to fail on the mesh door's kinked edge pass ("TOPP-RA failed on
+    # a pass"); the placement of scenarios/door.py
+    from robots import load_robot
+    from sim.scenario import Placement, facing_robot
+    from sim.trajectory import TrajectorySettings, build_program
+
+    path = tmp_path / "door.stl"
+    parts.door(MESH_RES).mesh.export(path)
+    plan = plan_coverage(Surface.from_mesh(path), APP, MESH_ST)
+    T_world_part = Placement(xyz_m=(1.4, 0.0, 1.0), rpy_rad=facing_robot()).matrix
+    T_world_base = Placement(xyz_m=(-0.64, 0.2, 0.0), rpy_rad=(0.0, 0.0, -0.111)).matrix
+    robot = load_robot("abb_paint", T_world_base=T_world_base)
+    traj = build_program(robot, plan, T_world_part,
+                         TrajectorySettings(q_home=(0.0, -0.6, 0.3, 0.0, 0.9, 0.0)))
+    assert traj.meta["reachability"]["all_reachable"]
+    assert traj.meta["cycle_time_s"] > sum(p.times_s[-1] for p in plan.passes)

@@ -12,6 +12,7 @@ from planning.offset import (
     SurfaceGeometry,
     arc_length,
     check_offset_order,
+    curve_through,
     geodesic_curvature,
     indexing_curves,
     plane_sections,
@@ -24,7 +25,7 @@ from planning.start_curve import (
     divider_offset,
     select_start_curve,
 )
-from planning.surface import plane
+from planning.surface import Surface, plane
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
 
 RES = 0.025
@@ -159,6 +160,50 @@ def test_walk_handles_missing_curves() -> None:
     assert inside.tolist() == [True, False]
     assert np.isnan(pts[1]).all()
     np.testing.assert_allclose(pts[0], [0.5, 0, 0])
+
+
+def test_walk_gives_no_offset_beyond_an_end_that_leaves_along_the_boundary() -> None:
+    # a pass ending on the boundary x = 0.5 of a 1.0 × 0.8 sheet, its tangent tilted 0.2° off
+    # +x (the round-off of a mesh): the indexing plane through its end point nearly contains
+    # that boundary. To one side the section leaves at once along it, to the other it hugs the
+    # boundary row and leaves across the side boundary y = +0.4 at the corner.
+    geom = SurfaceGeometry.from_surface(plane(1.0, 0.8, 0.05))
+    tilt = np.deg2rad(0.2)
+    t = np.array([np.cos(tilt), np.sin(tilt), 0.0])
+    right = np.cross(t, [0.0, 0.0, 1.0])                          # ≈ -y
+    c = curve_through(geom, [0.5, 0.1, 0.0], t, right)
+    assert c is not None
+    assert c.s_max < 1e-6 and c.s_min == pytest.approx(-0.3, abs=1e-3)
+    assert c.extends == (True, False)
+    pts, _, inside = walk([c], 0.2)                               # beyond the end left along
+    assert np.isnan(pts).all() and not inside[0]
+    pts, _, inside = walk([c], -0.45)                             # beyond the side boundary
+    np.testing.assert_allclose(pts[0, 1], 0.55, atol=1e-3)
+    assert not inside[0]
+    assert c.reversed().extends == (False, True)
+    # an indexing curve across the sheet leaves across both side boundaries
+    c = curve_through(geom, [0.1, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0])
+    assert c is not None and c.extends == (True, True)
+
+
+def test_boundary_normals_of_a_mesh_are_extrapolated_from_the_interior() -> None:
+    # a cylinder exported as a bare mesh: its boundary vertex normals are one-sided face
+    # averages, off by ~κh/2 across the arc; the planner's geometry re-estimates them
+    cyl = parts.cylinder_section(0.05)
+    mesh = Surface.from_mesh(cyl.mesh)
+    geom = SurfaceGeometry.from_surface(mesh)
+    order = np.lexsort(np.round(mesh.vertices, 9).T)
+    ref = np.lexsort(np.round(cyl.vertices, 9).T)
+    exact = cyl.normals[ref]
+
+    def err_deg(n: np.ndarray) -> np.ndarray:
+        return np.degrees(np.arccos(np.clip(np.sum(n[order] * exact, axis=1), -1.0, 1.0)))
+
+    before, after = err_deg(mesh.normals), err_deg(geom.normals)
+    assert before.max() > 0.5                              # the one-sided bias, κh/2 ≈ 1.4°
+    assert after.max() < 0.25 * before.max()
+    # analytic normals (a parametric part) are kept as they are
+    np.testing.assert_array_equal(SurfaceGeometry.from_surface(cyl).normals, cyl.normals)
 
 
 def test_geodesic_curvature_of_planar_circle() -> None:
