@@ -30,6 +30,9 @@ SCENARIO = Scenario(
         max_collisions=0,
         max_executed_nsd_pct=9.5,
         max_loss_pp=0.2,
+        # The time law departs from the plan by −0.38 pp (a joint-limit slowdown on pass 1 and
+        # the free bell spin happen to even the film); hold that departure to ±0.6 pp.
+        max_abs_loss_pp=0.6,
         max_cycle_time_s=25.0,
     ),
 )

@@ -346,6 +346,8 @@ def _row(name: str, report: Any) -> dict[str, Any]:
     return {"name": name, "passed": bool(report.passed), "checks": checks,
             "planned_nsd_pct": d.get("planned_nsd_pct"),
             "executed_nsd_pct": d.get("executed_nsd_pct"), "loss_pp": d.get("loss_pp"),
+            "loss_time_law_pp": d.get("loss_time_law_pp"),
+            "loss_servo_pp": d.get("loss_servo_pp"),
             "reachability_pct": d.get("reachability_pct"),
             "cycle_time_s": d.get("executed_cycle_time_s")}
 
@@ -359,24 +361,30 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
+def _pp(v: Any) -> str:
+    """A loss in percentage points: three decimals (servo losses are thousandths of a point)."""
+    return "-" if v is None else f"{float(v):.3f}"
+
+
 def format_table(rows: list[dict[str, Any]]) -> str:
     """A plain-text table: one row per scenario, each threshold as `value ≤ limit`."""
     lines = []
     head = (f"{'scenario':<10} {'planned σ/μ %':>13} {'executed σ/μ %':>14} {'loss pp':>8} "
-            f"{'reach %':>8} {'cycle s':>8}  result  checks")
+            f"{'(time law':>9} {'+ servo)':>8} {'reach %':>8} {'cycle s':>8}  result  checks")
     lines.append(head)
     lines.append("-" * len(head))
     for r in rows:
         if r.get("error"):
-            lines.append(f"{r['name']:<10} {'':>13} {'':>14} {'':>8} {'':>8} {'':>8}  ERROR   "
-                         f"{r['error']}")
+            lines.append(f"{r['name']:<10} {'':>13} {'':>14} {'':>8} {'':>9} {'':>8} {'':>8} "
+                         f"{'':>8}  ERROR   {r['error']}")
             continue
         checks = "; ".join(
             f"{c['name']} {_fmt(c['value'])} {'≤' if c.get('kind', 'max') == 'max' else '≥'} "
             f"{_fmt(c['limit'])}{'' if c['passed'] else ' ✗'}" for c in r["checks"])
         lines.append(
             f"{r['name']:<10} {_fmt(r['planned_nsd_pct']):>13} {_fmt(r['executed_nsd_pct']):>14} "
-            f"{_fmt(r['loss_pp']):>8} {_fmt(r['reachability_pct']):>8} "
+            f"{_pp(r['loss_pp']):>8} {_pp(r.get('loss_time_law_pp')):>9} "
+            f"{_pp(r.get('loss_servo_pp')):>8} {_fmt(r['reachability_pct']):>8} "
             f"{_fmt(r['cycle_time_s']):>8}  {'PASS' if r['passed'] else 'FAIL':<6}  {checks}")
     return "\n".join(lines)
 
