@@ -39,10 +39,6 @@ _ZERO_D_M = 1e-12
 _REVERSAL_FRACTION = 0.02
 #: Length over which an end tangent is measured for the straight continuation past a boundary [m].
 _END_TANGENT_M = 0.01
-#: A boundary vertex normal within this of the one-sided face average is that estimate [-]
-#: (identical up to round-off when `Surface.from_mesh` computed it; an analytic normal of a curved
-#: patch differs by ~κ·h/2 ≥ 1e-5).
-_FACE_AVERAGE_TOL = 1e-9
 #: A curve leaves the surface *along* the boundary (not across it) when its end tangent is within
 #: this angle of the boundary's direction there: 45°, the boundary is then closer to the indexing
 #: direction than to the pass direction, so it is the boundary the pass ends at, not its side.
@@ -90,60 +86,9 @@ class SurfaceGeometry:
         edge_faces[e_sorted[first], 0] = f_sorted[first]
         edge_faces[e_sorted[~first], 1] = f_sorted[~first]
         faces = np.asarray(surface.faces, dtype=np.int64)
-        normals = boundary_normals(surface, edges, edge_faces)
+        normals = np.asarray(surface.normals, float)
         return cls(v, normals, faces, edges, face_edges, edge_faces,
                    float(np.median(lengths)), _boundary_directions(v, faces, edges, edge_faces))
-
-
-def boundary_normals(surface: Any, edges: np.ndarray, edge_faces: np.ndarray) -> np.ndarray:
-    """(N, 3) the surface's unit normals, with boundary-vertex normals that are one-sided face
-    averages re-estimated from the interior.
-
-    A vertex normal estimated as the area-weighted mean of its faces' normals
-    (`planning.curvature.vertex_normals`, what `Surface.from_mesh` gives) is centred at an
-    interior vertex but lags by about κ·h/2 at a boundary vertex, whose faces all lie on one side
-    (up to 1° on the fender at 20 mm): a TCP at standoff h_s then steps sideways by h_s·κ·h/2
-    at every pass end, a kink. Such normals are replaced by the extrapolation from each interior
-    neighbour j, n_j + S_j (x_b − x_j) with the shape operator S = Σ k_i d_i d_iᵀ of the
-    surface's curvature (dn = S dr in its sign convention), averaged; boundary vertices without
-    interior neighbours (corners) then extrapolate from corrected boundary neighbours. Normals
-    that are not face averages (analytic, from a parametric patch) are kept as they are.
-    """
-    from planning.curvature import vertex_normals
-
-    v = np.asarray(surface.vertices, float)
-    n = np.asarray(surface.normals, float)
-    bnd_e = edge_faces[:, 1] < 0
-    if not bnd_e.any():
-        return n
-    boundary = np.zeros(len(v), bool)
-    boundary[edges[bnd_e].ravel()] = True
-    est = vertex_normals(v, np.asarray(surface.faces, dtype=np.int64))
-    todo = boundary & (np.linalg.norm(n - est, axis=1) < _FACE_AVERAGE_TOL)
-    if not todo.any():
-        return n
-    k = np.asarray(surface.principal_curvatures, float)
-    d = np.asarray(surface.principal_directions, float)
-    S = (k[:, 0, None, None] * d[:, 0, :, None] * d[:, 0, None, :]
-         + k[:, 1, None, None] * d[:, 1, :, None] * d[:, 1, None, :])
-    a = np.concatenate([edges[:, 0], edges[:, 1]])   # a <- b: extrapolate b's normal to a
-    b = np.concatenate([edges[:, 1], edges[:, 0]])
-    out = n.copy()
-    known = ~todo
-    for _ in range(4):                  # interior neighbours first, then along the boundary
-        use = todo[a] & known[b] & ~known[a]
-        if not use.any():
-            break
-        ext = out[b[use]] + np.einsum("mij,mj->mi", S[b[use]], v[a[use]] - v[b[use]])
-        acc = np.zeros_like(out)
-        np.add.at(acc, a[use], ext)
-        new = np.unique(a[use])
-        cand = unit(acc[new])
-        # keep a normal the re-estimate would move by less than round-off (flat boundary)
-        moved = np.linalg.norm(cand - out[new], axis=1) > _FACE_AVERAGE_TOL
-        out[new[moved]] = cand[moved]
-        known[new] = True
-    return out
 
 
 def _boundary_directions(v: np.ndarray, faces: np.ndarray, edges: np.ndarray,

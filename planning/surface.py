@@ -3,7 +3,8 @@
 Parametric constructors (`plane`, `cylinder`, `extruded`, `bspline_patch`) sample a regular
 (u, v) grid and compute normals and curvature analytically from the first and second fundamental
 forms. `Surface.from_mesh` reads STL/OBJ/PLY through trimesh, repairs what can be repaired, and
-estimates curvature discretely (`planning.curvature`).
+estimates normals and curvature discretely (`planning.curvature`, boundary normals extrapolated
+from the interior).
 
 Curvature sign (docs/interfaces.md): with the unit normal n pointing to the painted side, a
 principal curvature k is positive when the surface bends away from n — dn = k dr along a principal
@@ -152,7 +153,10 @@ class Surface:
         connected component unless `component` picks one (0 = largest by face count).
         Normals face the painted side: outward for a closed mesh, for an open mesh the side the
         (area-weighted) majority of the input faces already faced; `flip` reverses it.
-        Curvature is estimated discretely (`planning.curvature`).
+        Normals and curvature are estimated discretely (`planning.curvature.discrete_curvature`):
+        vertex normals are area-weighted face averages, except on the boundary, where that
+        average is one-sided (it lags by about κ·h/2) and the normal is extrapolated from the
+        interior with the shape operator instead.
         """
         vertices, faces, default_name = load_clean_mesh(path_or_mesh, component=component,
                                                         flip=flip)
@@ -273,7 +277,8 @@ def vertex_areas_barycentric(vertices: np.ndarray, faces: np.ndarray) -> np.ndar
 
 
 def surface_from_triangles(name: str, vertices: np.ndarray, faces: np.ndarray) -> Surface:
-    """Surface from a clean, consistently wound mesh, with discrete curvature estimates."""
+    """Surface from a clean, consistently wound mesh, with discrete normal and curvature
+    estimates (`planning.curvature.discrete_curvature`)."""
     from planning.curvature import discrete_curvature
 
     vertices = np.ascontiguousarray(vertices, dtype=float)

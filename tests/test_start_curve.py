@@ -25,7 +25,7 @@ from planning.start_curve import (
     divider_offset,
     select_start_curve,
 )
-from planning.surface import Surface, plane
+from planning.surface import plane
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
 
 RES = 0.025
@@ -184,26 +184,6 @@ def test_walk_gives_no_offset_beyond_an_end_that_leaves_along_the_boundary() -> 
     # an indexing curve across the sheet leaves across both side boundaries
     c = curve_through(geom, [0.1, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, -1.0, 0.0])
     assert c is not None and c.extends == (True, True)
-
-
-def test_boundary_normals_of_a_mesh_are_extrapolated_from_the_interior() -> None:
-    # a cylinder exported as a bare mesh: its boundary vertex normals are one-sided face
-    # averages, off by ~κh/2 across the arc; the planner's geometry re-estimates them
-    cyl = parts.cylinder_section(0.05)
-    mesh = Surface.from_mesh(cyl.mesh)
-    geom = SurfaceGeometry.from_surface(mesh)
-    order = np.lexsort(np.round(mesh.vertices, 9).T)
-    ref = np.lexsort(np.round(cyl.vertices, 9).T)
-    exact = cyl.normals[ref]
-
-    def err_deg(n: np.ndarray) -> np.ndarray:
-        return np.degrees(np.arccos(np.clip(np.sum(n[order] * exact, axis=1), -1.0, 1.0)))
-
-    before, after = err_deg(mesh.normals), err_deg(geom.normals)
-    assert before.max() > 0.5                              # the one-sided bias, κh/2 ≈ 1.4°
-    assert after.max() < 0.25 * before.max()
-    # analytic normals (a parametric part) are kept as they are
-    np.testing.assert_array_equal(SurfaceGeometry.from_surface(cyl).normals, cyl.normals)
 
 
 def test_geodesic_curvature_of_planar_circle() -> None:
