@@ -1,4 +1,4 @@
-"""Rigid transforms: the one pose check and the one rotation → quaternion conversion.
+"""Rigid transforms: the one pose check, pose inverse and rotation conversions.
 
 Poses are 4×4 homogeneous `T_a_b` (DESIGN.md); quaternions are (w, x, y, z), MuJoCo's order.
 `robots` and `sim` use these instead of their own copies (planning imports neither).
@@ -77,3 +77,64 @@ def quat_wxyz_from_matrix(R: npt.ArrayLike) -> np.ndarray:
     q = np.column_stack([xyzw[:, 3], xyzw[:, :3]])
     q[q[:, 0] < 0] *= -1.0
     return q.reshape(*M.shape[:-2], 4)
+
+
+def matrix_from_quat_wxyz(q: npt.ArrayLike) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) of unit quaternions q (..., 4) (w, x, y, z).
+
+    The closed-form product of a unit quaternion (what MuJoCo's `mju_quat2Mat` and scipy's
+    `Rotation.as_matrix` compute); q is not renormalized: pass unit quaternions (e.g. MuJoCo's
+    `framequat` sensor after dividing by its norm). q and −q give the same matrix.
+    """
+    Q = np.asarray(q, dtype=float)
+    if Q.ndim < 1 or Q.shape[-1] != 4 or not np.all(np.isfinite(Q)):
+        raise TransformError(f"quaternion has shape {Q.shape} or non-finite entries; pass finite "
+                             "(..., 4) quaternions (w, x, y, z)")
+    w, x, y, z = Q[..., 0], Q[..., 1], Q[..., 2], Q[..., 3]
+    R = np.empty((*Q.shape[:-1], 3, 3))
+    R[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    R[..., 0, 1] = 2 * (x * y - w * z)
+    R[..., 0, 2] = 2 * (x * z + w * y)
+    R[..., 1, 0] = 2 * (x * y + w * z)
+    R[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    R[..., 1, 2] = 2 * (y * z - w * x)
+    R[..., 2, 0] = 2 * (x * z - w * y)
+    R[..., 2, 1] = 2 * (y * z + w * x)
+    R[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
+#: How far from 1 the norm of an axis given to `matrix_from_axis_angle` may be.
+AXIS_UNIT_TOL = 1e-9
+
+
+def matrix_from_axis_angle(axis: npt.ArrayLike, angle_rad: float) -> np.ndarray:
+    """Rotation matrix (3, 3) by `angle_rad` [rad] about the unit vector `axis` (3,) (Rodrigues:
+    I + sin θ K + (1 − cos θ) K², K the cross-product matrix of the axis; right-handed).
+
+    The axis must already be unit (within `AXIS_UNIT_TOL`): it is used as given, not rescaled.
+    """
+    a = np.asarray(axis, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)) or not np.isfinite(angle_rad):
+        raise TransformError(f"axis has shape {a.shape} or a non-finite entry or angle; pass a "
+                             "finite unit (3,) axis and a finite angle [rad]")
+    if abs(float(np.linalg.norm(a)) - 1.0) > AXIS_UNIT_TOL:
+        raise TransformError(f"axis {a} is not a unit vector (norm {np.linalg.norm(a):.6g}); "
+                             "divide it by its norm first")
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(angle_rad) * K + (1 - np.cos(angle_rad)) * K @ K
+
+
+def inverse_pose(T: npt.ArrayLike) -> np.ndarray:
+    """Inverse of rigid poses T (..., 4, 4): `T_b_a` from `T_a_b` (Rᵀ, −Rᵀ p), exact for a rigid
+    transform (no general matrix inverse). The input is not checked: use `check_pose(s)` at the
+    boundary where poses enter."""
+    A = np.asarray(T, dtype=float)
+    if A.ndim < 2 or A.shape[-2:] != (4, 4):
+        raise TransformError(f"pose has shape {A.shape}; pass (..., 4, 4) rigid transforms")
+    Rt = np.swapaxes(A[..., :3, :3], -1, -2)
+    out = np.zeros(A.shape)
+    out[..., :3, :3] = Rt
+    out[..., :3, 3] = -(Rt @ A[..., :3, 3, None])[..., 0]
+    out[..., 3, 3] = 1.0
+    return out

@@ -75,7 +75,8 @@ class RobotLike(Protocol):
 
 @dataclass(frozen=True)
 class CameraSpec:
-    """A fixed camera: position and look-at point in the world [m], vertical field of view [deg]."""
+    """A fixed camera for `build_cell(cameras=...)`: position and look-at point in the world [m],
+    vertical field of view [deg]. (The report's views are `sim.render.part_cameras`.)"""
 
     name: str
     pos_world: tuple[float, float, float]
@@ -98,7 +99,8 @@ class Cell:
     sensor slices: tcp_pos / tcp_quat / actuator forces / contact (found, dist) per partner:
         part, booth (empty slice without a booth) and the robot itself (self-collision).
     T_world_part, T_world_base: (4, 4) placements [m].
-    camera_names: fixed cameras (front, top, passes presets unless overridden).
+    camera_names: the fixed cameras given to `build_cell` (none by default; the views of the
+        part are `sim.render.part_cameras`, free cameras that work on any scene).
     """
 
     model: mujoco.MjModel
@@ -141,38 +143,6 @@ class Cell:
         return mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY, int(body_id)) or ""
 
 
-def default_cameras(surface_world: Surface, pass_dir_world: npt.ArrayLike | None = None,
-                    ) -> tuple[CameraSpec, ...]:
-    """Front, top and along-the-passes presets framing a part placed in the world.
-
-    surface_world: the part in world coordinates [m]; pass_dir_world: (3,) travel direction of the
-    passes (default: the part's longest principal axis).
-    """
-    v = surface_world.vertices
-    w = surface_world.vertex_areas
-    c = (v * w[:, None]).sum(0) / w.sum()
-    n = (surface_world.normals * w[:, None]).sum(0)
-    n = n / max(np.linalg.norm(n), 1e-12)
-    extent = float(np.linalg.norm(v.max(0) - v.min(0)))
-    dist = max(1.2 * extent, 0.8)
-    if pass_dir_world is None:
-        cov = np.cov((v - c).T, aweights=w)
-        pass_dir = np.linalg.eigh(cov)[1][:, -1]
-    else:
-        pass_dir = np.asarray(pass_dir_world, float)
-        pass_dir = pass_dir / max(np.linalg.norm(pass_dir), 1e-12)
-    # Front: from the painted side, 30° off the normal along the passes (the robot stands on the
-    # normal and would block a straight-on view).
-    front = c + dist * (0.87 * n + 0.5 * pass_dir) + np.array([0, 0, 0.05 * dist])
-    top = c + np.array([0.0, 0.0, 1.5 * dist]) + 0.02 * dist * np.array([1.0, 0, 0])
-    # Along the passes: from beyond one end of the passes, a little off the painted side.
-    along = c - 1.3 * dist * pass_dir + 0.4 * dist * n + np.array([0, 0, 0.3 * dist])
-    tgt = tuple(float(x) for x in c)
-    return (CameraSpec("front", tuple(float(x) for x in front), tgt),  # type: ignore[arg-type]
-            CameraSpec("top", tuple(float(x) for x in top), tgt),  # type: ignore[arg-type]
-            CameraSpec("passes", tuple(float(x) for x in along), tgt))  # type: ignore[arg-type]
-
-
 def _camera_quat(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
     """MuJoCo camera looks along its -z with +y up: build that frame from a look-at."""
     z = pos - target
@@ -212,8 +182,7 @@ def _collision_pieces(surface: Surface, piece_m: float, thickness_m: float) -> l
 
 
 def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, booth: bool = True,
-               cameras: Sequence[CameraSpec] | None = None,
-               pass_dir_world: npt.ArrayLike | None = None,
+               cameras: Sequence[CameraSpec] = (),
                collision_piece_m: float = 0.1, shell_thickness_m: float = 0.002) -> Cell:
     """Assemble and compile the paint cell.
 
@@ -222,8 +191,8 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     surface: the part in its part frame (vertices [m], faces, normals).
     T_world_part: (4, 4) placement of the part in the world.
     booth: add the booth floor (z = 0 plane) as body `booth`.
-    cameras: fixed cameras; default `default_cameras(...)` (front, top, passes).
-    pass_dir_world: (3,) pass travel direction, aims the "passes" preset camera.
+    cameras: fixed cameras compiled into the model (default none: renders frame the part with
+        `sim.render.part_cameras`, free cameras that need nothing in the model).
     collision_piece_m, shell_thickness_m: size of the convex collision slabs and their thickness
         [m] (see `_collision_pieces`).
     Raises CellError when the robot MJCF lacks a named joint, site or body, or the poses are bad.
@@ -316,16 +285,14 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     for child in base_body.bodies:
         spec.add_exclude(bodyname1=base_body.name, bodyname2=child.name)
 
-    # --- lights, sky and cameras -------------------------------------------------------------
+    # --- lights, sky and (optional) cameras ------------------------------------------------------
     spec.add_texture(name="booth_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
                      builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.85, 0.88, 0.92],
                      rgb2=[0.35, 0.4, 0.48], width=256, height=1536)
     spec.worldbody.add_light(name="key", pos=[0, 0, 5], dir=[0, 0, -1],
                              type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
                              diffuse=[0.6, 0.6, 0.6], castshadow=False)
-    surface_world = surface.transformed(T_world_part)
-    cams = tuple(cameras) if cameras is not None else default_cameras(surface_world,
-                                                                      pass_dir_world)
+    cams = tuple(cameras)
     for cam in cams:
         pos = np.asarray(cam.pos_world, float)
         spec.worldbody.add_camera(name=cam.name, pos=pos,

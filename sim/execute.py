@@ -43,6 +43,7 @@ import numpy as np
 from mujoco import rollout
 
 from planning.errors import PaintcellError
+from planning.transforms import matrix_from_axis_angle, matrix_from_quat_wxyz
 from sim.cell import Cell
 from sim.joint_trajectory import JointTrajectory
 from sim.trace import Contact, ExecutedTrace
@@ -209,7 +210,7 @@ class Disturbances:
         rng = np.random.default_rng(self.seed)
         d1, d2, d3 = (_unit(rng.normal(size=3)) for _ in range(3))
         T = np.eye(4)
-        T[:3, :3] = _axis_angle(d2, self.part_rotation_rad)
+        T[:3, :3] = matrix_from_axis_angle(d2, self.part_rotation_rad)
         T[:3, 3] = self.part_offset_m * d1
         return T, self.tcp_offset_m * d3
 
@@ -220,27 +221,6 @@ class Disturbances:
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v)
-
-
-def _axis_angle(axis: np.ndarray, angle: float) -> np.ndarray:
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
-
-
-def _quat_to_mat(q: np.ndarray) -> np.ndarray:
-    """(K, 4) unit quaternions (w, x, y, z) → (K, 3, 3) rotation matrices."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    R = np.empty((len(q), 3, 3))
-    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    R[:, 0, 1] = 2 * (x * y - w * z)
-    R[:, 0, 2] = 2 * (x * z + w * y)
-    R[:, 1, 0] = 2 * (x * y + w * z)
-    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    R[:, 1, 2] = 2 * (y * z - w * x)
-    R[:, 2, 0] = 2 * (x * z - w * y)
-    R[:, 2, 1] = 2 * (y * z + w * x)
-    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return R
 
 
 def _check_inputs(cell: Cell, traj: JointTrajectory) -> None:
@@ -425,7 +405,7 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
     return ExecutedTrace(
         t_s=np.asarray(traj.t_s, float).copy(), q=q, qd=qd, tau=np.ascontiguousarray(tau),
         tcp_pos_world=np.ascontiguousarray(sens[:, cell.sensor_tcp_pos]),
-        tcp_rot_world=_quat_to_mat(sd / np.linalg.norm(sd, axis=1, keepdims=True)),
+        tcp_rot_world=matrix_from_quat_wxyz(sd / np.linalg.norm(sd, axis=1, keepdims=True)),
         paint_on=np.asarray(traj.paint_on, bool).copy(),
         pass_index=np.asarray(traj.pass_index).copy(), mode=mode, contacts=contacts, meta=meta,
         tau_demand=np.ascontiguousarray(tau_demand))

@@ -37,6 +37,7 @@ from PIL import Image, ImageDraw, ImageFont
 
 from planning.atomic_io import atomic_path
 from planning.errors import PaintcellError
+from sim.cell import Cell
 
 # Probe order when MUJOCO_GL is unset: EGL serves GPUs and Mesa's software rasterizer alike.
 BACKENDS = ("egl", "osmesa")
@@ -389,12 +390,17 @@ def _model_of(scene: Any) -> mujoco.MjModel | None:
 
 
 def robot_qpos_adr(scene: Any, model: mujoco.MjModel) -> np.ndarray | None:
-    """qpos addresses of the robot joints: from `scene.robot_qpos_adr`/`qpos_adr`, else from
-    `scene.joint_names` (or `scene.robot.joint_names`) looked up in `model`, else None."""
-    for attr in ("robot_qpos_adr", "qpos_adr", "qpos_indices"):
-        adr = getattr(scene, attr, None)
-        if adr is not None:
-            return np.asarray(adr, int).reshape(-1)
+    """qpos addresses (n,) of the robot joints, in the robot's joint order, or None.
+
+    A `sim.cell.Cell` knows them (`Cell.qpos_adr`, indexed when the cell was compiled). Any other
+    scene is a plain model: the robot's joints are looked up by name in `model` — the names from
+    `scene.joint_names` or `scene.robot.joint_names`, each matched exactly or else as the unique
+    joint whose name ends with it (a robot attached under a prefix, e.g. "robot/joint_1"). None
+    when the scene names no joints or a name is missing or ambiguous: `SceneRenderer.set_q` then
+    writes q into the model's first qpos entries.
+    """
+    if isinstance(scene, Cell):
+        return np.asarray(scene.qpos_adr, int).copy()
     names = getattr(scene, "joint_names", None)
     if names is None:
         names = getattr(getattr(scene, "robot", None), "joint_names", None)
@@ -404,7 +410,6 @@ def robot_qpos_adr(scene: Any, model: mujoco.MjModel) -> np.ndarray | None:
     for n in names:
         jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, n)
         if jid < 0:
-            # Attached robots carry a prefix: match by suffix.
             cands = [j for j in range(model.njnt) if (mujoco.mj_id2name(
                 model, mujoco.mjtObj.mjOBJ_JOINT, j) or "").endswith(n)]
             if len(cands) != 1:
@@ -438,8 +443,8 @@ class SceneRenderer:
     """A compiled scene (a cell, an MjSpec, an MjModel, or a bare booth) with an offscreen
     renderer; optionally with a film-thickness mesh.
 
-    scene: a `sim.cell.Cell` (its `model`), an `MjModel`, an `MjSpec` (the film is added to a
-        copy), or None for `booth_spec()`.
+    scene: a `sim.cell.Cell` (its spec; joint vectors go to `Cell.qpos_adr`), an `MjModel`, an
+        `MjSpec` (the film is added to a copy), or None for `booth_spec()`.
     film: the thickness map to draw, or None. With a compiled model the film lives in a second
         model that shares the cameras and clip planes; the two renders are composited by depth
         (the film, lifted 0.5 mm off the part, wins over the part; the robot in front wins).

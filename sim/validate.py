@@ -38,6 +38,7 @@ from planning.errors import PaintcellError
 from planning.metrics import uniformity
 from planning.plan import CoveragePlan
 from planning.surface import Surface
+from planning.transforms import inverse_pose
 from sim.joint_trajectory import JointTrajectory
 from sim.trace import ExecutedTrace
 
@@ -167,13 +168,6 @@ def _json_num(v: Any) -> Any:
     if isinstance(v, (float, np.floating)):
         return float(v) if math.isfinite(v) else None
     return v
-
-
-def _inv(T: np.ndarray) -> np.ndarray:
-    out = np.eye(4)
-    out[:3, :3] = T[:3, :3].T
-    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
-    return out
 
 
 def collision_events(trace: ExecutedTrace, gap_s: float = _EVENT_GAP_S) -> list[dict[str, Any]]:
@@ -346,11 +340,11 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         raise ValidationError("the trace has no paint-on samples; the trajectory never painted")
     if not np.any(traj.paint_on):
         raise ValidationError("the trajectory has no paint-on samples; rebuild it from the plan")
-    t_exec = thickness(app, executed_gun_samples(trace, _inv(T_actual), exec_sample_s),
-                       pts, nrm)
+    t_exec = thickness(app, executed_gun_samples(trace, inverse_pose(T_actual),
+                                                 exec_sample_s), pts, nrm)
     # The program as built: its own TCP samples where the part was planned to be.
-    t_traj = thickness(app, trajectory_gun_samples(traj, _inv(T_world_part), exec_sample_s),
-                       pts, nrm)
+    t_traj = thickness(app, trajectory_gun_samples(traj, inverse_pose(T_world_part),
+                                                   exec_sample_s), pts, nrm)
     u_plan = uniformity(t_plan, areas, tolerance=thresholds.tolerance)
     u_exec = uniformity(t_exec, areas, target_m=u_plan.mean_m, tolerance=thresholds.tolerance)
     u_traj = uniformity(t_traj, areas, target_m=u_plan.mean_m, tolerance=thresholds.tolerance)

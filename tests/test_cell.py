@@ -23,7 +23,8 @@ def test_cell_indexes_robot_part_booth_and_sensors() -> None:
     assert cell.joint_names == tuple(case.robot.joint_names)
     assert len(cell.qpos_adr) == len(cell.actuator_ids) == case.robot.nq
     assert cell.part_body_name == "part" and cell.booth_body_name == "booth"
-    assert {"front", "top", "passes"} <= set(cell.camera_names)
+    # No preset cameras in the model: renders frame the part with sim.render.part_cameras.
+    assert cell.camera_names == () and m.ncam == 0
     assert m.nlight >= 1
     # The part's visual mesh is the surface itself, placed at T_world_part.
     gid = cell.part_visual_geom_id
@@ -186,7 +187,14 @@ def test_custom_cameras_and_bad_placement() -> None:
     case = make_case()
     cams = (CameraSpec("side", (0.0, -3.0, 1.5), (1.0, 0.0, 1.0), 50.0),)
     cell = build_cell(case.robot, plane(0.2, 0.2, 0.02), case.T_world_part, cameras=cams)
-    assert cell.camera_names == ("side",)
+    assert cell.camera_names == ("side",) and cell.model.ncam == 1
+    # The fixed camera sits where asked and looks at its target (MuJoCo cameras look along -z).
+    d = mujoco.MjData(cell.model)
+    mujoco.mj_forward(cell.model, d)
+    np.testing.assert_allclose(d.cam_xpos[0], [0.0, -3.0, 1.5], atol=1e-12)
+    view = np.array([1.0, 3.0, -0.5]) / np.linalg.norm([1.0, 3.0, -0.5])
+    np.testing.assert_allclose(-d.cam_xmat[0].reshape(3, 3)[:, 2], view, atol=1e-9)
+    assert cell.model.cam_fovy[0] == pytest.approx(50.0)
     bad = case.T_world_part.copy()
     bad[:3, :3] *= 2.0
     with pytest.raises(CellError, match="rigid"):

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+from types import SimpleNamespace
+
 import mujoco
 import numpy as np
 import pytest
@@ -158,3 +161,26 @@ def test_frame_indices_and_gif(tmp_path, panel):
                                       None, fps=10, size=(64, 48))
     with Image.open(p) as im:
         assert im.n_frames == 40
+
+
+def test_robot_qpos_adr_of_a_cell_is_the_cells():
+    from tests.test_execute import make_case, make_cell
+
+    cell = make_cell()
+    np.testing.assert_array_equal(render.robot_qpos_adr(cell, cell.model), cell.qpos_adr)
+    # The Cell's own addresses are used as they are, not looked up again by name.
+    shuffled = dataclasses.replace(cell, qpos_adr=cell.qpos_adr[::-1].copy())
+    np.testing.assert_array_equal(render.robot_qpos_adr(shuffled, cell.model),
+                                  cell.qpos_adr[::-1])
+    # Plain model + joint names (the robot's, attached under a prefix): the same joints by name.
+    robot = make_case().robot
+    np.testing.assert_array_equal(render.robot_qpos_adr(robot, cell.model), cell.qpos_adr)
+    np.testing.assert_array_equal(
+        render.robot_qpos_adr(SimpleNamespace(robot=robot), cell.model), cell.qpos_adr)
+
+
+def test_robot_qpos_adr_of_a_plain_model_by_name():
+    model = _occluded_model()
+    assert render.robot_qpos_adr(model, model) is None  # nothing names the robot's joints
+    assert list(render.robot_qpos_adr(SimpleNamespace(joint_names=("slide",)), model)) == [0]
+    assert render.robot_qpos_adr(SimpleNamespace(joint_names=("nope",)), model) is None

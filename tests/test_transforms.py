@@ -1,16 +1,21 @@
-"""planning.transforms: the one rigid-pose check and the one rotation → quaternion conversion."""
+"""planning.transforms: the one rigid-pose check, pose inverse and rotation conversions, held to
+scipy's `Rotation` and MuJoCo's own conversions."""
 
 from __future__ import annotations
 
 import mujoco
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from planning.errors import PaintcellError
 from planning.transforms import (
     TransformError,
     check_pose,
     check_poses,
+    inverse_pose,
+    matrix_from_axis_angle,
+    matrix_from_quat_wxyz,
     quat_wxyz_from_matrix,
 )
 
@@ -99,3 +104,77 @@ def test_quat_matches_mujoco_and_round_trips() -> None:
         np.testing.assert_allclose(back.reshape(3, 3), R, atol=QUAT_ROUND_TRIP_ATOL)
     with pytest.raises(TransformError, match="3x3"):
         quat_wxyz_from_matrix(np.eye(4))
+
+
+def _random_quats(n: int, seed: int) -> np.ndarray:
+    q = np.random.default_rng(seed).normal(size=(n, 4))
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def test_matrix_from_quat_matches_mujoco_and_scipy() -> None:
+    q = np.concatenate([_random_quats(200, 2), np.eye(4)])  # w, x, y, z = 1: the π turns too
+    R = matrix_from_quat_wxyz(q)
+    assert R.shape == (len(q), 3, 3)
+    for qk, Rk in zip(q, R, strict=True):
+        ref = np.zeros(9)
+        mujoco.mju_quat2Mat(ref, qk)
+        np.testing.assert_allclose(Rk, ref.reshape(3, 3), atol=QUAT_ROUND_TRIP_ATOL)
+    xyzw = np.column_stack([q[:, 1:], q[:, 0]])
+    np.testing.assert_allclose(R, Rotation.from_quat(xyzw).as_matrix(), atol=QUAT_ROUND_TRIP_ATOL)
+    # −q is the same rotation; any leading shape; the inverse of quat_wxyz_from_matrix.
+    np.testing.assert_array_equal(matrix_from_quat_wxyz(-q), R)
+    np.testing.assert_array_equal(matrix_from_quat_wxyz(q.reshape(3, -1, 4)),
+                                  R.reshape(3, -1, 3, 3))
+    np.testing.assert_allclose(matrix_from_quat_wxyz(quat_wxyz_from_matrix(R)), R,
+                               atol=QUAT_ROUND_TRIP_ATOL)
+    assert matrix_from_quat_wxyz([1.0, 0, 0, 0]).shape == (3, 3)
+    with pytest.raises(TransformError, match="quaternion"):
+        matrix_from_quat_wxyz(np.ones(3))
+    with pytest.raises(TransformError, match="quaternion"):
+        matrix_from_quat_wxyz([np.nan, 0, 0, 1])
+
+
+def test_matrix_from_axis_angle_matches_scipy_and_mujoco() -> None:
+    rng = np.random.default_rng(3)
+    axes = rng.normal(size=(100, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = rng.uniform(-2 * np.pi, 2 * np.pi, 100)
+    for a, th in zip(axes, angles, strict=True):
+        R = matrix_from_axis_angle(a, th)
+        np.testing.assert_allclose(R, Rotation.from_rotvec(th * a).as_matrix(),
+                                   atol=QUAT_ROUND_TRIP_ATOL)
+        q, ref = np.zeros(4), np.zeros(9)
+        mujoco.mju_axisAngle2Quat(q, a, th)
+        mujoco.mju_quat2Mat(ref, q)
+        np.testing.assert_allclose(R, ref.reshape(3, 3), atol=QUAT_ROUND_TRIP_ATOL)
+    # Right-handed: +90° about z takes x to y.
+    np.testing.assert_allclose(matrix_from_axis_angle([0.0, 0, 1], np.pi / 2) @ [1.0, 0, 0],
+                               [0.0, 1, 0], atol=1e-15)
+    np.testing.assert_array_equal(matrix_from_axis_angle([1.0, 0, 0], 0.0), np.eye(3))
+    with pytest.raises(TransformError, match="unit"):
+        matrix_from_axis_angle([0.0, 0, 2], 0.1)
+    with pytest.raises(TransformError, match="axis"):
+        matrix_from_axis_angle([0.0, 1], 0.1)
+    with pytest.raises(TransformError, match="finite"):
+        matrix_from_axis_angle([0.0, 0, 1], np.inf)
+
+
+def test_inverse_pose_matches_linalg_and_composes_to_identity() -> None:
+    rng = np.random.default_rng(4)
+    T = np.tile(np.eye(4), (50, 1, 1))
+    T[:, :3, :3] = _random_rotations(50, 5)
+    T[:, :3, 3] = rng.normal(scale=2.0, size=(50, 3))
+    inv = inverse_pose(T)
+    np.testing.assert_allclose(inv, np.linalg.inv(T), atol=1e-12)
+    np.testing.assert_allclose(inv @ T, np.broadcast_to(np.eye(4), T.shape), atol=1e-12)
+    check_poses(inv, "inverse")
+    # One pose = the same as the stack's entry; a pose given as nested lists works too.
+    np.testing.assert_array_equal(inverse_pose(T[7]), inv[7])
+    np.testing.assert_array_equal(inverse_pose(T[7].tolist()), inv[7])
+    # MuJoCo's own frame inverse (position + quaternion).
+    pos, quat = np.zeros(3), np.zeros(4)
+    mujoco.mju_negPose(pos, quat, T[7, :3, 3], quat_wxyz_from_matrix(T[7, :3, :3]))
+    np.testing.assert_allclose(inv[7, :3, 3], pos, atol=1e-12)
+    np.testing.assert_allclose(inv[7, :3, :3], matrix_from_quat_wxyz(quat), atol=1e-12)
+    with pytest.raises(TransformError, match="shape"):
+        inverse_pose(np.eye(3))
