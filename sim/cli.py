@@ -42,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand (its --help is the reference)."""
     fmt = _Help
     # --debug works before or after the subcommand (SUPPRESS keeps the main parser's value).
-    common = argparse.ArgumentParser(add_help=False)
+    common = _Parser(add_help=False)
     common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                         help="show the full traceback on errors instead of one line")
     p = _Parser(prog="paintcell", formatter_class=fmt, description=(
@@ -51,14 +51,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--debug", action="store_true",
                    help="show the full traceback on errors instead of one line")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    _add = sub.add_parser
 
     def add_parser(name: str, **kw: Any) -> argparse.ArgumentParser:
-        return _add(name, parents=[common], **kw)
+        return sub.add_parser(name, parents=[common], **kw)
 
-    sub.add_parser = add_parser  # type: ignore[method-assign]
-
-    r = sub.add_parser("run", formatter_class=fmt, help="run one scenario end to end",
+    r = add_parser("run", formatter_class=fmt, help="run one scenario end to end",
                        description="Plan → IK → trajectory → MuJoCo execution → validation → "
                        "report for one scenario script; writes plan.json/.npz, "
                        "trajectory.npz/.csv, trace.npz, metrics.json and report.html into --out "
@@ -79,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "tcp_offset_m [m], gain_scale [-], seed [int]; e.g. --disturb "
                    "part_offset_m=0.005 --disturb seed=3")
 
-    c = sub.add_parser("check", formatter_class=fmt,
+    c = add_parser("check", formatter_class=fmt,
                        help="run every scenario and hold it to its thresholds (CI)",
                        description="Run every scenario found in PATHs, print one row per scenario "
                        "with each threshold and its measured value; exit 1 if any falls short, 2 "
@@ -93,7 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--out", type=Path, default=None,
                    help="also write each scenario's results under this folder (no report)")
 
-    pl = sub.add_parser("plan", formatter_class=fmt, help="plan only: write plan.json/.npz",
+    pl = add_parser("plan", formatter_class=fmt, help="plan only: write plan.json/.npz",
                         description="Run the coverage planner of a scenario and write "
                         "plan.json (+ plan.npz) and scenario.json into --out.")
     pl.add_argument("scenario", help="scenario script, e.g. scenarios/door.py")
@@ -103,14 +100,14 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the scenario's coarse mesh resolution (fast_resolution_m) and fast "
                     "planner overrides")
 
-    v = sub.add_parser("validate", formatter_class=fmt,
+    v = add_parser("validate", formatter_class=fmt,
                        help="recompute metrics.json from a results folder",
                        description="Recompute the plan-vs-executed validation from plan.json, "
                        "trajectory.npz and trace.npz in DIR (written by `paintcell run`) and "
                        "rewrite metrics.json. Exits 1 when a threshold is not met.")
     v.add_argument("dir", type=Path, help="results folder written by `paintcell run`")
 
-    e = sub.add_parser("export", formatter_class=fmt, help="export the robot program",
+    e = add_parser("export", formatter_class=fmt, help="export the robot program",
                        description="Export the validated program of a results folder.")
     e.add_argument("dir", type=Path, help="results folder written by `paintcell run`")
     e.add_argument("--rapid", action="store_true", required=True,
@@ -123,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--spacing", type=float, default=0.05,
                    help="maximum distance between exported targets along a pass [m]")
 
-    rep = sub.add_parser("report", formatter_class=fmt, help="rebuild report.html of a folder",
+    rep = add_parser("report", formatter_class=fmt, help="rebuild report.html of a folder",
                          description="Rebuild report.html from the files of a results folder.")
     rep.add_argument("dir", type=Path, help="results folder written by `paintcell run`")
     return p
@@ -203,7 +200,8 @@ def _cmd_check(args: argparse.Namespace) -> int:
     from sim.scenario import find_scenarios, load_scenario
 
     scripts = find_scenarios(args.paths)
-    rows, cases = [], []
+    rows: list[dict[str, Any]] = []
+    cases: list[tuple[str, float, list[dict[str, Any]], str | None]] = []
     for script in scripts:
         t0 = time.perf_counter()
         name = script.stem

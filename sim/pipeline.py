@@ -11,11 +11,11 @@ import os
 import shutil
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from tqdm import tqdm
@@ -164,8 +164,8 @@ def staged_dir(out_dir: Path | None) -> Iterator[Path | None]:
 
 
 def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool = False,
-                 mode: str = "servo", report: bool = True, progress: bool = True,
-                 log: Callable[[str], None] | None = None) -> RunResult:
+                 mode: Literal["servo", "kinematic"] = "servo", report: bool = True,
+                 progress: bool = True) -> RunResult:
     """Run the scenario end to end; write its results into `out_dir` (atomically) if given.
 
     fast: coarse resolution and the scenario's fast planner overrides (CI checks).
@@ -182,7 +182,8 @@ def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool
         bar.close()
 
 
-def _run(scn: Scenario, out_dir: str | Path | None, fast: bool, mode: str, report: bool,
+def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
+         mode: Literal["servo", "kinematic"], report: bool,
          bar: tqdm, timings: dict[str, float]) -> RunResult:
     from sim.cell import build_cell
     from sim.execute import execute

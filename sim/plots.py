@@ -239,7 +239,7 @@ def plot_tracking_error(path: str | os.PathLike[str], trajectory: Any, trace: An
         n = len(t) // k * k
         t = t[:n:k]
         err = err[:n].reshape(-1, k).max(1)
-        on = on[:n].reshape(-1, k).any(1)
+        on = np.asarray(on[:n].reshape(-1, k).any(1))
     fig = Figure(figsize=(8.0, 3.6), layout="constrained")
     ax = fig.subplots()
     ax.plot(t, err * 1e3, lw=0.8, color="C3", label="|executed − commanded| TCP")

@@ -77,8 +77,9 @@ def make_figures(out_dir: str | os.PathLike[str], *, surface: Any = None, plan: 
     have_film = planned is not None and len(planned) == n_vert
     have_exec = executed is not None and len(executed) == n_vert
     vmin_um = vmax_um = None
-    if have_film:
-        vmin_um, vmax_um = plots.thickness_range_um(planned, *([executed] if have_exec else []))
+    if have_film and planned is not None:
+        vmin_um, vmax_um = plots.thickness_range_um(
+            planned, *([executed] if have_exec and executed is not None else []))
         p = plots.plot_thickness_maps(out / "thickness_maps.png", surface, planned,
                                       executed if have_exec else None, vmin_um, vmax_um)
         add(p, f"Film thickness on the unfolded part, planned / executed / difference; shared "
@@ -178,12 +179,12 @@ def _renders(figs: list[dict[str, str]], out: Path, surface: Any, planned: np.nd
     if video and cell is not None and trace is not None:
         t = np.asarray(trace.t_s, float)
         speedup = max(1.0, (t[-1] - t[0]) * video_fps / video_max_frames)
-        film = None
+        video_film = None
         if executed is not None and vmin_um is not None and vmax_um is not None:
-            film = render.film_from_surface(surface, executed, vmin_um, vmax_um, T)
+            video_film = render.film_from_surface(surface, executed, vmin_um, vmax_um, T)
         p = render.render_execution_video(out / "execution.gif", cell, t, trace.q, None,
                                           fps=video_fps, speedup=speedup, size=video_size,
-                                          film=film, max_frames=video_max_frames)
+                                          film=video_film, max_frames=video_max_frames)
         figs.append({"file": p.name, "kind": "video",
                      "caption": f"execution at {video_fps:g} fps, {speedup:.1f}× real time "
                                 "(part coloured by the executed film)"})
