@@ -35,7 +35,7 @@ import numpy.typing as npt
 from planning.atomic_io import atomic_write_text
 from planning.deposition import GunSamples, thickness
 from planning.errors import PaintcellError
-from planning.metrics import uniformity
+from planning.metrics import transfer_efficiency, uniformity
 from planning.plan import CoveragePlan
 from planning.surface import Surface
 from planning.transforms import inverse_pose
@@ -335,7 +335,8 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
 
     app = plan.applicator
     pts, nrm, areas = surface.vertices, surface.normals, surface.vertex_areas
-    t_plan = thickness(app, plan.gun_samples(), pts, nrm)
+    gun_plan = plan.gun_samples()
+    t_plan = thickness(app, gun_plan, pts, nrm)
     if not np.any(trace.paint_on):
         raise ValidationError("the trace has no paint-on samples; the trajectory never painted")
     if not np.any(traj.paint_on):
@@ -387,6 +388,11 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "settle_time_s": float(trace.meta.get("settle_time_s", 0.0)),
         "planned_paint_time_s": plan.paint_time_s,
         "executed_paint_time_s": dt * float(np.count_nonzero(trace.paint_on)),
+        # Paint on the part ÷ paint the bell emitted while the brush was on (film volumes).
+        "planned_transfer_efficiency_pct": 100.0 * transfer_efficiency(
+            t_plan, areas, app.emitted_flow_m3_s * float(gun_plan.dwell_s.sum())),
+        "executed_transfer_efficiency_pct": 100.0 * transfer_efficiency(
+            t_exec, areas, app.emitted_flow_m3_s * dt * float(np.count_nonzero(trace.paint_on))),
         "max_joint_range_utilization": float(np.nanmax(q_use)) if len(q_use) else float("nan"),
         "max_torque_utilization": float(np.nanmax(tau_use)) if len(tau_use) else float("nan"),
         "max_torque_saturation_pct": (float(np.nanmax(tau_sat)) if len(tau_sat)
