@@ -241,6 +241,18 @@ def test_part_in_the_arm_path_is_a_reported_collision() -> None:
 Q_FOLDED = (0.0, -0.2, 1.3, 0.0, 2.0, 0.0)
 
 
+def _paint_off_program(robot: Any, q: np.ndarray, qd: np.ndarray,
+                       qdd: np.ndarray) -> JointTrajectory:
+    """A brush-off program (one approach segment) through the 1 kHz joint samples q, qd, qdd."""
+    K = len(q)
+    T_tcp = robot.fk_many(q)
+    return JointTrajectory(
+        t_s=np.arange(K) * DT_S, q=q, qd=qd, qdd=qdd, tcp_pos_world=T_tcp[:, :3, 3],
+        tcp_rot_world=T_tcp[:, :3, :3], v_tcp_planned=np.zeros(K), paint_on=np.zeros(K, bool),
+        pass_index=np.full(K, -1), segment=np.full(K, APPROACH), s_pass_m=np.full(K, np.nan),
+        robot_name=robot.name, joint_names=tuple(robot.joint_names))
+
+
 @functools.lru_cache(maxsize=1)
 def make_fold() -> tuple[Cell, JointTrajectory]:
     """A cell with the part 3 m behind the robot (out of reach) and a 1.5 s rest-to-rest move
@@ -253,13 +265,7 @@ def make_fold() -> tuple[Cell, JointTrajectory]:
     q, qd, qdd = _segment(robot.q_home, np.array(Q_FOLDED), 1.5)
     q, qd = np.vstack([q, Q_FOLDED]), np.vstack([qd, np.zeros((1, robot.nq))])
     qdd = np.vstack([qdd, np.zeros((1, robot.nq))])
-    K = len(q)
-    T_tcp = robot.fk_many(q)
-    traj = JointTrajectory(
-        t_s=np.arange(K) * DT_S, q=q, qd=qd, qdd=qdd, tcp_pos_world=T_tcp[:, :3, 3],
-        tcp_rot_world=T_tcp[:, :3, :3], v_tcp_planned=np.zeros(K), paint_on=np.zeros(K, bool),
-        pass_index=np.full(K, -1), segment=np.full(K, APPROACH), s_pass_m=np.full(K, np.nan),
-        robot_name=robot.name, joint_names=tuple(robot.joint_names))
+    traj = _paint_off_program(robot, q, qd, qdd)
     return cell, traj
 
 
@@ -316,13 +322,7 @@ def test_contacts_during_the_settling_hold_are_reported() -> None:
     q = np.vstack([fold.q[:k], np.array(Q_FOLDED)[None]])
     qd = np.vstack([fold.qd[:k], np.zeros((1, robot.nq))])
     qdd = np.vstack([fold.qdd[:k], np.zeros((1, robot.nq))])
-    K = len(q)
-    T_tcp = robot.fk_many(q)
-    traj = JointTrajectory(
-        t_s=np.arange(K) * DT_S, q=q, qd=qd, qdd=qdd, tcp_pos_world=T_tcp[:, :3, 3],
-        tcp_rot_world=T_tcp[:, :3, :3], v_tcp_planned=np.zeros(K), paint_on=np.zeros(K, bool),
-        pass_index=np.full(K, -1), segment=np.full(K, APPROACH), s_pass_m=np.full(K, np.nan),
-        robot_name=robot.name, joint_names=tuple(robot.joint_names))
+    traj = _paint_off_program(robot, q, qd, qdd)
     tr = execute(cell, traj)
     assert len(tr.contacts) > 0
     assert {(c.body1, c.body2) for c in tr.contacts} == {("robot/flange", "robot/link2")}

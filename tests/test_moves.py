@@ -7,13 +7,23 @@ import pytest
 import ruckig
 
 from sim.joint_trajectory import TrajectoryError
-from sim.moves import plan_move
+from sim.moves import JointMove, plan_move
 from tests.helpers import FD_LIMIT_RTOL, RUCKIG_STATE_ATOL
 
 N = 6
 V = np.array([3.0, 3.0, 3.0, 4.0, 4.0, 6.0])
 A = np.array([6.0, 6.0, 8.0, 20.0, 20.0, 30.0])
 J = A / 0.08
+
+
+def _assert_matches_ruckig(m: JointMove, traj: ruckig.Trajectory, ts: np.ndarray) -> None:
+    """Our vectorized samples of move `m` equal ruckig's own `at_time` at every time in `ts`."""
+    q, qd, qdd = m.sample(ts)
+    for k, t in enumerate(ts):
+        p, v, acc = traj.at_time(float(t))
+        np.testing.assert_allclose(q[k], p, atol=RUCKIG_STATE_ATOL)
+        np.testing.assert_allclose(qd[k], v, atol=RUCKIG_STATE_ATOL)
+        np.testing.assert_allclose(qdd[k], acc, atol=RUCKIG_STATE_ATOL)
 
 
 def _random_state(rng: np.random.Generator, frac: float) -> tuple[np.ndarray, ...]:
@@ -53,12 +63,7 @@ def test_vectorized_sampling_matches_ruckig_at_time() -> None:
     ruckig.Ruckig(N).calculate(inp, traj)
     assert m.duration_s == pytest.approx(traj.duration, abs=1e-12)
     ts = rng.uniform(0, m.duration_s, 50)
-    q, qd, qdd = m.sample(ts)
-    for k, t in enumerate(ts):
-        p, v, acc = traj.at_time(float(t))
-        np.testing.assert_allclose(q[k], p, atol=RUCKIG_STATE_ATOL)
-        np.testing.assert_allclose(qd[k], v, atol=RUCKIG_STATE_ATOL)
-        np.testing.assert_allclose(qdd[k], acc, atol=RUCKIG_STATE_ATOL)
+    _assert_matches_ruckig(m, traj, ts)
 
 
 def test_move_rejects_bad_input() -> None:
@@ -98,9 +103,4 @@ def test_phase_tables_cover_brake_and_hold() -> None:
     assert n_brake > 0
     m = plan_move(*a, *b, V, A, J)
     ts = np.linspace(0.0, m.duration_s, 40)
-    q, qd, qdd = m.sample(ts)
-    for k, t in enumerate(ts):
-        p, v, acc = traj.at_time(float(t))
-        np.testing.assert_allclose(q[k], p, atol=RUCKIG_STATE_ATOL)
-        np.testing.assert_allclose(qd[k], v, atol=RUCKIG_STATE_ATOL)
-        np.testing.assert_allclose(qdd[k], acc, atol=RUCKIG_STATE_ATOL)
+    _assert_matches_ruckig(m, traj, ts)
