@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/paintcell run scenarios/door.py --out results/door
+	$(BIN)/paintcell run scenarios/door.toml --out results/door
 	@echo "Results: results/door (report.html, metrics.json, plan.json, trajectory.npz/.csv, trace.npz)"
 
 test: $(STAMP)

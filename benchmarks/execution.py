@@ -1,6 +1,6 @@
 """Benchmark of MuJoCo execution and validation on the door program.
 
-Builds the door scenario's plan and 1 kHz joint program (`scenarios/door.py` through
+Builds the door scenario's plan and 1 kHz joint program (`scenarios/door.toml` through
 `sim.pipeline`: the ABB-style arm, the door upright in front of it), then times, best of `--repeat`:
 building the cell, servo execution (split into the inverse-dynamics feed-forward and the rollout),
 kinematic replay, and the validate step (three thickness maps: plan, trajectory, executed; the
@@ -28,7 +28,7 @@ from sim.pipeline import load_robot_for, load_surface, make_plan, make_trajector
 from sim.scenario import load_scenario
 from sim.validate import trajectory_gun_samples, validate
 
-DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.py"
+DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
 
 
 def best_of(n: int, fn: Callable[[], Any]) -> tuple[float, Any]:

@@ -1,9 +1,11 @@
 """`Scenario`: everything that defines one car-part painting job, declared once per part.
 
-A scenario script (`scenarios/door.py`) builds one `Scenario` named `SCENARIO` holding only what
-differs from the defaults, and ends with `raise SystemExit(SCENARIO.main())` so that
-`python scenarios/door.py` runs it end to end. `paintcell check scenarios/` imports every script
-and reads its `SCENARIO`.
+Scenarios are data: a TOML file (`scenarios/door.toml`, format in docs/interfaces.md and
+`sim.scenario_data`) maps one-to-one onto the `Scenario` fields and is read without running any
+code. A Python script that builds one `Scenario` named `SCENARIO` is still accepted for users who
+want code (and `raise SystemExit(SCENARIO.main())` lets `python script.py` run it); only scenario
+files the user names on the command line are ever imported, never a file named in a results
+folder. `paintcell check scenarios/` loads every `*.toml` and `*.py` file of the folder.
 """
 
 from __future__ import annotations
@@ -76,8 +78,9 @@ class Scenario:
     """One painting job: part, placement, robot, applicator, settings and thresholds.
 
     name: short identifier (used for output folders and CI rows).
-    part: a library part name (`planning.parts.PART_NAMES`) or a path to an STL/OBJ/PLY mesh
-        (relative paths are relative to the scenario script).
+    part: a library part name (`planning.parts.PART_NAMES`), a path to an STL/OBJ/PLY mesh
+        (relative paths are relative to the scenario file), or a dict (a TOML `[part]` table:
+        `file`, `units`, `pieces`, `side` …) passed on to the mesh-part reader.
     resolution_m: mesh resolution for a full run [m]; fast_resolution_m for `--fast` runs.
     part_placement: where the part frame sits in the world.
     robot: robot name for `robots.load_robot`; base: robot base placement in the world.
@@ -95,7 +98,7 @@ class Scenario:
     """
 
     name: str
-    part: str
+    part: str | dict[str, Any]
     part_placement: Placement
     base: Placement = Placement()
     robot: str = "abb_paint"
@@ -114,8 +117,9 @@ class Scenario:
         if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
             raise ScenarioError(f"scenario name {self.name!r} must be non-empty letters, digits, "
                                 "'_' or '-' (it names the results folder)")
-        if not self.part:
-            raise ScenarioError("scenario part is empty; give a library part name or a mesh path")
+        if not self.part or not isinstance(self.part, str | dict):
+            raise ScenarioError("scenario part is empty; give a library part name, a mesh path "
+                                "or a [part] table")
         for name in ("resolution_m", "fast_resolution_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v) \
@@ -126,9 +130,12 @@ class Scenario:
                 raise ScenarioError(f"Scenario.{name} must be a dict of setting names to values")
         if not isinstance(self.thresholds, Thresholds):
             raise ScenarioError("Scenario.thresholds must be a sim.scenario.Thresholds")
+        from sim.scenario_data import check_thresholds
+
+        check_thresholds(self.thresholds)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe description of the scenario (for reports)."""
+        """JSON-safe description of the scenario (for reports); `scenario_from_dict` inverts it."""
         return asdict(self)
 
     def main(self, argv: list[str] | None = None) -> int:
@@ -140,14 +147,22 @@ class Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Import a scenario script and return its `SCENARIO` (with `source` filled in)."""
+    """The scenario of a TOML file (read as data) or a Python script (imported; its `SCENARIO`),
+    with `source` filled in and every setting and threshold validated."""
+    from sim.scenario_data import check_settings, load_toml_scenario
+
     path = Path(path)
     if not path.exists():
-        raise ScenarioError(f"scenario {path} does not exist; pass a scenario script such as "
-                            "scenarios/door.py, or a folder of them")
+        raise ScenarioError(f"scenario {path} does not exist; pass a scenario file such as "
+                            "scenarios/door.toml, or a folder of them")
+    if path.is_dir():
+        raise ScenarioError(f"scenario {path} is a folder; pass one scenario file (`paintcell "
+                            "check` takes folders)")
+    if path.suffix == ".toml":
+        return load_toml_scenario(path)
     if path.suffix != ".py":
-        raise ScenarioError(f"scenario {path} is not a Python script; scenarios are .py files "
-                            "that define SCENARIO")
+        raise ScenarioError(f"scenario {path} is neither a .toml scenario nor a Python script "
+                            "(.py defining SCENARIO)")
     mod_name = f"paintcell_scenario_{path.stem}"
     spec = importlib.util.spec_from_file_location(mod_name, path)
     if spec is None or spec.loader is None:
@@ -166,19 +181,23 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ScenarioError(f"{path} defines no SCENARIO (a sim.scenario.Scenario); add one")
     from dataclasses import replace
 
-    return replace(scenario, source=str(path.resolve()))
+    scenario = replace(scenario, source=str(path.resolve()))
+    check_settings(scenario, str(path))
+    return scenario
 
 
 def find_scenarios(paths: list[str]) -> list[Path]:
-    """Scenario scripts named by `paths` (files, or folders searched for `*.py`), sorted."""
+    """Scenario files named by `paths` (files, or folders searched for `*.toml` and `*.py`),
+    sorted by name within each folder."""
     found: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
-            found.extend(sorted(q for q in p.glob("*.py") if not q.name.startswith("_")))
+            found.extend(sorted((q for q in [*p.glob("*.toml"), *p.glob("*.py")]
+                                 if not q.name.startswith("_")), key=lambda q: q.name))
         elif p.exists():
             found.append(p)
         else:
             raise ScenarioError(f"scenario path {p} does not exist")
     if not found:
-        raise ScenarioError(f"no scenario scripts found in {', '.join(paths)}")
+        raise ScenarioError(f"no scenario files (*.toml, *.py) found in {', '.join(paths)}")
     return found
