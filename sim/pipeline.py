@@ -1,18 +1,14 @@
 """The end-to-end run of one scenario: surface → plan → IK + trajectory → MuJoCo → validation.
 
 Every stage's output is written into a temporary sibling of the results folder, which replaces the
-results folder only when the run finished: a run that fails never leaves a half-written folder.
+results folder only when the run finished (`sim.results_dir`: ownership marker, writer lock,
+atomic swap): a run that fails or is interrupted never leaves a half-written folder.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Literal
@@ -25,6 +21,7 @@ from planning.atomic_io import atomic_write_text
 from planning.errors import PaintcellError
 from planning.plan import CoveragePlan
 from planning.surface import Surface
+from sim.results_dir import new_results
 from sim.scenario import Scenario, ScenarioError
 
 STAGES = ("surface", "plan", "trajectory", "execute", "validate", "report")
@@ -56,15 +53,87 @@ def load_surface(scn: Scenario, fast: bool = False) -> Surface:
     from planning import parts
 
     res = scn.fast_resolution_m if fast else scn.resolution_m
+    if isinstance(scn.part, dict):
+        return _part_table_surface(scn, res)
     if scn.part in parts.PART_NAMES:
         return parts.get_part(scn.part, resolution_m=res)
     mesh_path = Path(scn.part)
     if not mesh_path.is_absolute() and scn.source:
         mesh_path = Path(scn.source).parent / mesh_path
-    if not mesh_path.exists():
+    if not mesh_path.is_file():
         raise PaintcellError(f"part {scn.part!r} is neither a library part "
                              f"({', '.join(parts.PART_NAMES)}) nor an existing mesh file")
+    sniff_mesh(mesh_path)
     return Surface.from_mesh(mesh_path)
+
+
+def _part_table_surface(scn: Scenario, resolution_m: float) -> Surface:
+    """The surface of a `[part]` table (a mesh or CAD file with units, pieces, side).
+
+    The table's keys and their meaning belong to the mesh-part reader (`planning.mesh_part`);
+    until it is present only `file` (a mesh in metres) is understood.
+    """
+    table = dict(scn.part)  # type: ignore[arg-type]
+    import importlib
+
+    try:
+        mesh_part: Any = importlib.import_module("planning.mesh_part")
+    except ImportError:
+        mesh_part = None
+    if mesh_part is not None and hasattr(mesh_part, "surface_from_table"):
+        return mesh_part.surface_from_table(table, resolution_m=resolution_m)
+    extra = sorted(set(table) - {"file"})
+    if "file" not in table or extra:
+        raise ScenarioError(f"[part] table keys {extra or ['(no file)']} need the mesh-part "
+                            "reader, which this build lacks; give part = \"path/to/mesh.stl\" "
+                            "(a mesh in metres) or [part] with only file = ...")
+    path = Path(table["file"])
+    if not path.is_absolute() and scn.source:
+        path = Path(scn.source).parent / path
+    if not path.is_file():
+        raise ScenarioError(f"[part] file {path} does not exist; give the mesh path relative to "
+                            "the scenario file")
+    sniff_mesh(path)
+    return Surface.from_mesh(path)
+
+
+def sniff_mesh(path: Path) -> None:
+    """Refuse a mesh file whose bytes cannot be the format its suffix says, in one line.
+
+    Binary STL: 84-byte header + 50 bytes per triangle (a truncated file does not add up); ASCII
+    STL, OBJ and ASCII PLY must be UTF-8 text (random bytes would otherwise reach trimesh's
+    text-encoding guesser and come back as an unrelated import error).
+    """
+    suffix = path.suffix.lower()
+    data = path.read_bytes()
+    what = f"mesh {path}"
+    if not data:
+        raise PaintcellError(f"{what} is empty; export the part surface again")
+
+    def is_text() -> bool:
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError:
+            return False
+        return True
+
+    if suffix == ".stl":
+        if len(data) >= 84:
+            n = int.from_bytes(data[80:84], "little")
+            if len(data) == 84 + 50 * n:
+                return
+        if data.lstrip()[:5].lower() == b"solid" and is_text():
+            return
+        n_hint = int.from_bytes(data[80:84], "little") if len(data) >= 84 else 0
+        raise PaintcellError(f"{what} is neither a binary STL ({len(data)} bytes, the header's "
+                             f"{n_hint} triangles need {84 + 50 * n_hint}) nor an ASCII STL; the "
+                             "file is truncated or not an STL — export it again")
+    if suffix == ".obj" and not is_text():
+        raise PaintcellError(f"{what} is not a text OBJ file (it holds non-UTF-8 bytes); the "
+                             "file is corrupt or not an OBJ — export it again")
+    if suffix == ".ply" and not data.startswith(b"ply"):
+        raise PaintcellError(f"{what} does not start with the PLY magic 'ply'; the file is "
+                             "corrupt or not a PLY — export it again")
 
 
 def load_applicator(scn: Scenario) -> Applicator:
@@ -119,50 +188,6 @@ def make_trajectory(scn: Scenario, robot: Any, plan: CoveragePlan) -> Any:
                          settings_from(TrajectorySettings, scn.trajectory, "trajectory"))
 
 
-#: Files that mark a folder as paintcell results (only such a folder may be replaced).
-RESULT_MARKERS = ("scenario.json", "metrics.json")
-
-
-def check_out_dir(out_dir: Path) -> None:
-    """Refuse to replace an existing folder that is not empty and not paintcell results."""
-    if out_dir.exists():
-        if not out_dir.is_dir():
-            raise PaintcellError(f"--out {out_dir} is a file; give a folder for the results")
-        if any(out_dir.iterdir()) and not any((out_dir / m).exists() for m in RESULT_MARKERS):
-            raise PaintcellError(f"--out {out_dir} exists and is not a paintcell results folder "
-                                 "(no scenario.json); choose another folder or empty it")
-
-
-@contextmanager
-def staged_dir(out_dir: Path | None) -> Iterator[Path | None]:
-    """Yield a temporary folder that replaces `out_dir` when the block succeeds.
-
-    Only an empty folder or an earlier paintcell results folder is replaced (`check_out_dir`).
-    """
-    if out_dir is None:
-        yield None
-        return
-    out_dir = Path(out_dir)
-    check_out_dir(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(dir=out_dir.parent, prefix=f".{out_dir.name}.tmp-"))
-    mask = os.umask(0)
-    os.umask(mask)
-    tmp.chmod(0o777 & ~mask)  # mkdtemp makes 0700; results are meant to be shared
-    try:
-        yield tmp
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    old = None
-    if out_dir.exists():
-        old = out_dir.parent / f".{out_dir.name}.old-{time.time_ns()}"
-        out_dir.rename(old)
-    tmp.rename(out_dir)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
-
-
 def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool = False,
                  mode: Literal["servo", "kinematic"] = "servo", report: bool = True,
                  progress: bool = True) -> RunResult:
@@ -196,7 +221,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
         timings[name] = time.perf_counter() - t0
         bar.update(1)
 
-    with staged_dir(Path(out_dir) if out_dir is not None else None) as tmp:
+    with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         t0 = time.perf_counter()
         stage("surface")
         surface = load_surface(scn, fast)
@@ -255,8 +280,12 @@ def _disturbances(scn: Scenario) -> Any:
 
 
 def scenario_json(scn: Scenario, fast: bool, mode: str) -> str:
-    """`scenario.json`: the scenario and how it was run (what later stages need to reload it)."""
-    return json.dumps({**scn.to_dict(), "run": {"fast": fast, "mode": mode}}, indent=2)
+    """`scenario.json`: the scenario as data (a snapshot that `validate`, `export` and `report`
+    read instead of the scenario file, which may have changed or gone) and how it was run."""
+    from sim.scenario_data import snapshot_dict
+
+    return json.dumps({**snapshot_dict(scn), "run": {"fast": fast, "mode": mode}}, indent=2,
+                      default=json_default)
 
 
 def metrics_dict(result: RunResult) -> dict[str, Any]:
