@@ -95,8 +95,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Console entry point; returns the exit code."""
-    signal.signal(signal.SIGINT, _on_signal)
-    signal.signal(signal.SIGTERM, _on_signal)
+    previous = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return _main(argv)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
@@ -272,7 +279,13 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
                        reachability=traj.meta.get("reachability"))
         old = args.dir / "metrics.json"
-        stage_times = read_json(old).get("stage_times_s", {}) if old.exists() else {}
+        stage_times: dict[str, Any] = {}
+        if old.exists():
+            try:
+                stage_times = dict(read_json(old).get("stage_times_s") or {})
+            except (PaintcellError, TypeError, ValueError) as exc:
+                # metrics.json is what validate rewrites: a corrupt one is replaced, not fatal.
+                sys.stderr.write(f"paintcell: warning: {one_line(exc)} (replacing it)\n")
         res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, timings_s=stage_times,
                         fast=fast, mode=mode)
         atomic_write_text(old, json.dumps(metrics_dict(res), indent=2, default=json_default))
@@ -347,12 +360,21 @@ def _add_report(add_parser: Any) -> None:
 def _cmd_report(args: argparse.Namespace) -> int:
     from sim.report import write_report
     from sim.results_dir import lock_results, note_files, require_results
+    from sim.run_files import check_folder_files
 
     if not (args.dir / "metrics.json").exists():
         raise PaintcellError(f"{args.dir / 'metrics.json'} is missing; run `paintcell run` first")
     require_results(args.dir)
     with lock_results(args.dir, "report"):
-        path = write_report(args.dir)
+        check_folder_files(args.dir)
+        try:
+            path = write_report(args.dir)
+        except (PaintcellError, OSError):
+            raise
+        except Exception as exc:  # a file whose content is valid JSON but not what it should be
+            raise PaintcellError(f"cannot build the report of {args.dir} ({type(exc).__name__}: "
+                                 f"{one_line(exc)}); a file in it was edited or corrupted — "
+                                 "re-run `paintcell run`") from exc
         note_files(args.dir, [path.name])
     print(f"report: {path}")
     return EXIT_OK

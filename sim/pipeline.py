@@ -56,6 +56,11 @@ def load_surface(scn: Scenario, fast: bool = False) -> Surface:
     if isinstance(scn.part, dict):
         return _part_table_surface(scn, res)
     if scn.part in parts.PART_NAMES:
+        from sim.budget import check_surface_budget
+
+        # The area from a coarse build (~40 ms) sizes the real one before it allocates.
+        area = parts.get_part(scn.part, resolution_m=max(res, 0.05)).area
+        check_surface_budget(area, res, "fast_resolution_m" if fast else "resolution_m")
         return parts.get_part(scn.part, resolution_m=res)
     mesh_path = Path(scn.part)
     if not mesh_path.is_absolute() and scn.source:
@@ -137,13 +142,20 @@ def sniff_mesh(path: Path) -> None:
 
 
 def load_applicator(scn: Scenario) -> Applicator:
-    """The scenario's applicator (TOML path relative to the script) or the default bell."""
+    """The scenario's applicator (TOML path relative to the scenario file) or the default bell."""
     if scn.applicator is None:
         return Applicator.default()
     path = Path(scn.applicator)
     if not path.is_absolute() and scn.source:
         path = Path(scn.source).parent / path
-    return Applicator.from_toml(path)
+    try:
+        return Applicator.from_toml(path)
+    except UnicodeDecodeError as exc:
+        raise PaintcellError(f"applicator {path} is not a UTF-8 TOML file ({exc.reason})") \
+            from exc
+    except PaintcellError as exc:
+        msg = str(exc)
+        raise type(exc)(msg if str(path) in msg else f"applicator {path}: {msg}") from exc
 
 
 def settings_from(cls: type, values: dict[str, Any], what: str) -> Any:
@@ -169,8 +181,11 @@ def planner_settings(scn: Scenario, fast: bool = False) -> Any:
 def make_plan(scn: Scenario, surface: Surface, fast: bool = False) -> CoveragePlan:
     """Run the coverage planner for the scenario."""
     from planning.coverage import plan_coverage
+    from sim.budget import check_profile_budget
 
-    return plan_coverage(surface, load_applicator(scn), planner_settings(scn, fast))
+    app = load_applicator(scn)
+    check_profile_budget(app, scn.applicator or "the default bell")
+    return plan_coverage(surface, app, planner_settings(scn, fast))
 
 
 def load_robot_for(scn: Scenario) -> Any:
@@ -250,6 +265,10 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
 
         t0 = time.perf_counter()
         stage("validate")
+        from sim.budget import check_validation_budget
+
+        check_validation_budget(len(surface.vertices), int((trace.t_s[-1] - trace.t_s[0]) / 0.005),
+                                "fast_resolution_m" if fast else "resolution_m")
         rep = validate(plan, surface, traj, trace, T_world_part, scn.thresholds,
                        reachability=traj.meta.get("reachability"))
         done("validate", t0)

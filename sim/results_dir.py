@@ -76,7 +76,7 @@ def _pid_alive(pid: int) -> bool:
 
 def _clean_leftovers(out: Path) -> list[Path]:
     """Remove `.NAME.tmp-PID-*` / `.NAME.old-PID-*` beside `out` whose process is gone."""
-    removed = []
+    removed: list[Path] = []
     if not out.parent.is_dir():
         return removed
     for p in out.parent.iterdir():

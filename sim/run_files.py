@@ -86,3 +86,19 @@ def load_run_dir(d: Path) -> dict[str, Any]:
             raise PaintcellError(f"{d / (name + '.npz')} was made from another plan than "
                                  f"{d / 'plan.json'}; re-run `paintcell run` on {d}")
     return files
+
+
+def check_folder_files(d: Path) -> None:
+    """Check every data file a report reads (JSON objects, npz archives) before it reads them,
+    so a corrupt one is named in one line instead of failing deep inside the report."""
+    d = Path(d)
+    for name in ("metrics.json", "scenario.json", "figures.json", "plan.json"):
+        if (d / name).exists() or name == "metrics.json":
+            read_json(d / name)
+    for name in ("plan.npz", "trajectory.npz", "trace.npz"):
+        path = d / name
+        if path.exists():
+            with open(path, "rb") as fh:
+                if fh.read(4) != _ZIP_MAGIC:
+                    raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
+                                         "corrupt or replaced); re-run `paintcell run`")

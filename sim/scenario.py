@@ -173,6 +173,10 @@ def load_scenario(path: str | Path) -> Scenario:
         spec.loader.exec_module(module)
     except PaintcellError as exc:
         raise ScenarioError(f"scenario {path} is invalid: {exc}") from exc
+    except SystemExit as exc:  # a script that exits on import must not end paintcell silently
+        raise ScenarioError(f"scenario {path} called sys.exit({exc.code!r}) while loading; a "
+                            "scenario script defines SCENARIO and runs nothing on import") \
+            from exc
     except Exception as exc:  # a syntax or name error in the user's script
         raise ScenarioError(f"cannot import scenario {path}: {type(exc).__name__}: {exc}") \
             from exc
