@@ -154,7 +154,8 @@ def _check_replaceable(out: Path) -> None:
     marker = read_marker(out)
     if marker is None:
         raise ResultsDirError(f"--out {out} exists and is not a paintcell results folder (no "
-                              f"{MARKER} marker); choose another folder or empty it")
+                              f"{MARKER} marker; results of paintcell before this marker lack "
+                              "it too); choose another folder, or empty or delete it yourself")
     foreign = sorted(entries - set(marker.get("files", [])) - {MARKER})
     if foreign:
         shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")

@@ -209,6 +209,19 @@ def test_garbage_meshes_get_a_message_naming_the_file(
     assert expect in err and name in err and "charset_normalizer" not in err, err
 
 
+def test_a_failed_plan_leaves_the_results_folder_as_it_was(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    with new_results(tmp_path / "res", "run") as tmp:
+        (tmp / "plan.json").write_text('{"old": 1}')  # type: ignore[operator]
+    before = _snapshot(tmp_path / "res")
+    (tmp_path / "cut.stl").write_bytes(b"\0" * 80 + (10).to_bytes(4, "little"))
+    scn = _scenario(tmp_path).read_text().replace('part = "panel"', 'part = "cut.stl"')
+    (tmp_path / "m.toml").write_text(scn)
+    assert main(["plan", str(tmp_path / "m.toml"), "--out", str(tmp_path / "res")]) == EXIT_USAGE
+    assert "cut.stl" in capsys.readouterr().err
+    assert _snapshot(tmp_path / "res") == before and _hidden(tmp_path) == []
+
+
 # --- with real runs -----------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
