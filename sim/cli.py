@@ -324,10 +324,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     require_results(args.dir)
     with lock_results(args.dir, "export"):
-        marker = require_results(args.dir)
         metrics = read_json(args.dir / "metrics.json")
         f = load_run_dir(args.dir)
-        header = validation_header(metrics, marker["run_id"])
+        header = validation_header(metrics, f["plan"].content_digest())
         if not header[0].startswith("VALIDATED"):
             if not args.allow_failed:
                 raise PaintcellError(f"{args.dir} did not pass validation ({header[1][8:-1]}); "

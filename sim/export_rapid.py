@@ -258,19 +258,21 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
     return "\n".join(L) + "\n"
 
 
-def validation_header(metrics: dict[str, Any], run_id: str) -> list[str]:
+def validation_header(metrics: dict[str, Any], plan_digest: str) -> list[str]:
     """Header lines for a module exported from a results folder's `metrics.json`.
 
-    A passed run says so with its run id; a failed one says, first, that it FAILED and which
-    thresholds it missed, so nobody loads it on a robot thinking it was proven.
+    A passed run says so with the digest of its plan (which the folder's plan.json, trajectory and
+    trace carry; a digest, not the run id, so reruns export byte-identical modules); a failed one
+    says, first, that it FAILED and which thresholds it missed, so nobody loads it on a robot
+    thinking it was proven.
     """
     checks = [c for c in metrics.get("checks", []) if isinstance(c, dict)]
     bad = [c for c in checks if not c.get("passed")]
     if metrics.get("passed") is True and checks and not bad:
         return [f"VALIDATED in MuJoCo simulation: PASS, all {len(checks)} thresholds met "
-                f"(paintcell run {run_id})."]
+                f"(plan {plan_digest[:16]})."]
     why = "; ".join(f"{c.get('name')} {c.get('value')} vs limit {c.get('limit')}" for c in bad) \
         or "no passed validation recorded"
     return ["!!! NOT VALIDATED: THIS RUN FAILED VALIDATION - DO NOT RUN ON A ROBOT AS IS !!!",
             f"Failed: {why}.",
-            f"Exported with --allow-failed from paintcell run {run_id}."]
+            f"Exported with --allow-failed (plan {plan_digest[:16]})."]

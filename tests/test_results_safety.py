@@ -380,3 +380,21 @@ def test_check_survives_exits_exceptions_crashes_and_memory_hogs(
     assert main(["export", str(run), "--rapid", "--allow-failed"]) == 0
     head = (run / "e_tight.mod").read_text().splitlines()[:5]
     assert "NOT VALIDATED: THIS RUN FAILED" in head[2] and "executed" in head[3]
+
+
+@pytest.mark.slow
+def test_an_interrupted_check_stops_its_scenario_and_still_writes_junit(good: Path,
+                                                                        tmp_path: Path) -> None:
+    d = tmp_path / "scn"
+    d.mkdir()
+    shutil.copy(good / "fz.toml", d / "fz.toml")
+    p = _start("check", "scn", "--fast", "--junit", "j.xml", cwd=tmp_path)
+    kids = Path(f"/proc/{p.pid}/task/{p.pid}/children")
+    _wait_for(lambda: kids.exists() and kids.read_text().strip() != "")
+    child = int(kids.read_text().split()[0])
+    time.sleep(1.0)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == EXIT_INTERRUPTED and "interrupted (SIGTERM)" in err, err
+    assert not Path(f"/proc/{child}").exists()  # the scenario's process was stopped and reaped
+    assert ET.parse(tmp_path / "j.xml").getroot().get("tests") == "0"
