@@ -25,6 +25,7 @@ from scipy.interpolate import BSpline, CubicSpline
 
 from planning.atomic_io import atomic_write_npz
 from planning.errors import SurfaceError
+from planning.regions import PartRegions
 from planning.transforms import check_pose
 
 _FORMAT = "paintcell.Surface/1"
@@ -50,6 +51,8 @@ class Surface:
     principal_directions: (N, 2, 3) unit tangent directions of k1 and k2.
     uv: (N, 2) patch parameters in metres of arc length along the mid iso-curves, or None.
     grid_shape: (nu, nv) when vertex i*nv + j is grid node (u_i, v_j), else None.
+    regions: per-face labels of a real part (skin, hem, inner, back), its openings and the
+        regions the film is judged on (`planning.regions.PartRegions`), or None (all skin).
     """
 
     name: str
@@ -63,6 +66,7 @@ class Surface:
     principal_directions: np.ndarray
     uv: np.ndarray | None = None
     grid_shape: tuple[int, int] | None = None
+    regions: PartRegions | None = None
 
     def __post_init__(self) -> None:
         n = len(self.vertices)
@@ -88,6 +92,9 @@ class Surface:
             raise SurfaceError(f"uv has shape {self.uv.shape}, expected ({n}, 2) or None")
         if self.grid_shape is not None and self.grid_shape[0] * self.grid_shape[1] != n:
             raise SurfaceError(f"grid_shape {self.grid_shape} does not match {n} vertices")
+        if self.regions is not None and self.regions.face_labels.shape != (len(self.faces),):
+            raise SurfaceError(f"regions label {self.regions.face_labels.shape} faces, the "
+                               f"surface has {len(self.faces)}; rebuild the regions")
 
     @functools.cached_property
     def mesh(self) -> trimesh.Trimesh:
@@ -107,12 +114,39 @@ class Surface:
         """
         T = check_pose(T_new_part, "surface transform", tol=1e-9, error=SurfaceError)
         R, t = T[:3, :3], T[:3, 3]
+        regions = self.regions
+        if regions is not None:
+            regions = replace(regions, painted_direction=R @ regions.painted_direction)
         return replace(
             self,
             vertices=self.vertices @ R.T + t,
             normals=self.normals @ R.T,
             principal_directions=self.principal_directions @ R.T,
+            regions=regions,
         )
+
+    def judged_vertex_mask(self) -> np.ndarray | None:
+        """(N,) True on vertices of the regions the film is judged on, or None (every vertex)."""
+        if self.regions is None:
+            return None
+        return self.regions.vertex_mask(self.faces)
+
+    def region_surface(self, names: tuple[str, ...] = ("skin",)) -> Surface:
+        """The faces of the named regions as a Surface of their own (same name; curvature
+        re-estimated on the submesh), e.g. the skin the planner covers. Without regions: self."""
+        if self.regions is None:
+            return self
+        keep = self.regions.face_mask(names)
+        if keep.all():
+            return self
+        if not keep.any():
+            raise SurfaceError(f"surface {self.name!r} has no {'/'.join(names)} faces")
+        used, inv = np.unique(self.faces[keep], return_inverse=True)
+        sub = surface_from_triangles(self.name, self.vertices[used],
+                                     inv.reshape(-1, 3).astype(np.int64))
+        regs = replace(self.regions, face_labels=self.regions.face_labels[keep],
+                       face_piece=self.regions.face_piece[keep])
+        return replace(sub, regions=regs)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the surface to an `.npz` file atomically (exact round trip with `load`)."""
@@ -123,6 +157,11 @@ class Surface:
             arrays["uv"] = self.uv
         if self.grid_shape is not None:
             arrays["grid_shape"] = np.array(self.grid_shape, dtype=np.int64)
+        if self.regions is not None:
+            arrays["region_labels"] = self.regions.face_labels
+            arrays["region_piece"] = self.regions.face_piece
+            arrays["region_direction"] = self.regions.painted_direction
+            arrays["region_judged"] = np.array(self.regions.judged)
         atomic_write_npz(path, arrays)
 
     @classmethod
@@ -139,7 +178,13 @@ class Surface:
             uv = np.array(z["uv"]) if "uv" in z else None
             grid = tuple(int(x) for x in z["grid_shape"]) if "grid_shape" in z else None
             name = str(z["name"])
-        return cls(name=name, uv=uv, grid_shape=grid, **kw)  # type: ignore[arg-type]
+            regions = None
+            if "region_labels" in z:  # openings are not stored: `paintcell inspect` finds them
+                regions = PartRegions(face_labels=np.array(z["region_labels"]),
+                                      face_piece=np.array(z["region_piece"]),
+                                      painted_direction=np.array(z["region_direction"]),
+                                      judged=tuple(str(x) for x in z["region_judged"]))
+        return cls(name=name, uv=uv, grid_shape=grid, regions=regions, **kw)  # type: ignore[arg-type]
 
     @classmethod
     def from_mesh(cls, path_or_mesh: str | os.PathLike[str] | trimesh.Trimesh,

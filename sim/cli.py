@@ -19,6 +19,7 @@ from typing import Any
 
 from planning.errors import PaintcellError
 from sim.cli_check import add_check, format_table, row, write_junit
+from sim.part_commands import register as add_part_commands
 
 __all__ = ["EXIT_FAIL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "build_parser", "main",
            "format_table", "write_junit"]
@@ -88,7 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, parents=[common], formatter_class=_Help, epilog=EXIT_HELP,
                               **kw)
 
-    for register in (_add_run, add_check, _add_plan, _add_validate, _add_export, _add_report):
+    for register in (_add_run, add_check, _add_plan, _add_validate, _add_export, _add_report,
+                     add_part_commands):  # inspect, init, generate (issue 11)
         register(add_parser)
     return p
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Literal
 
@@ -19,6 +19,7 @@ from tqdm import tqdm
 from planning.applicator import Applicator
 from planning.atomic_io import atomic_write_text
 from planning.errors import PaintcellError
+from planning.part_spec import CAD_SUFFIXES, MESH_SUFFIXES, MeshPart
 from planning.plan import CoveragePlan
 from planning.surface import Surface
 from sim.results_dir import new_results
@@ -53,53 +54,29 @@ def load_surface(scn: Scenario, fast: bool = False) -> Surface:
     from planning import parts
 
     res = scn.fast_resolution_m if fast else scn.resolution_m
-    if isinstance(scn.part, dict):
-        return _part_table_surface(scn, res)
-    if scn.part in parts.PART_NAMES:
+    if isinstance(scn.part, str) and scn.part in parts.PART_NAMES:
         from sim.budget import check_surface_budget
 
         # The area from a coarse build (~40 ms) sizes the real one before it allocates.
         area = parts.get_part(scn.part, resolution_m=max(res, 0.05)).area
         check_surface_budget(area, res, "fast_resolution_m" if fast else "resolution_m")
         return parts.get_part(scn.part, resolution_m=res)
-    mesh_path = Path(scn.part)
-    if not mesh_path.is_absolute() and scn.source:
-        mesh_path = Path(scn.source).parent / mesh_path
-    if not mesh_path.is_file():
+    # A mesh/CAD file: a [part] table, or a bare path (every [part] setting at its default).
+    if isinstance(scn.part, MeshPart):
+        spec = scn.part
+    elif Path(scn.part).suffix.lower() in MESH_SUFFIXES + CAD_SUFFIXES:
+        spec = MeshPart(file=scn.part)
+    else:
         raise PaintcellError(f"part {scn.part!r} is neither a library part "
-                             f"({', '.join(parts.PART_NAMES)}) nor an existing mesh file")
-    sniff_mesh(mesh_path)
-    return Surface.from_mesh(mesh_path)
+                             f"({', '.join(parts.PART_NAMES)}) nor a mesh/CAD file")
+    from planning.part_import import import_part
 
-
-def _part_table_surface(scn: Scenario, resolution_m: float) -> Surface:
-    """The surface of a `[part]` table (a mesh or CAD file with units, pieces, side).
-
-    The table's keys and their meaning belong to the mesh-part reader (`planning.mesh_part`);
-    until it is present only `file` (a mesh in metres) is understood.
-    """
-    table = dict(scn.part)  # type: ignore[arg-type]
-    import importlib
-
-    try:
-        mesh_part: Any = importlib.import_module("planning.mesh_part")
-    except ImportError:
-        mesh_part = None
-    if mesh_part is not None and hasattr(mesh_part, "surface_from_table"):
-        return mesh_part.surface_from_table(table, resolution_m=resolution_m)
-    extra = sorted(set(table) - {"file"})
-    if "file" not in table or extra:
-        raise ScenarioError(f"[part] table keys {extra or ['(no file)']} need the mesh-part "
-                            "reader, which this build lacks; give part = \"path/to/mesh.stl\" "
-                            "(a mesh in metres) or [part] with only file = ...")
-    path = Path(table["file"])
+    path = Path(spec.file)
     if not path.is_absolute() and scn.source:
         path = Path(scn.source).parent / path
-    if not path.is_file():
-        raise ScenarioError(f"[part] file {path} does not exist; give the mesh path relative to "
-                            "the scenario file")
-    sniff_mesh(path)
-    return Surface.from_mesh(path)
+    if path.is_file() and path.suffix.lower() in MESH_SUFFIXES:
+        sniff_mesh(path)
+    return import_part(replace(spec, file=str(path)), resolution_m=res)[0]
 
 
 def sniff_mesh(path: Path) -> None:
@@ -185,7 +162,8 @@ def make_plan(scn: Scenario, surface: Surface, fast: bool = False) -> CoveragePl
 
     app = load_applicator(scn)
     check_profile_budget(app, scn.applicator or "the default bell")
-    return plan_coverage(surface, app, planner_settings(scn, fast))
+    # A real part's planner covers its skin (hems, inner panels stay in the surface for the film).
+    return plan_coverage(surface.region_surface(("skin",)), app, planner_settings(scn, fast))
 
 
 def load_robot_for(scn: Scenario) -> Any:
@@ -311,7 +289,9 @@ def metrics_dict(result: RunResult) -> dict[str, Any]:
     """`metrics.json` content: the validation report plus scenario, plan and timing context."""
     d = dict(result.report.to_dict())
     plan = result.plan
-    d["scenario"] = {"name": result.scenario.name, "part": result.scenario.part,
+    part = result.scenario.part
+    d["scenario"] = {"name": result.scenario.name,
+                     "part": part.to_dict() if isinstance(part, MeshPart) else part,
                      "robot": result.scenario.robot, "source": result.scenario.source}
     d["plan_summary"] = {
         "passes": len(plan.passes),

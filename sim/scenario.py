@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from planning.errors import PaintcellError
+from planning.part_spec import MeshPart
 from sim.validate import Thresholds
 
 __all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "find_scenarios",
@@ -79,8 +80,10 @@ class Scenario:
 
     name: short identifier (used for output folders and CI rows).
     part: a library part name (`planning.parts.PART_NAMES`), a path to an STL/OBJ/PLY mesh
-        (relative paths are relative to the scenario file), or a dict (a TOML `[part]` table:
-        `file`, `units`, `pieces`, `side` …) passed on to the mesh-part reader.
+        (relative paths are relative to the scenario file; read with every `[part]` setting at
+        its default: units auto, largest piece, side auto), or a mesh/CAD part
+        (`planning.part_spec.MeshPart`, or its TOML `[part]` table as a dict, converted on
+        construction).
     resolution_m: mesh resolution for a full run [m]; fast_resolution_m for `--fast` runs.
     part_placement: where the part frame sits in the world.
     robot: robot name for `robots.load_robot`; base: robot base placement in the world.
@@ -98,7 +101,7 @@ class Scenario:
     """
 
     name: str
-    part: str | dict[str, Any]
+    part: str | MeshPart
     part_placement: Placement
     base: Placement = Placement()
     robot: str = "abb_paint"
@@ -117,7 +120,9 @@ class Scenario:
         if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
             raise ScenarioError(f"scenario name {self.name!r} must be non-empty letters, digits, "
                                 "'_' or '-' (it names the results folder)")
-        if not self.part or not isinstance(self.part, str | dict):
+        if isinstance(self.part, dict):
+            object.__setattr__(self, "part", MeshPart.from_dict(self.part))
+        if not self.part or not isinstance(self.part, str | MeshPart):
             raise ScenarioError("scenario part is empty; give a library part name, a mesh path "
                                 "or a [part] table")
         for name in ("resolution_m", "fast_resolution_m"):

@@ -346,9 +346,12 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     # The program as built: its own TCP samples where the part was planned to be.
     t_traj = thickness(app, trajectory_gun_samples(traj, inverse_pose(T_world_part),
                                                    exec_sample_s), pts, nrm)
-    u_plan = uniformity(t_plan, areas, tolerance=thresholds.tolerance)
-    u_exec = uniformity(t_exec, areas, target_m=u_plan.mean_m, tolerance=thresholds.tolerance)
-    u_traj = uniformity(t_traj, areas, target_m=u_plan.mean_m, tolerance=thresholds.tolerance)
+    judged = surface.judged_vertex_mask()  # a real part: its skin by default; else every vertex
+    u_plan = uniformity(t_plan, areas, mask=judged, tolerance=thresholds.tolerance)
+    u_exec = uniformity(t_exec, areas, mask=judged, target_m=u_plan.mean_m,
+                        tolerance=thresholds.tolerance)
+    u_traj = uniformity(t_traj, areas, mask=judged, target_m=u_plan.mean_m,
+                        tolerance=thresholds.tolerance)
     loss_time_law = u_traj.nsd_pct - u_plan.nsd_pct
     loss_servo = u_exec.nsd_pct - u_traj.nsd_pct
     diff = t_exec - t_plan
