@@ -50,7 +50,7 @@ class UnitChoice:
     reason: str
 
 
-def read_part_file(path: str | os.PathLike[str], chord_tolerance_m: float = 0.0005) -> RawMesh:
+def read_part_file(path: str | os.PathLike[str], chord_tolerance_m: float = 5e-5) -> RawMesh:
     """Read a mesh or CAD file into raw triangles (no repair). Raises SurfaceError if unreadable.
 
     chord_tolerance_m: largest distance between a CAD surface and its tessellation [m].
@@ -153,8 +153,8 @@ def _read_cad(path: Path, chord_tolerance_m: float) -> tuple[np.ndarray, np.ndar
     shape = reader.OneShape()
     if shape.IsNull():
         raise SurfaceError(f"{path} holds no shape; export the part's surfaces or solid")
-    # Linear deflection in the file's (mm) unit; 0.5 rad angular deflection bounds coarse arcs.
-    mesh = BRepMesh_IncrementalMesh(shape, chord_tolerance_m * 1e3, False, 0.5, True)
+    # Linear deflection in the file's (mm) unit; 0.2 rad angular deflection bounds tight fillets.
+    mesh = BRepMesh_IncrementalMesh(shape, chord_tolerance_m * 1e3, False, 0.2, True)
     mesh.Perform()
     with tempfile.TemporaryDirectory() as tmp:
         stl = Path(tmp) / "tessellation.stl"
