@@ -39,6 +39,7 @@ from planning.metrics import transfer_efficiency, uniformity
 from planning.plan import CoveragePlan
 from planning.surface import Surface
 from planning.transforms import inverse_pose
+from sim.honest_reach import honest_reachability
 from sim.joint_trajectory import JointTrajectory
 from sim.trace import ExecutedTrace
 
@@ -97,6 +98,7 @@ class Check:
     unit: str
     passed: bool
     kind: str = "max"
+    detail: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -359,7 +361,15 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
 
     trk = tracking_errors(traj, trace)
     q_use, tau_use, tau_sat = _utilization(trace)
-    reach_summary, reach_pct = _reachability_summary(reachability)
+    reach_summary, _ = _reachability_summary(reachability)
+    # Jumps, wrist flips, contacts and slowdowns count against reachability (sim.honest_reach).
+    honest = honest_reachability(plan, traj, trace, reachability)
+    reach_pct = float("nan") if honest is None else float(honest["reachability_pct"])
+    if reach_summary is not None and honest is not None:
+        reach_summary["ik_reachability_pct"] = reach_summary["reachability_pct"]
+        reach_summary["reachability_pct"] = reach_pct
+        reach_summary["honest"] = honest
+        reach_summary["verdict"] = f"{reach_summary.get('verdict', '')}; {honest['verdict']}"
     events = collision_events(trace)
     dt = float(trace.t_s[1] - trace.t_s[0]) if len(trace.t_s) > 1 else 0.0
 
@@ -402,6 +412,11 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
                                       else float("nan")),
         "torque_source": "applied" if trace.tau_demand is None else "demanded",
         "reachability_pct": reach_pct,
+        "ik_reachability_pct": float("nan") if honest is None else honest["ik_reachability_pct"],
+        **({} if honest is None else {f"reach_{k}": honest[k] for k in (
+            "n_lost", "n_unreachable", "n_joint_jumps", "n_config_flips", "n_contact_poses",
+            "n_slowed_poses")}),
+        "reachability_verdict": "" if honest is None else honest["verdict"],
         "n_collisions": len(events),
         "n_contact_samples": len(trace.contacts),
         "max_contact_depth_mm": 1e3 * max((c.depth_m for c in trace.contacts), default=0.0),
@@ -445,6 +460,9 @@ def _checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
             passed = False
         else:
             passed = value <= limit if kind == "max" else value >= limit
+        detail = ""
+        if key == "reachability_pct" and not passed:
+            detail = str(m.get("reachability_verdict", ""))
         out.append(Check(name=name, value=value, limit=float(limit), unit=unit,
-                         passed=bool(passed), kind=kind))
+                         passed=bool(passed), kind=kind, detail=detail))
     return out
