@@ -53,6 +53,12 @@ from planning.offset import (
     walk,
 )
 from planning.plan import CoveragePlan, PassPlan, times_from_speeds
+from planning.smoothing import (
+    check_smoothing_setting,
+    limit_turn_rate,
+    smoothed_surface,
+    smoothing_scale_m,
+)
 from planning.speed_qp import SpeedSettings, SubOffsetBand, optimize_pass_speed
 from planning.start_curve import select_start_curve
 from planning.surface import Surface
@@ -93,6 +99,12 @@ class PlannerSettings:
         "left" (the start curve reversed), or "best" (run both, keep the plan with the smaller
         largest predicted optimization-profile σ/μ; the semi-global search depends on the order).
     max_passes: refuse to plan more passes than this (a guard against a runaway offset loop).
+    smoothing_m: pass geometry, tool axis and standoff come from the surface smoothed at this
+        scale [m] ("auto": a quarter of the footprint radius, applied only where the surface has
+        finer features; None: the raw surface); the film stays on the real mesh
+        (`planning.smoothing`).
+    max_axis_turn_rad_m: bound on how fast the bell axis may turn along a pass, per metre of TCP
+        travel [rad/m] (4 rad/m ≈ 230 °/m: above every smooth library part, below a crease).
     """
 
     u_max: float = 0.04
@@ -121,6 +133,8 @@ class PlannerSettings:
     edge_passes: bool = True
     first_side: str = "best"
     max_passes: int = 200
+    smoothing_m: float | str | None = "auto"
+    max_axis_turn_rad_m: float = 4.0
 
     def __post_init__(self) -> None:
         positive = ("u_max", "v_nominal_m_s", "v_min_m_s", "v_max_m_s", "a_max_m_s2", "w_min_m",
@@ -141,6 +155,10 @@ class PlannerSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise PlanError(f"PlannerSettings.{name} = {v!r} must be an int >= {lo}")
+        check_smoothing_setting(self.smoothing_m)
+        if isinstance(self.max_axis_turn_rad_m, bool) or not (self.max_axis_turn_rad_m > 0):
+            raise PlanError(f"PlannerSettings.max_axis_turn_rad_m = {self.max_axis_turn_rad_m!r}"
+                            " must be > 0 [rad/m] (inf: no bound)")
         if self.band_curves % 2 == 0:
             raise PlanError(f"PlannerSettings.band_curves = {self.band_curves} must be odd "
                             "(the pass itself plus pairs on both sides)")
@@ -369,6 +387,9 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         raise PlanError(f"plan_coverage settings must be PlannerSettings or None, got "
                         f"{type(settings).__name__}; use PlannerSettings.from_dict for a dict")
     st = PlannerSettings() if settings is None else settings
+    real_surface = surface            # the film is judged on it; the passes on its smoothing
+    smooth_scale = smoothing_scale_m(surface, applicator.footprint_radius_m, st.smoothing_m)
+    surface = smoothed_surface(surface, smooth_scale)
     pl = _Planner(surface, applicator, st)
     sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
                             geom=pl.geom)
@@ -402,6 +423,9 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         "first_side": ("left" if reversed_start else "right") + f" ({st.first_side})",
         "predicted_worst_nsd_pct": [c[0] for c in candidates],
         "planar": planar,
+        "smoothing_scale_m": smooth_scale,
+        "smoothing_max_shift_m": float(np.max(np.linalg.norm(
+            surface.vertices - real_surface.vertices, axis=1))),
         "planar_width_m": None if planar_w is None else planar_w.width_m,
         "cross_profiles_computed": len(pl.cache),
         "cross_profile_cache_hits": pl.cache_hits,
@@ -549,8 +573,8 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
                                                  (st.overspray_m + p.extra_m[0],
                                                   st.overspray_m + p.extra_m[1]),
                                                  st.sample_spacing_m, h)
-        pos = foot + h * normals
-        axes = -normals
+        axes = limit_turn_rate(foot, -normals, st.max_axis_turn_rad_m, h)
+        pos = foot - h * axes
         seg = np.diff(pos, axis=0)
         seg_len = np.linalg.norm(seg, axis=1)
         if np.any(seg_len <= 0):
