@@ -103,6 +103,9 @@ class PlannerSettings:
         scale [m] ("auto": a quarter of the footprint radius, applied only where the surface has
         finer features; None: the raw surface); the film stays on the real mesh
         (`planning.smoothing`).
+    geodesic_fallback: where an offset walked along indexing curves self-intersects, take the
+        level set of the heat-method geodesic distance from the pass instead
+        (`planning.geodesic`; False: refuse the plan as before).
     max_axis_turn_rad_m: bound on how fast the bell axis may turn along a pass, per metre of TCP
         travel [rad/m] (4 rad/m ≈ 230 °/m: above every smooth library part, below a crease).
     """
@@ -134,6 +137,7 @@ class PlannerSettings:
     first_side: str = "best"
     max_passes: int = 200
     smoothing_m: float | str | None = "auto"
+    geodesic_fallback: bool = True
     max_axis_turn_rad_m: float = 4.0
 
     def __post_init__(self) -> None:
@@ -174,7 +178,7 @@ class PlannerSettings:
                                 "'zero-curvature', 'max-curvature' or an angle [rad]")
         elif isinstance(o, bool) or not isinstance(o, int | float) or not math.isfinite(o):
             raise PlanError(f"PlannerSettings.orientation = {o!r} must be a string or an angle")
-        for name in ("optimize_speed", "edge_passes"):
+        for name in ("optimize_speed", "edge_passes", "geodesic_fallback"):
             if not isinstance(getattr(self, name), bool):
                 raise PlanError(f"PlannerSettings.{name} = {getattr(self, name)!r} must be "
                                 "True or False")
@@ -253,6 +257,18 @@ class _Planner:
         self.cache: dict[bytes, np.ndarray] = {}
         self.cache_hits = 0
         self.diag = float(np.linalg.norm(np.ptp(surface.vertices, axis=0)))
+        self.heat: Any = None          # planning.geodesic.HeatGeodesics, built when first needed
+
+    def geodesic_offset(self, p: _PassGeom, distance_m: float
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Heat-method offset of pass `p` at signed `distance_m` [m]: points, normals, inside
+        (all True: a level set lies on the surface)."""
+        from planning.geodesic import HeatGeodesics
+
+        if self.heat is None:
+            self.heat = HeatGeodesics(self.geom)
+        pts, nrm = self.heat.offset(p.foot, p.normals, distance_m)
+        return pts, nrm, np.ones(len(pts), bool)
 
     # --- geometry ---------------------------------------------------------------------------
     def extend_in_surface(self, foot: np.ndarray, normals: np.ndarray
@@ -465,7 +481,19 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                 w0, info = pl.choose_width(cur, sweep_curves, known, w_prev)
             pts, nrm, inside = walk(sweep_curves, w0)
             ok = np.all(np.isfinite(pts), axis=1)
-            check_offset_order(cur.foot[ok], pts[ok], f"offset {sign * k:+d} of the {name} plan")
+            try:
+                check_offset_order(cur.foot[ok], pts[ok],
+                                   f"offset {sign * k:+d} of the {name} plan")
+            except PlanError:
+                if not st.geodesic_fallback:
+                    raise
+                g_pts, g_nrm, g_in = pl.geodesic_offset(cur, sign * w0)
+                info = dict(info, offset="heat-method level set")
+                if len(g_pts) >= 2:
+                    pts, nrm, inside = g_pts, g_nrm, g_in
+                    ok = np.ones(len(pts), bool)
+                else:                       # nothing left on the surface: the edge pass below
+                    inside = np.zeros(len(pts), bool)
             side = sign * k
             if inside.sum() < 2:            # nothing (or a single point) left on the surface
                 if st.edge_passes and ok.sum() >= 2:
