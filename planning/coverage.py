@@ -52,6 +52,7 @@ from planning.offset import (
     unit,
     walk,
 )
+from planning.openings import brush_off_openings, fill_samples, filled_surface, find_openings
 from planning.plan import CoveragePlan, PassPlan, times_from_speeds
 from planning.smoothing import (
     check_smoothing_setting,
@@ -106,6 +107,10 @@ class PlannerSettings:
     geodesic_fallback: where an offset walked along indexing curves self-intersects, take the
         level set of the heat-method geodesic distance from the pass instead
         (`planning.geodesic`; False: refuse the plan as before).
+    plan_across_openings: plan on the surface with its openings (boundary loops other than the
+        outer one) closed, so passes carry on straight across holes (`planning.openings`).
+    max_opening_fraction: brush off every sample that would send more than this share of the
+        paint it emits into an opening [-].
     max_axis_turn_rad_m: bound on how fast the bell axis may turn along a pass, per metre of TCP
         travel [rad/m] (4 rad/m ≈ 230 °/m: above every smooth library part, below a crease).
     """
@@ -138,6 +143,8 @@ class PlannerSettings:
     max_passes: int = 200
     smoothing_m: float | str | None = "auto"
     geodesic_fallback: bool = True
+    plan_across_openings: bool = True
+    max_opening_fraction: float = 0.5
     max_axis_turn_rad_m: float = 4.0
 
     def __post_init__(self) -> None:
@@ -178,7 +185,11 @@ class PlannerSettings:
                                 "'zero-curvature', 'max-curvature' or an angle [rad]")
         elif isinstance(o, bool) or not isinstance(o, int | float) or not math.isfinite(o):
             raise PlanError(f"PlannerSettings.orientation = {o!r} must be a string or an angle")
-        for name in ("optimize_speed", "edge_passes", "geodesic_fallback"):
+        if not 0 < self.max_opening_fraction <= 1:
+            raise PlanError(f"PlannerSettings.max_opening_fraction = "
+                            f"{self.max_opening_fraction!r} must be in (0, 1]")
+        for name in ("optimize_speed", "edge_passes", "geodesic_fallback",
+                     "plan_across_openings"):
             if not isinstance(getattr(self, name), bool):
                 raise PlanError(f"PlannerSettings.{name} = {getattr(self, name)!r} must be "
                                 "True or False")
@@ -404,6 +415,8 @@ def plan_coverage(surface: Surface, applicator: Applicator,
                         f"{type(settings).__name__}; use PlannerSettings.from_dict for a dict")
     st = PlannerSettings() if settings is None else settings
     real_surface = surface            # the film is judged on it; the passes on its smoothing
+    openings = find_openings(surface) if st.plan_across_openings else []
+    surface = filled_surface(surface, openings)
     smooth_scale = smoothing_scale_m(surface, applicator.footprint_radius_m, st.smoothing_m)
     surface = smoothed_surface(surface, smooth_scale)
     pl = _Planner(surface, applicator, st)
@@ -434,6 +447,11 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         raise errors[0]
     _, reversed_start, passes = min(candidates, key=lambda c: c[0])
     plan_passes = _time_passes(pl, passes, st)
+    n_brush_off = 0
+    if openings:
+        plan_passes, n_brush_off = brush_off_openings(
+            applicator, plan_passes, fill_samples(real_surface, openings),
+            st.max_opening_fraction)
     report = {
         "start_rule": sc.rule,
         "first_side": ("left" if reversed_start else "right") + f" ({st.first_side})",
@@ -441,7 +459,9 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         "planar": planar,
         "smoothing_scale_m": smooth_scale,
         "smoothing_max_shift_m": float(np.max(np.linalg.norm(
-            surface.vertices - real_surface.vertices, axis=1))),
+            surface.vertices[:len(real_surface.vertices)] - real_surface.vertices, axis=1))),
+        "openings": [{"perimeter_m": o.perimeter_m, "area_m2": o.area_m2} for o in openings],
+        "samples_brushed_off_over_openings": n_brush_off,
         "planar_width_m": None if planar_w is None else planar_w.width_m,
         "cross_profiles_computed": len(pl.cache),
         "cross_profile_cache_hits": pl.cache_hits,
