@@ -57,6 +57,7 @@ from planning.plan import CoveragePlan, PassPlan, times_from_speeds
 from planning.smoothing import (
     check_smoothing_setting,
     limit_turn_rate,
+    smooth_along,
     smoothed_surface,
     smoothing_scale_m,
 )
@@ -111,8 +112,9 @@ class PlannerSettings:
         outer one) closed, so passes carry on straight across holes (`planning.openings`).
     max_opening_fraction: brush off every sample that would send more than this share of the
         paint it emits into an opening [-].
-    max_axis_turn_rad_m: bound on how fast the bell axis may turn along a pass, per metre of TCP
-        travel [rad/m] (4 rad/m ≈ 230 °/m: above every smooth library part, below a crease).
+    max_axis_turn_rad_m: bound on how fast the bell axis, and its spin (the travel direction),
+        may turn along a pass, per metre of TCP travel [rad/m] (4 rad/m ≈ 230 °/m: above every
+        smooth library part, below a crease).
     """
 
     u_max: float = 0.04
@@ -269,6 +271,7 @@ class _Planner:
         self.cache_hits = 0
         self.diag = float(np.linalg.norm(np.ptp(surface.vertices, axis=0)))
         self.heat: Any = None          # planning.geodesic.HeatGeodesics, built when first needed
+        self.smooth_scale = 0.0        # smoothing scale of the planning surface [m]
 
     def geodesic_offset(self, p: _PassGeom, distance_m: float
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -420,6 +423,7 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     smooth_scale = smoothing_scale_m(surface, applicator.footprint_radius_m, st.smoothing_m)
     surface = smoothed_surface(surface, smooth_scale)
     pl = _Planner(surface, applicator, st)
+    pl.smooth_scale = smooth_scale
     sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
                             geom=pl.geom)
     planar = _is_planar(surface)
@@ -621,13 +625,18 @@ def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
                                                  (st.overspray_m + p.extra_m[0],
                                                   st.overspray_m + p.extra_m[1]),
                                                  st.sample_spacing_m, h)
-        axes = limit_turn_rate(foot, -normals, st.max_axis_turn_rad_m, h)
+        axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
+                               st.max_axis_turn_rad_m, h)
         pos = foot - h * axes
         seg = np.diff(pos, axis=0)
         seg_len = np.linalg.norm(seg, axis=1)
         if np.any(seg_len <= 0):
             raise PlanError(f"pass {side} has repeated TCP samples; refine the mesh")
         travel = tangents(pos)
+        travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
+        # the bell's spin follows the travel direction: bound its turning rate too (a noisy
+        # pass end or a scanned rim whips joint 6 otherwise)
+        travel = limit_turn_rate(pos, travel, st.max_axis_turn_rad_m)
         travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
         # neighbours' widths for the band and the report
         # the gaps on both sides of this pass: toward the start curve it is the pass's own

@@ -13,6 +13,9 @@ scale; the deposition model and the film metrics keep the real mesh.
 - `smoothing_scale_m`: the default scale tied to the footprint (a quarter of its radius), and the
   rule that applies it only to surfaces with features finer than that scale (max |κ|·scale > 1):
   the smooth library parts are planned as before.
+- `smooth_along`: on a smoothed surface, the pass's axes are also low-passed along the pass at
+  half the smoothing scale (facet-to-facet wiggles of a scan's normals, magnified by the standoff,
+  are lateral TCP jerks).
 - `limit_turn_rate`: the bound on how fast the bell axis may turn along a pass [rad/m]: the
   axis field is diffused along the pass until its turning rate is under the bound.
 """
@@ -95,6 +98,19 @@ def smoothed_surface(surface: Surface, scale_m: float) -> Surface:
     V[inner] = np.column_stack([solve(rhs[:, k]) for k in range(3)])
     smooth = surface_from_triangles(surface.name, V, F)
     return dataclasses.replace(smooth, uv=surface.uv, grid_shape=surface.grid_shape)
+
+
+def smooth_along(points: np.ndarray, vectors: np.ndarray, sigma_m: float) -> np.ndarray:
+    """Unit `vectors` (M, 3) low-passed along the polyline `points` (M, 3) by a Gaussian of
+    `sigma_m` [m] of arc length (ends: the kernel renormalized over what exists). A pass's spray
+    axes taken from a faceted (scanned) surface wiggle from facet to facet; the TCP, a standoff
+    away, magnifies each wiggle into a lateral jerk the time law must slow for."""
+    if sigma_m <= 0 or len(vectors) < 3:
+        return np.array(vectors, float)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    w = np.exp(-0.5 * ((s[:, None] - s[None, :]) / sigma_m) ** 2)      # (M, M), M ~ 100
+    v = w @ vectors
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
 def turn_rate_rad_m(points: np.ndarray, axes: np.ndarray) -> np.ndarray:
