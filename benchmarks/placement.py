@@ -1,6 +1,6 @@
 """Placement search time: margin-only ranking vs the motion score (robots.placement_score).
 
-Door plan (library door at 25 mm, the default planner) placed as scenarios/door.py places it;
+Door plan (library door at 25 mm, the default planner) placed as scenarios/door.toml places it;
 `find_base_pose` over the default facing grid (765 bases) for the ABB arm, and over a 2 × 3 grid
 for the UR10 (DLS only: every candidate is solved iteratively).
 Run: `PYTHONPATH=$PWD .venv/bin/python benchmarks/placement.py`. One figure per line with its unit.
@@ -20,7 +20,11 @@ from robots.placement import facing_grid, find_base_pose
 
 
 def main() -> None:
-    from scenarios.door import SCENARIO
+    from pathlib import Path
+
+    from sim.scenario import load_scenario
+
+    SCENARIO = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "door.toml")
 
     surface = get_part("door", resolution_m=0.025)
     plan = plan_coverage(surface, Applicator.default(), PlannerSettings(**SCENARIO.planner))
