@@ -110,6 +110,8 @@ class PlannerSettings:
         (`planning.geodesic`; False: refuse the plan as before).
     plan_across_openings: plan on the surface with its openings (boundary loops other than the
         outer one) closed, so passes carry on straight across holes (`planning.openings`).
+    patches: split the part into normal-cone patches, plan each, blend the seams and order them
+        (`planning.patches.plan_patches`; ordered from the part frame's origin).
     max_opening_fraction: brush off every sample that would send more than this share of the
         paint it emits into an opening [-].
     max_axis_turn_rad_m: bound on how fast the bell axis, and its spin (the travel direction),
@@ -146,6 +148,7 @@ class PlannerSettings:
     smoothing_m: float | str | None = "auto"
     geodesic_fallback: bool = True
     plan_across_openings: bool = True
+    patches: bool = False
     max_opening_fraction: float = 0.5
     max_axis_turn_rad_m: float = 4.0
 
@@ -191,7 +194,7 @@ class PlannerSettings:
             raise PlanError(f"PlannerSettings.max_opening_fraction = "
                             f"{self.max_opening_fraction!r} must be in (0, 1]")
         for name in ("optimize_speed", "edge_passes", "geodesic_fallback",
-                     "plan_across_openings"):
+                     "plan_across_openings", "patches"):
             if not isinstance(getattr(self, name), bool):
                 raise PlanError(f"PlannerSettings.{name} = {getattr(self, name)!r} must be "
                                 "True or False")
@@ -417,6 +420,12 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         raise PlanError(f"plan_coverage settings must be PlannerSettings or None, got "
                         f"{type(settings).__name__}; use PlannerSettings.from_dict for a dict")
     st = PlannerSettings() if settings is None else settings
+    if st.patches:
+        from dataclasses import replace
+
+        from planning.patches import plan_patches
+
+        return plan_patches(surface, applicator, replace(st, patches=False))
     real_surface = surface            # the film is judged on it; the passes on its smoothing
     openings = find_openings(surface) if st.plan_across_openings else []
     surface = filled_surface(surface, openings)

@@ -220,7 +220,7 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
         here = plans[i][-1].positions[-1]
     passes = [dataclasses.replace(p, side=n) for n, p in
               enumerate(p for i in order for p in plans[i])]
-    sd = st.to_dict()
+    sd = dict(st.to_dict(), patches=True)
     sd["report"] = {"patches": report, "order": order, "seam_share": share}
     return CoveragePlan(surface_name=surface.name, applicator=app, passes=tuple(passes),
                         start_rule="patches", settings=sd)

@@ -88,3 +88,14 @@ def test_patches_are_ordered_from_the_robot() -> None:
     first = plan.passes[0].positions + plan.applicator.standoff_m * plan.passes[0].spray_axes
     assert first[:, 1].mean() > -0.05 and len(order) == 2
     assert [p.side for p in plan.passes] == list(range(len(plan.passes)))
+
+
+@pytest.mark.slow
+def test_planner_setting_patches_runs_the_patch_planner() -> None:
+    """`[planner] patches = true` in a scenario reaches plan_patches through plan_coverage; the
+    saved settings round-trip to the same planner settings."""
+    s, _ = bracket()
+    plan = plan_coverage(s, Applicator.default(), PlannerSettings(patches=True))
+    rep = plan.settings["report"]
+    assert len(rep["patches"]) == 2 and plan.start_rule == "patches"
+    assert PlannerSettings.from_dict(plan.settings).patches
