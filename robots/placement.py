@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from tqdm import tqdm
 
 from robots.errors import RobotError
 from robots.ik import (
@@ -217,7 +218,9 @@ def _score(robot: Robot, C: np.ndarray, sub: list[tuple[np.ndarray, float]], fre
     allp = np.concatenate([p for p, _ in sub])
     starts = np.cumsum([0] + [len(p) for p, _ in sub])
     strides = [st for _, st in sub]
-    for c, T_base in enumerate(C):
+    # disable=None: a bar only on a terminal (CI logs and pipes stay clean)
+    for c, T_base in enumerate(tqdm(C, desc="placement", unit="base", leave=False,
+                                    disable=None if len(C) > 50 else True)):
         if robot.opw is not None and not free_spin:
             # One closed-form call for all paths of the candidate, then path by path.
             flange = np.linalg.inv(T_base) @ allp @ T_tcp_flange
