@@ -41,6 +41,7 @@ from planning.surface import Surface
 from planning.transforms import inverse_pose
 from sim.honest_reach import honest_reachability
 from sim.joint_trajectory import JointTrajectory
+from sim.region_film import region_film
 from sim.trace import ExecutedTrace
 
 #: contacts of the same body pair closer than this in time belong to one collision event [s].
@@ -425,6 +426,8 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "part_placement_error_mm": 1e3 * float(np.linalg.norm(T_actual[:3, 3]
                                                               - T_world_part[:3, 3])),
     }
+    # hems, flanges, turned edges: their film reported apart (not judged)
+    metrics.update(region_film(surface, t_plan, t_exec, u_exec.mean_m))
     checks = _checks(metrics, thresholds)
     return ValidationReport(
         metrics=metrics, checks=tuple(checks), reachability=reach_summary,
