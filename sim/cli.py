@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from planning.errors import PaintcellError
+from sim import interrupts
 from sim.cli_check import add_check, format_table, row, write_junit
 from sim.part_commands import register as add_part_commands
 
@@ -36,17 +37,6 @@ exit codes:
 results folders: a folder is paintcell's only if it holds the .paintcell-results marker;
 run/plan replace only such a folder (or a missing or empty one), atomically, one writer at a
 time; validate/export/report read the scenario snapshot in scenario.json, never a script."""
-
-
-class Interrupted(KeyboardInterrupt):
-    """Ctrl-C (SIGINT) or SIGTERM: the command stops, cleans up and exits 130."""
-
-
-def _on_signal(signum: int, frame: Any) -> None:
-    # Further signals are ignored while the temp folder is removed; then the process exits.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    raise Interrupted(signal.Signals(signum).name)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -97,9 +87,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Console entry point; returns the exit code."""
-    previous = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    interrupts.reset()
+    previous = {s: signal.signal(s, interrupts.on_signal)
+                for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return _main(argv)
+        code = _main(argv)
+        # A signal that a library swallowed (see sim.interrupts) still ends the command as one.
+        return EXIT_INTERRUPTED if interrupts.pending() is not None else code
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
