@@ -157,7 +157,8 @@ def _add_run(add_parser: Any) -> None:
     r.add_argument("--disturb", action="append", default=[], metavar="KEY=VALUE",
                    help="robustness study: a sim.execute.Disturbances setting on top of the "
                    "scenario's, repeatable: part_offset_m [m], part_rotation_rad [rad], "
-                   "tcp_offset_m [m], gain_scale [-], seed [int]; e.g. --disturb "
+                   "tcp_offset_m [m], gain_scale [-], standoff_error_m [m], trigger_delay_s [s], "
+                   "flow_scale [-], flow_drift [-], seed [int]; e.g. --disturb "
                    "part_offset_m=0.005 --disturb seed=3")
     # Internal, for `paintcell check`: write the table row as JSON; results under a folder.
     r.add_argument("--row-json", type=Path, default=None, help=argparse.SUPPRESS)

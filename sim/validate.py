@@ -312,7 +312,8 @@ def _binned(full: GunSamples, t_s: np.ndarray, paint_on: np.ndarray,
 def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace: ExecutedTrace,
              T_world_part: npt.ArrayLike, thresholds: Thresholds | None = None,
              reachability: dict[str, Any] | None = None,
-             exec_sample_s: float | None = 0.005) -> ValidationReport:
+             exec_sample_s: float | None = 0.005,
+             films: tuple[np.ndarray, np.ndarray] | None = None) -> ValidationReport:
     """Compare the executed program with the plan.
 
     plan: the coverage plan (part frame); surface: the part it covers (part frame, the same mesh
@@ -322,6 +323,9 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     reachability: `ReachabilityReport.to_dict()` of the IK stage (per-pose arrays dropped).
     exec_sample_s: bin of the executed trace and of the trajectory for the deposition sum [s]
     (see `executed_gun_samples`; None: every 1 ms step).
+    films: (planned, trajectory) films (N,) [m] of this plan, surface, trajectory and placement
+    computed earlier (a sweep computes them once): taken instead of recomputed (neither depends
+    on how the program was executed).
     """
     thresholds = thresholds or Thresholds()
     T_world_part = np.asarray(T_world_part, float)
@@ -339,16 +343,22 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     app = plan.applicator
     pts, nrm, areas = surface.vertices, surface.normals, surface.vertex_areas
     gun_plan = plan.gun_samples()
-    t_plan = thickness(app, gun_plan, pts, nrm)
     if not np.any(trace.paint_on):
         raise ValidationError("the trace has no paint-on samples; the trajectory never painted")
     if not np.any(traj.paint_on):
         raise ValidationError("the trajectory has no paint-on samples; rebuild it from the plan")
-    t_exec = thickness(app, executed_gun_samples(trace, inverse_pose(T_actual),
-                                                 exec_sample_s), pts, nrm)
-    # The program as built: its own TCP samples where the part was planned to be.
-    t_traj = thickness(app, trajectory_gun_samples(traj, inverse_pose(T_world_part),
-                                                   exec_sample_s), pts, nrm)
+    gun_exec = executed_gun_samples(trace, inverse_pose(T_actual), exec_sample_s)
+    t_exec = thickness(app, gun_exec, pts, nrm)
+    if films is not None:
+        t_plan, t_traj = (np.asarray(f, float) for f in films)
+        if t_plan.shape != (len(pts),) or t_traj.shape != (len(pts),):
+            raise ValidationError(f"films must be two ({len(pts)},) arrays, one value a surface "
+                                  "vertex; pass the films of this plan and surface")
+    else:
+        t_plan = thickness(app, gun_plan, pts, nrm)
+        # The program as built: its own TCP samples where the part was planned to be.
+        t_traj = thickness(app, trajectory_gun_samples(traj, inverse_pose(T_world_part),
+                                                       exec_sample_s), pts, nrm)
     judged = surface.judged_vertex_mask()  # a real part: its skin by default; else every vertex
     u_plan = uniformity(t_plan, areas, mask=judged, tolerance=thresholds.tolerance)
     u_exec = uniformity(t_exec, areas, mask=judged, target_m=u_plan.mean_m,
@@ -406,7 +416,7 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "planned_transfer_efficiency_pct": 100.0 * transfer_efficiency(
             t_plan, areas, app.emitted_flow_m3_s * float(gun_plan.dwell_s.sum())),
         "executed_transfer_efficiency_pct": 100.0 * transfer_efficiency(
-            t_exec, areas, app.emitted_flow_m3_s * dt * float(np.count_nonzero(trace.paint_on))),
+            t_exec, areas, app.emitted_flow_m3_s * float(gun_exec.dwell_s.sum())),
         "max_joint_range_utilization": float(np.nanmax(q_use)) if len(q_use) else float("nan"),
         "max_torque_utilization": float(np.nanmax(tau_use)) if len(tau_use) else float("nan"),
         "max_torque_saturation_pct": (float(np.nanmax(tau_sat)) if len(tau_sat)
