@@ -99,8 +99,9 @@ class Scenario:
         torque and joint-range utilization).
     sweep: the robustness sweep of `paintcell sweep` (`sim.sweep_spec.spec_from_scenario`):
         factors {disturbance name: distribution string}, samples, fast_samples, method
-        ("lhs" | "mc"), seed, and limits on quantiles and yield that `paintcell check` holds
-        the scenario to (`sim.sweep_stats`), e.g. {"max_p95_executed_nsd_pct": 12.0}.
+        ("lhs" | "mc"), seed, workers (local Dask processes; 0: in-process), and limits on
+        quantiles and yield that `paintcell check` holds the scenario to (`sim.sweep_stats`),
+        e.g. {"max_p95_executed_nsd_pct": 12.0}.
     source: the file the scenario was declared in (filled in by `load_scenario`).
     """
 

@@ -35,8 +35,9 @@ def add_sweep_parser(add_parser: Any, fmt: Any) -> None:
     s.add_argument("--seed", type=int, default=None,
                    help="sweep seed: the design and every sample's own seed derive from it "
                    "(default: the scenario's, else 0)")
-    s.add_argument("--workers", type=int, default=2,
-                   help="worker processes of the local Dask cluster (0: run in this process)")
+    s.add_argument("--workers", type=int, default=None,
+                   help="worker processes of the local Dask cluster (0: run in this process; "
+                   "default: the scenario's sweep workers, else 2)")
     s.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="use an existing Dask cluster, e.g. tcp://10.0.0.5:8786 (then "
                    "--workers is ignored; the workers need paintcell installed)")
@@ -60,7 +61,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     spec = spec_from_scenario(scn.sweep, fast=args.fast, vary=args.vary, samples=args.samples,
                               method=args.method, seed=args.seed)
     out = args.out or Path("results") / f"{scn.name}-sweep"
-    res = run_sweep(scn, spec, out, fast=args.fast, mode=args.mode, workers=args.workers,
+    workers = args.workers if args.workers is not None else scn.sweep.get("workers", 2)
+    res = run_sweep(scn, spec, out, fast=args.fast, mode=args.mode, workers=workers,
                     scheduler=args.scheduler, report=not args.no_report)
     print(format_summary(res.summary))
     print(f"ran {res.ran} sample(s) in {res.wall_s:.1f} s; results: {out}"
@@ -93,7 +95,8 @@ def _f(v: Any) -> str:
 
 def sweep_checks(scn: Any, fast: bool, out: Path | None) -> list[dict[str, Any]]:
     """`paintcell check`: when the scenario's sweep has limits, run the sweep (its
-    fast_samples under --fast; a local cluster) and return its limit checks as check rows."""
+    fast_samples under --fast; a local cluster of the sweep's `workers`, default 2, 0: in this
+    process) and return its limit checks as check rows."""
     import tempfile
 
     from sim.sweep import run_sweep
@@ -102,9 +105,11 @@ def sweep_checks(scn: Any, fast: bool, out: Path | None) -> list[dict[str, Any]]
     if not scn.sweep.get("limits"):
         return []
     spec = spec_from_scenario(scn.sweep, fast=fast)
+    workers = scn.sweep.get("workers", 2)
     with tempfile.TemporaryDirectory() as tmp:
         folder = (out / f"{scn.name}-sweep") if out is not None else Path(tmp) / "sweep"
-        res = run_sweep(scn, spec, folder, fast=fast, progress=False, report=out is not None)
+        res = run_sweep(scn, spec, folder, fast=fast, workers=workers, progress=False,
+                        report=out is not None)
     return [{"name": f"sweep {c['name']}", "value": c["value"], "limit": c["limit"],
              "unit": "", "passed": c["passed"], "kind": c["kind"]}
             for c in res.summary["limit_checks"]]

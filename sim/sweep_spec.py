@@ -213,7 +213,7 @@ def factor_help() -> str:
 
 
 #: keys of a scenario's sweep table.
-SCENARIO_KEYS = ("factors", "samples", "fast_samples", "method", "seed", "limits")
+SCENARIO_KEYS = ("factors", "samples", "fast_samples", "method", "seed", "limits", "workers")
 
 
 def spec_from_scenario(sweep: dict[str, Any], *, fast: bool = False,
