@@ -4,11 +4,12 @@ The car is built from library parts (a two-door coupé's skin): hood, roof, trun
 panel), two doors and two front fenders, 8.0 m² together, laid out side by side 0.3 m apart,
 painted side up. Each part is planned with the default planner (at 25 mm, the plan's gun path
 does not need the fine mesh), its program moved with it, and all programs joined into one (the
-full program). The program is sampled every 5 ms, as `sim.validate` bins an executed trace. The film map
-is then computed on every 5 mm vertex of every part from every gun sample — overspray from a part's program onto its neighbours included — with the compiled
-kernel and, for the baseline, today's numpy kernel on a share of the program (scaled).
+full program), sampled every 5 ms as `sim.validate` bins an executed trace. The film map is then
+computed on every 5 mm vertex of every part from every gun sample (overspray from a part's
+program onto its neighbours included) with the compiled kernel and, for the baseline, today's
+numpy kernel on a share of the program (time scaled).
 
-    .venv/bin/python benchmarks/film_car.py [--threads 2] [--numpy-fraction 0.1]
+    .venv/bin/python benchmarks/film_car.py [--threads 2] [--dt 0.005] [--numpy-fraction 0.05]
 """
 
 from __future__ import annotations
@@ -69,7 +70,7 @@ def build_car(res_m: float, plan_res_m: float, dt_s: float) -> tuple[np.ndarray,
         t_plan += time.perf_counter() - t0
         g = resample(plan, dt_s)
         lo, hi = fine.vertices.min(axis=0), fine.vertices.max(axis=0)
-        for c in range(copies):
+        for _ in range(copies):
             off = np.array([x0 - lo[0], 0.0, 0.0])
             pts.append(fine.vertices + off)
             nrms.append(fine.normals)

@@ -38,8 +38,8 @@ def _prefer_512_bit_vectors() -> None:
         import numba.core.config as cfg
 
         feats = llvm.get_host_cpu_features().flatten()
-        if "+avx512f" in feats.split(",") and cfg.CPU_FEATURES is None:
-            cfg.CPU_FEATURES = feats + ",-prefer-256-bit"
+        if "+avx512f" in feats.split(",") and getattr(cfg, "CPU_FEATURES", None) is None:
+            setattr(cfg, "CPU_FEATURES", feats + ",-prefer-256-bit")  # noqa: B010 (untyped)
     except Exception:  # any trouble: numba's defaults
         return
 
@@ -190,7 +190,8 @@ def film_cpu(blocks_pts: np.ndarray, blocks_nrm: np.ndarray, starts: np.ndarray,
     evaluated = np.zeros(len(starts) - 1, np.int64)
     old = numba.get_num_threads()
     if threads is not None:
-        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+        most = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+        numba.set_num_threads(max(1, min(int(threads), most)))
     try:
         # dynamic scheduling: blocks under the program cost far more than blocks outside it
         with numba.parallel_chunksize(1):
@@ -225,7 +226,7 @@ def _gpu_kernel() -> Any:
         @cuda.jit
         def kern(pts: Any, nrm: Any, block_of: Any, cand: Any, g: Any, xh: Any, yh: Any,
                  a: Any, coef: Any, chunk: int, prm: Any, out: Any) -> None:
-            i = cuda.grid(1)
+            i: int = cuda.grid(1)  # type: ignore[call-arg]
             if i >= pts.shape[0]:
                 return
             b = block_of[i]
