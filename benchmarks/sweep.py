@@ -48,6 +48,7 @@ def one(scn: Any, n: int, workers: int, fast: bool, out: Path) -> dict[str, Any]
             "prepare": res.prepare_s, "execute": float(np.mean([t["execute"] for t in tm])),
             "validate": float(np.mean([t["validate"] for t in tm])),
             "total": float(np.mean([t["total"] for t in tm])),
+            "cpu": float(np.mean([t["cpu"] for t in tm])),
             "yield": res.summary["yield_pct"],
             "p95_nsd": res.summary["figures"]["executed_nsd_pct"]["p95"]}
 
@@ -76,8 +77,8 @@ def main() -> None:
                   f"(planning {r['prepare']:.1f} s, first sample after {r['startup']:.1f} s), "
                   f"steady rate {r['rate']:.2f} samples/s")
             print(f"  per sample (mean, on a worker): execute {r['execute']:.2f} s, validate "
-                  f"{r['validate']:.3f} s, total {r['total']:.2f} s; yield {r['yield']:.0f} %,"
-                  f" P95 executed σ/μ {r['p95_nsd']:.3f} %")
+                  f"{r['validate']:.3f} s, total {r['total']:.2f} s wall, {r['cpu']:.2f} s CPU;"
+                  f" yield {r['yield']:.0f} %, P95 executed σ/μ {r['p95_nsd']:.3f} %")
         print(f"2 / 1 worker rate: {rates[2]['rate'] / rates[1]['rate']:.2f} x")
         if args.full:
             r = one(scn, args.samples, 2, fast, Path(tmp) / "full")
@@ -87,6 +88,10 @@ def main() -> None:
             est = rates[2]["startup"] + args.samples / rates[2]["rate"]
             print(f"{args.samples}-sample sweep, 2 workers: {est:.0f} s ({est / 60:.1f} min; "
                   "target <= 10 min), EXTRAPOLATED from the 2-worker steady rate (not run)")
+            cpu = rates[2]["startup"] + args.samples * rates[2]["cpu"] / 2
+            print(f"{args.samples}-sample sweep on 2 unshared cores, estimated from the CPU time "
+                  f"a sample takes (startup + samples x CPU / 2): {cpu:.0f} s "
+                  f"({cpu / 60:.1f} min), an ESTIMATE")
     print(f"load average after (1 min): {os.getloadavg()[0]:.2f}")
 
 

@@ -78,7 +78,8 @@ def prepare_payload(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> SweepPa
 def spec_digest(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> str:
     """Digest of (spec, scenario, fast, mode): a results folder resumes only the same sweep."""
     d = scn.to_dict()
-    d.pop("source", None)
+    d.pop("source", None)   # where the file is does not change a sample
+    d.pop("sweep", None)    # the spec is digested itself; limits do not change a sample
     return spec.digest({"scenario": d, "fast": fast, "mode": mode})
 
 
@@ -157,8 +158,8 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
     last_summary = [0.0]
 
     def write_summary(final: bool = False) -> dict[str, Any]:
-        summ = summarize(spec, nominal, [records[i] for i in sorted(records)], scn.thresholds,
-                         scn.sweep.get("limits") if hasattr(scn, "sweep") else None)
+        summ = summarize(spec, nominal, [records[i] for i in sorted(records)],
+                         scn.sweep.get("limits"))
         summ["complete"] = final and len(records) == spec.samples
         atomic_write_text(out_dir / "summary.json", json.dumps(summ, indent=2, allow_nan=False))
         last_summary[0] = time.perf_counter()
@@ -205,9 +206,16 @@ def _run_dask(payload: SweepPayload, nominal: dict[str, Any] | None, nominal_fil
     if scheduler is None:
         # one thread a worker process: MuJoCo and the film kernel are single-threaded inside
         # a sample, the processes share the cores
-        os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-        cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=40)
+        old = os.environ.get("NUMBA_NUM_THREADS")
+        os.environ["NUMBA_NUM_THREADS"] = "1"   # inherited by the worker processes only
+        try:
+            cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1,
+                                   processes=True, dashboard_address=None, silence_logs=40)
+        finally:
+            if old is None:
+                os.environ.pop("NUMBA_NUM_THREADS", None)
+            else:
+                os.environ["NUMBA_NUM_THREADS"] = old
         client = Client(cluster)
     else:
         try:

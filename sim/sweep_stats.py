@@ -70,7 +70,7 @@ def check_limits(limits: dict[str, Any] | None) -> dict[str, float]:
 
 
 def summarize(spec: SweepSpec, nominal: dict[str, Any] | None, records: list[dict[str, Any]],
-              thresholds: Any = None, limits: dict[str, Any] | None = None) -> dict[str, Any]:
+              limits: dict[str, Any] | None = None) -> dict[str, Any]:
     """summary.json: counts, yield with interval, quantiles, sensitivity, limit checks."""
     n = len(records)
     n_pass = sum(bool(r.get("passed")) for r in records)

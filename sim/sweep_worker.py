@@ -106,7 +106,7 @@ def run_sample(payload: SweepPayload, index: int, values: np.ndarray | None,
     from sim.execute import execute
     from sim.validate import validate
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     ctx = context(payload)
     t_ctx = time.perf_counter() - t0
     scn = payload.scenario
@@ -137,8 +137,10 @@ def run_sample(payload: SweepPayload, index: int, values: np.ndarray | None,
     rec["metrics"] = {k: _num(m[k]) for k in SAMPLE_METRICS}
     rec["passed"] = bool(rep.passed)
     rec["failed_checks"] = [c.name for c in rep.checks if not c.passed]
+    # cpu: this process's CPU time for the sample (a worker runs one sample at a time)
     rec["timing_s"] = {"context": t_ctx, "execute": t2 - t1, "validate": t3 - t2,
-                       "total": time.perf_counter() - t0, "context_build": ctx.build_s}
+                       "total": time.perf_counter() - t0, "cpu": time.process_time() - c0,
+                       "context_build": ctx.build_s}
     rec["worker"] = f"{os.uname().nodename}:{os.getpid()}"
     return rec
 
