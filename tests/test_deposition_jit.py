@@ -82,10 +82,10 @@ def test_numba_agrees_with_the_literal_formula_where_nothing_is_culled() -> None
 
 
 def test_branch_free_exp_matches_math_exp() -> None:
-    xs = np.concatenate([-np.linspace(0.0, 50.0, 20001), -np.geomspace(1e-12, 50, 500)])
+    xs = np.concatenate([-np.linspace(0.0, 700.0, 20001), -np.geomspace(1e-12, 700, 500)])
     got = np.array([jit._exp_neg(float(v)) for v in xs])
     want = np.exp(xs)
-    assert np.max(np.abs(got / want - 1.0)) < 1e-12
+    assert np.max(np.abs(got / want - 1.0)) < 1e-14
     assert jit._exp_neg(-1e4) == pytest.approx(math.exp(-jit.EXP_FLOOR), rel=1e-12)
 
 
