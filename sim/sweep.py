@@ -139,6 +139,8 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
         raise SweepError(f"--workers {workers!r} must be an int >= 0")
     out_dir = Path(out_dir)
     t_start = time.perf_counter()
+    if scheduler is not None:
+        _connect(scheduler).close()   # a wrong address fails now, not after planning
     digest = spec_digest(scn, spec, fast, mode)
     header = {"format": "paintcell.Sweep/1", "digest": digest, "spec": spec.to_dict(),
               "scenario": scn.to_dict(), "fast": fast, "mode": mode}
@@ -218,11 +220,7 @@ def _run_dask(payload: SweepPayload, nominal: dict[str, Any] | None, nominal_fil
                 os.environ["NUMBA_NUM_THREADS"] = old
         client = Client(cluster)
     else:
-        try:
-            client = Client(scheduler, timeout=30)
-        except (OSError, TimeoutError) as exc:
-            raise SweepError(f"cannot reach the Dask scheduler at {scheduler} ({exc}); start "
-                             "one (dask scheduler) or drop --scheduler") from None
+        client = _connect(scheduler)
     try:
         [pf] = client.scatter([payload], broadcast=True, hash=False)
         if nominal is None:
@@ -240,3 +238,16 @@ def _run_dask(payload: SweepPayload, nominal: dict[str, Any] | None, nominal_fil
         if cluster is not None:
             cluster.close()
     return nominal
+
+
+def _connect(scheduler: str) -> Any:
+    """A `distributed.Client` of the cluster at `scheduler`, or a one-line SweepError."""
+    from distributed import Client
+
+    try:
+        return Client(scheduler, timeout=15)
+    except (OSError, TimeoutError, ValueError) as exc:
+        msg = str(exc).strip().splitlines()
+        raise SweepError(f"cannot reach the Dask scheduler at {scheduler} "
+                         f"({msg[0] if msg else type(exc).__name__}); start one (dask "
+                         "scheduler) or drop --scheduler") from None
