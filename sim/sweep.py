@@ -152,7 +152,8 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
     nominal = json.loads(nominal_file.read_text()) if nominal_file.exists() else None
 
     t0 = time.perf_counter()
-    payload = prepare_payload(scn, spec, fast, mode)
+    finished = not todo and nominal is not None   # a rerun of a complete sweep: summary only
+    payload = None if finished else prepare_payload(scn, spec, fast, mode)
     prepare_s = time.perf_counter() - t0
     records = dict(done)
     bar = tqdm(total=spec.samples, initial=len(done), desc=f"sweep {scn.name}", unit="sample",
@@ -177,7 +178,9 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
             on_sample(rec)
 
     try:
-        if workers == 0 and scheduler is None:
+        if payload is None:
+            pass
+        elif workers == 0 and scheduler is None:
             if nominal is None:
                 nominal = run_sample(payload, -1, None, 0)
                 atomic_write_text(nominal_file, json.dumps(nominal, indent=1))

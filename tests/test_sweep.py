@@ -97,6 +97,9 @@ def test_a_stopped_sweep_resumes_without_redoing_samples(tmp_path: Path) -> None
     strip = [{k: v for k, v in r.items() if k not in RUN_KEYS} for r in res.samples]
     assert strip == [{k: v for k, v in r.items() if k not in RUN_KEYS} for r in whole.samples]
     assert json.loads(sample_path(out, 4).read_text())["index"] == 4
+    again = run_sweep(scn, spec, out, fast=True, mode="kinematic", workers=0, progress=False,
+                      report=False)
+    assert again.ran == 0 and again.samples == res.samples and again.prepare_s < 1.0
     # a different sweep in the same folder is refused, not mixed in
     other = spec_from_scenario({**sweep, "seed": 12})
     with pytest.raises(SweepError, match="different sweep"):
