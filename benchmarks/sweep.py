@@ -1,6 +1,6 @@
 """Benchmark: a door robustness sweep on the local Dask cluster.
 
-Runs the door scenario (`scenarios/door.py`, servo execution) under seven tolerances, first with
+Runs the door scenario (`scenarios/door.toml`, servo execution) under seven tolerances, first with
 1 worker and then with 2 (`--probe` samples each), and prints for each: wall time, the
 steady-state rate (samples per second between the first and the last finished sample), and the
 per-sample breakdown (execute, validate, the rest: queueing, transfer, writing). Then either runs
@@ -27,8 +27,8 @@ from sim.scenario import load_scenario
 from sim.sweep import run_sweep
 from sim.sweep_spec import SweepSpec
 
-DOOR = Path(__file__).resolve().parent.parent / "scenarios" / "door.py"
-#: the door scenario's own sweep factors (scenarios/door.py).
+DOOR = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
+#: the door scenario's own sweep factors (scenarios/door.toml [sweep.factors]).
 FACTORS = [f"{k}={v}" for k, v in load_scenario(DOOR).sweep["factors"].items()]
 
 

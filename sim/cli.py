@@ -79,8 +79,11 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, parents=[common], formatter_class=_Help, epilog=EXIT_HELP,
                               **kw)
 
+    from sim.sweep_cli import add_sweep_parser
+
     for register in (_add_run, add_check, _add_plan, _add_validate, _add_export, _add_report,
-                     add_part_commands):  # inspect, init, generate (issue 11)
+                     add_part_commands,  # inspect, init, generate (issue 11)
+                     add_sweep_parser):
         register(add_parser)
     return p
 
@@ -186,9 +189,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     r = row(scn.name, res.report)
     if worker:
         from planning.atomic_io import atomic_write_text
+        from sim.sweep_cli import sweep_checks  # the limits of the scenario's sweep, if any
 
+        r["checks"] += sweep_checks(scn, args.fast, args.out_under)
+        r["passed"] = bool(r["passed"]) and all(c["passed"] for c in r["checks"])
         atomic_write_text(args.row_json, json.dumps(r))
-        return EXIT_OK if res.passed else EXIT_FAIL
+        return EXIT_OK if r["passed"] else EXIT_FAIL
     print(format_table([r]))
     if out is not None:
         print(f"results: {out}" + ("" if args.no_report else f" (report: {out / 'report.html'})"))

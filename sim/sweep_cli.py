@@ -9,11 +9,11 @@ from typing import Any
 from sim.sweep_spec import FACTORS, METHODS
 
 
-def add_sweep_parser(add_parser: Any, fmt: Any) -> None:
+def add_sweep_parser(add_parser: Any) -> None:
     """Register `sweep` with the CLI's `add_parser(name, **kw)`."""
     factors = "; ".join(f"{n} [{u}]: {m}" for n, (u, m) in FACTORS.items())
     s = add_parser(
-        "sweep", formatter_class=fmt, help="robustness sweep: many runs under sampled tolerances",
+        "sweep", help="robustness sweep: many runs under sampled tolerances",
         description="Run the scenario many times under sampled disturbances on Dask (a local "
         "cluster of processes, or --scheduler): the nominal run first, then every sample of a "
         "Latin-hypercube or Monte-Carlo design. Each sample's record streams into OUT/samples/ "
@@ -21,7 +21,7 @@ def add_sweep_parser(add_parser: Any, fmt: Any) -> None:
         "Clopper-Pearson interval and the Spearman sensitivity of each factor; report.html "
         "plots them. Rerunning the same command in the same --out resumes: finished samples are "
         "not run again. Exits 1 when the scenario's sweep limits are not met.")
-    s.add_argument("scenario", help="scenario script, e.g. scenarios/door.py (its `sweep` table "
+    s.add_argument("scenario", help="scenario file, e.g. scenarios/door.toml (its [sweep] table "
                    "gives default factors, samples and limits)")
     s.add_argument("--vary", action="append", default=[], metavar="NAME=DIST",
                    help="a factor and its distribution, repeatable, e.g. --vary "
@@ -49,6 +49,7 @@ def add_sweep_parser(add_parser: Any, fmt: Any) -> None:
     s.add_argument("--mode", choices=("servo", "kinematic"), default="servo",
                    help="execution of every sample: servo (PD + feed-forward) or kinematic")
     s.add_argument("--no-report", action="store_true", help="skip report.html and its plots")
+    s.set_defaults(func=cmd_sweep)
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:

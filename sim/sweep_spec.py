@@ -235,3 +235,31 @@ def spec_from_scenario(sweep: dict[str, Any], *, fast: bool = False,
                       for k, v in factors.items()}, n,
                      method if method is not None else sweep.get("method", "lhs"),
                      seed if seed is not None else sweep.get("seed", 0))
+
+
+def check_sweep_table(sweep: dict[str, Any]) -> None:
+    """Validate a scenario's sweep table on load (one-line SweepError): known keys, factors and
+    distributions, positive sample counts, a known method, a non-negative seed and workers, and
+    well-formed limits. A table without factors is valid (factors may come from --vary)."""
+    from sim.sweep_stats import check_limits
+
+    if not isinstance(sweep, dict):
+        raise SweepError("sweep must be a table [sweep]")
+    unknown = sorted(set(sweep) - set(SCENARIO_KEYS))
+    if unknown:
+        raise SweepError(f"unknown sweep setting(s) {unknown}; valid: {list(SCENARIO_KEYS)}")
+    for key in ("samples", "fast_samples", "seed", "workers"):
+        v = sweep.get(key, 1)
+        low = 1 if "samples" in key else 0
+        if isinstance(v, bool) or not isinstance(v, int) or v < low:
+            raise SweepError(f"sweep {key} = {v!r} must be an int >= {low}")
+    if sweep.get("factors"):
+        spec_from_scenario({k: v for k, v in sweep.items() if k not in ("limits", "workers")})
+    elif "factors" in sweep and not isinstance(sweep["factors"], dict):
+        raise SweepError("sweep factors must be a table [sweep.factors] of NAME = \"DIST\"")
+    if sweep.get("method", "lhs") not in METHODS:
+        raise SweepError(f"sweep method {sweep['method']!r} must be one of {', '.join(METHODS)}")
+    limits = sweep.get("limits", {})
+    if not isinstance(limits, dict):
+        raise SweepError("sweep limits must be a table [sweep.limits]")
+    check_limits(limits)

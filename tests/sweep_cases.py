@@ -8,21 +8,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import tomli_w
 import trimesh
 
-SCENARIO = '''
-from sim.scenario import Placement, Scenario, Thresholds, facing_robot
-SCENARIO = Scenario(
-    name="plate",
-    part="plate.stl",
-    part_placement=Placement(xyz_m=(1.4, 0.0, 1.0), rpy_rad=facing_robot()),
-    fast_resolution_m=0.05,
-    fast_planner={{"sample_spacing_m": 0.05}},
-    trajectory={{"q_home": (0.0, -0.6, 0.3, 0.0, 0.9, 0.0)}},
-    thresholds=Thresholds(max_executed_nsd_pct={nsd}, max_loss_pp=1.0, max_cycle_time_s=90.0),
-    sweep={sweep!r},
-)
-'''
+#: the plate scenario as TOML data (the sweep table is appended by `plate_scenario`).
+SCENARIO: dict[str, Any] = {
+    "name": "plate",
+    "part": "plate.stl",
+    "fast_resolution_m": 0.05,
+    "part_placement": {"xyz_m": [1.4, 0.0, 1.0],
+                       "rpy_rad": [1.5707963267948966, 0.0, -1.5707963267948966]},
+    "fast_planner": {"sample_spacing_m": 0.05},
+    "trajectory": {"q_home": [0.0, -0.6, 0.3, 0.0, 0.9, 0.0]},
+    "thresholds": {"max_loss_pp": 1.0, "max_cycle_time_s": 90.0},
+}
 
 
 def plate_mesh(path: Path, size_m: tuple[float, float] = (0.4, 0.3), n: int = 21) -> None:
@@ -39,9 +38,12 @@ def plate_mesh(path: Path, size_m: tuple[float, float] = (0.4, 0.3), n: int = 21
 
 def plate_scenario(folder: Path, sweep: dict[str, Any] | None = None,
                    nsd: float = 30.0) -> Path:
-    """Write plate.stl and plate.py (a scenario with this sweep table) into folder."""
+    """Write plate.stl and plate.toml (a scenario with this [sweep] table) into folder."""
     folder.mkdir(parents=True, exist_ok=True)
     plate_mesh(folder / "plate.stl")
-    path = folder / "plate.py"
-    path.write_text(SCENARIO.format(sweep=sweep or {}, nsd=nsd))
+    data = {**SCENARIO, "thresholds": {**SCENARIO["thresholds"], "max_executed_nsd_pct": nsd}}
+    if sweep:
+        data["sweep"] = sweep
+    path = folder / "plate.toml"
+    path.write_text(tomli_w.dumps(data))
     return path

@@ -32,7 +32,7 @@ def test_bad_factors_are_one_line_errors() -> None:
     for vary, words in (("part_offset_m=gauss(0, 1)", "unknown distribution"),
                         ("conveyor_speed_m_s=normal(0, 0.01)", "no conveyor"),
                         ("part_offset_m", "not NAME=DIST")):
-        out = _run("sweep", "scenarios/door.py", "--fast", "--vary", vary)
+        out = _run("sweep", "scenarios/door.toml", "--fast", "--vary", vary)
         assert out.returncode == EXIT_USAGE, out.stderr
         assert out.stderr.count("\n") == 1 and words in out.stderr
         assert "Traceback" not in out.stderr

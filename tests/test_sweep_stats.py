@@ -114,3 +114,28 @@ def test_bad_limits_name_the_valid_forms() -> None:
     with pytest.raises(SweepError, match="finite"):
         check_limits({"min_yield_pct": "high"})
     assert Distribution.parse("0.25").kind == "const"
+
+
+def test_scenario_files_check_their_sweep_table_on_load(tmp_path: object) -> None:
+    from pathlib import Path
+
+    import tomli_w
+
+    from sim.scenario_data import ScenarioDataError, load_toml_scenario
+    from tests.sweep_cases import SCENARIO
+
+    folder = Path(str(tmp_path))
+    good = folder / "good.toml"
+    good.write_text(tomli_w.dumps({**SCENARIO, "sweep": {
+        "samples": 20, "factors": {"flow_drift": "normal(0, 0.02)"},
+        "limits": {"max_p95_executed_nsd_pct": 9.0}}}))
+    scn = load_toml_scenario(good)
+    assert spec_from_scenario(scn.sweep).factors["flow_drift"].params == (0.0, 0.02)
+    for sweep, words in (({"factors": {"flow_drift": "normal(0)"}}, "2 finite numbers"),
+                         ({"limits": {"p95_executed_nsd_pct": 9.0}}, "max_pNN_<figure>"),
+                         ({"samples": -3}, "samples = -3"), ({"sampels": 3}, "unknown sweep")):
+        bad = folder / "bad.toml"
+        bad.write_text(tomli_w.dumps({**SCENARIO, "sweep": sweep}))
+        with pytest.raises(ScenarioDataError, match=words) as exc:
+            load_toml_scenario(bad)
+        assert "bad.toml: [sweep]" in str(exc.value) and "\n" not in str(exc.value)
