@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from sim.sweep_spec import FACTORS, METHODS
+from sim.sweep_names import FACTORS, METHODS
 
 
 def add_sweep_parser(add_parser: Any) -> None:

@@ -27,35 +27,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import stats
-from scipy.stats import qmc
 
 from planning.errors import PaintcellError
+from sim.sweep_names import FACTORS, MAGNITUDE_FACTORS, METHODS, NOT_MODELLED
 
 
 class SweepError(PaintcellError):
     """A sweep specification (factors, distributions, design) or its results folder is invalid."""
 
-
-#: name → (unit, meaning). The sweep sets these `Disturbances` fields per sample.
-FACTORS: dict[str, tuple[str, str]] = {
-    "part_offset_m": ("m", "part placement error on the skid: a translation of |x| in a seeded "
-                           "random direction"),
-    "part_rotation_rad": ("rad", "part placement error: a rotation of |x| about a seeded random "
-                                 "axis through the part origin"),
-    "tcp_offset_m": ("m", "TCP calibration error: the spray point |x| off in a seeded random "
-                          "tool-frame direction"),
-    "standoff_error_m": ("m", "actual − planned spray distance, signed (+: farther)"),
-    "gain_scale": ("-", "servo gain factor (tuning error), > 0"),
-    "trigger_delay_s": ("s", "paint trigger switching late (+) or early (−), signed"),
-    "flow_scale": ("-", "actual ÷ nominal paint flow, > 0"),
-    "flow_drift": ("-", "relative change of the flow over the program, signed, in (−1, 1)"),
-}
-#: factors that are lengths/angles in a random direction: the sweep uses |draw|.
-MAGNITUDE_FACTORS = ("part_offset_m", "part_rotation_rad", "tcp_offset_m")
-#: tolerances a paint shop asks about that this cell does not model (named in the error).
-NOT_MODELLED = {"conveyor_speed_m_s": "the cell has no conveyor: the part stands still"}
-METHODS = ("lhs", "mc")
 
 _DIST_RE = re.compile(r"^\s*([a-z]+)\s*\(([^()]*)\)\s*$")
 _ARITY = {"normal": 2, "uniform": 2, "triangular": 3, "truncnormal": 4}
@@ -107,6 +86,8 @@ class Distribution:
 
     def ppf(self, u: np.ndarray) -> np.ndarray:
         """Inverse CDF at u (n,) in (0, 1)."""
+        from scipy import stats  # imported here: `paintcell --help` must stay light
+
         p = self.params
         if self.kind == "const":
             return np.full(len(u), p[0])
@@ -172,6 +153,8 @@ class SweepSpec:
 
     def design(self) -> np.ndarray:
         """(samples, d) factor values, columns in `names` order (deterministic in the seed)."""
+        from scipy.stats import qmc
+
         d = len(self.names)
         ss = np.random.SeedSequence(self.seed)
         design_seed = np.random.default_rng(ss.spawn(2)[0])
