@@ -104,27 +104,32 @@ def test_cluster_sweep_equals_local_and_survives_a_killed_worker(
     local = _local(tmp_path, scn)
     assert len(local) == spec.samples
 
-    # 1. the same sweep through the cluster: equal sample for sample, run on both workers
+    # 1. the same sweep through the cluster: equal sample for sample
     res = run_sweep(scn, spec, tmp_path / "remote", fast=True, scheduler=address,
                     progress=False, report=False)
     assert res.ran == spec.samples
     assert _strip(res.samples) == local
-    assert len({r["worker"] for r in res.samples}) == 2
+    pids = {p.pid: p for p in workers}
+    assert {int(r["worker"].split(":")[1]) for r in res.samples} <= set(pids)
 
-    # 2. again (another folder, same spec), killing one worker when the first record arrives:
-    # no sample lost, records still equal
+    # 2. again (another folder, same spec), SIGKILL to the worker that delivered the first
+    # record (so a busy one) as soon as it arrives: no sample lost, records still equal, the
+    # rest done by the other worker
     killed: list[int] = []
 
-    def kill_one(rec: dict[str, Any]) -> None:
+    def kill_busy_worker(rec: dict[str, Any]) -> None:
         if not killed:
-            pid = workers[0].pid
+            pid = int(rec["worker"].split(":")[1])
+            assert pid in pids
             os.kill(pid, signal.SIGKILL)
             killed.append(pid)
 
     res2 = run_sweep(scn, spec, tmp_path / "killed", fast=True, scheduler=address,
-                     progress=False, report=False, on_sample=kill_one)
-    assert killed and workers[0].wait(timeout=10) == -signal.SIGKILL
+                     progress=False, report=False, on_sample=kill_busy_worker)
+    assert killed and pids[killed[0]].wait(timeout=10) == -signal.SIGKILL
     assert sorted(r["index"] for r in res2.samples) == list(range(spec.samples))
     assert _strip(res2.samples) == local
+    by = {int(r["worker"].split(":")[1]) for r in res2.samples}
+    assert killed[0] in by and len(by) == 2
     files = sorted((tmp_path / "killed" / "samples").glob("*.json"))
     assert len(files) == spec.samples
