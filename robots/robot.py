@@ -277,9 +277,18 @@ ABB_PAINT_V_MAX = np.deg2rad([175.0, 175.0, 175.0, 250.0, 250.0, 360.0])
 ABB_PAINT_A_MAX = np.array([6.0, 6.0, 8.0, 20.0, 20.0, 30.0])
 
 
+# --- the IRB 5500-class paint robot (robots/abb_irb5500/README.md) ------------------------------
+IRB5500_MJCF = ROBOTS_DIR / "abb_irb5500" / "abb_irb5500.xml"
+# Axis speeds 100, 130, 130, 460, 460, 600 °/s (README step 3: IRB 5500 product specification).
+IRB5500_V_MAX = np.deg2rad([100.0, 130.0, 130.0, 460.0, 460.0, 600.0])
+# Estimate (README step 7): main axes to full speed in ~0.4 s, wrist ~5x faster.
+IRB5500_A_MAX = np.array([4.5, 5.5, 6.5, 25.0, 25.0, 35.0])
+
+
 def load_robot(name: str, T_world_base: npt.ArrayLike | None = None,
                tcp_offset: npt.ArrayLike | None = None) -> Robot:
-    """Load a robot ("abb_paint", "ur10") placed at `T_world_base` (4,4) (default: identity).
+    """Load a robot ("abb_paint", "irb5500", "ur10") placed at `T_world_base` (4,4) (default:
+    identity).
 
     tcp_offset: optional (4,4) T_flange_tcp [m] replacing the MJCF's tool offset (the TCP site
     moves; a generated MJCF in the temp dir becomes `mjcf_path`).
@@ -291,13 +300,20 @@ def load_robot(name: str, T_world_base: npt.ArrayLike | None = None,
             path = with_tcp_offset(path, "tcp", tcp_offset, "abb_paint")
         return Robot.from_mjcf("abb_paint", path, v_max=ABB_PAINT_V_MAX, a_max=ABB_PAINT_A_MAX,
                                T_world_base=T_world_base, opw=IRB4600_60_205)
+    if name == "irb5500":
+        from robots.opw import IRB5500_CLASS
+        path = IRB5500_MJCF
+        if tcp_offset is not None:
+            path = with_tcp_offset(path, "tcp", tcp_offset, "irb5500")
+        return Robot.from_mjcf("irb5500", path, v_max=IRB5500_V_MAX, a_max=IRB5500_A_MAX,
+                               T_world_base=T_world_base, opw=IRB5500_CLASS)
     if name == "ur10":
         from robots.ur10 import load_ur10
         return load_ur10(T_world_base=T_world_base, tcp_offset=tcp_offset)
     raise RobotError(f"unknown robot {name!r}; choose one of {ROBOT_NAMES}")
 
 
-ROBOT_NAMES = ("abb_paint", "ur10")
+ROBOT_NAMES = ("abb_paint", "irb5500", "ur10")
 
 
 def bell_tool_offset(straight_m: float = 0.16, head_m: float = 0.12,
