@@ -92,5 +92,5 @@ def test_static_gravity_within_torque_limits():
 def test_datasheet_values():
     r = load_robot("irb5500")
     assert np.allclose(np.rad2deg(r.q_lower), [-150, -90, -180, -300, -125, -300])
-    assert np.allclose(np.rad2deg(r.q_upper), [150, 110, 80, 300, 125, 300])
+    assert np.allclose(np.rad2deg(r.q_upper), [150, 110, 65, 300, 125, 300])
     assert np.allclose(np.rad2deg(r.v_max), [100, 130, 130, 460, 460, 600])
