@@ -180,7 +180,7 @@ def load_rail_robot(arm_name: str, T_world_rail: npt.ArrayLike | None = None,
     return robot
 
 
-def _placed_rail(robot: Robot) -> RailAxis:
+def placed_rail(robot: Robot) -> RailAxis:
     """The robot's RailAxis at the robot's current base pose (after `Robot.placed`)."""
     ax: RailAxis = robot.rail
     if not np.allclose(ax.T_world_rail, robot.T_world_base):
@@ -189,21 +189,22 @@ def _placed_rail(robot: Robot) -> RailAxis:
 
 
 def rail_cost(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.ndarray,
-              settings: Any) -> tuple[float, bool]:
+              settings: Any, jump_scale: float = 1.0) -> tuple[float, bool]:
     """(cost, feasible) of holding the carriage at s_m [m] for the pass T_world_tcp (M, 4, 4).
 
     cost: mean over the pass of Σ_{J1..J3} ((q − q_pref) / range)², plus ((m0 − margin)/m0)² when
     the pass's worst-case margin (joint limits, wrist singularity) is under m0 =
     COMFORT_MARGIN_RAD, on the best closed-form branch (feasible branches with the IK settings'
     comfort margin first, then feasible ones); infeasible rail
-    positions cost 1e3 + the number of poses outside the limits.
+    positions cost 1e3 + the number of poses outside the limits. jump_scale: the pass was
+    subsampled by this factor (the joint-jump threshold grows by it).
     """
     from robots.ik import branch_feasibility, opw_branches
 
-    ax = _placed_rail(robot)
+    ax = placed_rail(robot)
     arm = ax.arm_at(s_m)
     Q, _, within = opw_branches(arm, T_world_tcp, q_pref)
-    st = branch_feasibility(arm, Q, within, settings)
+    st = branch_feasibility(arm, Q, within, settings, jump_scale=jump_scale)
     span = (arm.q_upper - arm.q_lower)[:3]
     d2 = np.sum(((np.where(within[:, :, None], Q, 0.0)[:, :, :3] - q_pref[:3]) / span) ** 2, axis=2)
     dev = np.sum(np.where(within, d2, 0.0), axis=1) / np.maximum(within.sum(axis=1), 1)
@@ -221,17 +222,23 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
                        settings: Any, n_scan: int = 41, n_sub: int = 40) -> tuple[float, bool]:
     """Rail position [m] for one pass (see the module doc) and whether the pass is feasible
     there. The pass is subsampled to `n_sub` poses for the search."""
-    spec = _placed_rail(robot).spec
-    sub = T_world_tcp[np.unique(np.linspace(0, len(T_world_tcp) - 1, n_sub).astype(int))]
+    spec = placed_rail(robot).spec
+    keep = np.unique(np.linspace(0, len(T_world_tcp) - 1, n_sub).astype(int))
+    sub = T_world_tcp[keep]
+    js = max(1.0, (len(T_world_tcp) - 1) / max(len(keep) - 1, 1))
+
+    def cost(s: float) -> tuple[float, bool]:
+        return rail_cost(robot, sub, s, q_pref, settings, jump_scale=js)
+
     grid = np.linspace(spec.lower_m, spec.upper_m, n_scan)
-    costs = np.array([rail_cost(robot, sub, s, q_pref, settings)[0] for s in grid])
+    costs = np.array([cost(s)[0] for s in grid])
     k = int(np.argmin(costs))
     h = grid[1] - grid[0]
     lo, hi = max(spec.lower_m, grid[k] - h), min(spec.upper_m, grid[k] + h)
-    res = minimize_scalar(lambda s: rail_cost(robot, sub, s, q_pref, settings)[0],
-                          bounds=(lo, hi), method="bounded", options={"xatol": 1e-4})
+    res = minimize_scalar(lambda s: cost(s)[0], bounds=(lo, hi), method="bounded",
+                          options={"xatol": 1e-4})
     s = float(res.x) if res.fun <= costs[k] else float(grid[k])
-    return s, rail_cost(robot, sub, s, q_pref, settings)[1]
+    return s, cost(s)[1]
 
 
 def solve_rail_paths(robot: Robot, paths: Sequence[npt.ArrayLike],
@@ -247,7 +254,7 @@ def solve_rail_paths(robot: Robot, paths: Sequence[npt.ArrayLike],
     from robots.reachability import ReachabilityReport
 
     s = settings or IKSettings()
-    ax = _placed_rail(robot)
+    ax = placed_rail(robot)
     pref = np.asarray(ax.arm.q_home if q_pref is None else q_pref, float)
     seed = None if q_seed is None else np.asarray(q_seed, float)[1:]
     out = []

@@ -81,8 +81,9 @@ def test_rail_position_is_the_minimum_of_its_cost(roof_case):
         sub = T[np.unique(np.linspace(0, len(T) - 1, 40).astype(int))]
         s_best, feasible = best_rail_position(robot, T, pref, s)
         assert feasible
-        c_best = rail_cost(robot, sub, s_best, pref, s)[0]
-        brute = min(rail_cost(robot, sub, x, pref, s)[0] for x in np.linspace(-2, 2, 401))
+        c_best = rail_cost(robot, sub, s_best, pref, s, (len(T) - 1) / (len(sub) - 1))[0]
+        js = (len(T) - 1) / (len(sub) - 1)
+        brute = min(rail_cost(robot, sub, x, pref, s, js)[0] for x in np.linspace(-2, 2, 401))
         assert c_best <= brute + 1e-6
 
 
