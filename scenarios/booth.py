@@ -39,7 +39,11 @@ SCENARIO = Booth(
         BodyPart("fender", Placement((-1.8, -0.9, 0.85), SIDE)),
         BodyPart("door", Placement((0.0, -0.9, 0.9), SIDE), planner={"orientation":
                                                                      "zero-curvature"}),
-        BodyPart("roof", Placement((0.0, 0.0, 1.45), (0.0, 0.0, 0.0))),
+        # First pass on the car's right (the planner's "left" in the roof's frame): the same
+        # pass order at every resolution; the reverse order's first edge pass is out of the
+        # left roof robot's comfortable range.
+        BodyPart("roof", Placement((0.0, 0.0, 1.45), (0.0, 0.0, 0.0)),
+                 planner={"first_side": "left"}),
     ),
     robots=(
         BoothRobot("side_a", "irb5500_rail", Placement((-1.8, -2.8, 0.3), (0, 0, math.pi / 2)),
@@ -54,8 +58,12 @@ SCENARIO = Booth(
     conveyor=Conveyor(speed_m_s=0.05, direction=(1.0, 0.0, 0.0)),
     trajectory={"approach_clearance_m": 0.15, "retract_clearance_m": 0.3},
     servo={"bandwidth_hz": 10.0},   # as scenarios/roof_rail.py: the larger arm's J3 loop
-    thresholds=BoothThresholds(max_executed_nsd_pct=20.0, max_abs_loss_pp=1.0,
-                               max_cycle_time_s=60.0, min_bell_distance_m=0.8),
+    # Achieved (fast / full): worst part σ/μ 7.90 / 7.63 % (fender), |loss| 0.02 / 0.02 pp,
+    # booth cycle 26.38 / 26.38 s (one robot doing all the programs: 88.6 s), 0 collisions,
+    # closest arms 1.10 / 0.88 m. Limits: σ/μ + ~2 points, |loss| 0.5 pp, cycle + ~15 %.
+    # (The whole body's σ/μ, ~33 %, also measures the parts' different planned film builds.)
+    thresholds=BoothThresholds(max_executed_nsd_pct=10.0, max_abs_loss_pp=0.5,
+                               max_cycle_time_s=30.5, min_bell_distance_m=0.8),
 )
 
 if __name__ == "__main__":

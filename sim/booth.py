@@ -12,7 +12,9 @@ per job — is enumerated (≤ a few hundred for four robots) and the one chosen
 1. every job is reachable by its robot (closed-form IK feasibility of every pass: inside the
    limits, off the wrist singularity; a rail robot at its best rail position per pass);
 2. the booth cycle — the longest robot's estimated program: paint time of its passes plus
-   TURN_S per turn-around and APPROACH_RETRACT_S — is the smallest; ties go to the smallest sum;
+   TURN_S per turn-around and APPROACH_RETRACT_S — is the smallest; ties go to the smallest
+   second-longest program, and so on (lexicographic min-max: the work is spread evenly); the
+   candidates are tried in that order (`rank_allocations`) until one passes step 3;
 3. no two bells in the same zone: the two pieces of a split part are painted in the same pass
    order and direction at the same time, so the two bells stay a piece's width apart; robots on
    neighbouring parts can still meet at the seam, so the programs are then staggered
@@ -165,16 +167,16 @@ def job_options(n_passes: list[int]) -> list[list[list[Job]]]:
     return out
 
 
-def allocate(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
-             reachable: Any) -> tuple[dict[int, Job], dict[str, Any]]:
-    """The allocation of the module doc.
+def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
+                     reachable: Any) -> tuple[list[dict[int, Job]], dict[str, Any]]:
+    """Every feasible allocation of the module doc, best first.
 
     n_passes: per part, its number of passes; durations: per part, (P,) planned pass times [s];
-    reachable(robot, job) -> bool. Returns {robot index: Job} and a record of the choice
-    (estimated cycle per robot, the candidates considered, how many were feasible).
+    reachable(robot, job) -> bool. Returns the allocations ({robot index: Job}), best first by
+    lexicographic min-max of the estimated program times, and a record of the search.
     """
-    best: tuple[float, float, dict[int, Job]] | None = None
-    n_considered = n_feasible = 0
+    ranked: list[tuple[tuple[float, ...], int, dict[int, Job]]] = []
+    n_considered = 0
     for cut in itertools.product(*job_options(n_passes)):
         jobs = [j for part_jobs in cut for j in part_jobs]
         if len(jobs) > n_robots:
@@ -183,18 +185,27 @@ def allocate(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
             n_considered += 1
             if not all(reachable(r, j) for r, j in zip(robots, jobs, strict=True)):
                 continue
-            n_feasible += 1
             est = [estimate_s(durations[j.part][j.first:j.end]) for j in jobs]
-            key = (max(est), sum(est))
-            if best is None or key < best[:2]:
-                best = (key[0], key[1], dict(zip(robots, jobs, strict=True)))
-    if best is None:
+            # Lexicographic min-max: the longest program first, then the next longest, ...
+            ranked.append((tuple(sorted(est, reverse=True)), len(ranked),
+                           dict(zip(robots, jobs, strict=True))))
+    if not ranked:
         raise BoothError(f"no allocation puts every part within reach ({n_considered} "
                          "candidates); move the robots or add one")
-    record = {"rule": "min max estimated program time, every job reachable, split parts swept "
-                      "in step", "candidates": n_considered, "feasible": n_feasible,
-              "estimated_cycle_s": best[0], "estimated_sum_s": best[1]}
-    return best[2], record
+    ranked.sort(key=lambda c: (c[0], c[1]))
+    record = {"rule": "lexicographic min-max of the estimated program times, every job "
+                      "reachable, split parts swept in step; the first whose programs keep "
+                      "the arms apart (staggered starts) is taken",
+              "candidates": n_considered, "feasible": len(ranked),
+              "estimated_cycle_s": ranked[0][0][0], "estimated_programs_s": list(ranked[0][0])}
+    return [c[2] for c in ranked], record
+
+
+def allocate(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
+             reachable: Any) -> tuple[dict[int, Job], dict[str, Any]]:
+    """The best allocation of `rank_allocations` and its record."""
+    ranked, record = rank_allocations(n_robots, n_passes, durations, reachable)
+    return ranked[0], record
 
 
 def estimate_s(pass_durations: np.ndarray) -> float:

@@ -56,8 +56,9 @@ def _rail_values_mm(traj: JointTrajectory, via_dt_s: float) -> tuple[dict[int, f
 
 
 def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[str],
-                 conveyor: Any, via_dt_s: float = 0.2) -> str:
-    """RAPID module text of one booth robot's static program (module doc)."""
+                 conveyor: Any, delay_s: float = 0.0, via_dt_s: float = 0.2) -> str:
+    """RAPID module text of one booth robot's static program (module doc); delay_s: its start
+    delay after the common start [s] (`sim.booth.stagger_starts`)."""
     arm, arm_traj = _arm_view(robot, traj)
     text = rapid_module(arm_traj, arm, module_name=name, via_dt_s=via_dt_s)
     lines = text.splitlines()
@@ -98,8 +99,10 @@ def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[
             ln = ln.replace(", tBell;", r", tBell \WObj:=wobjcnv1;")
         out.append(ln)
         if ln.strip() == "MoveAbsJ jHome, v1000, fine, tBell;":
-            out.extend(["    WaitSyncTask sync_start, booth_tasks;", "    ActUnit CNV1;",
-                        "    WaitWObj wobjcnv1;"])
+            out.append("    WaitSyncTask sync_start, booth_tasks;")
+            if delay_s > 0:
+                out.append(f"    WaitTime {delay_s:.3f};   ! staggered start: arm clearance")
+            out.extend(["    ActUnit CNV1;", "    WaitWObj wobjcnv1;"])
     end = out.index("  ENDPROC")
     out[end:end] = ["    DeactUnit CNV1;", "    WaitSyncTask sync_end, booth_tasks;"]
     return "\n".join(out) + "\n"
@@ -109,5 +112,7 @@ def booth_rapid_modules(result: Any, robots: list[Any]) -> dict[str, str]:
     """{task name: module text} for every robot of a `BoothResult` (its static programs)."""
     booth = result.scenario
     names = [f"T_{r.name.upper()}" for r in booth.robots]
-    return {n: booth_module(rb, tr, n, names, booth.conveyor)
-            for n, rb, tr in zip(names, robots, result.static_trajectories, strict=True)}
+    delays = result.report.metrics["allocation"].get("start_delays_s", [0.0] * len(names))
+    return {n: booth_module(rb, tr, n, names, booth.conveyor, d)
+            for n, rb, tr, d in zip(names, robots, result.static_trajectories, delays,
+                                    strict=True)}

@@ -25,6 +25,7 @@ import mujoco
 import numpy as np
 
 from planning.deposition import GunSamples, thickness
+from planning.errors import PaintcellError
 from planning.metrics import uniformity
 from planning.plan import CoveragePlan
 from planning.surface import Surface
@@ -32,9 +33,9 @@ from sim.booth import (
     Booth,
     BoothError,
     Job,
-    allocate,
     arm_points,
     pass_feasible,
+    rank_allocations,
     stagger_starts,
 )
 from sim.booth_cell import BoothCell, build_booth_cell
@@ -43,6 +44,8 @@ from sim.joint_trajectory import RETRACT, JointTrajectory
 from sim.trace import ExecutedTrace
 from sim.validate import ValidationReport, collision_events, executed_gun_samples
 
+#: allocations tried, best first, before giving up (their programs are cached per robot and job).
+MAX_ALLOCATIONS_TRIED = 8
 #: a point is in an overlap band when at least two robots each lay this share of its film.
 OVERLAP_SHARE = 0.10
 
@@ -61,6 +64,7 @@ class BoothResult:
     report: ValidationReport
     films_m: dict[str, np.ndarray] = field(default_factory=dict)
     static_trajectories: list[JointTrajectory] = field(default_factory=list)
+    """Each robot's own program in the static cell, before staggering and tracking."""
     timings_s: dict[str, float] = field(default_factory=dict)
 
     @property
@@ -181,7 +185,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
               ) -> BoothResult:
     """Run the booth (module doc); write results to `out_dir` if given."""
     from sim.booth_results import booth_metrics, write_booth_results
-    from sim.pipeline import staged_dir
+    from sim.results_dir import new_results
 
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -192,21 +196,32 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     timings["plan"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    jobs, record = _allocate(booth, robots, plans, T_wb, T_body_parts)
+    ranked, record = _allocate(booth, robots, plans, T_wb, T_body_parts)
     # Rail robots place their carriage for each pass inside a range shrunk by the travel the
     # conveyor tracking will add (half the line travel over the estimated cycle, +25 %).
     shrink = 0.5 * booth.conveyor.speed_m_s * record.get("estimated_cycle_s", 0.0) * 1.25
-    trajs0 = _programs(booth, _load_robots(booth, shrink) if shrink > 0 else robots, plans, jobs,
-                       T_wb, T_body_parts)
+    planners = _load_robots(booth, shrink) if shrink > 0 else robots
+    cache: dict[tuple[int, Job], JointTrajectory] = {}
+    tried = []
+    for jobs in ranked[:MAX_ALLOCATIONS_TRIED]:
+        try:
+            trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_body_parts, cache)
+            static = list(trajs0)   # the programs as the robots' controllers run them (RAPID)
+            delays = _stagger(booth, robots, trajs0)
+        except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
+            tried.append({"jobs": {booth.robots[r].name: [j.part, j.first, j.end]
+                                   for r, j in jobs.items()}, "rejected": str(exc)})
+            continue
+        break
+    else:
+        raise BoothError(f"none of the {len(tried)} best allocations works (last: "
+                         f"{tried[-1]['rejected']}); move the robots")
+    record["rejected"] = tried
+    record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
+    trajs0 = [_delay(tr, d) for tr, d in zip(trajs0, delays, strict=True)]
+    record["start_delays_s"] = [d * trajs0[0].dt_s for d in delays]
     timings["trajectory"] = time.perf_counter() - t0
 
-    if booth.thresholds.min_bell_distance_m is not None:
-        sub = max(1, int(round(0.02 / trajs0[0].dt_s)))    # arm points every 20 ms
-        pts = [arm_points(r, tr.q[::sub]) for r, tr in zip(robots, trajs0, strict=True)]
-        delays = [sub * d for d in stagger_starts(pts, sub * trajs0[0].dt_s,
-                                                  booth.thresholds.min_bell_distance_m)]
-        trajs0 = [_delay(tr, d) for tr, d in zip(trajs0, delays, strict=True)]
-        record["start_delays_s"] = [d * trajs0[0].dt_s for d in delays]
     t0 = time.perf_counter()
     K = max(len(tr.t_s) for tr in trajs0)
     dt = trajs0[0].dt_s
@@ -230,9 +245,9 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
                            collision_events(trace), record, jobs,
                            [len(x.vertices) for x in surfaces])
     timings["validate"] = time.perf_counter() - t0
-    result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, trajs0,
+    result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
                          timings)
-    with staged_dir(Path(out_dir) if out_dir is not None else None) as tmp:
+    with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         if tmp is not None:
             write_booth_results(result, tmp, robots)
             result.out_dir = Path(out_dir)  # type: ignore[arg-type]
@@ -288,7 +303,7 @@ def _load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
 
 
 def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: np.ndarray,
-              T_bp: list[np.ndarray]) -> tuple[dict[int, Job], dict[str, Any]]:
+              T_bp: list[np.ndarray]) -> tuple[list[dict[int, Job]], dict[str, Any]]:
     if booth.allocation is not None:
         names = [r.name for r in booth.robots]
         jobs = {}
@@ -296,7 +311,7 @@ def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: 
             if rname not in names:
                 raise BoothError(f"allocation names robot {rname!r}; robots are {names}")
             jobs[names.index(rname)] = Job(int(p), int(a), int(b))
-        return jobs, {"rule": "fixed in the booth script"}
+        return [jobs], {"rule": "fixed in the booth script"}
     cache: dict[tuple[int, int, int], bool] = {}
 
     def pass_ok(r: int, p: int, i: int) -> bool:
@@ -309,12 +324,24 @@ def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: 
         return all(pass_ok(r, job.part, i) for i in range(job.first, job.end))
 
     durations = [np.array([ps.duration_s for ps in pl.passes]) for pl in plans]
-    return allocate(len(robots), [len(pl.passes) for pl in plans], durations, reachable)
+    return rank_allocations(len(robots), [len(pl.passes) for pl in plans], durations,
+                            reachable)
+
+
+def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> list[int]:
+    """Start delays [samples] of `sim.booth.stagger_starts` (none without a clearance limit)."""
+    if booth.thresholds.min_bell_distance_m is None:
+        return [0] * len(trajs)
+    sub = max(1, int(round(0.02 / trajs[0].dt_s)))    # arm points every 20 ms
+    pts = [arm_points(r, tr.q[::sub]) for r, tr in zip(robots, trajs, strict=True)]
+    return [sub * d for d in stagger_starts(pts, sub * trajs[0].dt_s,
+                                            booth.thresholds.min_bell_distance_m)]
 
 
 def _programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan], jobs: dict[int, Job],
-              T_wb: np.ndarray, T_bp: list[np.ndarray]) -> list[JointTrajectory]:
-    """Each robot's static program; a robot without a job holds its home for one second."""
+              T_wb: np.ndarray, T_bp: list[np.ndarray],
+              cache: dict[tuple[int, Job], JointTrajectory]) -> list[JointTrajectory]:
+    """Each robot's static program for its job (cached per robot and job)."""
     from sim.pipeline import settings_from
     from sim.trajectory import TrajectorySettings, build_program
 
@@ -328,9 +355,11 @@ def _programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan], jobs: 
         if job is None:
             raise BoothError(f"robot {spec.name!r} got no job; remove it or give it one in "
                              "Booth.allocation")
-        plan = dataclasses.replace(plans[job.part],
-                                   passes=plans[job.part].passes[job.first:job.end])
-        out.append(build_program(robot, plan, T_wb @ T_bp[job.part], settings))
+        if (i, job) not in cache:
+            plan = dataclasses.replace(plans[job.part],
+                                       passes=plans[job.part].passes[job.first:job.end])
+            cache[(i, job)] = build_program(robot, plan, T_wb @ T_bp[job.part], settings)
+        out.append(cache[(i, job)])
     return out
 
 
