@@ -1,7 +1,7 @@
 """The booth (sim.booth, sim.booth_run, sim.booth_rapid): superposition of the robots' films,
 allocation and staggering against brute force, RAPID modules per robot.
 
-(`paintcell check scenarios/ --fast` runs the four-robot scenarios/booth.py end to end in CI.)
+(`paintcell check scenarios/ --fast` runs the four-robot scenarios/booth.toml end to end in CI.)
 """
 
 from __future__ import annotations
@@ -179,3 +179,23 @@ def test_stagger_keeps_the_clearance_and_is_minimal():
     assert clearance(d) >= 1.0
     step = int(round(STAGGER_STEP_S / dt))
     assert d == 0 or clearance(d - step) < 1.0
+
+
+def test_booth_toml_is_read_and_checked(tmp_path):
+    """scenarios/booth.toml loads as a Booth through the scenario loader; unknown keys and a
+    malformed rail are refused with one line naming the file and the valid keys."""
+    from sim.booth_data import BoothDataError
+    from sim.scenario import load_scenario
+
+    b = load_scenario("scenarios/booth.toml")
+    assert isinstance(b, Booth) and [r.name for r in b.robots] == ["side_a", "side_b", "roof_l",
+                                                                   "roof_r"]
+    assert all(r.model == "irb5500_rail" and r.rail_m == (-1.2, 1.2) for r in b.robots)
+    assert b.conveyor.speed_m_s == 0.05 and [p.part for p in b.parts] == ["fender", "door", "roof"]
+    bad = tmp_path / "bad.toml"
+    bad.write_text('name = "b"\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\nspeed = 1\n')
+    with pytest.raises(BoothDataError, match=r"unknown key\(s\) \['speed'\]; valid:"):
+        load_scenario(bad)
+    bad.write_text('name = "b"\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\nrail = 2\n')
+    with pytest.raises(BoothDataError, match="rail = \\[lower, upper\\]"):
+        load_scenario(bad)

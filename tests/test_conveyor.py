@@ -100,7 +100,7 @@ def test_tracking_refuses_out_of_range_programs_and_bad_conveyors():
 def door_program():
     from sim.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
 
-    scn = load_scenario("scenarios/door.py")
+    scn = load_scenario("scenarios/door.toml")
     surface = load_surface(scn, fast=True)
     plan = make_plan(scn, surface, fast=True)
     robot = load_robot_for(scn)

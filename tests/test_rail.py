@@ -23,7 +23,7 @@ from sim.trajectory import TrajectorySettings, build_program
 from tests.helpers import FK_AGREEMENT_ATOL_M
 
 T_RAIL = pose((-0.5, 0.2, 1.0), (0.0, 0.0, 0.3))
-ROOF_RAIL = "scenarios/roof_rail.py"
+ROOF_RAIL = "scenarios/roof_rail.toml"
 
 
 @pytest.fixture(scope="module")
