@@ -101,8 +101,9 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                      f"{where} [thresholds]")
     alloc = d.get("allocation")
     try:
-        conveyor = Conveyor(**{k: tuple(v) if isinstance(v, list) else v
-                               for k, v in conv.items()})
+        conv_kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
+                                   for k, v in conv.items()}
+        conveyor = Conveyor(**conv_kw)
         return Booth(
             name=str(d.get("name", Path(where).stem)), parts=tuple(parts), robots=tuple(robots),
             body_placement=_placement(d.get("body_placement", {}), f"{where} [body_placement]"),
