@@ -56,8 +56,9 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
                   traces: list[ExecutedTrace], trace: ExecutedTrace,
                   events: list[dict[str, Any]], record: dict[str, Any],
                   jobs: dict[int, Job], part_counts: list[int]) -> ValidationReport:
-    """The booth's `ValidationReport` (module doc). part_counts: the parts' vertex counts, in
-    the order `sim.booth_run.merge_surfaces` stacked them into `body`."""
+    """The booth's `ValidationReport` (module doc). trajs0: each robot's own program (static, not
+    delayed); trajs: the tracked programs on the booth clock. part_counts: the parts' vertex
+    counts, in the order `sim.booth_run.merge_surfaces` stacked them into `body`."""
     from sim.booth_run import overlap_mask
 
     areas = body.vertex_areas
@@ -78,6 +79,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
             "paint_credit_pct": 100.0 * float(vol[i] / vol.sum()),
             "coverage_credit_pct": 100.0 * float(areas[lead == i].sum() / areas.sum()),
             "program_s": own[i],
+            "start_delay_s": float(trajs[i].meta.get("start_delay_s", 0.0)),
             "conveyor": trajs[i].meta.get("conveyor"),
         }
     robot_robot = [e for e in events if bcell.robot_of_body(e["body1"]) >= 0
@@ -160,7 +162,8 @@ def trajs_carrier(trace: ExecutedTrace, booth: Booth, trajs: list[JointTrajector
 
 def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     """metrics.json (booth metrics, per-robot credit, allocation), per-robot trajectories and
-    traces, and one RAPID module per robot."""
+    traces, one RAPID module per robot and `booth.png` (`sim.booth_plots`)."""
+    from sim.booth_plots import booth_figure
     from sim.booth_rapid import booth_rapid_modules
     from sim.booth_run import json_dump
 
@@ -175,3 +178,4 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
         ex.save_npz(out / f"trace_{spec.name}.npz")
     for name, text in booth_rapid_modules(result, robots).items():
         atomic_write_text(out / f"{name}.mod", text)
+    booth_figure(result, out / "booth.png")

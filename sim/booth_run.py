@@ -241,7 +241,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     pos, rot = robot_tcp(bcell, trace.q)
     traces = _robot_traces(bcell, trace, trajs, pos, rot)
     films = _films(booth, bcell, body, plans, jobs, T_body_parts, trajs, traces, trace, t_ref)
-    report = booth_metrics(booth, bcell, body, films, trajs0, trajs, traces, trace,
+    report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), record, jobs,
                            [len(x.vertices) for x in surfaces])
     timings["validate"] = time.perf_counter() - t0

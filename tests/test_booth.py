@@ -199,3 +199,13 @@ def test_booth_toml_is_read_and_checked(tmp_path):
     bad.write_text('name = "b"\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\nrail = 2\n')
     with pytest.raises(BoothDataError, match="rail = \\[lower, upper\\]"):
         load_scenario(bad)
+
+
+def test_booth_figure_is_written(roof_booth, tmp_path):
+    from PIL import Image
+
+    from sim.booth_plots import booth_figure
+
+    path = booth_figure(roof_booth, tmp_path / "booth.png")
+    with Image.open(path) as im:
+        assert im.format == "PNG" and im.size[0] > 800
