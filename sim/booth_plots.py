@@ -41,9 +41,10 @@ def booth_figure(result: Any, path: Path) -> Path:
         for a, b in _runs(tr.paint_on):
             ax.broken_barh([(t[a], t[b - 1] - t[a])], (i - 0.3, 0.6), color="#d9534f")
     ax.axvline(m["executed_cycle_time_s"], color="k", lw=1)
-    ax.text(m["executed_cycle_time_s"], len(names) - 0.4,
-            f" booth cycle {m['executed_cycle_time_s']:.1f} s\n one robot, all programs: "
-            f"{m['one_robot_cycle_s']:.1f} s", va="top", fontsize=8)
+    ax.text(m["executed_cycle_time_s"], len(names) - 0.45,
+            f"booth cycle {m['executed_cycle_time_s']:.1f} s\n one robot, all programs: "
+            f"{m['one_robot_cycle_s']:.1f} s ", va="top", ha="right", fontsize=8,
+            bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})
     ax.set_yticks(range(len(names)), names)
     ax.set_xlabel("time [s] (grey: program, red: brush on)")
     ax.set_title(f"{result.scenario.name}: conveyor {m['conveyor_speed_m_s']:.3f} m/s")
