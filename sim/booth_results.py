@@ -31,7 +31,7 @@ from sim.validate import Check, ValidationReport
 
 
 def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) -> float:
-    from sim.booth_run import body_uniformity
+    from sim.booth_film import body_uniformity
 
     if mask is not None and not mask.any():
         return float("nan")
@@ -59,7 +59,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     """The booth's `ValidationReport` (module doc). trajs0: each robot's own program (static, not
     delayed); trajs: the tracked programs on the booth clock. part_counts: the parts' vertex
     counts, in the order `sim.booth_run.merge_surfaces` stacked them into `body`."""
-    from sim.booth_run import overlap_mask
+    from sim.booth_film import overlap_mask
 
     areas = body.vertex_areas
     tot = {k: v.sum(axis=0) for k, v in films.items()}

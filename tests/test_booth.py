@@ -26,8 +26,9 @@ from sim.booth import (
     estimate_s,
     stagger_starts,
 )
+from sim.booth_film import gun_in_body, plan_gun_in_body
 from sim.booth_rapid import booth_rapid_modules
-from sim.booth_run import _gun_in_body, _load_robots, _plan_gun_in_body, run_booth
+from sim.booth_run import _load_robots, run_booth
 from sim.conveyor import Conveyor
 from sim.scenario import Placement
 
@@ -64,7 +65,7 @@ def test_two_robots_film_is_one_robot_running_all_passes(roof_booth):
     t = res.traces[0].t_s
     conv, t_ref = ROOF_BOOTH.conveyor, res.trajectories[0].meta["conveyor"]["t_ref_s"]
     x = conv.position_m(t, t_ref)                    # kinematic: the carrier is where planned
-    gs = [_gun_in_body(t, ex.tcp_pos_world, ex.tcp_rot_world, tr.paint_on,
+    gs = [gun_in_body(t, ex.tcp_pos_world, ex.tcp_rot_world, tr.paint_on,
                        ROOF_BOOTH.body_placement.matrix, x, conv.unit)
           for ex, tr in zip(res.traces, res.trajectories, strict=True)]
     one = GunSamples(*(np.concatenate([getattr(g, f) for g in gs])
@@ -73,7 +74,8 @@ def test_two_robots_film_is_one_robot_running_all_passes(roof_booth):
     film_booth = res.films_m["executed"].sum(axis=0)
     assert np.abs(film_booth - film_one).max() <= SUPERPOSITION_RTOL * film_one.max()
     whole = thickness(plan.applicator,
-                      _plan_gun_in_body(plan, ROOF_BOOTH.parts[0].placement.matrix), body.vertices,
+                      plan_gun_in_body(plan, ROOF_BOOTH.parts[0].placement.matrix),
+                      body.vertices,
                       body.normals)
     assert np.abs(res.films_m["plan"].sum(axis=0) - whole).max() <= \
         SUPERPOSITION_RTOL * whole.max()

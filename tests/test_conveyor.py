@@ -11,7 +11,8 @@ from planning.deposition import thickness
 from robots import load_robot
 from robots.rail import load_rail_robot
 from sim.booth_cell import build_booth_cell
-from sim.booth_run import _gun_in_body, combined_program
+from sim.booth_film import gun_in_body
+from sim.booth_run import combined_program
 from sim.cell import build_cell
 from sim.conveyor import Conveyor, ConveyorError, track_program
 from sim.execute import execute
@@ -125,7 +126,7 @@ def test_conveyor_at_speed_zero_is_the_static_cell(door_program, mode):
     film_static = thickness(plan.applicator,
                             executed_gun_samples(static, np.linalg.inv(T_wp)),
                             surface.vertices, surface.normals)
-    g = _gun_in_body(booth.t_s, booth.tcp_pos_world, booth.tcp_rot_world, traj.paint_on, T_wp,
+    g = gun_in_body(booth.t_s, booth.tcp_pos_world, booth.tcp_rot_world, traj.paint_on, T_wp,
                      booth.q[:, -1], conv.unit)
     film_booth = thickness(plan.applicator, g, surface.vertices, surface.normals)
     assert np.abs(film_booth - film_static).max() < 1e-9 * film_static.max()
