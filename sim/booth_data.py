@@ -58,15 +58,6 @@ def _placement(d: Any, where: str) -> Placement:
         raise BoothDataError(f"{where}: {exc}") from exc
 
 
-def is_booth_toml(path: str | Path) -> bool:
-    """Whether a TOML file declares a booth (has `[[robots]]` tables)."""
-    try:
-        with open(path, "rb") as f:
-            return isinstance(tomllib.load(f).get("robots"), list)
-    except (OSError, tomllib.TOMLDecodeError):
-        return False   # the scenario loader reports the file's own error
-
-
 def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) -> Booth:
     """A `Booth` from the TOML's dict (`where` names the file in errors)."""
     d = _check_keys(d, _TOP, where)

@@ -171,9 +171,11 @@ def load_scenario(path: str | Path) -> Any:
         raise ScenarioError(f"scenario {path} is a folder; pass one scenario file (`paintcell "
                             "check` takes folders)")
     if path.suffix == ".toml":
-        from sim.booth_data import is_booth_toml, load_toml_booth
+        if _is_booth_toml(path):   # several robots: imported only for a booth
+            from sim.booth_data import load_toml_booth
 
-        return load_toml_booth(path) if is_booth_toml(path) else load_toml_scenario(path)
+            return load_toml_booth(path)
+        return load_toml_scenario(path)
     if path.suffix != ".py":
         raise ScenarioError(f"scenario {path} is neither a .toml scenario nor a Python script "
                             "(.py defining SCENARIO)")
@@ -206,6 +208,17 @@ def load_scenario(path: str | Path) -> Any:
     if isinstance(scenario, Scenario):
         check_settings(scenario, str(path))
     return scenario
+
+
+def _is_booth_toml(path: Path) -> bool:
+    """Whether a TOML file declares a booth (`[[robots]]` tables; `sim.booth_data`)."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as f:
+            return isinstance(tomllib.load(f).get("robots"), list)
+    except (OSError, tomllib.TOMLDecodeError):
+        return False   # the scenario loader reports the file's own error
 
 
 def find_scenarios(paths: list[str]) -> list[Path]:
