@@ -123,6 +123,8 @@ class Booth:
     thresholds: BoothThresholds = BoothThresholds()
     allocation: dict[str, tuple[int, int, int]] | None = None
     source: str | None = None
+    sweep: dict[str, Any] = field(default_factory=dict)
+    """Robustness sweeps (`paintcell sweep`) are not defined for a booth yet: always empty."""
 
     def __post_init__(self) -> None:
         if not self.parts or not self.robots:
