@@ -336,7 +336,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
 
 def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, surface: Surface,
                 T_world_part: np.ndarray, T_world_base: np.ndarray, cams: Sequence[CameraSpec],
-                booth: bool) -> Cell:
+                booth: bool, prefix: str = ROBOT_PREFIX) -> Cell:
     def oid(kind: mujoco.mjtObj, name: str) -> int:
         i = mujoco.mj_name2id(model, kind, name)
         if i < 0:
@@ -345,7 +345,7 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
         return int(i)
 
     joint_names = tuple(robot.joint_names)
-    jids = [oid(mujoco.mjtObj.mjOBJ_JOINT, ROBOT_PREFIX + jn) for jn in joint_names]
+    jids = [oid(mujoco.mjtObj.mjOBJ_JOINT, prefix + jn) for jn in joint_names]
     act_ids = []
     for j in jids:
         hits = np.flatnonzero((model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT)
@@ -354,7 +354,7 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
             raise CellError(f"joint {model.joint(j).name!r} has {len(hits)} actuators; the robot "
                             "MJCF needs exactly one motor per joint")
         act_ids.append(int(hits[0]))
-    base_id = oid(mujoco.mjtObj.mjOBJ_BODY, ROBOT_PREFIX + robot.base_body_name)
+    base_id = oid(mujoco.mjtObj.mjOBJ_BODY, prefix + robot.base_body_name)
     # Robot bodies: the base and everything below it.
     robot_bodies = [b for b in range(model.nbody) if _is_descendant(model, b, base_id)]
 
@@ -373,8 +373,8 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
         qpos_adr=model.jnt_qposadr[jids].astype(np.int64).copy(),
         dof_adr=model.jnt_dofadr[jids].astype(np.int64).copy(),
         actuator_ids=np.asarray(act_ids, np.int64), tau_max=tau_max,
-        tcp_site_id=oid(mujoco.mjtObj.mjOBJ_SITE, ROBOT_PREFIX + robot.tcp_site_name),
-        tcp_site_name=ROBOT_PREFIX + robot.tcp_site_name,
+        tcp_site_id=oid(mujoco.mjtObj.mjOBJ_SITE, prefix + robot.tcp_site_name),
+        tcp_site_name=prefix + robot.tcp_site_name,
         robot_body_ids=np.asarray(robot_bodies, np.int64),
         robot_body_names=tuple(model.body(b).name for b in robot_bodies),
         part_body_id=oid(mujoco.mjtObj.mjOBJ_BODY, PART_BODY), part_body_name=PART_BODY,
