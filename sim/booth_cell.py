@@ -38,8 +38,8 @@ from sim.cell import (
     Cell,
     CellError,
     RobotLike,
-    _collision_pieces,
     _index_cell,
+    add_part_geoms,
 )
 from sim.conveyor import Conveyor
 
@@ -156,20 +156,7 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
                           trntype=mujoco.mjtTrn.mjTRN_JOINT,
                           ctrllimited=mujoco.mjtLimited.mjLIMITED_TRUE,
                           ctrlrange=[-conveyor.force_max_n, conveyor.force_max_n])
-    vis = spec.add_mesh(name="part_surface")
-    vis.uservert = np.ascontiguousarray(surface.vertices, float).ravel()
-    vis.userface = np.ascontiguousarray(surface.faces, np.int32).ravel()
-    vis.usernormal = np.ascontiguousarray(surface.normals, float).ravel()
-    vis.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-    part.add_geom(name="part_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname="part_surface",
-                  contype=0, conaffinity=0, group=1, density=0.0, rgba=[0.75, 0.77, 0.8, 1.0])
-    for i, cloud in enumerate(_collision_pieces(surface, collision_piece_m, shell_thickness_m)):
-        m = spec.add_mesh(name=f"part_collision_{i}")
-        m.uservert = np.ascontiguousarray(cloud, float).ravel()
-        m.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-        part.add_geom(name=f"part_collision_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
-                      meshname=f"part_collision_{i}", group=3, density=0.0,
-                      rgba=[0.5, 0.5, 0.5, 0.3])
+    add_part_geoms(spec, part, surface, collision_piece_m, shell_thickness_m)
     if booth:
         floor = spec.worldbody.add_body(name=BOOTH_BODY)
         floor.add_geom(name="booth_floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
