@@ -359,7 +359,7 @@ def _ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarra
     results carry no report)."""
     n = int(robot.nq)
     if ik_results is None:
-        from robots.ik import solve_paths  # robots/ is the only IK; imported when needed
+        from robots.paths import solve_paths  # robots/ is the only IK; imported when needed
 
         # Each pass is seeded with the end of the previous one, the first with home.
         ik_results = solve_paths(cast(Any, robot), list(T_world_tcp), q_seed=q_home,
