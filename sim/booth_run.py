@@ -15,7 +15,6 @@ So loss = executed − plan σ/μ = time law (trajectory − plan) + servo (serv
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -337,10 +336,3 @@ def _robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTraje
             meta={"robot": bcell.robots[i].name},
             tau_demand=None if trace.tau_demand is None else trace.tau_demand[:, cols]))
     return out
-
-
-def json_dump(d: dict[str, Any]) -> str:
-    """JSON of a metrics dict (numpy scalars made plain)."""
-    from sim.pipeline import json_default
-
-    return json.dumps(d, indent=2, default=json_default)

@@ -17,7 +17,8 @@ from sim.cell import build_cell
 from sim.conveyor import Conveyor, ConveyorError, track_program
 from sim.execute import execute
 from sim.joint_trajectory import PAINT, JointTrajectory
-from sim.scenario import load_scenario, pose
+from sim.scenario import pose
+from sim.scenario_files import load_scenario
 from sim.validate import executed_gun_samples
 from tests.helpers import FK_AGREEMENT_ATOL_M
 
