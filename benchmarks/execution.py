@@ -24,7 +24,8 @@ import numpy as np
 
 from planning.deposition import thickness
 from sim.cell import build_cell
-from sim.execute import ServoSettings, _set_torque_actuators, execute, inverse_dynamics
+from sim.execute import ServoSettings, execute
+from sim.execute_models import _set_torque_actuators, inverse_dynamics
 from sim.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
 from sim.scenario_files import load_scenario
 from sim.validate import trajectory_gun_samples, validate

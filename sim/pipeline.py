@@ -271,13 +271,13 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
 
 
 def _servo(scn: Scenario) -> Any:
-    from sim.execute import ServoSettings
+    from sim.execute_settings import ServoSettings
 
     return settings_from(ServoSettings, scn.servo, "servo")
 
 
 def _disturbances(scn: Scenario) -> Any:
-    from sim.execute import Disturbances
+    from sim.execute_settings import Disturbances
 
     return settings_from(Disturbances, scn.disturbances, "disturbances") \
         if scn.disturbances else None

@@ -77,7 +77,7 @@ def check_thresholds(th: Any, where: str = "thresholds") -> None:
 
 def _settings_classes() -> dict[str, type]:
     from planning.coverage import PlannerSettings
-    from sim.execute import Disturbances, ServoSettings
+    from sim.execute_settings import Disturbances, ServoSettings
     from sim.trajectory import TrajectorySettings
 
     return {"planner": PlannerSettings, "fast_planner": PlannerSettings,

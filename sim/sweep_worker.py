@@ -75,7 +75,7 @@ def context(payload: SweepPayload) -> WorkerContext:
 def disturbances_for(payload: SweepPayload, values: np.ndarray | None, seed: int) -> Any:
     """`Disturbances` of one sample: the scenario's own, with the sampled factors set and the
     sample's seed (values None: the nominal run, the scenario as declared)."""
-    from sim.execute import Disturbances
+    from sim.execute_settings import Disturbances
     from sim.pipeline import settings_from
 
     kw = dict(payload.scenario.disturbances)
