@@ -29,7 +29,7 @@ from sim.booth_cell import BoothCell
 from sim.joint_trajectory import JointTrajectory
 from sim.pipeline import json_default
 from sim.trace import ExecutedTrace
-from sim.validate import Check, ValidationReport
+from sim.validate_report import Check, ValidationReport
 
 
 def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) -> float:

@@ -40,7 +40,8 @@ from sim.booth_film import merge_surfaces, robot_films
 from sim.conveyor import track_program
 from sim.joint_trajectory import RETRACT, JointTrajectory
 from sim.trace import ExecutedTrace
-from sim.validate import ValidationReport, collision_events
+from sim.validate_motion import collision_events
+from sim.validate_report import ValidationReport
 
 #: allocations tried, best first, before giving up (their programs are cached per robot and job).
 MAX_ALLOCATIONS_TRIED = 8

@@ -19,7 +19,7 @@ import numpy as np
 from planning.errors import PaintcellError
 from planning.part_spec import MeshPart
 from sim.scenario_checks import check_thresholds
-from sim.validate import Thresholds
+from sim.validate_report import Thresholds
 
 __all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "pose"]
 

@@ -19,7 +19,7 @@ from sim.execute import execute
 from sim.joint_trajectory import PAINT, JointTrajectory
 from sim.scenario import pose
 from sim.scenario_files import load_scenario
-from sim.validate import executed_gun_samples
+from sim.validate_samples import executed_gun_samples
 from tests.helpers import FK_AGREEMENT_ATOL_M
 
 
