@@ -90,7 +90,8 @@ def load_clean_mesh(path_or_mesh: str | os.PathLike[str] | trimesh.Trimesh,
     sizes = ", ".join(str(len(g)) for g in groups)
     if component is None and len(groups) > 1:
         raise SurfaceError(f"mesh has {len(groups)} connected components (faces: {sizes}); "
-                           "pass component=k (0 = largest) or keep one part in the file")
+                           "in a scenario choose them with [part] pieces = \"largest\", \"all\" "
+                           "or [k, ...]; in Python pass component=k (0 = largest)")
     k = 0 if component is None else int(component)
     if not 0 <= k < len(groups):
         raise SurfaceError(f"component={component} is out of range; the mesh has "
