@@ -195,7 +195,8 @@ def _rpy(R: np.ndarray) -> tuple[float, float, float]:
 
 def _placement(surf: Any) -> np.ndarray:
     """T_world_part: painted side toward a robot at the origin (−x), the part's longest extent
-    horizontal (along y), its centre 1.4 m in front of the robot and high enough above the floor."""
+    horizontal (along y), its centre 1.4 m in front of the robot and its lower edge ≥ 0.5 m above
+    the floor (the wrist of a pass along that edge stays clear of the floor)."""
     d = surf.regions.painted_direction
     skin = surf.vertices[surf.regions.vertex_mask(surf.faces, ("skin",))]
     c = skin.mean(0)
@@ -211,7 +212,7 @@ def _placement(surf: Any) -> np.ndarray:
     z_half = float(np.ptp((surf.vertices - c) @ R[2]) / 2)
     T = np.eye(4)
     T[:3, :3] = R
-    T[:3, 3] = [1.4, 0.0, max(1.0, z_half + 0.3)] - R @ c
+    T[:3, 3] = [1.4, 0.0, max(1.0, z_half + 0.5)] - R @ c
     return T
 
 
