@@ -246,6 +246,13 @@ def _cmd_init(args: argparse.Namespace) -> int:
         raise PaintcellError(f"no planner setting plans {spec.file} ({len(tried)} tried; first: "
                              f"{tried[0]}); see `paintcell inspect` for its regions")
     paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
+    # The lowest pass (edge passes run outside the part) at least _MIN_TCP_Z_M above the floor:
+    # below that the wrist and the bell sweep the floor. The plan is in the part frame: lift both.
+    lift = _MIN_TCP_Z_M - min(float(p[:, 2, 3].min()) for p in paths)
+    if lift > 0:
+        T[2, 3] += lift
+        pl = Placement(tuple(float(x) for x in T[:3, 3]), pl.rpy_rad)
+        paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
     # scored by what the run suffers: the plan's speeds, clearance from the part and the floor
     part_world = surf.vertices @ pl.matrix[:3, :3].T + pl.matrix[:3, 3]
     T_base, prep = find_base_pose(load_robot(args.robot), paths,
@@ -269,6 +276,9 @@ def _relpath(p: Path, start: Path) -> str:
 def _v(x: Any) -> str:
     return json.dumps(list(x) if isinstance(x, tuple) else x)
 
+
+#: Lowest TCP height of a pass `init` accepts [m]; the part is lifted until its plan clears it.
+_MIN_TCP_Z_M = 0.6
 
 #: Planner settings `init` tries in turn until one plans the part (the first is the defaults).
 _PLANNER_TRIES: tuple[dict[str, Any], ...] = (
