@@ -251,7 +251,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     lift = _MIN_TCP_Z_M - min(float(p[:, 2, 3].min()) for p in paths)
     if lift > 0:
         T[2, 3] += lift
-        pl = Placement(tuple(float(x) for x in T[:3, 3]), pl.rpy_rad)
+        pl = Placement(tuple(float(x) for x in T[:3, 3]), pl.rpy_rad)  # type: ignore[arg-type]
         paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
     # scored by what the run suffers: the plan's speeds, clearance from the part and the floor
     part_world = surf.vertices @ pl.matrix[:3, :3].T + pl.matrix[:3, 3]

@@ -63,9 +63,7 @@ def test_clearance_counts_the_part_and_the_floor() -> None:
     free = motion_score(r, paths, speeds, floor_z_m=0.0)
     # a floor 0.3 m above the shoulder's lowest point: the arm is in it
     from robots.paths import solve_paths
-    from robots.placement_score import arm_points
-
-    from robots.placement_score import move_joints, tool_points
+    from robots.placement_score import arm_points, move_joints, tool_points
 
     qs = [x.q for x in solve_paths(r, paths)]
     # every joint row the score checks: the paint poses and the moves from home, between the
@@ -84,7 +82,7 @@ def test_clearance_counts_the_move_home() -> None:
     base infeasible; the same point is harmless when home is the last pose (no move)."""
     from scipy.spatial import cKDTree
 
-    from robots.ik import solve_paths
+    from robots.paths import solve_paths
     from robots.placement_score import arm_points
 
     robot, _, paths, speeds, C = _case()
