@@ -100,7 +100,8 @@ def make_figures(out_dir: str | os.PathLike[str], *, surface: Any = None, plan: 
         try:
             skip_r = _renders(figs_r, out, surface, planned if have_film else None,
                               executed if have_exec else None, vmin_um, vmax_um, plan, trace,
-                              cell, size, video, video_size, video_fps, video_max_frames)
+                              cell, size, video, video_size, video_fps, video_max_frames,
+                              _spec(report))
         except RenderBackendError as e:  # e.g. an explicit MUJOCO_GL that cannot start
             skip_r = [{"figure": "remaining renders and video", "reason": str(e)}]
         figs.extend(figs_r)
@@ -113,8 +114,8 @@ def make_figures(out_dir: str | os.PathLike[str], *, surface: Any = None, plan: 
 def _renders(figs: list[dict[str, str]], out: Path, surface: Any, planned: np.ndarray | None,
              executed: np.ndarray | None, vmin_um: float | None, vmax_um: float | None,
              plan: Any, trace: Any, cell: Any, size: tuple[int, int], video: bool,
-             video_size: tuple[int, int], video_fps: float,
-             video_max_frames: int) -> list[dict[str, str]]:
+             video_size: tuple[int, int], video_fps: float, video_max_frames: int,
+             spec: tuple[float, float] | None = None) -> list[dict[str, str]]:
     """Append the renders written to `figs`; return the skipped figures with reasons."""
     from sim import render
 
@@ -143,6 +144,20 @@ def _renders(figs: list[dict[str, str]], out: Path, surface: Any, planned: np.nd
                 figs.append({"file": p.name, "kind": "render",
                              "caption": f"{label} film thickness [µm], camera {cam} "
                                         f"({vmin_um:.3g}–{vmax_um:.3g} µm)"})
+        if label == "executed" and spec is not None:
+            # the same film against the spec window: blue thin, green in spec, red thick
+            from sim.report_film import register_spec_cmap, spec_range_um
+
+            cmap = register_spec_cmap()
+            lo_um, hi_um = spec_range_um(*spec)
+            sfilm = render.film_from_surface(surface, th, lo_um, hi_um, T, cmap)
+            with render.SceneRenderer(None, sfilm, size, False, presets) as r:
+                img = render.add_colorbar(r.render("front"), lo_um, hi_um, cmap)
+                p = render.write_png(out / "render_executed_spec.png", img)
+            w_lo, w_hi = spec[0] * (1 - spec[1]), spec[0] * (1 + spec[1])
+            figs.append({"file": p.name, "kind": "render", "caption": (
+                f"executed film against the spec window {w_lo:.1f}–{w_hi:.1f} µm (green): "
+                "blue thinner, red thicker; camera front [µm]")})
         if label == "executed" and cell is not None and trace is not None:
             with render.SceneRenderer(cell, film, size, False, presets) as r:
                 for name, k in _moments(trace):
@@ -165,6 +180,15 @@ def _renders(figs: list[dict[str, str]], out: Path, surface: Any, planned: np.nd
                      "caption": f"execution at {video_fps:g} fps, {speedup:.1f}× real time "
                                 "(part coloured by the executed film)"})
     return []
+
+
+def _spec(report: Any) -> tuple[float, float] | None:
+    """(window centre [µm], tolerance [-]) from a `ValidationReport`'s metrics, or None."""
+    m = getattr(report, "metrics", None)
+    if not isinstance(m, dict) or "planned_mean_um" not in m or "tolerance_fraction" not in m:
+        return None
+    target, tol = float(m["planned_mean_um"]), float(m["tolerance_fraction"])
+    return (target, tol) if np.isfinite(target) and target > 0 and 0 < tol < 1 else None
 
 
 def _moments(trace: Any) -> list[tuple[str, int]]:

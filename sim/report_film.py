@@ -23,6 +23,8 @@ from planning.atomic_io import atomic_write_npz
 from planning.errors import PaintcellError
 
 FILM_NAME = "film.npz"
+#: matplotlib colormap of the spec map: blues below the window, greens inside, reds above.
+SPEC_CMAP = "paintcell_spec"
 _KEYS = ("planned_thickness_m", "executed_thickness_m", "vertex_areas_m2", "judged",
          "target_m", "tolerance")
 
@@ -160,3 +162,27 @@ def histogram_png(film: FilmData, size_px: tuple[int, int] = (480, 330)) -> byte
     finally:
         plt.close(fig)
     return buf.getvalue()
+
+
+def spec_range_um(target_um: float, tolerance: float) -> tuple[float, float]:
+    """Colour range [µm] of the spec map: the window (low, high) is its middle third, so one
+    window width below and above it shade from light to dark before clamping."""
+    lo, hi = target_um * (1.0 - tolerance), target_um * (1.0 + tolerance)
+    return lo - (hi - lo), hi + (hi - lo)
+
+
+def register_spec_cmap() -> str:
+    """Register `SPEC_CMAP` with matplotlib (once) and return its name.
+
+    Thirds of equal length: below the window dark → light blue, inside light → mid green, above
+    light → dark red; used with `spec_range_um` the window is exactly the green third."""
+    from matplotlib import colormaps
+    from matplotlib.colors import LinearSegmentedColormap, ListedColormap
+
+    if SPEC_CMAP not in colormaps:
+        n = 86
+        thirds = [LinearSegmentedColormap.from_list("b", a, n)(np.linspace(0, 1, n))
+                  for a in (("#08306b", "#9ecae1"), ("#c7e9c0", "#238b45"),
+                            ("#fcbba1", "#67000d"))]
+        colormaps.register(ListedColormap(np.vstack(thirds), name=SPEC_CMAP))
+    return SPEC_CMAP

@@ -25,7 +25,8 @@ _MIME = {".png": "image/png", ".gif": "image/gif", ".jpg": "image/jpeg", ".jpeg"
 #: PNGs at least this large are embedded with a 256-colour palette [bytes].
 PALETTE_MIN_BYTES = 20_000
 #: the images shown as the film map, best first (sim.report.make_figures names).
-FILM_MAP_FILES = ("render_executed_front.png", "thickness_maps.png", "render_planned_front.png")
+FILM_MAP_FILES = ("render_executed_spec.png", "render_executed_front.png", "thickness_maps.png",
+                  "render_planned_front.png")
 
 
 def format_value(v: Any) -> str:

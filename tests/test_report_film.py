@@ -127,3 +127,29 @@ def test_first_screen_from_files(tmp_path):
     assert m is not None and float(m.group(1)) == pytest.approx(100 * 3 / 8, abs=0.05)
     assert "2 passes" in text and "1 (50 % of pass, −20 %)" in text
     assert "210" in text  # index width in mm
+
+
+def test_spec_map_render_colours_the_window(tmp_path):
+    """Executed film on a plate: left half 30 % thin (below the ±10 % window: blue), right half
+    on target (inside: green); the spec render shows both hues and is the first-screen map."""
+    s = plane(0.6, 0.4, resolution_m=0.02)
+    x = s.vertices[:, 0]
+    film = np.where(x < 0.0, 0.7 * 25e-6, 25e-6)
+    rep = SimpleNamespace(planned_thickness_m=np.full(len(x), 25e-6), executed_thickness_m=film,
+                          metrics={"planned_mean_um": 25.0, "tolerance_fraction": 0.1})
+    files = report.make_figures(tmp_path, surface=s, report=rep, size=(200, 150),
+                                index_curve=False)
+    assert tmp_path / "render_executed_spec.png" in files
+    img = np.asarray(Image.open(tmp_path / "render_executed_spec.png").convert("RGB"), int)
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    blue = np.count_nonzero((b > r + 40) & (b > g + 20))
+    green = np.count_nonzero((g > r + 40) & (g > b + 20))
+    red = (r > g + 60) & (r > b + 60)
+    assert blue > 500 and green > 500, (blue, green)
+    w = img.shape[1]
+    assert not red[:, : 2 * w // 3].any()  # nothing above the window (red: the colour bar only)
+    assert red[:, 2 * w // 3:].any()
+    save_film(tmp_path / "film.npz", s, rep)
+    (tmp_path / "metrics.json").write_text(json.dumps({"passed": True, "checks": []}))
+    text = report.write_report(tmp_path).read_text(encoding="utf-8")
+    assert 'alt="render_executed_spec.png"' in text.split('id="film-histogram"')[0]
