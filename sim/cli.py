@@ -158,9 +158,8 @@ def _add_run(add_parser: Any) -> None:
     r.add_argument("--no-report", action="store_true",
                    help="skip renders, plots and report.html (data files only)")
     r.add_argument("--video", action="store_true",
-                   help="also render the execution video execution.gif (robot painting the part, "
-                   "coloured by the executed film; tens of seconds) and embed it in report.html "
-                   "(adds a few MB; without it the report stays under 2 MB)")
+                   help="also render the execution video execution.gif (tens of seconds) and embed "
+                   "it in report.html (a few MB; without it the report stays under 2 MB)")
     r.add_argument("--disturb", action="append", default=[], metavar="KEY=VALUE",
                    help="robustness study: a sim.execute.Disturbances setting on top of the "
                    "scenario's, repeatable: part_offset_m [m], part_rotation_rad [rad], "
@@ -282,6 +281,7 @@ def _add_validate(add_parser: Any) -> None:
 def _cmd_validate(args: argparse.Namespace) -> int:
     from planning.atomic_io import atomic_write_text
     from sim.pipeline import RunResult, json_default, load_surface, metrics_dict
+    from sim.report_film import FILM_NAME, save_film
     from sim.results_dir import lock_results, note_files, require_results
     from sim.run_files import load_run_dir, read_json
     from sim.validate import validate
@@ -305,8 +305,6 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, timings_s=stage_times,
                         fast=fast, mode=mode)
         atomic_write_text(old, json.dumps(metrics_dict(res), indent=2, default=json_default))
-        from sim.report_film import FILM_NAME, save_film
-
         save_film(args.dir / FILM_NAME, surface, rep)
         note_files(args.dir, ["metrics.json", FILM_NAME])
     print(format_table([row(scn.name, rep)]))
@@ -370,9 +368,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 def _add_report(add_parser: Any) -> None:
     rep = add_parser("report", help="rebuild report.html of a folder",
-                     description="Rebuild report.html from the files of a results folder: "
-                     "first screen verdict, film map, film histogram against the spec window and "
-                     "per-pass table; then the detail.")
+                     description="Rebuild report.html from the files of a results folder: verdict, "
+                     "film map, histogram vs the spec window, per-pass table; then the detail.")
     rep.add_argument("dir", type=Path, help=DIR_HELP)
     rep.add_argument("--video", action="store_true",
                      help="embed the folder's execution video execution.gif (made by "

@@ -88,8 +88,8 @@ def save_film(path: str | os.PathLike[str], surface: Any, report: Any) -> Path:
         "vertex_areas_m2": np.asarray(surface.vertex_areas, float),
         "judged": (np.ones(len(surface.vertices), bool) if judged is None
                    else np.asarray(judged, bool)),
-        "target_m": np.float64(1e-6 * float(m["planned_mean_um"])),
-        "tolerance": np.float64(float(m["tolerance_fraction"])),
+        "target_m": np.asarray(1e-6 * float(m["planned_mean_um"])),
+        "tolerance": np.asarray(float(m["tolerance_fraction"])),
     }
     atomic_write_npz(Path(path), arrays)
     return Path(path)
@@ -140,7 +140,7 @@ def histogram_png(film: FilmData, size_px: tuple[int, int] = (480, 330)) -> byte
     # the window and the bulk of the film; the far tails clipped into the end bins
     x0 = min(float(np.percentile(both, 0.5)), lo * 0.8)
     x1 = max(float(np.percentile(both, 99.5)), hi * 1.2)
-    bins = np.linspace(max(x0, 0.0) if both.min() >= 0 else x0, x1, 41)
+    bins = np.linspace(max(x0, 0.0) if both.min() >= 0 else x0, x1, 41).tolist()
     dpi = 80
     fig, ax = plt.subplots(figsize=(size_px[0] / dpi, size_px[1] / dpi), dpi=dpi)
     try:
