@@ -155,7 +155,7 @@ def histogram_png(film: FilmData, size_px: tuple[int, int] = (480, 330)) -> byte
         ax.set_ylabel("share of judged area [%]")
         ax.set_title(f"{film.inside_pct():.1f} % of the area inside the spec window "
                      f"(±{100 * film.tolerance:g} %)", fontsize=10)
-        ax.legend(fontsize=8, loc="upper left")
+        ax.legend(fontsize=8, loc="best")
         fig.tight_layout()
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=dpi)

@@ -184,6 +184,14 @@ def pass_rows(d: Path) -> list[dict[str, Any]]:
     return rows
 
 
+def _side(side: Any) -> str:
+    """A pass's place from plan.json's `side`: "start curve", "2 left", "1 right"."""
+    if side is None:
+        return "—"
+    k = int(side)
+    return "start curve" if k == 0 else f"{abs(k)} {'right' if k > 0 else 'left'}"
+
+
 def pass_table_html(d: Path) -> str:
     """The per-pass table of the first screen."""
     rows = pass_rows(d)
@@ -203,14 +211,14 @@ def pass_table_html(d: Path) -> str:
                 else f"{n} ({number(r['slowed_pct'], 0)} % of pass, −"
                      f"{number(r['max_speed_deficit_pct'], 0)} %)")
         cls = ' class="slow"' if n else ""
-        cells.append((str(r["pass"] + 1), html.escape(str(r["side"] or "—")),
+        cells.append((str(r["pass"] + 1), html.escape(_side(r["side"])),
                       mm(r["index_width_m"]), number(r["length_m"], 2), speed,
                       mm(r["mean_speed_m_s"]), f"<span{cls}>{html.escape(slow)}</span>"))
     total = sum(int(r["n_slowdowns"] or 0) for r in rows)
     head = (f"<p><b>{len(rows)} passes</b>; {total} slowdown(s) where a joint limit made the "
             "TCP slower than planned.</p>")
     return ('<div id="passes">' + head
-            + table(["pass", "side", "index width [mm]", "length [m]", "planned speed [mm/s]",
+            + table(["pass", "position", "index width [mm]", "length [m]", "planned speed [mm/s]",
                      "mean speed, time law [mm/s]", "slowdowns"], cells, "passes", "pass-table")
             + "</div>")
 

@@ -127,6 +127,7 @@ def test_first_screen_from_files(tmp_path):
     assert m is not None and float(m.group(1)) == pytest.approx(100 * 3 / 8, abs=0.05)
     assert "2 passes" in text and "1 (50 % of pass, −20 %)" in text
     assert "210" in text  # index width in mm
+    assert "start curve" in text and "1 right" in text
 
 
 def test_spec_map_render_colours_the_window(tmp_path):
