@@ -213,7 +213,13 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     parts.append("<h2>Key figures</h2>")
     parts.append(headline_html(metrics))
     parts.append("<h2>Reachability</h2>")
-    parts.append(_kv_table(metrics.get("reachability"), "no reachability summary in metrics.json"))
+    reach = metrics.get("reachability")
+    if isinstance(reach, dict):
+        parts.append(f"<p>{html.escape(str(reach.get('verdict', '')))}</p><details><summary>"
+                     "reachability details (metrics.json)</summary>" + _kv_table(reach)
+                     + "</details>")
+    else:
+        parts.append("<p>no reachability summary in metrics.json</p>")
     parts.append("<h2>Collisions</h2>")
     parts.append(collisions_html(metrics, d))
     parts.append("<h2>Slowdowns and cycle time</h2>")

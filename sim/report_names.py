@@ -68,7 +68,7 @@ def number(v: Any, decimals: int) -> str:
     if decimals == 0:
         return f"{x:.0f}"
     if 0 < abs(x) < 0.5 * 10.0**-decimals:  # 0.0012 pp reads "0.001 pp", not "0.00 pp"
-        return f"{x:.1g}"
+        return f"{x:.{-math.floor(math.log10(abs(x)))}f}"
     return f"{x:.{decimals}f}"
 
 

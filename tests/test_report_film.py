@@ -73,6 +73,7 @@ def test_bad_film_file_is_a_clear_error(tmp_path):
 def test_human_numbers():
     assert with_unit(0.00170501 * 100, "pp") == "0.17 pp"
     assert number(0.0012, 2) == "0.001" and number(0.0, 2) == "0.00"
+    assert number(6.2e-5, 2) == "0.00006" and number(-0.004, 2) == "-0.004"
     assert with_unit(None, "s") == "—" and with_unit(3, "events") == "3 events"
     reason = check_reason({"name": "reachability", "value": 97.5, "limit": 100.0, "unit": "%",
                            "kind": "min", "detail": "2 poses out of reach"})
