@@ -39,6 +39,13 @@ HEADLINE: tuple[tuple[str, tuple[tuple[str, str, str, int], ...]], ...] = (
         ("max_joint_range_utilization", "Closest approach to a joint limit (1 = at it)", "", 2),
         ("max_torque_utilization", "Highest joint torque / rated torque", "", 2),
     )),
+    ("Hems, flanges and turned edges (reported apart, not judged)", tuple(
+        entry for region, name in (("hem", "Hem"), ("edge", "Turned edge"), ("inner", "Inner"))
+        for entry in (
+            (f"{region}_executed_mean_um", f"{name} mean film, executed", "µm", 1),
+            (f"{region}_planned_mean_um", f"{name} mean film, planned", "µm", 1),
+            (f"{region}_executed_vs_skin_pct", f"{name} film / skin film, executed", "%", 0),
+            (f"{region}_executed_nsd_pct", f"{name} film uniformity σ/μ, executed", "%", 1)))),
     ("Reach and safety", (
         ("reachability_pct", "Plan poses reached", "%", 1),
         ("n_collisions", "Collision events", "", 0),

@@ -18,7 +18,7 @@ from planning.surface import plane
 from sim import report
 from sim.joint_trajectory import JointTrajectory
 from sim.report_film import FilmFileError, histogram_png, load_film, save_film
-from sim.report_names import check_reason, number, with_unit
+from sim.report_names import check_reason, headline_rows, number, with_unit
 from sim.report_sections import pass_rows
 
 
@@ -74,6 +74,9 @@ def test_human_numbers():
     assert with_unit(0.00170501 * 100, "pp") == "0.17 pp"
     assert number(0.0012, 2) == "0.001" and number(0.0, 2) == "0.00"
     assert number(6.2e-5, 2) == "0.00006" and number(-0.004, 2) == "-0.004"
+    rows = dict(headline_rows({"hem_executed_mean_um": 18.04, "loss_pp": 0.17}))
+    assert ("Hem mean film, executed", "18.0 µm", "hem_executed_mean_um") in next(
+        v for k, v in rows.items() if k.startswith("Hems"))
     assert with_unit(None, "s") == "—" and with_unit(3, "events") == "3 events"
     reason = check_reason({"name": "reachability", "value": 97.5, "limit": 100.0, "unit": "%",
                            "kind": "min", "detail": "2 poses out of reach"})
