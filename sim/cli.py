@@ -97,6 +97,10 @@ def main(argv: list[str] | None = None) -> int:
         code = _main(argv)
         # A signal that a library swallowed (see sim.interrupts) still ends the command as one.
         return EXIT_INTERRUPTED if interrupts.pending() is not None else code
+    except KeyboardInterrupt as exc:  # a signal while the parser was built, before the command
+        sys.stderr.write(f"paintcell: interrupted ({exc or 'SIGINT'}); nothing half-written was "
+                         "left\n")
+        return EXIT_INTERRUPTED
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
