@@ -63,6 +63,8 @@ class BoothResult:
     static_trajectories: list[JointTrajectory] = field(default_factory=list)
     """Each robot's own program in the static cell, before staggering and tracking."""
     timings_s: dict[str, float] = field(default_factory=dict)
+    part_vertex_counts: list[int] = field(default_factory=list)
+    """The parts' vertex counts, in the order they are stacked in `surface`."""
 
     @property
     def passed(self) -> bool:
@@ -150,6 +152,13 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     surfaces, plans, T_body_parts = _plan_parts(booth, fast)
+    build: dict[str, Any] = {"rule": "off: each part at the default bell flow"}
+    if booth.common_film_build:
+        from sim.booth_build import common_film_build
+
+        plans, build = common_film_build(surfaces, plans,
+                                         [f"{i}:{p.part}" for i, p in enumerate(booth.parts)],
+                                         booth.film_target_um)
     body = merge_surfaces(surfaces, T_body_parts, booth.name)
     T_wb = booth.body_placement.matrix
     robots = _load_robots(booth)
@@ -205,9 +214,10 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), record, jobs,
                            [len(x.vertices) for x in surfaces])
+    report.metrics["film_build"] = build
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
-                         timings)
+                         timings, [len(x.vertices) for x in surfaces])
     with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         if tmp is not None:
             write_booth_results(result, tmp, robots)
