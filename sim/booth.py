@@ -201,7 +201,9 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
               "candidates": n_considered, "feasible": len(ranked),
               "estimated_cycle_s": ranked[0][0][0], "estimated_programs_s": list(ranked[0][0]),
               "best_ranked": [{"estimated_programs_s": list(c[0]),
-                               "jobs": {r: [j.part, j.first, j.end] for r, j in c[2].items()}}
+                               "jobs": {r: [j.part, j.first, j.end] for r, j in c[2].items()},
+                               "estimated_s": {r: estimate_s(durations[j.part][j.first:j.end])
+                                               for r, j in c[2].items()}}
                               for c in ranked[:8]]}
     return [c[2] for c in ranked], record
 

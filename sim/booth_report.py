@@ -21,6 +21,7 @@ from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
 from planning.atomic_io import atomic_write_text
+from sim.booth import APPROACH_RETRACT_S, TURN_S
 from sim.plots import THICKNESS_CMAP, _save, thickness_range_um
 
 _AXES = "xyz"
@@ -115,12 +116,15 @@ def _table(header: list[str], rows: list[list[Any]]) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def _jobs_text(jobs: dict[str, Any], names: list[str], parts: list[str]) -> str:
-    """'side_a: fender passes 0–5; ...' from {robot (index or name): [part, first, end]}."""
+def _jobs_text(jobs: dict[str, Any], names: list[str], parts: list[str],
+               est: dict[str, float] | None = None) -> str:
+    """'side_a: fender passes 0–5 (24.8 s); ...' from {robot (index or name): [part, first,
+    end]} and optionally the estimated program time of each [s]."""
     out = []
     for r, (p, a, b) in jobs.items():
         rn = names[int(r)] if str(r).isdigit() else str(r)
-        out.append(f"{rn}: {parts[int(p)]} passes {a}–{b - 1}")
+        t = f" ({est[r]:.1f} s)" if est is not None and r in est else ""
+        out.append(f"{rn}: {parts[int(p)]} passes {a}–{b - 1}{t}")
     return "; ".join(out)
 
 
@@ -146,21 +150,23 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
     s.append("<h2>Robots</h2>" + _table(
         ["robot", "model", "part", "passes", "start delay [s]", "own program [s]",
          "busy [% of cycle]", "brush on [% of cycle]", "paint credit [% of film]",
-         "coverage credit [% of area]"],
+         "coverage credit [% of area]", "peak torque [÷ limit]"],
         [[n, r["model"], r["part"], f"{r['passes'][0]}–{r['passes'][1] - 1}",
           r["start_delay_s"], r["program_s"], r["busy_share_pct"], r["paint_share_pct"],
-          r["paint_credit_pct"], r["coverage_credit_pct"]]
+          r["paint_credit_pct"], r["coverage_credit_pct"], r.get("max_torque_utilization")]
          for n, r in m["robots"].items()]))
     a = m.get("allocation", {})
     alloc = [f"<p>Rule: {html.escape(str(a.get('rule', '')))}.</p>"]
     if "candidates" in a:
         alloc.append(f"<p>{a['candidates']} assignments enumerated (each part whole or cut in "
                      f"two at a pass boundary, at most one job per robot); {a['feasible']} put "
-                     "every pass within its robot's reach. Best ranked (estimated program "
-                     "times, longest first):</p>")
-        alloc.append(_table(["rank", "jobs", "estimated programs [s]"],
-                            [[k + 1, _jobs_text(c["jobs"], names, parts),
-                              ", ".join(f"{x:.1f}" for x in c["estimated_programs_s"])]
+                     "every pass within its robot's reach. They are ranked by their longest "
+                     f"estimated program (paint time + {TURN_S} s per turn-around + "
+                     f"{APPROACH_RETRACT_S} s approach and retract), then the next longest, and "
+                     "so on:</p>")
+        alloc.append(_table(["rank", "jobs (estimated program)", "longest estimate [s]"],
+                            [[k + 1, _jobs_text(c["jobs"], names, parts, c.get("estimated_s")),
+                              max(c["estimated_programs_s"])]
                              for k, c in enumerate(a.get("best_ranked", []))]))
     for rej in a.get("rejected", []):
         alloc.append(f"<p>Rejected: {html.escape(_jobs_text(rej['jobs'], names, parts))} — "

@@ -40,6 +40,13 @@ def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) ->
     return body_uniformity(film, areas, mask)
 
 
+def _torque_use(trace: ExecutedTrace, tau_max: np.ndarray) -> float:
+    """Largest demanded torque ÷ limit over a robot's joints (nan for a kinematic run)."""
+    if trace.tau_demand is None:
+        return float("nan")
+    return float((np.abs(trace.tau_demand) / np.asarray(tau_max, float)).max())
+
+
 def min_bell_distance(trajs: list[JointTrajectory]) -> float:
     """Smallest distance [m] between two robots' TCPs at a step where both paint (inf if never)."""
     best = np.inf
@@ -83,6 +90,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
             "program_s": own[i],
             "start_delay_s": float(trajs[i].meta.get("start_delay_s", 0.0)),
             "conveyor": trajs[i].meta.get("conveyor"),
+            "max_torque_utilization": _torque_use(traces[i], bcell.robots[i].tau_max),
         }
     robot_robot = [e for e in events if bcell.robot_of_body(e["body1"]) >= 0
                    and bcell.robot_of_body(e["body2"]) >= 0
