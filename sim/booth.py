@@ -129,6 +129,8 @@ class Booth:
     (`sim.booth_build`); False: each part at the default flow, its own film build."""
     film_target_um: float | None = None
     """The common film build [µm] (None: the body's area-weighted planned mean)."""
+    blend_seams: bool = True
+    """Switch off the samples that paint other parts more than their own (`sim.booth_seams`)."""
     source: str | None = None
     sweep: dict[str, Any] = field(default_factory=dict)
     """Robustness sweeps (`paintcell sweep`) are not defined for a booth yet: always empty."""

@@ -15,7 +15,8 @@ A `[[robots]]` table with `rail` puts the arm on a linear rail with that carriag
 [part index, first pass, end pass]) fixes the jobs. Every key is checked: unknown names are refused
 with one line naming the file, the table and the valid keys. A TOML file is a booth when it has
 `[[robots]]` tables. `common_film_build` (default true) and `film_target_um` (default: the body's
-area-weighted planned mean) set one film build over the parts (`sim.booth_build`).
+area-weighted planned mean) set one film build over the parts (`sim.booth_build`);
+`blend_seams` (default true) blends the seams between parts (`sim.booth_seams`).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from sim.scenario import Placement
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
-        "common_film_build", "film_target_um")
+        "common_film_build", "film_target_um", "blend_seams")
 _PART = ("part", "xyz_m", "rpy_rad", "planner")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -110,6 +111,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             allocation=None if alloc is None else {k: tuple(v) for k, v in alloc.items()},
             common_film_build=_bool(d.get("common_film_build", True),
                                     f"{where} common_film_build"),
+            blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
             film_target_um=(None if d.get("film_target_um") is None
                             else _positive(d["film_target_um"], f"{where} film_target_um")),
             source=source)

@@ -188,6 +188,20 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
                           m["part_executed_mean_um"].get(k, float("nan")),
                           m["part_executed_nsd_pct"].get(k, float("nan"))]
                          for k, v in fb["parts"].items()]))
+    sm = m.get("seams", {})
+    if "unblended_planned_nsd_pct" in sm:
+        share = sm.get("share")
+        s.append("<h2>Seams between parts</h2><p>Each part is planned alone, so its edge passes "
+                 "also paint its neighbours; a brush-on sample that paints other parts more "
+                 "than <i>share</i> × its own part is switched off (the motion is unchanged). "
+                 + (f"Share {share:g}: planned whole-body σ/μ <b id='seam-nsd'>"
+                    f"{sm['body_planned_nsd_pct']:.2f} %</b> against "
+                    f"{sm['unblended_planned_nsd_pct']:.2f} % unblended."
+                    if share is not None else
+                    f"No share improves the planned whole-body σ/μ "
+                    f"({sm['unblended_planned_nsd_pct']:.2f} %): nothing is switched off.")
+                 + "</p>" + _table(["part", "samples switched off"],
+                                   [[k, v] for k, v in sm["samples_switched_off"].items()]))
     s.append("<h2>Film over the whole body</h2>" + _table(
         ["figure", "planned", "trajectory", "servo", "executed"],
         [["σ/μ whole body [%]", m["planned_nsd_pct"], m["trajectory_nsd_pct"],

@@ -160,6 +160,13 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
                                          [f"{i}:{p.part}" for i, p in enumerate(booth.parts)],
                                          booth.film_target_um)
     body = merge_surfaces(surfaces, T_body_parts, booth.name)
+    seams: dict[str, Any] = {"rule": "off" if not booth.blend_seams else "one part: no seams"}
+    if booth.blend_seams and len(plans) > 1:
+        from sim.booth_seams import blend_part_seams
+
+        plans, seams = blend_part_seams(body, plans, T_body_parts,
+                                        [len(x.vertices) for x in surfaces],
+                                        [f"{i}:{p.part}" for i, p in enumerate(booth.parts)])
     T_wb = booth.body_placement.matrix
     robots = _load_robots(booth)
     timings["plan"] = time.perf_counter() - t0
@@ -215,6 +222,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
                            collision_events(trace), record, jobs,
                            [len(x.vertices) for x in surfaces])
     report.metrics["film_build"] = build
+    report.metrics["seams"] = seams
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
                          timings, [len(x.vertices) for x in surfaces])
