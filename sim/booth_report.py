@@ -112,7 +112,9 @@ def _fmt(v: Any, digits: int = 2) -> str:
 
 def _table(header: list[str], rows: list[list[Any]]) -> str:
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{_fmt(c)}</td>" for c in r) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(
+        f"<td>{_fmt(c)}</td>" if isinstance(c, int | float) or c is None
+        else f"<td class='t'>{_fmt(c)}</td>" for c in r) + "</tr>" for r in rows)
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
@@ -124,7 +126,8 @@ def _jobs_text(jobs: dict[str, Any], names: list[str], parts: list[str],
     for r, (p, a, b) in jobs.items():
         rn = names[int(r)] if str(r).isdigit() else str(r)
         t = f" ({est[r]:.1f} s)" if est is not None and r in est else ""
-        out.append(f"{rn}: {parts[int(p)]} passes {a}–{b - 1}{t}")
+        span = f"pass {a}" if b - a == 1 else f"passes {a}–{b - 1}"
+        out.append(f"{rn}: {parts[int(p)]} {span}{t}")
     return "; ".join(out)
 
 
@@ -151,7 +154,8 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
         ["robot", "model", "part", "passes", "start delay [s]", "own program [s]",
          "busy [% of cycle]", "brush on [% of cycle]", "paint credit [% of film]",
          "coverage credit [% of area]", "peak torque [÷ limit]"],
-        [[n, r["model"], r["part"], f"{r['passes'][0]}–{r['passes'][1] - 1}",
+        [[n, r["model"], r["part"], (f"{r['passes'][0]}" if r["passes"][1] - r["passes"][0] == 1
+                                    else f"{r['passes'][0]}–{r['passes'][1] - 1}"),
           r["start_delay_s"], r["program_s"], r["busy_share_pct"], r["paint_share_pct"],
           r["paint_credit_pct"], r["coverage_credit_pct"], r.get("max_torque_utilization")]
          for n, r in m["robots"].items()]))
@@ -220,7 +224,7 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
         s.append(f"<figure><img src='{html.escape(img)}' alt='{html.escape(img)}'></figure>")
     style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:"
              "collapse}td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}"
-             "img{max-width:100%}")
+             "td.t{text-align:left}img{max-width:100%}")
     return ("<!DOCTYPE html><html><head><meta charset='utf-8'><title>Booth "
             f"{html.escape(str(scenario['name']))}</title><style>{style}</style></head><body>"
             + "\n".join(s) + "</body></html>\n")
