@@ -77,7 +77,7 @@ def test_an_unreachable_film_build_is_refused_in_one_line(two_parts):
 
 def test_booth_toml_film_build_keys(tmp_path):
     from sim.booth_data import BoothDataError
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
 
     head = 'name = "b"\n{}\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\n'
     f = tmp_path / "b.toml"
