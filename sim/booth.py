@@ -123,7 +123,8 @@ class Booth:
     allocation: dict[str, tuple[int, int, int]] | None = None
     source: str | None = None
     sweep: dict[str, Any] = field(default_factory=dict)
-    """Robustness sweeps (`paintcell sweep`) are not defined for a booth yet: always empty."""
+    """The `paintcell sweep` table (`sim.sweep_spec.SCENARIO_KEYS`); a booth sweep varies the
+    line speed (`sim.sweep_booth`)."""
 
     def __post_init__(self) -> None:
         if not self.parts or not self.robots:

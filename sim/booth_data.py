@@ -30,7 +30,7 @@ from sim.conveyor import Conveyor
 from sim.scenario import Placement
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
-        "robots", "planner", "trajectory", "servo", "thresholds", "allocation")
+        "robots", "planner", "trajectory", "servo", "thresholds", "allocation", "sweep")
 _PART = ("part", "xyz_m", "rpy_rad", "planner")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -91,7 +91,14 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     th = _check_keys(d.get("thresholds", {}), tuple(f.name for f in fields(BoothThresholds)),
                      f"{where} [thresholds]")
     alloc = d.get("allocation")
+    sweep = d.get("sweep", {})
     try:
+        if sweep:
+            from sim.sweep_booth import check_booth_factors
+            from sim.sweep_spec import check_sweep_table
+
+            check_sweep_table(sweep)
+            check_booth_factors(tuple(sweep.get("factors", {})))
         conv_kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
                                    for k, v in conv.items()}
         conveyor = Conveyor(**conv_kw)
@@ -106,7 +113,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                         for k, v in d.get("trajectory", {}).items()},
             servo=dict(d.get("servo", {})), thresholds=BoothThresholds(**th),
             allocation=None if alloc is None else {k: tuple(v) for k, v in alloc.items()},
-            source=source)
+            source=source, sweep=dict(sweep))
     except PaintcellError as exc:
         raise BoothDataError(f"{where}: {exc}") from exc
 

@@ -140,13 +140,34 @@ def robot_tcp(bcell: BoothCell, q_all: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return pos, rot
 
 
-def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = False,
-              mode: Literal["servo", "kinematic"] = "servo", progress: bool = True
-              ) -> BoothResult:
-    """Run the booth (module doc); write results to `out_dir` if given."""
-    from sim.booth_results import booth_metrics, write_booth_results
-    from sim.results_dir import new_results
+@dataclass
+class BoothPrograms:
+    """What a booth run builds before it executes (`booth_programs`); a sweep (`sim.sweep_booth`)
+    builds it once and executes it under many disturbances.
 
+    surfaces: the parts' surfaces (part frames); body: their merge in the body frame;
+    T_body_parts: (4, 4) part placements in the body frame; jobs: robot index → its job;
+    record: the allocation record; static: each robot's own program (static cell, not delayed);
+    trajs: the programs delayed, padded to one clock and tracking the conveyor; t_ref_s: when the
+    body passes its nominal placement [s]; robots: the loaded robot models (None once sent to a
+    worker, which loads its own).
+    """
+
+    surfaces: list[Surface]
+    body: Surface
+    plans: list[CoveragePlan]
+    T_body_parts: list[np.ndarray]
+    jobs: dict[int, Job]
+    record: dict[str, Any]
+    static: list[JointTrajectory]
+    trajs: list[JointTrajectory]
+    t_ref_s: float
+    robots: list[Any] | None
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+
+def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
+    """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc)."""
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     surfaces, plans, T_body_parts = _plan_parts(booth, fast)
@@ -180,15 +201,31 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
     trajs0 = [_delay(tr, d) for tr, d in zip(trajs0, delays, strict=True)]
     record["start_delays_s"] = [d * trajs0[0].dt_s for d in delays]
-    timings["trajectory"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
     K = max(len(tr.t_s) for tr in trajs0)
-    dt = trajs0[0].dt_s
-    t_ref = 0.5 * (K - 1) * dt
+    t_ref = 0.5 * (K - 1) * trajs0[0].dt_s
     trajs = [track_program(r, _pad(tr, K), booth.conveyor, t_ref)
              for r, tr in zip(robots, trajs0, strict=True)]
-    bcell = build_booth_cell(robots, body, T_wb, booth.conveyor)
+    timings["trajectory"] = time.perf_counter() - t0
+    return BoothPrograms(surfaces, body, plans, T_body_parts, jobs, record, static, trajs, t_ref,
+                         robots, timings)
+
+
+def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = False,
+              mode: Literal["servo", "kinematic"] = "servo", progress: bool = True
+              ) -> BoothResult:
+    """Run the booth (module doc); write results to `out_dir` if given."""
+    from sim.booth_results import booth_metrics, write_booth_results
+    from sim.results_dir import new_results
+
+    progs = booth_programs(booth, fast)
+    timings = dict(progs.timings_s)
+    robots = progs.robots
+    assert robots is not None
+    surfaces, body, plans, jobs = progs.surfaces, progs.body, progs.plans, progs.jobs
+    trajs, static, t_ref = progs.trajs, progs.static, progs.t_ref_s
+
+    t0 = time.perf_counter()
+    bcell = build_booth_cell(robots, body, booth.body_placement.matrix, booth.conveyor)
     from sim.execute import ServoSettings, execute
     from sim.pipeline import settings_from
 
@@ -200,10 +237,10 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     t0 = time.perf_counter()
     pos, rot = robot_tcp(bcell, trace.q)
     traces = _robot_traces(bcell, trace, trajs, pos, rot)
-    films = robot_films(booth, bcell, body, plans, jobs, T_body_parts, trajs, traces, trace,
+    films = robot_films(booth, bcell, body, plans, jobs, progs.T_body_parts, trajs, traces, trace,
                         t_ref)
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
-                           collision_events(trace), record, jobs,
+                           collision_events(trace), progs.record, jobs,
                            [len(x.vertices) for x in surfaces])
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,

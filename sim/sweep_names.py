@@ -16,11 +16,17 @@ FACTORS: dict[str, tuple[str, str]] = {
     "trigger_delay_s": ("s", "paint trigger switching late (+) or early (−), signed"),
     "flow_scale": ("-", "actual ÷ nominal paint flow, > 0"),
     "flow_drift": ("-", "relative change of the flow over the program, signed, in (−1, 1)"),
+    "conveyor_speed_error_m_s": ("m/s", "booth only: actual − nominal line speed, signed; the "
+                                        "robots still track the nominal speed"),
 }
+#: the factors a booth sweep (`sim.sweep_booth`) models; the others are single-robot ones.
+BOOTH_FACTORS = ("conveyor_speed_error_m_s",)
 #: factors that are lengths/angles in a random direction: the sweep uses |draw|.
 MAGNITUDE_FACTORS = ("part_offset_m", "part_rotation_rad", "tcp_offset_m")
 #: tolerances a paint shop asks about that this cell does not model (named in the error).
-NOT_MODELLED = {"conveyor_speed_m_s": "the cell has no conveyor: the part stands still"}
+NOT_MODELLED = {"conveyor_speed_m_s": "the single-robot cell has no conveyor (the part stands "
+                                      "still); a booth's line speed tolerance is "
+                                      "conveyor_speed_error_m_s on a booth scenario"}
 METHODS = ("lhs", "mc")
 #: the per-sample figures (validation metric keys) a sweep records and summarizes, with units.
 SAMPLE_METRICS: dict[str, str] = {
