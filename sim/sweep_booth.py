@@ -23,12 +23,11 @@ from typing import Any
 import numpy as np
 
 from planning.errors import PaintcellError
-from sim.sweep_names import BOOTH_FACTORS
+from sim.sweep_names import BOOTH_FACTORS, BOOTH_METRICS, SAMPLE_METRICS
 from sim.sweep_spec import SweepError
-from sim.sweep_worker import SAMPLE_METRICS, _num
+from sim.sweep_worker import _num
 
-#: booth figures recorded beside `SAMPLE_METRICS` (units in the names).
-BOOTH_EXTRA = ("loss_conveyor_pp", "max_part_executed_nsd_pct", "carrier_speed_m_s")
+BOOTH_EXTRA = tuple(BOOTH_METRICS)
 
 
 @dataclass(frozen=True, eq=False)

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 #: name → (unit, meaning). The sweep sets these `Disturbances` fields per sample.
 FACTORS: dict[str, tuple[str, str]] = {
     "part_offset_m": ("m", "part placement error on the skid: a translation of |x| in a seeded "
@@ -38,3 +40,17 @@ SAMPLE_METRICS: dict[str, str] = {
     "executed_cycle_time_s": "s",
     "tracking_error_max_mm": "mm",
 }
+#: the figures a booth sample records beside those (`sim.sweep_booth`): the conveyor's share of
+#: the loss, the worst part's executed σ/μ (the booth's threshold), the carrier's measured speed.
+BOOTH_METRICS: dict[str, str] = {
+    "loss_conveyor_pp": "pp",
+    "max_part_executed_nsd_pct": "%",
+    "carrier_speed_m_s": "m/s",
+}
+
+
+def record_metrics(records: list[dict[str, Any]]) -> dict[str, str]:
+    """figure → unit: `SAMPLE_METRICS`, and the `BOOTH_METRICS` some record holds a value of."""
+    extra = {k: u for k, u in BOOTH_METRICS.items()
+             if any((r.get("metrics") or {}).get(k) is not None for r in records)}
+    return {**SAMPLE_METRICS, **extra}

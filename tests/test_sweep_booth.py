@@ -43,19 +43,21 @@ def test_factors_that_do_not_fit_the_scenario_are_refused(tmp_path: Path) -> Non
 
 
 def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
+    import tomllib
+
+    import tomli_w
+
     from sim.booth_data import BoothDataError
     from sim.scenario import load_scenario
 
-    text = Path("scenarios/booth.toml").read_text()
-    good = tmp_path / "booth.toml"
-    good.write_text(text + '\n[sweep]\nsamples = 50\n[sweep.factors]\n'
-                    'conveyor_speed_error_m_s = "normal(0, 0.002)"\n')
-    b = load_scenario(good)
-    assert b.sweep == {"samples": 50,
-                       "factors": {"conveyor_speed_error_m_s": "normal(0, 0.002)"}}
-    good.write_text(text + '\n[sweep.factors]\nflow_scale = "normal(1, 0.05)"\n')
+    b = load_scenario("scenarios/booth.toml")
+    assert b.sweep["factors"] == {"conveyor_speed_error_m_s": "normal(0, 0.0025)"}
+    data = tomllib.loads(Path("scenarios/booth.toml").read_text())
+    data["sweep"] = {"factors": {"flow_scale": "normal(1, 0.05)"}}
+    bad = tmp_path / "booth.toml"
+    bad.write_text(tomli_w.dumps(data))
     with pytest.raises(BoothDataError, match=r"booth.toml: factor\(s\) \['flow_scale'\] are not"):
-        load_scenario(good)
+        load_scenario(bad)
 
 
 @pytest.mark.slow
