@@ -31,7 +31,7 @@ SPEC = SweepSpec.from_strings(["conveyor_speed_error_m_s=uniform(-0.01, 0.01)"],
 def test_factors_that_do_not_fit_the_scenario_are_refused(tmp_path: Path) -> None:
     """A line-speed error on the single-robot cell, a single-robot factor on a booth: one-line
     errors naming the fix, before anything is planned or written."""
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
 
     plate = load_scenario(plate_scenario(tmp_path / "case"))
     with pytest.raises(SweepError, match="no conveyor; sweep a booth scenario"):
@@ -48,7 +48,7 @@ def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
     import tomli_w
 
     from sim.booth_data import BoothDataError
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
 
     b = load_scenario("scenarios/booth.toml")
     assert b.sweep["factors"] == {"conveyor_speed_error_m_s": "normal(0, 0.0025)"}
