@@ -133,7 +133,8 @@ class Booth:
     """Switch off the samples that paint other parts more than their own (`sim.booth_seams`)."""
     source: str | None = None
     sweep: dict[str, Any] = field(default_factory=dict)
-    """Robustness sweeps (`paintcell sweep`) are not defined for a booth yet: always empty."""
+    """The `paintcell sweep` table (`sim.sweep_spec.SCENARIO_KEYS`); a booth sweep varies the
+    line speed (`sim.sweep_booth`)."""
 
     def __post_init__(self) -> None:
         if not self.parts or not self.robots:

@@ -33,7 +33,7 @@ from sim.scenario import Placement
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
-        "common_film_build", "film_target_um", "blend_seams")
+        "common_film_build", "film_target_um", "blend_seams", "sweep")
 _PART = ("part", "xyz_m", "rpy_rad", "planner")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -94,7 +94,14 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     th = _check_keys(d.get("thresholds", {}), tuple(f.name for f in fields(BoothThresholds)),
                      f"{where} [thresholds]")
     alloc = d.get("allocation")
+    sweep = d.get("sweep", {})
     try:
+        if sweep:
+            from sim.sweep_booth import check_booth_factors
+            from sim.sweep_spec import check_sweep_table
+
+            check_sweep_table(sweep)
+            check_booth_factors(tuple(sweep.get("factors", {})))
         conv_kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
                                    for k, v in conv.items()}
         conveyor = Conveyor(**conv_kw)
@@ -114,7 +121,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
             film_target_um=(None if d.get("film_target_um") is None
                             else _positive(d["film_target_um"], f"{where} film_target_um")),
-            source=source)
+            source=source, sweep=dict(sweep))
     except PaintcellError as exc:
         raise BoothDataError(f"{where}: {exc}") from exc
 

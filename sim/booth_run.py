@@ -142,13 +142,39 @@ def robot_tcp(bcell: BoothCell, q_all: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return pos, rot
 
 
-def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = False,
-              mode: Literal["servo", "kinematic"] = "servo", progress: bool = True
-              ) -> BoothResult:
-    """Run the booth (module doc); write results to `out_dir` if given."""
-    from sim.booth_results import booth_metrics, write_booth_results
-    from sim.results_dir import new_results
+@dataclass
+class BoothPrograms:
+    """What a booth run builds before it executes (`booth_programs`); a sweep (`sim.sweep_booth`)
+    builds it once and executes it under many disturbances.
 
+    surfaces: the parts' surfaces (part frames); body: their merge in the body frame;
+    T_body_parts: (4, 4) part placements in the body frame; jobs: robot index → its job;
+    record: the allocation record; static: each robot's own program (static cell, not delayed);
+    trajs: the programs delayed, padded to one clock and tracking the conveyor; t_ref_s: when the
+    body passes its nominal placement [s]; robots: the loaded robot models (None once sent to a
+    worker, which loads its own); film_build, seams: the records of `sim.booth_build` and
+    `sim.booth_seams` (the plans already carry their effect).
+    """
+
+    surfaces: list[Surface]
+    body: Surface
+    plans: list[CoveragePlan]
+    T_body_parts: list[np.ndarray]
+    jobs: dict[int, Job]
+    record: dict[str, Any]
+    static: list[JointTrajectory]
+    trajs: list[JointTrajectory]
+    t_ref_s: float
+    robots: list[Any] | None
+    timings_s: dict[str, float] = field(default_factory=dict)
+    film_build: dict[str, Any] = field(default_factory=dict)
+    """How each part's flow was scaled to the common film build (`sim.booth_build`)."""
+    seams: dict[str, Any] = field(default_factory=dict)
+    """How the seams between parts were blended (`sim.booth_seams`)."""
+
+
+def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
+    """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc)."""
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     surfaces, plans, T_body_parts = _plan_parts(booth, fast)
@@ -197,9 +223,26 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     record["start_delays_s"] = [float(tr.meta.get("start_delay_s", 0.0)) for tr in trajs0]
     record["rail_tracking_margin_m"] = shrink
     timings["trajectory"] = time.perf_counter() - t0
+    return BoothPrograms(surfaces, body, plans, T_body_parts, jobs, record, static, trajs, t_ref,
+                         robots, timings, build, seams)
+
+
+def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = False,
+              mode: Literal["servo", "kinematic"] = "servo", progress: bool = True
+              ) -> BoothResult:
+    """Run the booth (module doc); write results to `out_dir` if given."""
+    from sim.booth_results import booth_metrics, write_booth_results
+    from sim.results_dir import new_results
+
+    progs = booth_programs(booth, fast)
+    timings = dict(progs.timings_s)
+    robots = progs.robots
+    assert robots is not None
+    surfaces, body, plans, jobs = progs.surfaces, progs.body, progs.plans, progs.jobs
+    trajs, static, t_ref = progs.trajs, progs.static, progs.t_ref_s
 
     t0 = time.perf_counter()
-    bcell = build_booth_cell(robots, body, T_wb, booth.conveyor)
+    bcell = build_booth_cell(robots, body, booth.body_placement.matrix, booth.conveyor)
     from sim.execute import ServoSettings, execute
     from sim.pipeline import settings_from
 
@@ -211,13 +254,13 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     t0 = time.perf_counter()
     pos, rot = robot_tcp(bcell, trace.q)
     traces = _robot_traces(bcell, trace, trajs, pos, rot)
-    films = robot_films(booth, bcell, body, plans, jobs, T_body_parts, trajs, traces, trace,
+    films = robot_films(booth, bcell, body, plans, jobs, progs.T_body_parts, trajs, traces, trace,
                         t_ref)
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
-                           collision_events(trace), record, jobs,
+                           collision_events(trace), progs.record, jobs,
                            [len(x.vertices) for x in surfaces])
-    report.metrics["film_build"] = build
-    report.metrics["seams"] = seams
+    report.metrics["film_build"] = progs.film_build
+    report.metrics["seams"] = progs.seams
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
                          timings, [len(x.vertices) for x in surfaces])

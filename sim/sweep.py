@@ -57,8 +57,16 @@ def sample_path(out_dir: Path, index: int) -> Path:
     return out_dir / "samples" / f"{index:06d}.json"
 
 
-def prepare_payload(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> SweepPayload:
-    """Plan once: surface, plan, program and the two films every sample reuses."""
+def prepare_payload(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> Any:
+    """Plan once: surface, plan, program and the two films every sample reuses (a booth: its
+    programs and films, `sim.sweep_booth`)."""
+    from sim.booth import Booth
+
+    if isinstance(scn, Booth):
+        from sim.sweep_booth import prepare_booth_payload
+
+        return prepare_booth_payload(scn, spec.names, spec_digest(scn, spec, fast, mode), fast,
+                                     mode)
     from planning.deposition import thickness
     from planning.transforms import inverse_pose
     from sim.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
@@ -73,6 +81,30 @@ def prepare_payload(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> SweepPa
     t_traj = thickness(plan.applicator, trajectory_gun_samples(traj, inverse_pose(T)), pts, nrm)
     return SweepPayload(spec_digest(scn, spec, fast, mode), scn, fast, mode, surface, plan,
                         traj, (t_plan, t_traj), spec.names)
+
+
+def check_factors_fit(scn: Any, spec: SweepSpec) -> None:
+    """One-line SweepError when a factor does not apply to this kind of scenario (a booth
+    varies the line speed; the single-robot cell has no line)."""
+    from sim.booth import Booth
+    from sim.sweep_names import BOOTH_FACTORS
+
+    if isinstance(scn, Booth):
+        from sim.sweep_booth import check_booth_factors
+
+        check_booth_factors(spec.names)
+        return
+    booth_only = [n for n in spec.names if n in BOOTH_FACTORS]
+    if booth_only:
+        raise SweepError(f"factor(s) {booth_only} need a conveyor: the single-robot cell has no "
+                         "conveyor; sweep a booth scenario (e.g. scenarios/booth.toml)")
+
+
+def sample_function(payload: Any) -> Callable[..., dict[str, Any]]:
+    """The function that runs one sample of this payload (single-robot cell or booth)."""
+    from sim.sweep_booth import BoothPayload, run_booth_sample
+
+    return run_booth_sample if isinstance(payload, BoothPayload) else run_sample
 
 
 def spec_digest(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> str:
@@ -139,6 +171,7 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
         raise SweepError(f"--workers {workers!r} must be an int >= 0")
     out_dir = Path(out_dir)
     t_start = time.perf_counter()
+    check_factors_fit(scn, spec)
     if scheduler is not None:
         _connect(scheduler).close()   # a wrong address fails now, not after planning
     digest = spec_digest(scn, spec, fast, mode)
@@ -181,11 +214,12 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
         if payload is None:
             pass
         elif workers == 0 and scheduler is None:
+            run = sample_function(payload)
             if nominal is None:
-                nominal = run_sample(payload, -1, None, 0)
+                nominal = run(payload, -1, None, 0)
                 atomic_write_text(nominal_file, json.dumps(nominal, indent=1))
             for i in todo:
-                store(run_sample(payload, i, design[i], int(seeds[i])))
+                store(run(payload, i, design[i], int(seeds[i])))
         else:
             nominal = _run_dask(payload, nominal, nominal_file, todo, design, seeds, store,
                                 workers, scheduler)
@@ -200,7 +234,7 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
                        summary, len(todo), time.perf_counter() - t_start, prepare_s)
 
 
-def _run_dask(payload: SweepPayload, nominal: dict[str, Any] | None, nominal_file: Path,
+def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
               todo: list[int], design: np.ndarray, seeds: np.ndarray,
               store: Callable[[dict[str, Any]], None], workers: int,
               scheduler: str | None) -> dict[str, Any]:
@@ -224,13 +258,14 @@ def _run_dask(payload: SweepPayload, nominal: dict[str, Any] | None, nominal_fil
         client = Client(cluster)
     else:
         client = _connect(scheduler)
+    run = sample_function(payload)
     try:
         [pf] = client.scatter([payload], broadcast=True, hash=False)
         if nominal is None:
-            nominal = client.submit(run_sample, pf, -1, None, 0, pure=False,
+            nominal = client.submit(run, pf, -1, None, 0, pure=False,
                                     retries=3).result()
             atomic_write_text(nominal_file, json.dumps(nominal, indent=1))
-        futs = [client.submit(run_sample, pf, i, design[i], int(seeds[i]), pure=False,
+        futs = [client.submit(run, pf, i, design[i], int(seeds[i]), pure=False,
                               retries=3, key=f"paintcell-sample-{payload.digest}-{i}")
                 for i in todo]
         for fut in as_completed(futs):

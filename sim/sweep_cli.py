@@ -84,6 +84,10 @@ def format_summary(s: dict[str, Any]) -> str:
     for f, row in s["sensitivity"].items():
         rho = row["executed_nsd_pct"]["rho"]
         lines.append(f"sensitivity of executed σ/μ to {f}: Spearman ρ = {_f(rho)}")
+        if "max_part_executed_nsd_pct" in row:   # a booth: its threshold is the worst part's
+            rho = row["max_part_executed_nsd_pct"]["rho"]
+            lines.append(f"sensitivity of the worst part's executed σ/μ to {f}: Spearman ρ = "
+                         f"{_f(rho)}")
     for c in s["limit_checks"]:
         lines.append(f"limit {c['name']}: {_f(c['value'])} {'≤' if c['kind'] == 'max' else '≥'} "
                      f"{_f(c['limit'])} {'PASS' if c['passed'] else 'FAIL'}")

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 #: name → (unit, meaning). The sweep sets these `Disturbances` fields per sample.
 FACTORS: dict[str, tuple[str, str]] = {
     "part_offset_m": ("m", "part placement error on the skid: a translation of |x| in a seeded "
@@ -16,11 +18,17 @@ FACTORS: dict[str, tuple[str, str]] = {
     "trigger_delay_s": ("s", "paint trigger switching late (+) or early (−), signed"),
     "flow_scale": ("-", "actual ÷ nominal paint flow, > 0"),
     "flow_drift": ("-", "relative change of the flow over the program, signed, in (−1, 1)"),
+    "conveyor_speed_error_m_s": ("m/s", "booth only: actual − nominal line speed, signed; the "
+                                        "robots still track the nominal speed"),
 }
+#: the factors a booth sweep (`sim.sweep_booth`) models; the others are single-robot ones.
+BOOTH_FACTORS = ("conveyor_speed_error_m_s",)
 #: factors that are lengths/angles in a random direction: the sweep uses |draw|.
 MAGNITUDE_FACTORS = ("part_offset_m", "part_rotation_rad", "tcp_offset_m")
 #: tolerances a paint shop asks about that this cell does not model (named in the error).
-NOT_MODELLED = {"conveyor_speed_m_s": "the cell has no conveyor: the part stands still"}
+NOT_MODELLED = {"conveyor_speed_m_s": "the single-robot cell has no conveyor (the part stands "
+                                      "still); a booth's line speed tolerance is "
+                                      "conveyor_speed_error_m_s on a booth scenario"}
 METHODS = ("lhs", "mc")
 #: the per-sample figures (validation metric keys) a sweep records and summarizes, with units.
 SAMPLE_METRICS: dict[str, str] = {
@@ -32,3 +40,17 @@ SAMPLE_METRICS: dict[str, str] = {
     "executed_cycle_time_s": "s",
     "tracking_error_max_mm": "mm",
 }
+#: the figures a booth sample records beside those (`sim.sweep_booth`): the conveyor's share of
+#: the loss, the worst part's executed σ/μ (the booth's threshold), the carrier's measured speed.
+BOOTH_METRICS: dict[str, str] = {
+    "loss_conveyor_pp": "pp",
+    "max_part_executed_nsd_pct": "%",
+    "carrier_speed_m_s": "m/s",
+}
+
+
+def record_metrics(records: list[dict[str, Any]]) -> dict[str, str]:
+    """figure → unit: `SAMPLE_METRICS`, and the `BOOTH_METRICS` some record holds a value of."""
+    extra = {k: u for k, u in BOOTH_METRICS.items()
+             if any((r.get("metrics") or {}).get(k) is not None for r in records)}
+    return {**SAMPLE_METRICS, **extra}

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from planning.atomic_io import atomic_write_text
-from sim.sweep_names import SAMPLE_METRICS
 
 #: figures plotted as histograms (the headline ones).
 HIST_FIGURES = ("executed_nsd_pct", "executed_within_tolerance_pct", "executed_min_um",
@@ -59,7 +58,7 @@ def make_sweep_figures(out: Path, summary: dict[str, Any],
                 ax.axvline(figs[key][q], color="k", ls=ls, lw=1, label=q.upper())
         if figs[key].get("nominal") is not None:
             ax.axvline(figs[key]["nominal"], color="#d62728", lw=1.5, label="nominal")
-        ax.set_xlabel(f"{key} [{SAMPLE_METRICS[key]}]")
+        ax.set_xlabel(f"{key} [{figs[key]['unit']}]")
         ax.set_ylabel("samples")
     axes[0, 0].legend(fontsize=8)
     fig.suptitle(f"{summary['samples_done']} samples; yield {summary['yield_pct'] or 0:.1f} % "
@@ -120,7 +119,7 @@ def write_sweep_report(out: str | Path) -> Path:
     srows = "".join(
         f"<tr><td>{e(f)} [{e(summary['spec']['units'].get(f, ''))}]</td><td>"
         f"{e(summary['spec']['factors'].get(f, ''))}</td>"
-        + "".join(f"<td>{_fmt(sens[f][k]['rho'])}</td>" for k in SAMPLE_METRICS) + "</tr>"
+        + "".join(f"<td>{_fmt(sens[f][k]['rho'])}</td>" for k in summary["figures"]) + "</tr>"
         for f in sens)
     lim = "".join(f"<tr><td>{e(c['name'])}</td><td>{_fmt(c['value'])}</td><td>{c['kind']} "
                   f"{_fmt(c['limit'])}</td><td>{'PASS' if c['passed'] else 'FAIL'}</td></tr>"
@@ -142,7 +141,7 @@ seed {header['spec']['seed']}, {'fast' if header['fast'] else 'full'} resolution
 <h2>Figures</h2><table><tr><th>figure</th><th>unit</th><th>nominal</th><th>P5</th><th>P50</th>
 <th>P95</th><th>min</th><th>max</th></tr>{rows}</table>
 <h2>Sensitivity (Spearman ρ)</h2><table><tr><th>factor</th><th>distribution</th>
-{''.join(f'<th>{e(k)}</th>' for k in SAMPLE_METRICS)}</tr>{srows}</table>
+{''.join(f'<th>{e(k)}</th>' for k in summary["figures"])}</tr>{srows}</table>
 <h2>Limits</h2><table><tr><th>limit</th><th>value</th><th>required</th><th></th></tr>{lim}</table>
 {imgs}</body></html>"""
     path = out / "report.html"

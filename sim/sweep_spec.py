@@ -29,7 +29,14 @@ from typing import Any
 import numpy as np
 
 from planning.errors import PaintcellError
-from sim.sweep_names import FACTORS, MAGNITUDE_FACTORS, METHODS, NOT_MODELLED, SAMPLE_METRICS
+from sim.sweep_names import (
+    BOOTH_METRICS,
+    FACTORS,
+    MAGNITUDE_FACTORS,
+    METHODS,
+    NOT_MODELLED,
+    SAMPLE_METRICS,
+)
 
 #: a sweep limit key: max_pNN_<figure> or min_pNN_<figure>
 _LIMIT_RE = re.compile(r"^(max|min)_p(\d{1,2})_(.+)$")
@@ -258,9 +265,10 @@ def check_limits(limits: dict[str, Any] | None) -> dict[str, float]:
         m = _LIMIT_RE.match(key)
         if key in ("min_yield_pct", "min_yield_lower_pct"):
             pass
-        elif m is None or m.group(3) not in SAMPLE_METRICS:
+        elif m is None or m.group(3) not in {**SAMPLE_METRICS, **BOOTH_METRICS}:
             raise SweepError(f"unknown sweep limit {key!r}; use max_pNN_<figure>, "
-                             f"min_pNN_<figure> (figures: {', '.join(SAMPLE_METRICS)}), "
+                             f"min_pNN_<figure> (figures: {', '.join(SAMPLE_METRICS)}; a "
+                             f"booth's also {', '.join(BOOTH_METRICS)}), "
                              "min_yield_pct or min_yield_lower_pct")
         out[key] = float(val)
     return out

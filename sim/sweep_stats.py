@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from sim.sweep_names import SAMPLE_METRICS
+from sim.sweep_names import record_metrics
 from sim.sweep_spec import _LIMIT_RE, SweepSpec, check_limits
 
 QUANTILES = (5, 50, 95)
@@ -57,7 +57,7 @@ def summarize(spec: SweepSpec, nominal: dict[str, Any] | None, records: list[dic
     n_err = sum("error" in r for r in records)
     lo, hi = yield_interval(n_pass, n)
     fig: dict[str, Any] = {}
-    for key, unit in SAMPLE_METRICS.items():
+    for key, unit in record_metrics(records).items():
         v = np.array([_f(r["metrics"].get(key)) for r in records], float)
         ok = v[np.isfinite(v)]
         fig[key] = {"unit": unit, **quantiles(v),
@@ -95,7 +95,7 @@ def sensitivity(spec: SweepSpec, records: list[dict[str, Any]]) -> dict[str, dic
     for name in spec.names:
         x = np.array([_f(r["factors"].get(name)) for r in records], float)
         row: dict[str, Any] = {}
-        for key in SAMPLE_METRICS:
+        for key in record_metrics(records):
             y = np.array([_f(r["metrics"].get(key)) for r in records], float)
             ok = np.isfinite(x) & np.isfinite(y)
             # a figure that varies only by round-off (σ/μ under a pure flow scaling) is constant

@@ -1,0 +1,110 @@
+"""Booth sweeps over the conveyor's speed error (`sim.sweep_booth`).
+
+The slow test sends a small sweep of the two-robot roof booth through a real Dask cluster
+(a `dask scheduler` and two `dask worker` processes on 127.0.0.1, started by the fixture of
+`tests.test_sweep_dask`), and checks it against independent truth:
+- MuJoCo's carrier really ran at the nominal + sampled speed (least-squares slope of its joint);
+- the executed film equals the film of the reference TCPs against a body moved analytically by
+  (v + δv)·(t − t_ref) along the line (kinematic execution: the TCP is the reference);
+- the nominal sample has no conveyor loss, and a larger speed error loses more uniformity;
+- a sample run in this process equals the cluster's record (timings and worker excluded).
+"""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.sweep import run_sweep
+from sim.sweep_spec import SweepError, SweepSpec
+from sim.sweep_worker import RUN_KEYS
+from tests.sweep_cases import plate_scenario
+from tests.test_booth import ROOF_BOOTH
+from tests.test_sweep_dask import cluster  # noqa: F401 - the loopback cluster fixture
+
+SPEC = SweepSpec.from_strings(["conveyor_speed_error_m_s=uniform(-0.01, 0.01)"], 2, seed=3)
+
+
+def test_factors_that_do_not_fit_the_scenario_are_refused(tmp_path: Path) -> None:
+    """A line-speed error on the single-robot cell, a single-robot factor on a booth: one-line
+    errors naming the fix, before anything is planned or written."""
+    from sim.scenario_files import load_scenario
+
+    plate = load_scenario(plate_scenario(tmp_path / "case"))
+    with pytest.raises(SweepError, match="no conveyor; sweep a booth scenario"):
+        run_sweep(plate, SPEC, tmp_path / "a", progress=False)
+    with pytest.raises(SweepError, match=r"\['gain_scale'\] are not modelled in a booth sweep"):
+        run_sweep(ROOF_BOOTH, SweepSpec.from_strings(["gain_scale=uniform(0.5, 1.5)"], 2),
+                  tmp_path / "b", progress=False)
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
+    import tomllib
+
+    import tomli_w
+
+    from sim.booth_data import BoothDataError
+    from sim.scenario_files import load_scenario
+
+    b = load_scenario("scenarios/booth.toml")
+    assert b.sweep["factors"] == {"conveyor_speed_error_m_s": "normal(0, 0.0025)"}
+    data = tomllib.loads(Path("scenarios/booth.toml").read_text())
+    data["sweep"] = {"factors": {"flow_scale": "normal(1, 0.05)"}}
+    bad = tmp_path / "booth.toml"
+    bad.write_text(tomli_w.dumps(data))
+    with pytest.raises(BoothDataError, match=r"booth.toml: factor\(s\) \['flow_scale'\] are not"):
+        load_scenario(bad)
+
+
+@pytest.mark.slow
+def test_conveyor_speed_sweep_on_a_loopback_cluster(
+        tmp_path: Path, cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:  # noqa: F811
+    from planning.deposition import thickness
+    from sim.booth_film import body_uniformity, gun_in_body
+    from sim.sweep import spec_digest
+    from sim.sweep_booth import prepare_booth_payload, run_booth_sample
+
+    address, _ = cluster
+    res = run_sweep(ROOF_BOOTH, SPEC, tmp_path / "remote", fast=True, mode="kinematic",
+                    scheduler=address, progress=False, report=False)
+    assert res.ran == SPEC.samples and len(res.samples) == SPEC.samples
+    assert len(list((tmp_path / "remote" / "samples").glob("*.json"))) == SPEC.samples
+    v = ROOF_BOOTH.conveyor.speed_m_s
+    recs = [res.nominal, *res.samples]
+    dv = [r["factors"].get("conveyor_speed_error_m_s", 0.0) for r in recs]
+    assert all(abs(x) > 1e-3 for x in dv[1:])   # the seed draws real errors
+    for r, d in zip(recs, dv, strict=True):
+        assert "error" not in r
+        assert abs(r["metrics"]["carrier_speed_m_s"] - (v + d)) < 1e-9
+    # no speed error, no conveyor loss; a larger error loses more (drift ∝ δv)
+    assert abs(res.nominal["metrics"]["loss_conveyor_pp"]) < 1e-9
+    loss = {abs(d): r["metrics"]["loss_conveyor_pp"] for r, d in zip(recs[1:], dv[1:],
+                                                                       strict=True)}
+    ordered = [loss[k] for k in sorted(loss)]
+    assert ordered[0] > 0.01 and ordered == sorted(ordered)
+
+    # the largest error again, in this process: same record; its film against the analytic body
+    payload = prepare_booth_payload(ROOF_BOOTH, SPEC.names,
+                                    spec_digest(ROOF_BOOTH, SPEC, True, "kinematic"), True,
+                                    "kinematic")
+    i = int(np.argmax(np.abs(dv[1:])))
+    rec = res.samples[i]
+    local = run_booth_sample(payload, rec["index"], SPEC.design()[rec["index"]],
+                             int(SPEC.sample_seeds()[rec["index"]]))
+    assert ({k: w for k, w in local.items() if k not in RUN_KEYS}
+            == {k: w for k, w in rec.items() if k not in RUN_KEYS})
+    progs = payload.programs
+    t = progs.trajs[0].t_s
+    carrier = (v + dv[1 + i]) * (t - progs.t_ref_s)                # where the body really was
+    app, body = progs.plans[0].applicator, progs.body
+    film = sum(thickness(app, gun_in_body(t, tr.tcp_pos_world, tr.tcp_rot_world, tr.paint_on,
+                                          ROOF_BOOTH.body_placement.matrix, carrier,
+                                          ROOF_BOOTH.conveyor.unit),
+                         body.vertices, body.normals) for tr in progs.trajs)
+    nsd = body_uniformity(film, body.vertex_areas)
+    assert abs(nsd - rec["metrics"]["executed_nsd_pct"]) < 1e-9 * nsd
+    assert abs(1e6 * film.min() - rec["metrics"]["executed_min_um"]) < 1e-9 * 1e6 * film.max()
