@@ -40,6 +40,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -58,6 +59,8 @@ BOUND_MARGIN = 0.01
 #: Curves whose mean film at nominal speed is below this fraction of the largest curve's receive
 #: (almost) no paint from this pass: 1/k_j² would blow their weight up, so they leave the objective.
 MIN_CURVE_FILM_REL = 1e-3
+#: Weight of (mean film on curve 0 / k_0 − 1)² in the SQP's merit function (J is ~1e-4..1e-2).
+EQUALITY_PENALTY = 1e4
 OBJECTIVES = ("paper", "centred")
 
 
@@ -360,15 +363,23 @@ def optimize_speed_from_rates(rates: Sequence[npt.ArrayLike],
     Dm = M[1:] - M[:-1]
     w_used = np.flatnonzero(obj.weights > 0)
 
-    def feasible(y: np.ndarray) -> bool:
+    def violation(y: np.ndarray) -> float:
         v = M @ y
-        tol = CONSTRAINT_RTOL
-        return bool(np.all(v <= cap * (1 + tol)) and np.all(v >= floor * (1 - tol))
-                    and np.all(np.abs(Dm @ y) <= dv_max * (1 + tol)))
+        return float(max(np.max(v / cap - 1), np.max(floor / v - 1),
+                         np.max(np.abs(Dm @ y) / dv_max - 1), 0.0))
+
+    def feasible(y: np.ndarray) -> bool:
+        return violation(y) <= CONSTRAINT_RTOL
+
+    def mean0(y: np.ndarray) -> float:
+        return float(obj.r[0] @ (obj.rates[0] @ obj.segment_times(y)))
 
     def rescale(y: np.ndarray) -> np.ndarray:
-        mean0 = obj.r[0] @ (obj.rates[0] @ obj.segment_times(y))
-        return y * (mean0 / obj.k[0])          # film ∝ 1/speed: the mean on curve 0 is k_0
+        """Meet the average-film equality exactly by scaling all knot speeds (film ∝ 1/speed)
+        when that keeps every bound; else keep y (its QP met the equality to first order, and
+        the SQP steps drive the remainder to zero)."""
+        c = mean0(y) / obj.k[0]
+        return y * c if feasible(y * c) else y
 
     def result(y: np.ndarray, status: str, iters: int) -> SpeedResult:
         t = obj.segment_times(y)
@@ -386,8 +397,15 @@ def optimize_speed_from_rates(rates: Sequence[npt.ArrayLike],
     start_ok = feasible(y)
     if z_hi - z_lo <= 1e-9 and start_ok:
         return result(y, "constant: speed window closed (v_min = v_max)", 0)
-    J = obj.value(y) if start_ok else math.inf
-    tr = settings.trust_region
+    def merit(y: np.ndarray) -> float:
+        # eq. 2's objective plus a stiff penalty on the average-film equality, so that a step
+        # is not accepted for lowering J by letting the (second-order) equality error grow
+        return obj.value(y) + EQUALITY_PENALTY * (mean0(y) / obj.k[0] - 1.0) ** 2
+
+    J = merit(y) if start_ok else math.inf
+    # a start that breaks the speed caps is first moved onto them (restoration steps, no trust
+    # region, accepted while the violation shrinks); then the usual descent
+    tr = settings.trust_region if start_ok else 10.0
     lo_m, hi_m = floor * (1 + BOUND_MARGIN), cap * (1 - BOUND_MARGIN)
     accepted, converged = 0, False
     for _ in range(settings.max_iter):
@@ -402,8 +420,9 @@ def optimize_speed_from_rates(rates: Sequence[npt.ArrayLike],
             wr = obj.weights[j] * obj.r[j]
             P += 2.0 * Jf.T @ (wr[:, None] * Jf)
             q += 2.0 * Jf.T @ (wr * res[j])
-        eq = obj.r[0] @ jac[0]                       # linearized average-film equality
-        e0 = obj.k[0] - obj.r[0] @ (obj.rates[0] @ t)
+        # linearized average-film equality, relative to k_0 (O(1): OSQP's tolerances are absolute)
+        eq = (obj.r[0] @ jac[0]) / obj.k[0]
+        e0 = 1.0 - (obj.r[0] @ (obj.rates[0] @ t)) / obj.k[0]
         dm = dv_max * (1 - BOUND_MARGIN)
         A = sp.vstack([sp.csc_matrix(M), sp.csc_matrix(Dm), sp.identity(K, format="csc"),
                        sp.csc_matrix(eq[None, :])], format="csc")
@@ -421,8 +440,17 @@ def optimize_speed_from_rates(rates: Sequence[npt.ArrayLike],
                 break
             continue
         cand = rescale(y + np.asarray(sol.x))
-        J_new = obj.value(cand) if feasible(cand) else math.inf
-        if J_new < J or (not math.isfinite(J) and math.isfinite(J_new)):
+        J_new = merit(cand) if feasible(cand) else math.inf
+        if not math.isfinite(J) and not math.isfinite(J_new):
+            if violation(cand) < violation(y) * (1 - 1e-3):
+                y = cand                              # restoration: closer to the caps
+                continue
+            break
+        if not math.isfinite(J):
+            tr = settings.trust_region               # feasible now: descend from here
+            y, J, accepted = cand, J_new, accepted + 1
+            continue
+        if J_new < J:
             step = float(np.max(np.abs(cand - y)))
             y, J, accepted = cand, J_new, accepted + 1
             if step < 1e-6 or (math.isfinite(J) and J_new > (1 - 1e-9) * J and step < 1e-3):
@@ -435,9 +463,42 @@ def optimize_speed_from_rates(rates: Sequence[npt.ArrayLike],
                 break
     if not math.isfinite(J):
         return result(np.ones(K), "constant: no profile meets the speed upper bounds", accepted)
+    y = _project_equality(y, obj, M, Dm, dv_max, lo_m, hi_m, feasible, mean0, settings.eps)
     if accepted == 0:
         return result(y, "constant: no step improved eq. 2 on this band", 0)
     return result(y, "optimal" if converged else "iteration limit", accepted)
+
+
+def _project_equality(y: np.ndarray, obj: SpeedObjective, M: np.ndarray, Dm: np.ndarray,
+                      dv_max: np.ndarray, lo_m: np.ndarray, hi_m: np.ndarray, feasible: Any,
+                      mean0: Any, eps: float) -> np.ndarray:
+    """Newton projection onto the average-film equality: the smallest knot change meeting the
+    linearized equality within the bounds, repeated while the residual shrinks (≤ 8 times)."""
+    K = len(y)
+    for _ in range(8):
+        err = abs(mean0(y) / obj.k[0] - 1)
+        if err < 1e-12:
+            break
+        _, jac = obj.jacobians(y)
+        eq = (obj.r[0] @ jac[0]) / obj.k[0]
+        e0 = 1.0 - mean0(y) / obj.k[0]
+        dm = dv_max * (1 - BOUND_MARGIN / 2)
+        A = sp.vstack([sp.csc_matrix(M), sp.csc_matrix(Dm), sp.csc_matrix(eq[None, :])],
+                      format="csc")
+        lo = np.concatenate([np.minimum(lo_m - M @ y, 0), np.minimum(-dm - Dm @ y, 0), [e0]])
+        hi = np.concatenate([np.maximum(hi_m - M @ y, 0), np.maximum(dm - Dm @ y, 0), [e0]])
+        solver = osqp.OSQP()
+        solver.setup(sp.identity(K, format="csc"), np.zeros(K), A, lo, hi, verbose=False,
+                     eps_abs=min(eps, 1e-9), eps_rel=min(eps, 1e-9), max_iter=20000,
+                     polishing=True)
+        sol = solver.solve(raise_error=False)
+        if sol.x is None or not np.all(np.isfinite(sol.x)):
+            break
+        cand = y + np.asarray(sol.x)
+        if not feasible(cand) or abs(mean0(cand) / obj.k[0] - 1) >= err:
+            break
+        y = cand
+    return y
 
 
 def optimize_pass_speed(app: Applicator, centers: npt.ArrayLike, spray_axes: npt.ArrayLike,

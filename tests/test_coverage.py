@@ -73,7 +73,8 @@ def test_plan_coverage_checks_its_inputs() -> None:
 
 
 def test_plane_passes_straight_parallel_equally_spaced(panel_plan: CoveragePlan) -> None:
-    want = planar_index_width(APP, FAST.w_min_m, FAST.w_max_m, FAST.w_res_m, FAST.u_max).width_m
+    want = planar_index_width(APP, FAST.w_min_m, FAST.w_max_m, FAST.w_res_m, FAST.u_max,
+                              FAST.width_tolerance_m).width_m
     sides = [p.side for p in panel_plan.passes]
     assert sides == sorted(sides) and 0 in sides
     ys = []
@@ -329,7 +330,9 @@ def test_sphere_cap_offsets_are_small_circles_with_closed_form_geodesic_curvatur
     cap = trimesh.Trimesh(ico.vertices, ico.faces[keep])
     cap.remove_unreferenced_vertices()
     s = Surface.from_mesh(cap, name="cap")
-    plan = plan_coverage(s, APP, FAST)
+    # the width pinned to 0.15 m, where the faceted-cap tolerance below was measured (the chord
+    # error of the section grows with the arc; the width choice is tested elsewhere)
+    plan = plan_coverage(s, APP, replace(FAST, w_min_m=0.15, w_max_m=0.15))
     assert "gaussian-curvature divider" in plan.start_rule
     checked = 0
     for i, p in enumerate(plan.passes):
@@ -388,7 +391,8 @@ def _max_turn_rad(positions: np.ndarray) -> float:
 
 
 MESH_RES = 0.02
-MESH_ST = PlannerSettings(orientation="zero-curvature")
+# film_guard off: the per-pass QP speeds are compared (the guard blends the whole plan at once)
+MESH_ST = PlannerSettings(orientation="zero-curvature", film_guard=False)
 
 
 @pytest.mark.parametrize("name", ["door", "fender"])
@@ -422,7 +426,10 @@ def test_part_from_a_mesh_file_plans_like_the_parametric_part(name: str, tmp_pat
         assert np.all(p.speeds_m_s <= MESH_ST.v_max_m_s * (1 + 1e-6))
         ends = sorted([p.speeds_m_s[0], p.speeds_m_s[-1]])
         ref_ends = sorted([ref[p.side].speeds_m_s[0], ref[p.side].speeds_m_s[-1]])
-        np.testing.assert_allclose(ends, ref_ends, atol=0.05, err_msg=f"{name} {p.side}")
+        if p.on_part.any():
+            # (an edge pass's end speeds are weakly determined — its paint there lands off the
+            # part — so for edge passes only the no-run-up check below applies)
+            np.testing.assert_allclose(ends, ref_ends, atol=0.05, err_msg=f"{name} {p.side}")
         assert p.speeds_m_s.max() <= ref[p.side].speeds_m_s.max() + 0.1, (name, p.side)
 
 

@@ -59,16 +59,34 @@ def test_fig5_curve_matches_poisson_summation(sigma_y: float) -> None:
     np.testing.assert_allclose(got, want, atol=NSD_TRUNCATION_ATOL)
 
 
-def test_planar_width_is_largest_feasible_point_of_fig5() -> None:
+def _brute_force_nsd(app: Applicator, w: float) -> float:
+    """σ/μ of the film of parallel straight passes w apart on a plane, by direct 2-D quadrature of
+    the applicator's f(x, y) (independent of planning.index_width): each pass contributes
+    ∫ f(x, y − k w) dx, summed over every pass that reaches the profile."""
+    x = np.linspace(-0.6, 0.6, 1201)
+    yq = (np.arange(200) + 0.5) / 200 * w
+    k = np.arange(-int(0.6 / w) - 2, int(0.6 / w) + 3)
+    dy = (yq[:, None] - k[None, :] * w).reshape(-1)
+    stripe = np.trapezoid(app.flux(x[None, :], dy[:, None]), x, axis=1).reshape(len(yq), len(k))
+    film = stripe.sum(axis=1)
+    return float(film.std() / film.mean())
+
+
+@pytest.mark.parametrize("tolerance_m", [0.0, 0.025])
+def test_planar_width_equals_brute_force_grid_search(tolerance_m: float) -> None:
+    """The planar rule against a brute-force search over the grid of widths: the largest width
+    whose brute-force σ/μ stays ≤ u_max within ±tolerance."""
     app = Applicator.default()
-    u_max = 0.04
-    res = planar_index_width(app, 0.10, 0.45, 0.01, u_max)
+    u_max, res_m = 0.04, 0.01
+    res = planar_index_width(app, 0.20, 0.45, res_m, u_max, tolerance_m)
+    grid = np.round(np.arange(0.20 - 0.03, 0.45 + 0.03 + 1e-9, res_m), 6)
+    brute = {float(w): _brute_force_nsd(app, float(w)) for w in grid}
+    feasible = [w for w in grid if 0.20 - 1e-9 <= w <= 0.45 + 1e-9
+                and all(brute[float(v)] <= u_max for v in grid if abs(v - w) <= tolerance_m + 1e-9)]
     assert res.feasible
-    # re-measure the curve independently of the stored one
-    curve = nsd_vs_index_width(app, res.widths_m)
-    np.testing.assert_allclose(curve, res.nsd, rtol=1e-12)
-    assert curve[np.isclose(res.widths_m, res.width_m)][0] <= u_max
-    assert np.all(curve[res.widths_m > res.width_m + 1e-9] > u_max)
+    assert res.width_m == pytest.approx(max(feasible), abs=1e-9)
+    for w, c in zip(res.widths_m, res.nsd, strict=True):
+        assert c == pytest.approx(brute[float(np.round(w, 6))], abs=NSD_TRUNCATION_ATOL)
 
 
 def test_planar_width_infeasible_returns_min_and_flags() -> None:
