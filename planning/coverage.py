@@ -96,7 +96,8 @@ class PlannerSettings:
     film_guard: after the per-pass speed QPs, simulate the film of the whole plan on the part and
         keep the optimized speeds only where they are no worse than constant speed on the film
         itself, whole part and interior (farther than film_guard_band_m [m] from the boundary):
-        speeds v_nom + α (v_QP − v_nom) with the largest α ∈ {1, ¾, ½, ¼, 0} that passes both.
+        speeds v_nom + α (v_QP − v_nom), α ∈ {1, ¾, ½, ¼, 0}: the best whole-part film among
+        the blends no worse than constant speed on both.
     first_side: "right" (offset to the right of the start curve first, Algorithm 1 as written),
         "left" (the start curve reversed), or "best" (run both, keep the plan with the smaller
         largest predicted optimization-profile σ/μ; the semi-global search depends on the order).
@@ -256,6 +257,7 @@ class _Planner:
         self.diag = float(np.linalg.norm(np.ptp(surface.vertices, axis=0)))
         self.speed_settings = settings.speed_settings()
         self.speed_caps: dict[int, np.ndarray] = {}
+        self.tool_x: dict[int, np.ndarray] = {}
         self._nominal_width: float | None = None
 
     @property
@@ -380,7 +382,8 @@ def _is_planar(surface: Any) -> bool:
 
 def plan_coverage(surface: Surface, applicator: Applicator,
                   settings: PlannerSettings | None = None,
-                  speed_caps_m_s: dict[int, np.ndarray] | None = None) -> CoveragePlan:
+                  speed_caps_m_s: dict[int, np.ndarray] | None = None,
+                  tool_x: dict[int, np.ndarray] | None = None) -> CoveragePlan:
     """Plan uniform coverage of `surface` with `applicator` (paper Algorithm 1).
 
     surface: a `planning.surface.Surface` in its part frame; applicator: the deposition model;
@@ -388,7 +391,10 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     speed_caps_m_s: optional per-pass speed upper bounds {side: (M,) [m/s]}, one per TCP sample of
         that pass in its generation direction (`plan.passes[i]` reversed when i is odd): the speed
         QP re-plans under them (robot-aware speeds, `sim.speed_feedback`). A re-plan with the same
-        part and settings reproduces the same passes, so caps taken from a plan fit its re-plan.
+        part and settings reproduces the same passes, so caps taken from a plan fit its re-plan;
+    tool_x: optional per-pass bell x axes {side: (M, 3)} in the part frame, same sample order as
+        the caps: the orientation the robot will hold about the spray axis (a robot that frees
+        the bell's spin); the deposition model (QP, film) then uses it as the travel axis.
     Returns a `CoveragePlan` in the part frame: passes in execution order (side −k … +k,
     alternating direction), TCP at standoff along the normal, speeds and times, on_part /
     paint_on flags, index widths, the start-curve rule and the settings (with a `report` entry:
@@ -413,6 +419,11 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         if not np.all(np.isfinite(cap)) or np.any(cap <= 0):
             raise PlanError(f"speed caps of pass {side} must be finite speeds > 0 [m/s]")
         pl.speed_caps[int(side)] = cap
+    for side, xs in (tool_x or {}).items():
+        xs = np.asarray(xs, dtype=float)
+        if xs.ndim != 2 or xs.shape[1] != 3 or not np.all(np.isfinite(xs)):
+            raise PlanError(f"tool_x of pass {side} must be finite (M, 3) directions")
+        pl.tool_x[int(side)] = xs
     sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
                             geom=pl.geom)
     planar = _is_planar(surface)
@@ -605,6 +616,12 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
     if np.any(seg_len <= 0):
         raise PlanError(f"pass {p.side} has repeated TCP samples; refine the mesh")
     travel = tangents(pos)
+    tx = pl.tool_x.get(p.side)
+    if tx is not None:
+        if len(tx) != len(pos):
+            raise PlanError(f"tool_x of pass {p.side} has {len(tx)} samples, the pass "
+                            f"{len(pos)}; it must come from a plan of the same part and settings")
+        travel = tx
     travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
     speeds = np.full(len(pos), st.v_nominal_m_s)
     nsd_c = nsd_o = float("nan")
@@ -618,7 +635,8 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
         if band is not None:
             mid = 0.5 * (pos[1:] + pos[:-1])
             ax = unit(0.5 * (axes[1:] + axes[:-1]))
-            tr = unit(seg - np.sum(seg * ax, axis=1, keepdims=True) * ax)
+            tr = seg if tx is None else 0.5 * (travel[1:] + travel[:-1])
+            tr = unit(tr - np.sum(tr * ax, axis=1, keepdims=True) * ax)
             res = optimize_pass_speed(app, mid, ax, tr, seg_len, band, pl.speed_settings, cap)
             speeds = np.asarray(res.sample_speeds_m_s, float)
             nsd_c, nsd_o = float(res.nsd_constant_pct), float(res.nsd_optimized_pct)
@@ -708,13 +726,12 @@ def _film_guard(pl: _Planner, surface: Surface, passes: list[PassPlan]
         return whole, inner
 
     const = nsd(0.0)
-    tried = {}
-    for alpha in (1.0, 0.75, 0.5, 0.25):
-        tried[alpha] = nsd(alpha)
-        if tried[alpha][0] <= const[0] and tried[alpha][1] <= const[1]:
-            break
-    else:
-        alpha = 0.0
+    tried = {a: nsd(a) for a in (1.0, 0.75, 0.5, 0.25)}
+    tried[0.0] = const
+    # the blend with the best whole-part film among those no worse than constant speed on the
+    # interior and the whole part (α = 0, constant speed, always qualifies)
+    ok = [a for a, (w, i) in tried.items() if w <= const[0] and i <= const[1]]
+    alpha = min(ok, key=lambda a: (tried[a][0], -a))
     info = {"alpha": alpha, "constant_whole_pct": const[0], "constant_interior_pct": const[1],
             "tried": {str(a): list(v) for a, v in tried.items()}}
     return (passes if alpha == 1.0 else _blend(passes, alpha, base)), info

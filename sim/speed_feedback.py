@@ -30,6 +30,8 @@ SLOW_REL = 0.005
 #: Caps sit this fraction below the speed the robot reached there (room for the re-planned
 #: profile's own accelerations).
 CAP_MARGIN = 0.03
+#: The bell's x axis counts as followed when the program holds it within this of the plan [deg].
+SPIN_TOL_DEG = 1.0
 
 
 @dataclass
@@ -97,28 +99,62 @@ def speed_caps(plan: CoveragePlan, traj: Any, previous: dict[int, np.ndarray] | 
     return caps, n_new, worst
 
 
+def tool_axes(plan: CoveragePlan, traj: Any, T_world_part: np.ndarray) -> dict[int, np.ndarray]:
+    """Per pass, the bell x axis the joint program holds at each plan sample, in the part frame
+    and the pass's generation direction ({side: (M, 3)}): what a robot that frees the bell's spin
+    about its axis really does (the plan's film assumed x = travel)."""
+    R = np.asarray(T_world_part, float)[:3, :3]
+    out = {}
+    for i, p in enumerate(plan.passes):
+        idx = np.flatnonzero(traj.pass_index == i)
+        if len(idx) < 3:
+            continue
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                                 axis=1))])
+        s = traj.s_pass_m[idx]
+        order = np.argsort(s, kind="stable")
+        x_part = traj.tcp_rot_world[idx][:, :, 0] @ R          # world → part frame (Rᵀ x)
+        x = np.stack([np.interp(s_plan, s[order], x_part[order, k]) for k in range(3)], axis=1)
+        x /= np.linalg.norm(x, axis=1, keepdims=True)
+        out[p.side] = -x[::-1] if i % 2 == 1 else x       # generation direction
+    return out
+
+
 def robot_aware_plan(surface: Surface, app: Applicator, settings: PlannerSettings,
-                     plan: CoveragePlan, traj: Any, build: Any, rounds: int = 3
-                     ) -> FeedbackResult:
+                     plan: CoveragePlan, traj: Any, build: Any, rounds: int = 3,
+                     T_world_part: np.ndarray | None = None) -> FeedbackResult:
     """Re-plan the speeds under the robot's reachable speeds until no new slowdown appears.
 
     surface, app, settings: what `plan` was planned with; traj: its joint program;
     build: callable plan → joint program (`sim.trajectory.build_program` bound to the robot and
-    placement); rounds: re-plans at most.
+    placement); rounds: re-plans at most; T_world_part: the part placement — when given, the bell
+    x axes the program holds are fed back too (`tool_axes`), so the plan's film model uses the
+    orientation the robot really holds about the spray axis.
     Returns the final plan and program; a round whose program is slower than the first by more
     than 5 % ends the loop with the previous round's plan.
     """
     res = FeedbackResult(plan, traj)
     cycle0 = float(traj.t_s[-1])
     caps: dict[int, np.ndarray] = {}
+    tool_x: dict[int, np.ndarray] = {}
     for _ in range(rounds):
         caps, n_new, worst = speed_caps(res.plan, res.trajectory, caps)
+        turn = 0.0
+        if T_world_part is not None:
+            new_x = tool_axes(res.plan, res.trajectory, T_world_part)
+            for i, p in enumerate(res.plan.passes):
+                if p.side in new_x:
+                    x_plan = p.travel_dirs[::-1] * -1 if i % 2 == 1 else p.travel_dirs
+                    cosang = np.clip(np.einsum("ij,ij->i", x_plan, new_x[p.side]), -1, 1)
+                    turn = max(turn, float(np.degrees(np.arccos(cosang)).max()))
+            tool_x = new_x
         res.rounds.append({"capped_samples": float(n_new), "max_deficit_pct": worst,
-                           "cycle_s": float(res.trajectory.t_s[-1])})
-        if n_new == 0:
+                           "cycle_s": float(res.trajectory.t_s[-1]), "max_spin_deg": turn})
+        if n_new == 0 and turn < SPIN_TOL_DEG:
             break
         finite = {k: np.where(np.isfinite(v), v, settings.v_max_m_s) for k, v in caps.items()}
-        new_plan = plan_coverage(surface, app, settings, speed_caps_m_s=finite)
+        new_plan = plan_coverage(surface, app, settings, speed_caps_m_s=finite,
+                                 tool_x=tool_x or None)
         new_traj = build(new_plan)
         if float(new_traj.t_s[-1]) > 1.05 * cycle0:
             break
@@ -137,7 +173,8 @@ def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, 
     from sim.pipeline import load_applicator, make_trajectory, planner_settings
 
     res = robot_aware_plan(surface, load_applicator(scn), planner_settings(scn, fast), plan, traj,
-                           lambda p: make_trajectory(scn, robot, p))
+                           lambda p: make_trajectory(scn, robot, p),
+                           T_world_part=scn.part_placement.matrix)
     res.trajectory.meta["speed_feedback"] = {
         "rounds": res.rounds,
         "capped_passes": sorted(int(k) for k in res.caps_m_s),

@@ -10,12 +10,13 @@ import pytest
 from planning import parts
 from planning.applicator import Applicator
 from planning.coverage import PlannerSettings, plan_coverage
-from planning.deposition import thickness
+from planning.deposition import deposition_rate_reference, thickness
 from planning.errors import PlanError
 from planning.index_width import nsd_vs_index_width, planar_index_width
+from planning.metrics import uniformity
 from planning.plan import CoveragePlan
 from planning.surface import Surface
-from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
+from tests.helpers import FLAT_GEOMETRY_ATOL_M, KERNEL_CULL_RTOL, MESH_ARC_RTOL
 
 RES = 0.025
 FAST = PlannerSettings(optimize_speed=False, sample_spacing_m=0.025)
@@ -267,8 +268,22 @@ def test_algorithm1_terminates_on_every_part_and_covers_it(name: str) -> None:
     s = parts.get_part(name, RES)
     plan = plan_coverage(s, APP, replace(FAST, overspray_m=0.25))
     film = thickness(APP, plan.gun_samples(), s.vertices, s.normals)
-    target = float(np.dot(film, s.vertex_areas) / s.vertex_areas.sum())
-    assert film.min() >= 0.5 * target, f"{name}: min {film.min() / target:.2f} of the mean"
+    # an independent film evaluation: the deposition model written literally from DESIGN.md
+    # (deposition_rate_reference) on every third vertex, summed with the plan's dwell times
+    gun = plan.gun_samples()
+    sub = np.arange(0, len(s.vertices), 3)
+    ref = deposition_rate_reference(APP, gun.positions, gun.spray_axes, gun.travel_dirs,
+                                    s.vertices[sub], s.normals[sub]).T @ gun.dwell_s
+    np.testing.assert_allclose(film[sub], ref, rtol=KERNEL_CULL_RTOL, atol=KERNEL_CULL_RTOL
+                               * float(ref.max()))
+    u = uniformity(ref, s.vertex_areas[sub])
+    # σ/μ bounds: the paper's planar 2.64 %; for the curved parts what this plan achieved at a
+    # 40 mm mesh (constant speed, 250 mm overspray) + 1 point: cylinder 6.17, door 3.15, fender
+    # 7.05, hood 1.73, roof 3.59 %; min film ≥ 75 % of the mean (achieved ≥ 84 %)
+    bound = {"panel": 2.64, "cylinder_section": 7.2, "door": 4.2, "fender": 8.1, "hood": 2.8,
+             "roof": 4.6}[name]
+    assert u.nsd_pct <= bound, f"{name}: σ/μ {u.nsd_pct:.2f} % > {bound} %"
+    assert ref.min() >= 0.75 * u.mean_m, f"{name}: min {ref.min() / u.mean_m:.2f} of the mean"
     sides = [p.side for p in plan.passes]
     assert sides == sorted(sides) and len(set(sides)) == len(sides)
     assert len(plan.passes) < FAST.max_passes
@@ -448,7 +463,7 @@ def test_door_from_a_mesh_file_gives_a_robot_program(tmp_path) -> None:
     parts.door(MESH_RES).mesh.export(path)
     plan = plan_coverage(Surface.from_mesh(path), APP, MESH_ST)
     T_world_part = Placement(xyz_m=(1.4, 0.0, 1.0), rpy_rad=facing_robot()).matrix
-    T_world_base = Placement(xyz_m=(-0.64, 0.2, 0.0), rpy_rad=(0.0, 0.0, -0.111)).matrix
+    T_world_base = Placement(xyz_m=(-0.728, 0.2, 0.5), rpy_rad=(0.0, 0.0, -0.1049)).matrix
     robot = load_robot("abb_paint", T_world_base=T_world_base)
     traj = build_program(robot, plan, T_world_part,
                          TrajectorySettings(q_home=(0.0, -0.6, 0.3, 0.0, 0.9, 0.0)))

@@ -9,6 +9,7 @@ import pytest
 
 from planning.applicator import Applicator
 from planning.errors import PaintcellError
+from planning.plan import times_from_speeds
 from planning.speed_qp import (
     SpeedQPError,
     SpeedSettings,
@@ -18,7 +19,6 @@ from planning.speed_qp import (
     optimize_pass_speed,
     optimize_speed_from_rates,
 )
-from planning.plan import times_from_speeds
 from tests.helpers import FD_GRADIENT_RTOL, QP_CONSTRAINT_RTOL
 
 H = 0.25  # standoff of the straight test pass [m]
