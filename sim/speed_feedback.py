@@ -22,6 +22,7 @@ import numpy as np
 
 from planning.applicator import Applicator
 from planning.coverage import PlannerSettings, plan_coverage
+from planning.errors import PaintcellError
 from planning.plan import CoveragePlan
 from planning.surface import Surface
 
@@ -46,7 +47,7 @@ class FeedbackResult:
 
     plan: CoveragePlan
     trajectory: Any
-    rounds: list[dict[str, float]] = field(default_factory=list)
+    rounds: list[dict[str, Any]] = field(default_factory=list)
     caps_m_s: dict[int, np.ndarray] = field(default_factory=dict)
 
 
@@ -116,6 +117,9 @@ def tool_axes(plan: CoveragePlan, traj: Any, T_world_part: np.ndarray) -> dict[i
         x_part = traj.tcp_rot_world[idx][:, :, 0] @ R          # world → part frame (Rᵀ x)
         x = np.stack([np.interp(s_plan, s[order], x_part[order, k]) for k in range(3)], axis=1)
         x /= np.linalg.norm(x, axis=1, keepdims=True)
+        # the pattern is symmetric under x → −x (f is even in x and y): keep the sign nearest
+        # the plan's travel axis, so the IK is not asked to turn the bell half a turn
+        x *= np.where(np.einsum("ij,ij->i", x, p.travel_dirs) < 0, -1.0, 1.0)[:, None]
         out[p.side] = -x[::-1] if i % 2 == 1 else x       # generation direction
     return out
 
@@ -153,11 +157,29 @@ def robot_aware_plan(surface: Surface, app: Applicator, settings: PlannerSetting
         if n_new == 0 and turn < SPIN_TOL_DEG:
             break
         finite = {k: np.where(np.isfinite(v), v, settings.v_max_m_s) for k, v in caps.items()}
-        new_plan = plan_coverage(surface, app, settings, speed_caps_m_s=finite,
-                                 tool_x=tool_x or None)
-        new_traj = build(new_plan)
-        if float(new_traj.t_s[-1]) > 1.05 * cycle0:
+        got = None
+        # with the bell's spin fed back first; if that program fails or runs > 5 % longer (the
+        # IK seeds follow the new target orientation to another branch), with the caps alone
+        for use_spin in ([True, False] if tool_x else [False]):
+            new_plan = plan_coverage(surface, app, settings, speed_caps_m_s=finite,
+                                     tool_x=tool_x if use_spin else None)
+            try:
+                new_traj = build(new_plan)
+            except PaintcellError as e:      # the re-plan's program failed: try without spin
+                res.rounds.append({"failed": str(e), "spin": use_spin})
+                if use_spin:
+                    tool_x, T_world_part = {}, None
+                continue
+            if float(new_traj.t_s[-1]) <= 1.05 * cycle0:
+                got = (new_plan, new_traj)
+                break
+            res.rounds.append({"rejected_cycle_s": float(new_traj.t_s[-1]), "spin": use_spin})
+            if use_spin:
+                tool_x = {}
+                T_world_part = None              # the robot cannot hold the plan's spin: stop
+        if got is None:
             break
+        new_plan, new_traj = got
         res.plan, res.trajectory, res.caps_m_s = new_plan, new_traj, finite
     else:
         _, _, worst = speed_caps(res.plan, res.trajectory, caps)
