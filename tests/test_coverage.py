@@ -13,7 +13,7 @@ from planning.coverage import PlannerSettings, plan_coverage
 from planning.deposition import deposition_rate_reference, thickness
 from planning.errors import PlanError
 from planning.index_width import nsd_vs_index_width, planar_index_width
-from planning.metrics import uniformity
+from planning.metrics import boundary_band_mask, boundary_vertices, uniformity
 from planning.plan import CoveragePlan
 from planning.surface import Surface
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, KERNEL_CULL_RTOL, MESH_ARC_RTOL
@@ -244,20 +244,34 @@ def test_planning_is_deterministic() -> None:
         np.testing.assert_array_equal(pa.positions, pb.positions)
 
 
-def test_speed_optimized_passes_respect_bounds_and_never_worse() -> None:
+def test_speed_optimized_plan_is_never_worse_than_constant_on_the_film() -> None:
+    """Checked on the film itself (the plan's samples through the literal reference kernel), not
+    on the speed module's band figures: whole part and interior (> 100 mm from the boundary)."""
     s = parts.panel(0.04)
     st = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=12)
-    plan = plan_coverage(s, APP, st)
-    ran = 0
-    for p in plan.passes:
+    opt = plan_coverage(s, APP, st)
+    const = plan_coverage(s, APP, replace(st, optimize_speed=False))
+    for p in opt.passes:
         assert np.all(p.speeds_m_s >= st.v_min_m_s * (1 - 1e-6))
         assert np.all(p.speeds_m_s <= st.v_max_m_s * (1 + 1e-6))
-        if np.isfinite(p.nsd_optimized_pct):
-            ran += 1
-            assert p.nsd_optimized_pct <= p.nsd_constant_pct + 1e-9
-    assert ran >= 3
-    statuses = [r.get("speed_status", "") for r in plan.settings["report"]["passes"]]
-    assert any(st_.startswith("optimal") for st_ in statuses)
+        acc = np.diff(p.speeds_m_s**2) / (2 * np.linalg.norm(np.diff(p.positions, axis=0),
+                                                               axis=1))
+        assert np.all(np.abs(acc) <= st.a_max_m_s2 * (1 + 1e-6))
+    inner = boundary_band_mask(s.vertices, s.vertices[boundary_vertices(s.faces)], 0.1)
+
+    def film_nsd(plan: CoveragePlan) -> tuple[float, float]:
+        g = plan.gun_samples()
+        f = deposition_rate_reference(APP, g.positions, g.spray_axes, g.travel_dirs,
+                                      s.vertices, s.normals).T @ g.dwell_s
+        return (uniformity(f, s.vertex_areas).nsd_pct,
+                uniformity(f, s.vertex_areas, mask=inner).nsd_pct)
+
+    w_opt, i_opt = film_nsd(opt)
+    w_const, i_const = film_nsd(const)
+    assert w_opt <= w_const + 1e-9 and i_opt <= i_const + 1e-9
+    # the short overspray leaves the panel ends thin at constant speed: the QP must help there
+    assert w_opt < 0.8 * w_const
+    assert opt.settings["report"]["film_guard"]["alpha"] > 0
 
 
 @pytest.mark.slow
