@@ -451,6 +451,11 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     if not candidates:
         raise errors[0]
     _, reversed_start, passes = min(candidates, key=lambda c: c[0])
+    bad = [f"pass {p.side}: {p.info['feedback_mismatch']}" for p in passes.values()
+           if "feedback_mismatch" in p.info]
+    if bad:
+        raise PlanError("speed caps / bell axes do not fit this plan (" + "; ".join(bad) + "); "
+                        "they must come from a plan of the same part and settings")
     plan_passes = _time_passes(pl, passes, st)
     guard: dict[str, Any] = {}
     if st.optimize_speed and st.film_guard:
@@ -617,18 +622,21 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
         raise PlanError(f"pass {p.side} has repeated TCP samples; refine the mesh")
     travel = tangents(pos)
     tx = pl.tool_x.get(p.side)
+    if tx is not None and len(tx) != len(pos):
+        p.info["feedback_mismatch"] = f"tool_x: {len(tx)} samples, the pass {len(pos)}"
+        tx = None
     if tx is not None:
-        if len(tx) != len(pos):
-            raise PlanError(f"tool_x of pass {p.side} has {len(tx)} samples, the pass "
-                            f"{len(pos)}; it must come from a plan of the same part and settings")
         travel = tx
     travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
     speeds = np.full(len(pos), st.v_nominal_m_s)
     nsd_c = nsd_o = float("nan")
+    # caps and bell axes of a re-plan belong to the passes of the order the plan chose; in the
+    # other order of first_side="best" a side can be another pass: skipped there, an error only
+    # if the chosen order does not fit (checked in plan_coverage)
     cap = pl.speed_caps.get(p.side)
     if cap is not None and len(cap) != len(pos):
-        raise PlanError(f"speed caps of pass {p.side} have {len(cap)} samples, the pass "
-                        f"{len(pos)}; caps must come from a plan of the same part and settings")
+        p.info["feedback_mismatch"] = f"speed caps: {len(cap)} samples, the pass {len(pos)}"
+        cap = None
     if st.optimize_speed:
         band = _band(pl, p, st.band_half_width * w_local)
         p.info["speed_status"] = "constant: no band on the part"

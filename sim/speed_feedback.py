@@ -194,7 +194,9 @@ def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, 
     and trajectory builder; the rounds are recorded in the program's meta["speed_feedback"]."""
     from sim.pipeline import load_applicator, make_trajectory, planner_settings
 
-    res = robot_aware_plan(surface, load_applicator(scn), planner_settings(scn, fast), plan, traj,
+    # the planner covers a real part's skin (as `sim.pipeline.make_plan` does)
+    res = robot_aware_plan(surface.region_surface(("skin",)), load_applicator(scn),
+                           planner_settings(scn, fast), plan, traj,
                            lambda p: make_trajectory(scn, robot, p),
                            T_world_part=scn.part_placement.matrix)
     res.trajectory.meta["speed_feedback"] = {
