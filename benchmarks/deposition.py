@@ -1,10 +1,10 @@
 """Benchmark of the thickness kernel: the door at 5 mm under a raster of ≥ 2,000 gun samples.
 
-Prints, one figure a line: problem size, fast-kernel time, pairs per second (S × N of the full
-problem, and the pairs actually evaluated after culling), the plain broadcast numpy evaluation
-(all pairs in chunks of samples: the literal formula `deposition_rate_reference`, the
-simplified formula as plain numpy, and the library's dense `deposition_rate`) time, the
-speed-ups, and the agreement.
+Prints, one figure a line, in one run: problem size; the pairs the kernels evaluate after culling;
+the compiled numba kernel (2 threads and 1), today's numpy kernel, and a plain chunked numpy
+evaluation of all pairs (the simplified formula, and the literal `deposition_rate_reference`):
+time, evaluated pairs per second (wall and per CPU-second: other jobs share this machine, and
+the load average is printed), speed-ups, and the agreement relative to the peak film.
 
     .venv/bin/python benchmarks/deposition.py [--threads 2] [--repeat 3] [--plain-fraction 0.25]
 """
@@ -12,7 +12,9 @@ speed-ups, and the agreement.
 from __future__ import annotations
 
 import argparse
+import os
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -24,7 +26,6 @@ from planning.deposition import (
     _candidate_blocks,
     _make_blocks,
     _tool_axes,
-    deposition_rate,
     deposition_rate_reference,
     thickness,
 )
@@ -81,17 +82,6 @@ def plain_broadcast(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarr
     return out
 
 
-def dense_rate(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarray,
-               chunk: int = 64) -> np.ndarray:
-    """All S × N pairs with the library's dense `deposition_rate` (in-place, no culling)."""
-    out = np.zeros(len(p))
-    for i in range(0, len(gun), chunk):
-        sl = slice(i, i + chunk)
-        out += gun.dwell_s[sl] @ deposition_rate(app, gun.positions[sl], gun.spray_axes[sl],
-                                                 gun.travel_dirs[sl], p, n)
-    return out
-
-
 def plain_simplified(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarray,
                      chunk: int = 16) -> np.ndarray:
     """All S × N pairs with the simplified formula f(h·dx/dz, h·dy/dz)·(−n·d)·h²/dz³ written as
@@ -114,6 +104,18 @@ def plain_simplified(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndar
     return out
 
 
+def timed(fn: Callable[[], np.ndarray], repeat: int) -> tuple[float, float, np.ndarray]:
+    """(best wall time [s], CPU time of that call [s], result) of `repeat` calls."""
+    best, cpu, out = float("inf"), 0.0, np.zeros(0)
+    for _ in range(repeat):
+        c0, t0 = time.process_time(), time.perf_counter()
+        out = fn()
+        t, c = time.perf_counter() - t0, time.process_time() - c0
+        if t < best:
+            best, cpu = t, c
+    return best, cpu, out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threads", type=int, default=2)
@@ -129,37 +131,49 @@ def main() -> None:
     print(f"points: {npts}")
     print(f"gun samples: {s}")
     print(f"full problem pairs (S x N): {s * npts / 1e6:.1f} M")
-    thickness(app, gun, p, n, threads=args.threads)  # warm-up
-    times = []
-    for _ in range(args.repeat):
-        t0 = time.perf_counter()
-        t_fast = thickness(app, gun, p, n, threads=args.threads)
-        times.append(time.perf_counter() - t0)
-    t_best = min(times)
+    print(f"load average before (1 min, all helpers on this machine): {os.getloadavg()[0]:.2f} "
+          f"on {os.cpu_count()} cores")
     n_eval = evaluated_pairs(app, gun, p, n)
-    print(f"fast kernel threads: {args.threads}")
-    print(f"fast kernel time (best of {args.repeat}): {t_best * 1e3:.1f} ms")
-    print(f"fast kernel throughput (S x N / time): {s * npts / t_best / 1e6:.0f} M pairs/s")
-    print(f"actually evaluated pairs: {n_eval / 1e6:.1f} M ({100 * n_eval / (s * npts):.1f} %)")
-    print(f"actually evaluated throughput: {n_eval / t_best / 1e6:.0f} M pairs/s")
-    # the all-pairs references cost exactly S·N work: time them on a prefix of the samples
+    print(f"evaluated pairs (after culling, numba and numpy kernels alike): {n_eval / 1e6:.1f} M "
+          f"({100 * n_eval / (s * npts):.1f} %)")
+    thickness(app, gun, p, n, threads=args.threads, backend="numba")  # compile / load cache
+    ref = None
+    rows = []
+    for name, kw in ((f"numba kernel, {args.threads} threads",
+                      dict(backend="numba", threads=args.threads)),
+                     ("numba kernel, 1 thread", dict(backend="numba", threads=1)),
+                     (f"numpy kernel (today's), {args.threads} threads",
+                      dict(backend="numpy", threads=args.threads))):
+        t, c, out = timed(lambda kw=kw: thickness(app, gun, p, n, **kw), args.repeat)
+        rows.append((name, t, c, out))
+        print(f"{name}: {t * 1e3:.1f} ms wall (best of {args.repeat}), {c * 1e3:.1f} ms CPU")
+        print(f"{name} evaluated throughput: {n_eval / t / 1e6:.0f} M pairs/s wall, "
+              f"{n_eval / c / 1e6:.0f} M pairs per CPU-second")
+    ref = rows[2][3]
+    for name, _, _, out in rows[:2]:
+        print(f"max |{name} - numpy kernel| / max thickness: "
+              f"{float(np.max(np.abs(out - ref)) / np.max(ref)):.2e}")
+    print(f"speed-up numba / numpy kernel (wall): {rows[2][1] / rows[0][1]:.2f} x")
+    # the all-pairs plain numpy evaluation costs exactly S·N work: time it on a prefix
     sub = max(CHUNK_SAMPLES, int(round(args.plain_fraction * s)))
     gsub = GunSamples(gun.positions[:sub], gun.spray_axes[:sub], gun.travel_dirs[:sub],
                       gun.dwell_s[:sub])
-    t_sub = thickness(app, gsub, p, n, threads=args.threads)
-    print(f"plain references timed on: {sub} of {s} samples (time scaled by {s / sub:.2f})")
-    for name, fn in (("plain broadcast, literal formula", plain_broadcast),
-                     ("plain broadcast, simplified formula", plain_simplified),
-                     ("dense deposition_rate (no culling)", dense_rate)):
+    t_sub = thickness(app, gsub, p, n, threads=args.threads, backend="numpy")
+    print(f"plain chunked numpy timed on: {sub} of {s} samples (all pairs, time scaled by "
+          f"{s / sub:.2f})")
+    for name, fn in (("plain chunked numpy, simplified formula", plain_simplified),
+                     ("plain chunked numpy, literal formula", plain_broadcast)):
         t0 = time.perf_counter()
         t_plain = fn(app, gsub, p, n)
         t_pl = (time.perf_counter() - t0) * s / sub
         err = float(np.max(np.abs(t_sub - t_plain)) / np.max(t_plain))
-        print(f"{name} time: {t_pl * 1e3:.1f} ms")
-        print(f"{name} throughput: {s * npts / t_pl / 1e6:.0f} M pairs/s")
-        print(f"speed-up fast / {name}: {t_pl / t_best:.1f} x")
-        print(f"max |fast - {name}| / max thickness: {err:.2e}")
-    print(f"max thickness: {np.max(t_fast) * 1e6:.2f} um")
+        print(f"{name}: {t_pl * 1e3:.1f} ms (all S x N pairs)")
+        print(f"{name} evaluated throughput: {s * npts / t_pl / 1e6:.0f} M pairs/s")
+        print(f"speed-up numba (evaluated pairs/s) / {name}: "
+              f"{n_eval / rows[0][1] / (s * npts / t_pl):.1f} x")
+        print(f"max |numpy kernel - {name}| / max thickness: {err:.2e}")
+    print(f"max thickness: {np.max(ref) * 1e6:.2f} um")
+    print(f"load average after (1 min): {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -52,7 +52,15 @@ from planning.offset import (
     unit,
     walk,
 )
+from planning.openings import brush_off_openings, fill_samples, filled_surface, find_openings
 from planning.plan import CoveragePlan, PassPlan, times_from_speeds
+from planning.smoothing import (
+    check_smoothing_setting,
+    limit_turn_rate,
+    smooth_along,
+    smoothed_surface,
+    smoothing_scale_m,
+)
 from planning.speed_qp import SpeedSettings, SubOffsetBand, optimize_pass_speed
 from planning.start_curve import select_start_curve
 from planning.surface import Surface
@@ -102,6 +110,22 @@ class PlannerSettings:
         "left" (the start curve reversed), or "best" (run both, keep the plan with the smaller
         largest predicted optimization-profile σ/μ; the semi-global search depends on the order).
     max_passes: refuse to plan more passes than this (a guard against a runaway offset loop).
+    smoothing_m: pass geometry, tool axis and standoff come from the surface smoothed at this
+        scale [m] ("auto": a quarter of the footprint radius, applied only where the surface has
+        finer features; None: the raw surface); the film stays on the real mesh
+        (`planning.smoothing`).
+    geodesic_fallback: where an offset walked along indexing curves self-intersects, take the
+        level set of the heat-method geodesic distance from the pass instead
+        (`planning.geodesic`; False: refuse the plan as before).
+    plan_across_openings: plan on the surface with its openings (boundary loops other than the
+        outer one) closed, so passes carry on straight across holes (`planning.openings`).
+    patches: split the part into normal-cone patches, plan each, blend the seams and order them
+        (`planning.patches.plan_patches`; ordered from the part frame's origin).
+    max_opening_fraction: brush off every sample that would send more than this share of the
+        paint it emits into an opening [-].
+    max_axis_turn_rad_m: bound on how fast the bell axis, and its spin (the travel direction),
+        may turn along a pass, per metre of TCP travel [rad/m] (4 rad/m ≈ 230 °/m: above every
+        smooth library part, below a crease).
     """
 
     u_max: float = 0.04
@@ -134,6 +158,12 @@ class PlannerSettings:
     film_guard_band_m: float = 0.1
     first_side: str = "best"
     max_passes: int = 200
+    smoothing_m: float | str | None = "auto"
+    geodesic_fallback: bool = True
+    plan_across_openings: bool = True
+    patches: bool = False
+    max_opening_fraction: float = 0.5
+    max_axis_turn_rad_m: float = 4.0
 
     def __post_init__(self) -> None:
         positive = ("u_max", "v_nominal_m_s", "v_min_m_s", "v_max_m_s", "a_max_m_s2", "w_min_m",
@@ -155,6 +185,10 @@ class PlannerSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < lo:
                 raise PlanError(f"PlannerSettings.{name} = {v!r} must be an int >= {lo}")
+        check_smoothing_setting(self.smoothing_m)
+        if isinstance(self.max_axis_turn_rad_m, bool) or not (self.max_axis_turn_rad_m > 0):
+            raise PlanError(f"PlannerSettings.max_axis_turn_rad_m = {self.max_axis_turn_rad_m!r}"
+                            " must be > 0 [rad/m] (inf: no bound)")
         if self.band_curves % 2 == 0:
             raise PlanError(f"PlannerSettings.band_curves = {self.band_curves} must be odd "
                             "(the pass itself plus pairs on both sides)")
@@ -170,7 +204,11 @@ class PlannerSettings:
                                 "'zero-curvature', 'max-curvature' or an angle [rad]")
         elif isinstance(o, bool) or not isinstance(o, int | float) or not math.isfinite(o):
             raise PlanError(f"PlannerSettings.orientation = {o!r} must be a string or an angle")
-        for name in ("optimize_speed", "edge_passes", "film_guard"):
+        if not 0 < self.max_opening_fraction <= 1:
+            raise PlanError(f"PlannerSettings.max_opening_fraction = "
+                            f"{self.max_opening_fraction!r} must be in (0, 1]")
+        for name in ("optimize_speed", "edge_passes", "geodesic_fallback",
+                     "plan_across_openings", "patches", "film_guard"):
             if not isinstance(getattr(self, name), bool):
                 raise PlanError(f"PlannerSettings.{name} = {getattr(self, name)!r} must be "
                                 "True or False")
@@ -259,6 +297,8 @@ class _Planner:
         self.speed_caps: dict[int, np.ndarray] = {}
         self.tool_x: dict[int, np.ndarray] = {}
         self._nominal_width: float | None = None
+        self.heat: Any = None          # planning.geodesic.HeatGeodesics, built when first needed
+        self.smooth_scale = 0.0        # smoothing scale of the planning surface [m]
 
     @property
     def nominal_width(self) -> float:
@@ -269,6 +309,17 @@ class _Planner:
             self._nominal_width = planar_index_width(self.app, st.w_min_m, st.w_max_m, st.w_res_m,
                                                      st.u_max, st.width_tolerance_m).width_m
         return self._nominal_width
+
+    def geodesic_offset(self, p: _PassGeom, distance_m: float
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Heat-method offset of pass `p` at signed `distance_m` [m]: points, normals, inside
+        (all True: a level set lies on the surface)."""
+        from planning.geodesic import HeatGeodesics
+
+        if self.heat is None:
+            self.heat = HeatGeodesics(self.geom)
+        pts, nrm = self.heat.offset(p.foot, p.normals, distance_m)
+        return pts, nrm, np.ones(len(pts), bool)
 
     # --- geometry ---------------------------------------------------------------------------
     def extend_in_surface(self, foot: np.ndarray, normals: np.ndarray
@@ -413,7 +464,19 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         raise PlanError(f"plan_coverage settings must be PlannerSettings or None, got "
                         f"{type(settings).__name__}; use PlannerSettings.from_dict for a dict")
     st = PlannerSettings() if settings is None else settings
+    if st.patches:
+        from dataclasses import replace
+
+        from planning.patches import plan_patches
+
+        return plan_patches(surface, applicator, replace(st, patches=False))
+    real_surface = surface            # the film is judged on it; the passes on its smoothing
+    openings = find_openings(surface) if st.plan_across_openings else []
+    surface = filled_surface(surface, openings)
+    smooth_scale = smoothing_scale_m(surface, applicator.footprint_radius_m, st.smoothing_m)
+    surface = smoothed_surface(surface, smooth_scale)
     pl = _Planner(surface, applicator, st)
+    pl.smooth_scale = smooth_scale
     for side, cap in (speed_caps_m_s or {}).items():
         cap = np.asarray(cap, dtype=float).reshape(-1)
         if not np.all(np.isfinite(cap)) or np.any(cap <= 0):
@@ -457,15 +520,25 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         raise PlanError("speed caps / bell axes do not fit this plan (" + "; ".join(bad) + "); "
                         "they must come from a plan of the same part and settings")
     plan_passes = _time_passes(pl, passes, st)
+    n_brush_off = 0
+    if openings:
+        plan_passes, n_brush_off = brush_off_openings(
+            applicator, plan_passes, fill_samples(real_surface, openings),
+            st.max_opening_fraction)
     guard: dict[str, Any] = {}
     if st.optimize_speed and st.film_guard:
-        plan_passes, guard = _film_guard(pl, surface, plan_passes)
+        plan_passes, guard = _film_guard(pl, real_surface, plan_passes)
     report = {
         "film_guard": guard,
         "start_rule": sc.rule,
         "first_side": ("left" if reversed_start else "right") + f" ({st.first_side})",
         "predicted_worst_nsd_pct": [c[0] for c in candidates],
         "planar": planar,
+        "smoothing_scale_m": smooth_scale,
+        "smoothing_max_shift_m": float(np.max(np.linalg.norm(
+            surface.vertices[:len(real_surface.vertices)] - real_surface.vertices, axis=1))),
+        "openings": [{"perimeter_m": o.perimeter_m, "area_m2": o.area_m2} for o in openings],
+        "samples_brushed_off_over_openings": n_brush_off,
         "planar_width_m": None if planar_w is None else planar_w.width_m,
         "cross_profiles_computed": len(pl.cache),
         "cross_profile_cache_hits": pl.cache_hits,
@@ -506,7 +579,19 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                 w0, info = pl.choose_width(cur, sweep_curves, known, w_prev)
             pts, nrm, inside = walk(sweep_curves, w0)
             ok = np.all(np.isfinite(pts), axis=1)
-            check_offset_order(cur.foot[ok], pts[ok], f"offset {sign * k:+d} of the {name} plan")
+            try:
+                check_offset_order(cur.foot[ok], pts[ok],
+                                   f"offset {sign * k:+d} of the {name} plan")
+            except PlanError:
+                if not st.geodesic_fallback:
+                    raise
+                g_pts, g_nrm, g_in = pl.geodesic_offset(cur, sign * w0)
+                info = dict(info, offset="heat-method level set")
+                if len(g_pts) >= 2:
+                    pts, nrm, inside = g_pts, g_nrm, g_in
+                    ok = np.ones(len(pts), bool)
+                else:                       # nothing left on the surface: the edge pass below
+                    inside = np.zeros(len(pts), bool)
             side = sign * k
             if inside.sum() < 2:            # nothing (or a single point) left on the surface
                 if st.edge_passes and ok.sum() >= 2:
@@ -614,13 +699,18 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
                                              (st.overspray_m + p.extra_m[0],
                                               st.overspray_m + p.extra_m[1]),
                                              st.sample_spacing_m, h)
-    pos = foot + h * normals
-    axes = -normals
+    axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
+                           st.max_axis_turn_rad_m, h)
+    pos = foot - h * axes
     seg = np.diff(pos, axis=0)
     seg_len = np.linalg.norm(seg, axis=1)
     if np.any(seg_len <= 0):
         raise PlanError(f"pass {p.side} has repeated TCP samples; refine the mesh")
     travel = tangents(pos)
+    travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
+    # the bell's spin follows the travel direction: bound its turning rate too (a noisy pass end
+    # or a scanned rim whips joint 6 otherwise)
+    travel = limit_turn_rate(pos, travel, st.max_axis_turn_rad_m)
     tx = pl.tool_x.get(p.side)
     if tx is not None and len(tx) != len(pos):
         p.info["feedback_mismatch"] = f"tool_x: {len(tx)} samples, the pass {len(pos)}"

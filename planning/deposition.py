@@ -369,8 +369,13 @@ def _sample_chunks(s: int, k: int) -> Iterator[slice]:
         yield slice(i, min(i + k, s))
 
 
+#: kernels `thickness` can run: "auto" picks the GPU when present, else numba; numpy is the
+#: reference (and the occlusion path: trimesh's rays are Python calls per chunk).
+BACKENDS = ("auto", "numba", "gpu", "numpy")
+
+
 def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: npt.ArrayLike,
-              occluder: Any = None, *, threads: int = 2) -> np.ndarray:
+              occluder: Any = None, *, threads: int = 2, backend: str = "auto") -> np.ndarray:
     """Film thickness (N,) [m] at each point: Σ_s rate_s(p) · dwell_s.
 
     app: the deposition model; gun: the sampled trajectory (same frame as the points);
@@ -381,8 +386,12 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
         the points inside some spray cone of the chunk; points outside every cone get nothing
         from that chunk, as if culled). Rays cost ~10 µs each with trimesh's intersector (no
         embree here), so this is ~100× slower than the unoccluded kernel.
-    threads: worker threads over sample chunks (numpy releases the GIL); the summation order is
-        fixed, so the result does not depend on it.
+    threads: worker threads (numba's pool, or numpy's over sample chunks); the summation order
+        is fixed, so the result does not depend on it.
+    backend: "auto" (a CUDA GPU when `numba.cuda` sees one, else the numba CPU kernel; the numpy
+        kernel when an occluder is given or numba is missing), "numba", "gpu" or "numpy" (the
+        reference kernel). All evaluate the same pairs and agree to round-off
+        (`planning.deposition_jit`).
 
     Points are grouped into Z-order blocks of `BLOCK_POINTS`; for every chunk of `CHUNK_SAMPLES`
     samples only blocks whose bounding sphere meets a spray cone of half-angle
@@ -391,6 +400,8 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
     """
     if not isinstance(gun, GunSamples):
         raise DepositionError(f"gun must be a GunSamples, got {type(gun).__name__}")
+    if backend not in BACKENDS:
+        raise DepositionError(f"backend {backend!r} is not one of {', '.join(BACKENDS)}")
     p = _as_vectors(points, "points")
     n = _as_normals(normals, len(p))
     out = np.zeros(len(p))
@@ -402,6 +413,11 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
     coef_all = gun.dwell_s[keep] / app.standoff_m
     blocks = _make_blocks(p, n, BLOCK_POINTS)
     tan_cone = app.footprint_radius_m / app.standoff_m
+    kind = _pick_backend(backend, occluder, app)
+    if kind != "numpy":
+        out[blocks.order] = _thickness_jit(kind, app, blocks, p, n, g, x_hat, y_hat, a,
+                                           gun.dwell_s[keep], tan_cone, threads)[0]
+        return out
     mesh = None
     if occluder is not None:
         mesh = getattr(occluder, "mesh", occluder)
@@ -453,6 +469,52 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
                 out_blocks[ids] += c
     out[blocks.order] = out_blocks.reshape(-1)[:len(p)]
     return out
+
+
+def _pick_backend(backend: str, occluder: Any, app: Applicator) -> str:
+    from planning import deposition_jit as jit
+
+    if backend == "numpy" or (backend == "auto" and (occluder is not None or not jit.HAVE_NUMBA)):
+        return "numpy"
+    if backend in ("auto", "numba") and not jit.gpu_available() \
+            and (len(jit.params(app)) - 4) // 3 > jit.MAX_RINGS:
+        if backend == "numba":
+            raise DepositionError(f"backend 'numba' takes at most {jit.MAX_RINGS} rings; use "
+                                  "backend='numpy' or 'auto'")
+        return "numpy"
+    if occluder is not None:
+        raise DepositionError(f"backend {backend!r} has no occlusion; use backend='numpy' or "
+                              "'auto' with an occluder")
+    if backend == "gpu" and not jit.gpu_available():
+        raise DepositionError("backend 'gpu' needs a CUDA GPU visible to numba.cuda; use 'auto'")
+    if backend in ("numba", "gpu") and not jit.HAVE_NUMBA:
+        raise DepositionError("numba is not installed; pip install numba or use backend='numpy'")
+    if backend == "auto":
+        return "gpu" if jit.gpu_available() else "numba"
+    return backend
+
+
+def _thickness_jit(kind: str, app: Applicator, blocks: _Blocks, p: np.ndarray, n: np.ndarray,
+                   g: np.ndarray, x_hat: np.ndarray, y_hat: np.ndarray, a: np.ndarray,
+                   dwell: np.ndarray, tan_cone: float, threads: int) -> tuple[np.ndarray, int]:
+    """(film (N,) in Z-order [m], pairs evaluated) by the compiled kernel `kind`."""
+    from planning import deposition_jit as jit
+
+    ps = np.ascontiguousarray(p[blocks.order])
+    ns = np.ascontiguousarray(n[blocks.order])
+    starts = np.minimum(np.arange(len(blocks.radii) + 1) * BLOCK_POINTS, len(p)).astype(np.int64)
+    coef = np.ascontiguousarray(dwell / app.standoff_m)
+    prm = jit.params(app)
+    args = (np.ascontiguousarray(g), np.ascontiguousarray(x_hat), np.ascontiguousarray(y_hat),
+            np.ascontiguousarray(a))
+    if kind == "gpu":
+        cand = jit.candidates_cpu(blocks.centers, blocks.radii, args[0], args[3], CHUNK_SAMPLES,
+                                  tan_cone)
+        film = jit.film_gpu(ps, ns, starts, cand, *args, coef, CHUNK_SAMPLES, prm)
+        evaluated = int((cand * np.diff(starts)[None, :]).sum()) * CHUNK_SAMPLES
+        return film, evaluated
+    return jit.film_cpu(ps, ns, starts, blocks.centers, blocks.radii, *args, coef,
+                        CHUNK_SAMPLES, tan_cone, prm, threads)
 
 
 def _reached(m: np.ndarray, tan_cone: float) -> np.ndarray:

@@ -6,7 +6,10 @@ a path is feasible on a branch when every pose is inside the joint limits, |sin 
 threshold and no joint jumps; its margin is the smallest of the joint-limit margin [rad] and
 asin|sin q5| [rad] along the path, maximized over branches. The candidate's score is the worst
 path margin (−inf when a path is infeasible). Robots without closed-form IK are scored with DLS
-`solve_paths` on subsampled paths (slower). The winner is verified with the full `solve_paths`.
+`solve_paths` on subsampled paths (slower). The refined candidates are then ranked by what the run
+will suffer (`robots.placement_score`: predicted time-law slowdown and film excess, jumps,
+clearance from the part and the floor, margin). The winner is verified with the full
+`solve_paths`.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from tqdm import tqdm
 
 from robots.errors import RobotError
 from robots.ik import (
@@ -44,6 +48,9 @@ class PlacementReport:
     scores: np.ndarray
     best: int
     reachability: ReachabilityReport
+    #: `robots.placement_score.MotionScore` of the refined candidates (index → score), when the
+    #: search ranked them by motion (score="motion")
+    motion: dict[int, Any] | None = None
 
     @property
     def T_world_base(self) -> np.ndarray:
@@ -72,9 +79,11 @@ class PlacementReport:
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe summary."""
         s = float(self.scores[self.best])
+        chosen = None if self.motion is None else self.motion.get(self.best)
         return {"T_world_base": self.T_world_base.tolist(), "n_candidates": len(self.scores),
                 "n_feasible": self.n_feasible, "feasible": self.feasible,
                 "worst_margin_rad": s if np.isfinite(s) else None, "verdict": self.verdict,
+                "motion_score": None if chosen is None else chosen.to_dict(),
                 "reachability": self.reachability.to_dict()}
 
 
@@ -115,7 +124,10 @@ def path_margin(robot: Robot, Q: np.ndarray, reach: np.ndarray, settings: IKSett
 def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
                    candidates: npt.ArrayLike | None = None, *, max_poses_per_path: int = 200,
                    coarse_poses_per_path: int = 25, n_refine: int = 20, free_spin: bool = False,
-                   settings: IKSettings | None = None
+                   settings: IKSettings | None = None, score: str = "motion",
+                   speeds_m_s: Sequence[npt.ArrayLike] | None = None,
+                   part_points_world: npt.ArrayLike | None = None,
+                   floor_z_m: float | None = None
                    ) -> tuple[np.ndarray, PlacementReport]:
     """Best base pose T_world_base (4,4) for `paths` (list of (M,4,4) T_world_tcp, part placed).
 
@@ -123,9 +135,16 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
     coarse_poses_per_path, n_refine, max_poses_per_path: every candidate is scored on paths
     subsampled evenly (ends kept) to `coarse_poses_per_path` poses, the best `n_refine` again with
     `max_poses_per_path`; the winner is checked on the full paths.
+    score: "motion" (default) ranks the refined candidates by `robots.placement_score`
+    (predicted time-law slowdown and film excess, jumps, clearance from `part_points_world`
+    (K, 3) [m] and the floor at `floor_z_m` [m], joint margin); "margin": by the worst joint
+    margin alone (the earlier rule). speeds_m_s: per path (M,) planned TCP speeds [m/s]
+    (default 0.5 m/s everywhere).
     Returns (T_world_base, PlacementReport); the report says when no candidate is feasible (the
     one with the most reachable poses is returned then).
     """
+    if score not in ("motion", "margin"):
+        raise RobotError(f"score = {score!r}: use 'motion' or 'margin'")
     s = settings or IKSettings()
     P = [np.asarray(p, float) for p in paths]
     if not P or any(p.ndim != 3 or p.shape[1:] != (4, 4) or len(p) == 0 for p in P):
@@ -145,10 +164,40 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
     # The winner among the refined candidates (coarse scores overestimate the margin).
     key = np.where(np.isfinite(fine[0]), fine[0], -1e9 + fine[1])
     best = int(top[int(np.argmax(key))])
+    motion = None
+    if score == "motion":
+        motion = _motion_ranked(robot, C, top[np.isfinite(fine[0])], P, speeds_m_s,
+                                part_points_world, floor_z_m, max_poses_per_path, free_spin, s)
+        ok = {c: m for c, m in motion.items() if m.feasible}
+        if ok:
+            best = min(ok, key=lambda c: ok[c].cost)
     placed = robot.placed(C[best])
     rep = combined_report(solve_paths(placed, P, free_spin=free_spin, settings=s))
-    report = PlacementReport(candidates=C, scores=scores, best=best, reachability=rep)
+    report = PlacementReport(candidates=C, scores=scores, best=best, reachability=rep,
+                             motion=motion)
     return C[best].copy(), report
+
+
+def _motion_ranked(robot: Robot, C: np.ndarray, idx: np.ndarray, P: list[np.ndarray],
+                   speeds: Sequence[npt.ArrayLike] | None, part_points: npt.ArrayLike | None,
+                   floor_z_m: float | None, n: int, free_spin: bool, s: IKSettings
+                   ) -> dict[int, Any]:
+    """`MotionScore` of candidates C[idx] on the paths subsampled to ≤ n poses each."""
+    from scipy.spatial import cKDTree
+
+    from robots.placement_score import motion_score
+
+    V = [np.full(len(p), 0.5) if speeds is None else np.asarray(v, float)
+         for p, v in zip(P, speeds if speeds is not None else P, strict=True)]
+    if any(len(v) != len(p) for v, p in zip(V, P, strict=True)):
+        raise RobotError("speeds_m_s must give one speed [m/s] per pose of each path")
+    keep = [np.unique(np.linspace(0, len(p) - 1, min(len(p), n)).round().astype(int)) for p in P]
+    sub = [p[k] for p, k in zip(P, keep, strict=True)]
+    vs = [v[k] for v, k in zip(V, keep, strict=True)]
+    tree = None if part_points is None else cKDTree(np.asarray(part_points, float))
+    return {int(c): motion_score(robot.placed(C[c]), sub, vs, part_points=tree,
+                                 floor_z_m=floor_z_m, free_spin=free_spin, settings=s)
+            for c in idx}
 
 
 def _subsample(paths: list[np.ndarray], n: int) -> list[tuple[np.ndarray, float]]:
@@ -169,7 +218,9 @@ def _score(robot: Robot, C: np.ndarray, sub: list[tuple[np.ndarray, float]], fre
     allp = np.concatenate([p for p, _ in sub])
     starts = np.cumsum([0] + [len(p) for p, _ in sub])
     strides = [st for _, st in sub]
-    for c, T_base in enumerate(C):
+    # disable=None: a bar only on a terminal (CI logs and pipes stay clean)
+    for c, T_base in enumerate(tqdm(C, desc="placement", unit="base", leave=False,
+                                    disable=None if len(C) > 50 else True)):
         if robot.opw is not None and not free_spin:
             # One closed-form call for all paths of the candidate, then path by path.
             flange = np.linalg.inv(T_base) @ allp @ T_tcp_flange

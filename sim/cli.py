@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from planning.errors import PaintcellError
+from sim import interrupts
 from sim.cli_check import add_check, format_table, row, write_junit
 from sim.part_commands import register as add_part_commands
 
@@ -36,17 +37,6 @@ exit codes:
 results folders: a folder is paintcell's only if it holds the .paintcell-results marker;
 run/plan replace only such a folder (or a missing or empty one), atomically, one writer at a
 time; validate/export/report read the scenario snapshot in scenario.json, never a script."""
-
-
-class Interrupted(KeyboardInterrupt):
-    """Ctrl-C (SIGINT) or SIGTERM: the command stops, cleans up and exits 130."""
-
-
-def _on_signal(signum: int, frame: Any) -> None:
-    # Further signals are ignored while the temp folder is removed; then the process exits.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)
-    raise Interrupted(signal.Signals(signum).name)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -89,17 +79,24 @@ def build_parser() -> argparse.ArgumentParser:
         return sub.add_parser(name, parents=[common], formatter_class=_Help, epilog=EXIT_HELP,
                               **kw)
 
+    from sim.sweep_cli import add_sweep_parser
+
     for register in (_add_run, add_check, _add_plan, _add_validate, _add_export, _add_report,
-                     add_part_commands):  # inspect, init, generate (issue 11)
+                     add_part_commands,  # inspect, init, generate (issue 11)
+                     add_sweep_parser):
         register(add_parser)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     """Console entry point; returns the exit code."""
-    previous = {s: signal.signal(s, _on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    interrupts.reset()
+    previous = {s: signal.signal(s, interrupts.on_signal)
+                for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return _main(argv)
+        code = _main(argv)
+        # A signal that a library swallowed (see sim.interrupts) still ends the command as one.
+        return EXIT_INTERRUPTED if interrupts.pending() is not None else code
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
@@ -163,7 +160,8 @@ def _add_run(add_parser: Any) -> None:
     r.add_argument("--disturb", action="append", default=[], metavar="KEY=VALUE",
                    help="robustness study: a sim.execute.Disturbances setting on top of the "
                    "scenario's, repeatable: part_offset_m [m], part_rotation_rad [rad], "
-                   "tcp_offset_m [m], gain_scale [-], seed [int]; e.g. --disturb "
+                   "tcp_offset_m [m], gain_scale [-], standoff_error_m [m], trigger_delay_s [s], "
+                   "flow_scale [-], flow_drift [-], seed [int]; e.g. --disturb "
                    "part_offset_m=0.005 --disturb seed=3")
     # Internal, for `paintcell check`: write the table row as JSON; results under a folder.
     r.add_argument("--row-json", type=Path, default=None, help=argparse.SUPPRESS)
@@ -191,9 +189,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     r = row(scn.name, res.report)
     if worker:
         from planning.atomic_io import atomic_write_text
+        from sim.sweep_cli import sweep_checks  # the limits of the scenario's sweep, if any
 
+        r["checks"] += sweep_checks(scn, args.fast, args.out_under)
+        r["passed"] = bool(r["passed"]) and all(c["passed"] for c in r["checks"])
         atomic_write_text(args.row_json, json.dumps(r))
-        return EXIT_OK if res.passed else EXIT_FAIL
+        return EXIT_OK if r["passed"] else EXIT_FAIL
     print(format_table([r]))
     if out is not None:
         print(f"results: {out}" + ("" if args.no_report else f" (report: {out / 'report.html'})"))

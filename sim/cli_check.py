@@ -158,7 +158,8 @@ def format_table(rows: list[dict[str, Any]]) -> str:
             continue
         checks = "; ".join(
             f"{c['name']} {_fmt(c['value'])} {'≤' if c.get('kind', 'max') == 'max' else '≥'} "
-            f"{_fmt(c['limit'])}{'' if c['passed'] else ' ✗'}" for c in r["checks"])
+            f"{_fmt(c['limit'])}{'' if c['passed'] else ' ✗'}"
+            + (f" ({c['detail']})" if c.get("detail") else "") for c in r["checks"])
         lines.append(
             f"{r['name']:<10} {_fmt(r['planned_nsd_pct']):>13} {_fmt(r['executed_nsd_pct']):>14} "
             f"{_pp(r['loss_pp']):>8} {_pp(r.get('loss_time_law_pp')):>9} "

@@ -180,6 +180,14 @@ class Disturbances:
     tcp_offset_m: TCP calibration error, the real spray point is this far from the modelled one in
         a random tool-frame direction [m].
     gain_scale: multiplies the servo gains (controller tuning error), on top of the servo's own.
+    standoff_error_m: actual − planned spray distance [m], signed (positive: the bell sprays from
+        farther away): the real spray point sits this far behind the modelled one along the
+        tool's spray axis (a TCP calibration error along z, or a bell mounted off its nominal).
+    trigger_delay_s: the paint trigger switches this much later than programmed [s], signed
+        (negative: early); applied in whole control periods (1 ms).
+    flow_scale: actual ÷ nominal paint flow [-] (> 0): the film rate scales with it.
+    flow_drift: relative change of the paint flow over the program [-], signed: the flow is
+        flow_scale · (1 + flow_drift · (t − t0) / T) at time t of a program of length T.
     seed: random generator seed (directions); the same seed gives the same disturbance.
     """
 
@@ -187,6 +195,10 @@ class Disturbances:
     part_rotation_rad: float = 0.0
     tcp_offset_m: float = 0.0
     gain_scale: float = 1.0
+    standoff_error_m: float = 0.0
+    trigger_delay_s: float = 0.0
+    flow_scale: float = 1.0
+    flow_drift: float = 0.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -200,6 +212,19 @@ class Disturbances:
         if self.gain_scale <= 0:
             raise ExecutionError(f"disturbance gain_scale = {self.gain_scale!r} must be > 0 "
                                  "(a factor on the servo gains)")
+        for name in ("standoff_error_m", "trigger_delay_s", "flow_scale", "flow_drift"):
+            v = getattr(self, name)
+            if (isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating)
+                    or not math.isfinite(v)):
+                raise ExecutionError(f"disturbance {name} = {v!r} must be a finite number "
+                                     "[m, s, factor]")
+            object.__setattr__(self, name, float(v))
+        if self.flow_scale <= 0:
+            raise ExecutionError(f"disturbance flow_scale = {self.flow_scale!r} must be > 0 "
+                                 "(actual ÷ nominal flow)")
+        if abs(self.flow_drift) >= 1:
+            raise ExecutionError(f"disturbance flow_drift = {self.flow_drift!r} must be in "
+                                 "(-1, 1) (a relative change of the flow over the program)")
         seed = self.seed
         if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
             raise ExecutionError(f"disturbance seed = {seed!r} must be an int")
@@ -212,7 +237,22 @@ class Disturbances:
         T = np.eye(4)
         T[:3, :3] = matrix_from_axis_angle(d2, self.part_rotation_rad)
         T[:3, 3] = self.part_offset_m * d1
-        return T, self.tcp_offset_m * d3
+        # a longer standoff puts the real spray point behind the modelled one (tool −z)
+        return T, self.tcp_offset_m * d3 - np.array([0.0, 0.0, self.standoff_error_m])
+
+    def paint_on(self, paint_on: np.ndarray, dt_s: float) -> np.ndarray:
+        """The brush signal (K,) the bell really followed: `paint_on` shifted by the trigger
+        delay (whole steps of dt_s [s]), off where the shift leaves no programmed value."""
+        k = int(round(self.trigger_delay_s / dt_s))
+        on = np.asarray(paint_on, bool)
+        if k == 0:
+            return on.copy()
+        out = np.zeros_like(on)
+        if 0 < k < len(on):
+            out[k:] = on[:-k]
+        elif -len(on) < k < 0:
+            out[:k] = on[-k:]
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe settings."""
@@ -330,13 +370,17 @@ def inverse_dynamics(model: mujoco.MjModel, cell: Cell, q: np.ndarray, qd: np.nd
 
 def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic"] = "servo",
             servo: ServoSettings | None = None, disturbances: Disturbances | None = None,
-            progress: Callable[[float], None] | None = None) -> ExecutedTrace:
+            progress: Callable[[float], None] | None = None,
+            cache: dict[Any, np.ndarray] | None = None) -> ExecutedTrace:
     """Execute `traj` on `cell` and record what happened at every 1 ms step.
 
     mode: "servo" (PD + inverse-dynamics feed-forward, torque limits; see module doc) or
         "kinematic" (the reference itself, the control case).
     servo: gains (default `ServoSettings()`); disturbances: seeded placement/TCP/gain errors.
     progress: called with the completed fraction in [0, 1] after each chunk.
+    cache: a dict the caller keeps across calls with the same cell and trajectory (a sweep): the
+        inverse-dynamics feed-forward, which no disturbance changes (they move the part and the
+        TCP site, not the arm's links), is computed once per servo setting and kept there.
     Returns an `ExecutedTrace` (world frame) whose `meta` holds the settings, the realized
     disturbances (`T_world_part_actual`, `tcp_offset_tool_m`), wall time and MuJoCo warnings.
     Raises ExecutionError for mismatched inputs or an unstable simulation.
@@ -358,8 +402,13 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         fc = _coulomb_friction(cell, servo)
         model.dof_frictionloss[cell.dof_adr] = fc
         _set_torque_actuators(model, cell)
-        tau_id = inverse_dynamics(_controller_model(model, cell, servo), cell, q_ref, qd_ref,
-                                  qdd_ref)
+        key = ("servo-id", repr(servo))
+        tau_id = None if cache is None else cache.get(key)
+        if tau_id is None or tau_id.shape != q_ref.shape:
+            tau_id = inverse_dynamics(_controller_model(model, cell, servo), cell, q_ref, qd_ref,
+                                      qdd_ref)
+            if cache is not None:
+                cache[key] = tau_id
         damping = model.dof_damping[cell.dof_adr]
         tau_ff = (tau_id - (1.0 - servo.friction_compensation) * damping * qd_ref
                   + servo.coulomb_compensation * fc * np.tanh(qd_ref / FRICTION_SMOOTH_RAD_S)
@@ -392,6 +441,8 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         "disturbances": None if disturbances is None else disturbances.to_dict(),
         "T_world_part_planned": cell.T_world_part.tolist(),
         "T_world_part_actual": T_actual.tolist(),
+        "flow_scale": 1.0 if disturbances is None else disturbances.flow_scale,
+        "flow_drift": 0.0 if disturbances is None else disturbances.flow_drift,
         "tcp_offset_tool_m": tcp_offset.tolist(),
         "mujoco_warnings": warnings, "wall_time_s": wall,
         "settle_time_s": settle_s, "settle_tol_m": SETTLE_TOL_M,
@@ -406,7 +457,8 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         t_s=np.asarray(traj.t_s, float).copy(), q=q, qd=qd, tau=np.ascontiguousarray(tau),
         tcp_pos_world=np.ascontiguousarray(sens[:, cell.sensor_tcp_pos]),
         tcp_rot_world=matrix_from_quat_wxyz(sd / np.linalg.norm(sd, axis=1, keepdims=True)),
-        paint_on=np.asarray(traj.paint_on, bool).copy(),
+        paint_on=(np.asarray(traj.paint_on, bool).copy() if disturbances is None
+                  else disturbances.paint_on(traj.paint_on, cell.model.opt.timestep)),
         pass_index=np.asarray(traj.pass_index).copy(), mode=mode, contacts=contacts, meta=meta,
         tau_demand=np.ascontiguousarray(tau_demand))
 

@@ -245,7 +245,11 @@ def _cmd_init(args: argparse.Namespace) -> int:
         raise PaintcellError(f"no planner setting plans {spec.file} ({len(tried)} tried; first: "
                              f"{tried[0]}); see `paintcell inspect` for its regions")
     paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
-    T_base, prep = find_base_pose(load_robot(args.robot), paths)
+    # scored by what the run suffers: the plan's speeds, clearance from the part and the floor
+    part_world = surf.vertices @ pl.matrix[:3, :3].T + pl.matrix[:3, 3]
+    T_base, prep = find_base_pose(load_robot(args.robot), paths,
+                                  speeds_m_s=[p.speeds_m_s for p in plan.passes],
+                                  part_points_world=part_world, floor_z_m=0.0)
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
     text = _scenario_toml(name, args.robot, spec_rel, rep, pl, base, prep.verdict,
                           len(plan.passes), planner, tried)

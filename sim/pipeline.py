@@ -22,6 +22,7 @@ from planning.errors import PaintcellError
 from planning.part_spec import CAD_SUFFIXES, MESH_SUFFIXES, MeshPart
 from planning.plan import CoveragePlan
 from planning.surface import Surface
+from sim.interrupts import raise_if_interrupted
 from sim.results_dir import new_results
 from sim.scenario import Scenario, ScenarioError
 
@@ -208,6 +209,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
     from sim.validate import validate
 
     def stage(name: str) -> None:
+        raise_if_interrupted()
         bar.set_postfix_str(name)
 
     def done(name: str, t0: float) -> None:

@@ -39,6 +39,7 @@ from typing import Any
 
 from planning.atomic_io import atomic_write_text
 from planning.errors import PaintcellError
+from sim.interrupts import raise_if_interrupted
 
 __all__ = ["MARKER", "ResultsDirError", "exchange_dirs", "lock_results", "new_results",
            "note_files", "read_marker", "require_results"]
@@ -212,6 +213,7 @@ def new_results(out: Path | None, command: str) -> Iterator[Path | None]:
         tmp.mkdir()
         try:
             yield tmp
+            raise_if_interrupted()  # a signal a library swallowed: keep the old results
             atomic_write_text(tmp / MARKER, json.dumps({
                 "run_id": uuid.uuid4().hex, "command": command,
                 "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "files": _files_of(tmp)},

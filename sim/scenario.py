@@ -97,6 +97,11 @@ class Scenario:
     thresholds: what `paintcell check` holds the run to (`sim.validate.Thresholds`: reachability,
         collisions, executed σ/μ, loss, cycle time, and optionally tracking error, speed error,
         torque and joint-range utilization).
+    sweep: the robustness sweep of `paintcell sweep` (`sim.sweep_spec.spec_from_scenario`):
+        factors {disturbance name: distribution string}, samples, fast_samples, method
+        ("lhs" | "mc"), seed, workers (local Dask processes; 0: in-process), and limits on
+        quantiles and yield that `paintcell check` holds the scenario to (`sim.sweep_stats`),
+        e.g. {"max_p95_executed_nsd_pct": 12.0}.
     source: the file the scenario was declared in (filled in by `load_scenario`).
     """
 
@@ -114,6 +119,7 @@ class Scenario:
     servo: dict[str, Any] = field(default_factory=dict)
     disturbances: dict[str, Any] = field(default_factory=dict)
     thresholds: Thresholds = Thresholds()
+    sweep: dict[str, Any] = field(default_factory=dict)
     source: str | None = None
 
     def __post_init__(self) -> None:
@@ -130,7 +136,7 @@ class Scenario:
             if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v) \
                     or v <= 0:
                 raise ScenarioError(f"Scenario.{name} = {v!r} must be a positive length [m]")
-        for name in ("planner", "fast_planner", "trajectory", "servo", "disturbances"):
+        for name in ("planner", "fast_planner", "trajectory", "servo", "disturbances", "sweep"):
             if not isinstance(getattr(self, name), dict):
                 raise ScenarioError(f"Scenario.{name} must be a dict of setting names to values")
         if not isinstance(self.thresholds, Thresholds):

@@ -37,7 +37,7 @@ SNAPSHOT_VERSION = 1
 _SCALARS = ("name", "part", "robot", "resolution_m", "fast_resolution_m", "applicator")
 _PLACEMENTS = ("part_placement", "base")
 _SETTINGS = ("planner", "fast_planner", "trajectory", "servo", "disturbances")
-_TABLES = (*_PLACEMENTS, *_SETTINGS, "thresholds")
+_TABLES = (*_PLACEMENTS, *_SETTINGS, "thresholds", "sweep")
 _KEYS = (*_SCALARS, *_TABLES)
 
 # Threshold ranges: (low, high, low inclusive, what it is). +inf disables a `max_*` check.
@@ -218,6 +218,15 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
         if not isinstance(t, dict):
             raise ScenarioDataError(f"{where}: {key} must be a table [{key}]")
         kw[key] = {k: _tuples(v) for k, v in t.items()}
+    sw = d.get("sweep", {})
+    if sw:  # [sweep], [sweep.factors], [sweep.limits]: checked now, not when a sweep starts
+        from sim.sweep_spec import SweepError, check_sweep_table
+
+        try:
+            check_sweep_table(sw)
+        except SweepError as exc:
+            raise ScenarioDataError(f"{where}: [sweep] {exc}") from exc
+        kw["sweep"] = {k: dict(v) if isinstance(v, dict) else v for k, v in sw.items()}
     th = d.get("thresholds", {})
     if not isinstance(th, dict):
         raise ScenarioDataError(f"{where}: thresholds must be a table [thresholds]")

@@ -63,7 +63,8 @@ class ExecutedTrace:
     _OPTIONAL_ARRAYS = ("tau_demand",)
 
     def gun_samples(self, T_part_world: np.ndarray | None = None) -> GunSamples:
-        """Paint-on samples as `GunSamples` in the part frame (dwell = step time).
+        """Paint-on samples as `GunSamples` in the part frame (dwell = step time, times the
+        flow factor of a flow disturbance recorded in `meta`).
 
         T_part_world: (4, 4) transform from world to part coordinates (identity if None).
         Spray axis = site z, travel = site x, as the TCP convention says.
@@ -71,6 +72,12 @@ class ExecutedTrace:
         T = np.eye(4) if T_part_world is None else np.asarray(T_part_world, float)
         on = self.paint_on.astype(bool)
         dt = np.gradient(self.t_s)[on]
+        # a flow disturbance (meta flow_scale, flow_drift) scales the film rate, i.e. the dwell
+        scale, drift = float(self.meta.get("flow_scale", 1.0)), float(self.meta.get("flow_drift",
+                                                                                   0.0))
+        if scale != 1.0 or drift != 0.0:
+            span = max(float(self.t_s[-1] - self.t_s[0]), 1e-12)
+            dt = dt * scale * (1.0 + drift * (self.t_s[on] - self.t_s[0]) / span)
         R = T[:3, :3]
         pos = self.tcp_pos_world[on] @ R.T + T[:3, 3]
         z = self.tcp_rot_world[on][:, :, 2] @ R.T

@@ -380,7 +380,9 @@ def _ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarra
         from robots.reachability import ReachabilityReport
 
         summary = ReachabilityReport.concatenate(cast(list[Any], reports)).to_dict()
-        summary.pop("poses", None)
+        # per-pose flags that sim.honest_reach needs (validate drops them from its report)
+        poses = summary.pop("poses", {})
+        summary["poses"] = {k: poses[k] for k in ("reachable", "joint_jump_rad") if k in poses}
     return q_paths, summary
 
 

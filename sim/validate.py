@@ -39,7 +39,9 @@ from planning.metrics import transfer_efficiency, uniformity
 from planning.plan import CoveragePlan
 from planning.surface import Surface
 from planning.transforms import inverse_pose
+from sim.honest_reach import honest_reachability
 from sim.joint_trajectory import JointTrajectory
+from sim.region_film import region_film
 from sim.trace import ExecutedTrace
 
 #: contacts of the same body pair closer than this in time belong to one collision event [s].
@@ -97,6 +99,7 @@ class Check:
     unit: str
     passed: bool
     kind: str = "max"
+    detail: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -309,7 +312,8 @@ def _binned(full: GunSamples, t_s: np.ndarray, paint_on: np.ndarray,
 def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace: ExecutedTrace,
              T_world_part: npt.ArrayLike, thresholds: Thresholds | None = None,
              reachability: dict[str, Any] | None = None,
-             exec_sample_s: float | None = 0.005) -> ValidationReport:
+             exec_sample_s: float | None = 0.005,
+             films: tuple[np.ndarray, np.ndarray] | None = None) -> ValidationReport:
     """Compare the executed program with the plan.
 
     plan: the coverage plan (part frame); surface: the part it covers (part frame, the same mesh
@@ -319,6 +323,9 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     reachability: `ReachabilityReport.to_dict()` of the IK stage (per-pose arrays dropped).
     exec_sample_s: bin of the executed trace and of the trajectory for the deposition sum [s]
     (see `executed_gun_samples`; None: every 1 ms step).
+    films: (planned, trajectory) films (N,) [m] of this plan, surface, trajectory and placement
+    computed earlier (a sweep computes them once): taken instead of recomputed (neither depends
+    on how the program was executed).
     """
     thresholds = thresholds or Thresholds()
     T_world_part = np.asarray(T_world_part, float)
@@ -336,16 +343,22 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     app = plan.applicator
     pts, nrm, areas = surface.vertices, surface.normals, surface.vertex_areas
     gun_plan = plan.gun_samples()
-    t_plan = thickness(app, gun_plan, pts, nrm)
     if not np.any(trace.paint_on):
         raise ValidationError("the trace has no paint-on samples; the trajectory never painted")
     if not np.any(traj.paint_on):
         raise ValidationError("the trajectory has no paint-on samples; rebuild it from the plan")
-    t_exec = thickness(app, executed_gun_samples(trace, inverse_pose(T_actual),
-                                                 exec_sample_s), pts, nrm)
-    # The program as built: its own TCP samples where the part was planned to be.
-    t_traj = thickness(app, trajectory_gun_samples(traj, inverse_pose(T_world_part),
-                                                   exec_sample_s), pts, nrm)
+    gun_exec = executed_gun_samples(trace, inverse_pose(T_actual), exec_sample_s)
+    t_exec = thickness(app, gun_exec, pts, nrm)
+    if films is not None:
+        t_plan, t_traj = (np.asarray(f, float) for f in films)
+        if t_plan.shape != (len(pts),) or t_traj.shape != (len(pts),):
+            raise ValidationError(f"films must be two ({len(pts)},) arrays, one value a surface "
+                                  "vertex; pass the films of this plan and surface")
+    else:
+        t_plan = thickness(app, gun_plan, pts, nrm)
+        # The program as built: its own TCP samples where the part was planned to be.
+        t_traj = thickness(app, trajectory_gun_samples(traj, inverse_pose(T_world_part),
+                                                       exec_sample_s), pts, nrm)
     judged = surface.judged_vertex_mask()  # a real part: its skin by default; else every vertex
     u_plan = uniformity(t_plan, areas, mask=judged, tolerance=thresholds.tolerance)
     u_exec = uniformity(t_exec, areas, mask=judged, target_m=u_plan.mean_m,
@@ -359,7 +372,15 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
 
     trk = tracking_errors(traj, trace)
     q_use, tau_use, tau_sat = _utilization(trace)
-    reach_summary, reach_pct = _reachability_summary(reachability)
+    reach_summary, _ = _reachability_summary(reachability)
+    # Jumps, wrist flips, contacts and slowdowns count against reachability (sim.honest_reach).
+    honest = honest_reachability(plan, traj, trace, reachability)
+    reach_pct = float("nan") if honest is None else float(honest["reachability_pct"])
+    if reach_summary is not None and honest is not None:
+        reach_summary["ik_reachability_pct"] = reach_summary["reachability_pct"]
+        reach_summary["reachability_pct"] = reach_pct
+        reach_summary["honest"] = honest
+        reach_summary["verdict"] = f"{reach_summary.get('verdict', '')}; {honest['verdict']}"
     events = collision_events(trace)
     dt = float(trace.t_s[1] - trace.t_s[0]) if len(trace.t_s) > 1 else 0.0
 
@@ -395,13 +416,18 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "planned_transfer_efficiency_pct": 100.0 * transfer_efficiency(
             t_plan, areas, app.emitted_flow_m3_s * float(gun_plan.dwell_s.sum())),
         "executed_transfer_efficiency_pct": 100.0 * transfer_efficiency(
-            t_exec, areas, app.emitted_flow_m3_s * dt * float(np.count_nonzero(trace.paint_on))),
+            t_exec, areas, app.emitted_flow_m3_s * float(gun_exec.dwell_s.sum())),
         "max_joint_range_utilization": float(np.nanmax(q_use)) if len(q_use) else float("nan"),
         "max_torque_utilization": float(np.nanmax(tau_use)) if len(tau_use) else float("nan"),
         "max_torque_saturation_pct": (float(np.nanmax(tau_sat)) if len(tau_sat)
                                       else float("nan")),
         "torque_source": "applied" if trace.tau_demand is None else "demanded",
         "reachability_pct": reach_pct,
+        "ik_reachability_pct": float("nan") if honest is None else honest["ik_reachability_pct"],
+        **({} if honest is None else {f"reach_{k}": honest[k] for k in (
+            "n_lost", "n_unreachable", "n_joint_jumps", "n_config_flips", "n_contact_poses",
+            "n_slowed_poses")}),
+        "reachability_verdict": "" if honest is None else honest["verdict"],
         "n_collisions": len(events),
         "n_contact_samples": len(trace.contacts),
         "max_contact_depth_mm": 1e3 * max((c.depth_m for c in trace.contacts), default=0.0),
@@ -410,6 +436,8 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         "part_placement_error_mm": 1e3 * float(np.linalg.norm(T_actual[:3, 3]
                                                               - T_world_part[:3, 3])),
     }
+    # hems, flanges, turned edges: their film reported apart (not judged)
+    metrics.update(region_film(surface, t_plan, t_exec, u_exec.mean_m))
     checks = _checks(metrics, thresholds)
     return ValidationReport(
         metrics=metrics, checks=tuple(checks), reachability=reach_summary,
@@ -445,6 +473,9 @@ def _checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
             passed = False
         else:
             passed = value <= limit if kind == "max" else value >= limit
+        detail = ""
+        if key == "reachability_pct" and not passed:
+            detail = str(m.get("reachability_verdict", ""))
         out.append(Check(name=name, value=value, limit=float(limit), unit=unit,
-                         passed=bool(passed), kind=kind))
+                         passed=bool(passed), kind=kind, detail=detail))
     return out

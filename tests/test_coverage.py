@@ -402,9 +402,17 @@ def test_offset_past_a_focal_point_is_refused() -> None:
     dome = trimesh.Trimesh(ico.vertices, ico.faces[keep])
     dome.remove_unreferenced_vertices()
     s = Surface.from_mesh(dome, name="dome")
+    # the plain width rule (width_tolerance_m = 0): with issue 16's sensitivity window the
+    # narrower widths on this dome walk a later level-set pass onto the pole (a degenerate pass)
+    st = PlannerSettings(optimize_speed=False, start_position=0.2, sample_spacing_m=0.04,
+                         geodesic_fallback=False, width_tolerance_m=0.0)
     with pytest.raises(PlanError, match="self-intersects"):
-        plan_coverage(s, APP, PlannerSettings(optimize_speed=False, start_position=0.2,
-                                              sample_spacing_m=0.04))
+        plan_coverage(s, APP, st)
+    # With the fallback (the default) the walked offset that reverses is replaced by a level set
+    # of the heat-method geodesic distance (planning.geodesic), which cannot self-intersect.
+    plan = plan_coverage(s, APP, replace(st, geodesic_fallback=True))
+    assert any(r.get("offset") == "heat-method level set"
+               for r in plan.settings["report"]["passes"])
 
 
 def _turn_limit_rad(curvature_1_m: float, spacing_m: float) -> float:

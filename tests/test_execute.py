@@ -381,7 +381,8 @@ def test_disturbances_accept_numpy_and_int_values() -> None:
     d = Disturbances(part_offset_m=np.float64(0.01), tcp_offset_m=0, gain_scale=2,
                      seed=np.int64(4))
     assert d.to_dict() == {"part_offset_m": 0.01, "part_rotation_rad": 0.0, "tcp_offset_m": 0.0,
-                           "gain_scale": 2.0, "seed": 4}
+                           "gain_scale": 2.0, "standoff_error_m": 0.0, "trigger_delay_s": 0.0,
+                           "flow_scale": 1.0, "flow_drift": 0.0, "seed": 4}
     assert all(type(v) in (float, int) for v in d.to_dict().values())
 
 

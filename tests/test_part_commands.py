@@ -77,7 +77,11 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     assert (tmp_path / "plan" / "plan.json").is_file()
     scn = load_scenario(toml)
     res = run_scenario(scn, tmp_path / "run", fast=True, mode="kinematic", report=False)
-    assert res.report.metrics["reachability_pct"] == 100.0
+    # the init base reaches every plan pose (IK); the honest figure also counts slowdowns and
+    # contacts (sim.honest_reach) and says which
+    m = res.report.metrics
+    assert m["ik_reachability_pct"] == 100.0
+    assert m["reachability_pct"] == 100.0 or "painted as planned (" in m["reachability_verdict"]
     judged = res.surface.judged_vertex_mask()
     hem = res.surface.regions.vertex_mask(res.surface.faces, ("hem",))
     assert judged is not None and hem.any() and not (judged & hem).any()

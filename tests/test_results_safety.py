@@ -222,6 +222,31 @@ def test_a_failed_plan_leaves_the_results_folder_as_it_was(
     assert _snapshot(tmp_path / "res") == before and _hidden(tmp_path) == []
 
 
+def test_a_signal_a_library_swallows_still_interrupts(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # trimesh imports optional modules inside `except BaseException`: a Ctrl-C that lands there
+    # is swallowed. Replay it with a real SIGINT raised inside such a block during the plan.
+    import sim.pipeline
+
+    real = sim.pipeline.load_surface
+
+    def swallowing_load(*args: object, **kw: object) -> object:
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1.0)  # the handler runs here and its exception is swallowed below
+        except BaseException:  # noqa: BLE001 - what the library does
+            pass
+        return real(*args, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(sim.pipeline, "load_surface", swallowing_load)
+    with new_results(tmp_path / "res", "run") as tmp:
+        (tmp / "plan.json").write_text('{"old": 1}')  # type: ignore[operator]
+    before = _snapshot(tmp_path / "res")
+    assert main(["plan", str(_scenario(tmp_path)), "--fast", "--out",
+                 str(tmp_path / "res")]) == EXIT_INTERRUPTED
+    assert _snapshot(tmp_path / "res") == before and _hidden(tmp_path) == []
+
+
 # --- with real runs -----------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")

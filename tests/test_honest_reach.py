@@ -1,0 +1,112 @@
+"""Honest reachability (sim.honest_reach): jumps, wrist flips, contacts and slowdowns count
+against reachability, in the verdict and in the check row; a run with any of them is below 100 %.
+
+The program is the real one (robots.ik → sim.trajectory.build_program) on straight passes in front
+of the ABB-style arm; the faults are real ones: a 2π turn of J6 inside a pass (same TCP pose, so
+IK calls it reachable, but the arm must spin the wrist a full turn between two samples), and a
+contact at a known time of the program.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Any
+
+import numpy as np
+import pytest
+
+from planning.surface import plane
+from robots.ik import IKPathResult, solve_paths
+from robots.reachability import ReachabilityReport
+from robots.robot import load_robot
+from sim.honest_reach import honest_reachability
+from sim.joint_trajectory import PAINT, JointTrajectory
+from sim.trace import Contact, ExecutedTrace
+from sim.trajectory import build_program
+from sim.validate import Thresholds, validate
+from tests.test_trajectory import N_PASSES, _plan
+
+
+@functools.lru_cache(maxsize=1)
+def _robot() -> Any:
+    return load_robot("abb_paint")
+
+
+@functools.lru_cache(maxsize=4)
+def _program(jump: bool) -> tuple[Any, JointTrajectory]:
+    robot, plan = _robot(), _plan()
+    paths = [plan.tcp_frames(i) for i in range(N_PASSES)]
+    ik = solve_paths(robot, paths, q_seed=robot.q_home)
+    if jump:
+        q = ik[1].q.copy()
+        half = len(q) // 2
+        # J6 one full turn further from mid-pass on: the same TCP poses (FK is 2π-periodic),
+        # inside J6's ±400° range, but a 2π step between two consecutive samples.
+        q[half:, 5] += 2 * np.pi if q[half, 5] < 0 else -2 * np.pi
+        rep = ReachabilityReport.measure(robot, q, paths[1])
+        ik[1] = IKPathResult(q=q, reachability=rep, branch=ik[1].branch, method=ik[1].method)
+    return plan, build_program(robot, plan, np.eye(4), ik_results=ik)
+
+
+def _replay(traj: JointTrajectory, contacts: tuple[Contact, ...] = ()) -> ExecutedTrace:
+    """The ideal execution of `traj` (what a kinematic replay records), with given contacts."""
+    return ExecutedTrace(t_s=traj.t_s, q=traj.q, qd=traj.qd, tau=np.zeros_like(traj.q),
+                         tcp_pos_world=traj.tcp_pos_world, tcp_rot_world=traj.tcp_rot_world,
+                         paint_on=traj.paint_on, pass_index=traj.pass_index, mode="kinematic",
+                         contacts=contacts)
+
+
+def test_clean_program_is_fully_reachable() -> None:
+    plan, traj = _program(False)
+    h = honest_reachability(plan, traj, _replay(traj), traj.meta["reachability"])
+    assert h is not None and h["per_pose"]
+    assert h["n_lost"] == 0 and h["reachability_pct"] == 100.0
+
+
+def test_joint_jump_is_not_100_percent() -> None:
+    plan, traj = _program(True)
+    reach = traj.meta["reachability"]
+    assert reach["all_reachable"] and reach["n_jumps"] == 1   # IK alone would say 100 %
+    h = honest_reachability(plan, traj, _replay(traj), reach)
+    assert h is not None
+    assert h["n_joint_jumps"] == 1 and h["reachability_pct"] < 100.0
+    assert "joint jump" in h["verdict"]
+    # The 2π wrist spin forces the time law far below the planned speed around the jump:
+    # re-measured on the trajectory, independently of the module's own bookkeeping.
+    sel = (traj.segment == PAINT) & (traj.pass_index == 1)
+    v = np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1)[sel]
+    assert np.min(v / traj.v_tcp_planned[sel]) < 0.5
+    assert h["n_slowed_poses"] >= 1
+
+
+def test_contact_is_not_100_percent_and_shows_in_the_check_row() -> None:
+    plan, traj = _program(False)
+    paint_t = traj.t_s[(traj.segment == PAINT) & (traj.pass_index == 2)]
+    move_t = traj.t_s[traj.segment != PAINT]
+    hits = (Contact(float(paint_t[len(paint_t) // 2]), "robot/flange", "part", 0.002),
+            Contact(float(move_t[len(move_t) // 2]), "robot/link5", "booth", 0.001))
+    h = honest_reachability(plan, traj, _replay(traj, hits), traj.meta["reachability"])
+    assert h is not None and h["reachability_pct"] < 100.0
+    assert 2 <= h["n_contact_poses"] <= 3        # the painted pose; the ends the move links
+    # Through validate: the reachability check fails and says why.
+    T = np.eye(4)        # a plate under the passes, at standoff, facing the bell
+    T[:3, 3] = plan.passes[1].positions.mean(axis=0) - [0.0, 0.0, plan.applicator.standoff_m]
+    surface = dataclasses.replace(plane(0.6, 1.0, 0.03).transformed(T), name=plan.surface_name)
+    rep = validate(plan, surface, traj, _replay(traj, hits), np.eye(4),
+                   Thresholds(max_executed_nsd_pct=None, max_loss_pp=None),
+                   reachability=traj.meta["reachability"])
+    check = next(c for c in rep.checks if c.name == "reachability")
+    assert not check.passed and check.value < 100.0 and "in contact" in check.detail
+    assert rep.metrics["ik_reachability_pct"] == pytest.approx(100.0)
+    assert "in contact" in rep.reachability["verdict"]
+
+
+def test_without_per_pose_arrays_the_losses_add_up() -> None:
+    plan, traj = _program(False)
+    summary = {k: v for k, v in traj.meta["reachability"].items() if k != "poses"}
+    summary["n_reachable"] = summary["n_poses"] - 3
+    h = honest_reachability(plan, traj, _replay(traj), summary)
+    assert h is not None and not h["per_pose"]
+    assert h["reachability_pct"] == pytest.approx(
+        100.0 * (summary["n_poses"] - 3) / summary["n_poses"], abs=0.01)

@@ -1,0 +1,104 @@
+"""Openings (planning.openings): passes run straight across holes, the brush goes off only where
+most of the spray would go through.
+
+The part: a 1.0 m × 0.8 m plate (10 mm grid) with a 0.40 m × 0.24 m window and a 0.12 m service
+hole cut out (the grid faces inside them removed). Independent truth for the re-measurement: the
+removed faces themselves (the exact opening area), sampled densely with trimesh, and the
+deposition model's rate matrix (planning.deposition.deposition_rate) — not the fill fans the
+planner used.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import trimesh
+
+from planning.applicator import Applicator
+from planning.coverage import PlannerSettings, plan_coverage
+from planning.deposition import deposition_rate
+from planning.openings import find_openings
+from planning.plan import CoveragePlan
+from planning.surface import Surface, plane, surface_from_triangles
+
+WINDOW = (-0.3, 0.1, -0.12, 0.12)      # x0, x1, y0, y1 [m]
+HOLE_C, HOLE_R = (0.3, 0.15), 0.06     # service hole centre (x, y), radius [m]
+
+
+def _holed_plate() -> tuple[Surface, trimesh.Trimesh]:
+    """The plate with its openings, and the removed faces (the openings) as a mesh."""
+    s = plane(1.0, 0.8, 0.01)
+    c = s.vertices[s.faces].mean(axis=1)
+    x0, x1, y0, y1 = WINDOW
+    win = (c[:, 0] > x0) & (c[:, 0] < x1) & (c[:, 1] > y0) & (c[:, 1] < y1)
+    hole = np.hypot(c[:, 0] - HOLE_C[0], c[:, 1] - HOLE_C[1]) < HOLE_R
+    cut = win | hole
+    keep = s.faces[~cut]
+    used = np.unique(keep)
+    remap = np.full(len(s.vertices), -1)
+    remap[used] = np.arange(len(used))
+    part = surface_from_triangles("holed-plate", s.vertices[used], remap[keep])
+    gone = trimesh.Trimesh(s.vertices, s.faces[cut], process=False)
+    return part, gone
+
+
+@functools.lru_cache(maxsize=1)
+def _case() -> tuple[Surface, trimesh.Trimesh, CoveragePlan]:
+    part, gone = _holed_plate()
+    plan = plan_coverage(part, Applicator.default(), PlannerSettings(orientation=0.0,
+                                                                     first_side="right"))
+    return part, gone, plan
+
+
+def test_openings_are_found_with_their_areas() -> None:
+    part, gone = _holed_plate()
+    ops = sorted(find_openings(part), key=lambda o: -o.area_m2)
+    assert len(ops) == 2
+    # the fan areas equal the removed faces' areas (a star-shaped staircase loop)
+    x0, x1, y0, y1 = WINDOW
+    assert ops[0].area_m2 == pytest.approx((x1 - x0) * (y1 - y0), rel=0.03)
+    assert ops[1].area_m2 == pytest.approx(np.pi * HOLE_R**2, rel=0.15)
+    assert sum(o.area_m2 for o in ops) == pytest.approx(gone.area, rel=1e-9)
+
+
+@pytest.mark.slow
+def test_no_brush_on_sample_sends_more_than_half_its_paint_into_an_opening() -> None:
+    part, gone, plan = _case()
+    app = plan.applicator
+    pts, fi = trimesh.sample.sample_surface_even(gone, 6000, seed=0)
+    nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    w = np.full(len(pts), gone.area / len(pts))
+    worst = 0.0
+    n_off = 0
+    for p in plan.passes:
+        on = p.paint_on
+        rate = deposition_rate(app, p.positions, p.spray_axes, p.travel_dirs, pts, nrm)
+        frac = rate @ w / app.emitted_flow_m3_s
+        if on.any():
+            worst = max(worst, float(frac[on].max()))
+        n_off += int(np.count_nonzero(~on & (frac > 0.5)))
+    assert worst <= 0.5 + 0.02          # sampling of the opening: ±2 % of the emitted paint
+    assert n_off > 0                    # the window does switch the brush off
+    assert plan.settings["report"]["samples_brushed_off_over_openings"] > 0
+
+
+@pytest.mark.slow
+def test_passes_carry_on_straight_across_the_holes() -> None:
+    part, gone, plan = _case()
+    h = plan.applicator.standoff_m
+    crossing = 0
+    for p in plan.passes:
+        foot = p.positions + h * p.spray_axes
+        # straight: the pass never turns back, and keeps to one line across the plate
+        step = np.diff(foot, axis=0)
+        chord = foot[-1] - foot[0]
+        assert np.all(step @ chord > 0)
+        assert np.ptp(foot[:, 1]) < 0.02
+        in_hole = np.hypot(foot[:, 0] - HOLE_C[0], foot[:, 1] - HOLE_C[1]) < HOLE_R
+        if in_hole.any():
+            crossing += 1
+            # the small hole does not switch the brush off: most of the spray lands around it
+            assert p.paint_on[in_hole].all()
+    assert crossing >= 1

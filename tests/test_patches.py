@@ -1,0 +1,101 @@
+"""Patches (planning.patches): segmentation, per-patch plans, blended seams, order.
+
+The part: a bracket folded 90° (two 0.8 m × 0.5 m faces, a convex edge between them). Its normals
+are all perpendicular to the fold (pseudo-extruded: residual 0), so an extrusion criterion would
+keep it as one patch; the normal-cone segmentation splits it at the fold. Independent truth: the
+film of the produced passes on the real mesh (planning.deposition.thickness), measured in a band
+across the seam and in the patches' interiors, and the one-family plan of the same part.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from planning.applicator import Applicator
+from planning.coverage import PlannerSettings, plan_coverage
+from planning.deposition import thickness
+from planning.metrics import uniformity
+from planning.patches import extrusion_residual, face_normals_areas, plan_patches, segment
+from planning.plan import CoveragePlan
+from planning.surface import Surface, grid_faces, surface_from_triangles
+
+
+def bracket(res_m: float = 0.02) -> tuple[Surface, np.ndarray]:
+    """The folded bracket and each vertex's signed arc length t from the fold [m] (t < 0 on the
+    top face, normal +z; t > 0 on the front face, normal +y)."""
+    x = np.linspace(-0.4, 0.4, int(round(0.8 / res_m)) + 1)
+    t = np.linspace(-0.5, 0.5, int(round(1.0 / res_m)) + 1)
+    X, T = np.meshgrid(x, t, indexing="ij")
+    V = np.column_stack([X.ravel(), np.where(T < 0, T, 0.0).ravel(),
+                         np.where(T < 0, 0.0, -T).ravel()])
+    F = grid_faces(len(x), len(t))
+    s = surface_from_triangles("bracket", V, F)
+    if s.normals[:, 2].max() < 0.5:
+        s = surface_from_triangles("bracket", V, F[:, ::-1])
+    return s, T.ravel()
+
+
+@functools.lru_cache(maxsize=1)
+def _plans() -> tuple[Surface, np.ndarray, CoveragePlan, CoveragePlan]:
+    s, t = bracket()
+    app = Applicator.default()
+    return (s, t, plan_patches(s, app, start_point=np.array([0.0, 2.0, 1.0])),
+            plan_coverage(s, app, PlannerSettings()))
+
+
+def test_segmentation_splits_at_the_fold() -> None:
+    s, t = bracket()
+    lab = segment(s)
+    assert sorted(np.bincount(lab)) == [2000, 2000]
+    c = s.vertices[s.faces].mean(axis=1)
+    # every face on its own side of the fold
+    side = c[:, 2] < -1e-9
+    assert len(np.unique(lab[side])) == 1 and len(np.unique(lab[~side])) == 1
+    nf, af = face_normals_areas(s)
+    assert extrusion_residual(nf, af) < 1e-12        # pseudo-extruded as a whole
+
+
+@pytest.mark.slow
+def test_film_across_the_seam_is_within_1_5x_the_interior() -> None:
+    s, t, plan, one = _plans()
+    app = plan.applicator
+    film = thickness(app, plan.gun_samples(), s.vertices, s.normals)
+    x, a = s.vertices[:, 0], s.vertex_areas
+    mid = np.abs(x) < 0.3                               # away from the free ends
+
+    def nsd(m: np.ndarray, f: np.ndarray = film) -> float:
+        return uniformity(f[m], a[m]).nsd_pct
+
+    seam = nsd(mid & (np.abs(t) < 0.1))                 # a 0.2 m band across the fold
+    interior = max(nsd(mid & (t < -0.2) & (t > -0.4)), nsd(mid & (t > 0.2) & (t < 0.4)))
+    assert seam <= 1.5 * interior, (seam, interior)
+    # the patches beat one pass family over the whole part
+    film1 = thickness(app, one.gun_samples(), s.vertices, s.normals)
+    assert nsd(np.ones(len(x), bool)) < nsd(np.ones(len(x), bool), film1)
+    rep = plan.settings["report"]
+    assert len(rep["patches"]) == 2 and sum(p["samples_switched_off_at_seams"]
+                                            for p in rep["patches"]) > 0
+
+
+@pytest.mark.slow
+def test_patches_are_ordered_from_the_robot() -> None:
+    s, t, plan, _ = _plans()
+    order = plan.settings["report"]["order"]
+    # the robot is in front (+y) and above: the front face (t > 0) comes first
+    first = plan.passes[0].positions + plan.applicator.standoff_m * plan.passes[0].spray_axes
+    assert first[:, 1].mean() > -0.05 and len(order) == 2
+    assert [p.side for p in plan.passes] == list(range(len(plan.passes)))
+
+
+@pytest.mark.slow
+def test_planner_setting_patches_runs_the_patch_planner() -> None:
+    """`[planner] patches = true` in a scenario reaches plan_patches through plan_coverage; the
+    saved settings round-trip to the same planner settings."""
+    s, _ = bracket()
+    plan = plan_coverage(s, Applicator.default(), PlannerSettings(patches=True))
+    rep = plan.settings["report"]
+    assert len(rep["patches"]) == 2 and plan.start_rule == "patches"
+    assert PlannerSettings.from_dict(plan.settings).patches
