@@ -123,9 +123,13 @@ def repair(v: np.ndarray, f: np.ndarray) -> tuple[np.ndarray, np.ndarray, Repair
     # Slivers the merge did not collapse carry < 10 µm × edge of area: drop them.
     left = sliver_mask(v2, f2)
     if left.any():
-        f2 = f2[~left]
-        used, inv = np.unique(f2, return_inverse=True)
-        v2, f2 = v2[used], inv.reshape(-1, 3).astype(np.int64)
+        # Dropping a face can pinch two boundary loops into one vertex (a hole touching the
+        # outline or another hole): split such vertices again, else the loops are traced as one
+        # and a real opening is lost (crs_cowling_3_holes: a 236 mm hole vanished).
+        ms = _ms(v2, f2[~left])
+        ms.meshing_repair_non_manifold_vertices()
+        ms.meshing_remove_unreferenced_vertices()
+        v2, f2 = _out(ms)
     return v2, f2, RepairReport(faces_in=f_in, merged_vertices=merged, duplicate_faces=dup,
                                 degenerate_faces=degenerate, slivers=slivers,
                                 nonmanifold_edges=nm, faces_out=len(f2))

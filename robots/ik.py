@@ -359,9 +359,15 @@ def solve_paths(robot: Robot, paths: Sequence[npt.ArrayLike], q_seed: npt.ArrayL
                 free_spin: bool = False, settings: IKSettings | None = None
                 ) -> list[IKPathResult]:
     """`solve_path` for each pass in order; each pass is seeded with the end of the previous one.
+    A robot on a rail (`robot.rail`) gets `robots.rail.solve_rail_paths` (rail position per pass).
 
     The combined report: `ReachabilityReport.concatenate([r.reachability for r in results])`.
     """
+    if getattr(robot, "rail", None) is not None:   # a 7th, linear axis: robots.rail resolves it
+        from robots.rail import solve_rail_paths
+
+        return solve_rail_paths(robot, paths, q_seed=q_seed, free_spin=free_spin,
+                                settings=settings)
     results = []
     seed = q_seed
     for T in paths:

@@ -102,6 +102,7 @@ class Robot:
     tcp_frame_id: int
     opw: OPWParameters | None = None   # closed-form IK parameters when the arm is ortho-parallel
     wrist_joint_index: int | None = 4  # joint whose sin is 0 at the wrist singularity (J5)
+    rail: Any = None   # `robots.rail.RailAxis` when joint 0 is a linear rail carrying the arm
     _base_joint_placement: Any = field(default=None, repr=False)
     _base_frame_placement: Any = field(default=None, repr=False)
 
@@ -112,13 +113,16 @@ class Robot:
                   T_world_base: npt.ArrayLike | None = None, tcp_site_name: str = "tcp",
                   flange_site_name: str = "flange_site", base_body_name: str = "base_link",
                   opw: OPWParameters | None = None) -> Robot:
-        """Load `mjcf_path` (arm + tool, hinge joints only) into MuJoCo and Pinocchio."""
+        """Load `mjcf_path` (arm + tool; hinge joints, and slide joints for rails) into MuJoCo and
+        Pinocchio."""
         path = Path(mjcf_path)
         if not path.is_file():
             raise RobotError(f"MJCF {path} not found; check the path or reinstall paintcell")
         mj = mujoco.MjModel.from_xml_path(str(path))
-        if np.any(mj.jnt_type != mujoco.mjtJoint.mjJNT_HINGE):
-            raise RobotError(f"{path}: only hinge joints are supported; remove free/slide joints")
+        if np.any((mj.jnt_type != mujoco.mjtJoint.mjJNT_HINGE)
+                  & (mj.jnt_type != mujoco.mjtJoint.mjJNT_SLIDE)):
+            raise RobotError(f"{path}: only hinge and slide joints are supported; remove free/ball "
+                             "joints")
         nq = mj.nq
         for site in (tcp_site_name, flange_site_name):
             if mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_SITE, site) < 0:
@@ -277,9 +281,18 @@ ABB_PAINT_V_MAX = np.deg2rad([175.0, 175.0, 175.0, 250.0, 250.0, 360.0])
 ABB_PAINT_A_MAX = np.array([6.0, 6.0, 8.0, 20.0, 20.0, 30.0])
 
 
+# --- the IRB 5500-class paint robot (robots/abb_irb5500/README.md) ------------------------------
+IRB5500_MJCF = ROBOTS_DIR / "abb_irb5500" / "abb_irb5500.xml"
+# Axis speeds 100, 130, 130, 460, 460, 600 °/s (README step 3: IRB 5500 product specification).
+IRB5500_V_MAX = np.deg2rad([100.0, 130.0, 130.0, 460.0, 460.0, 600.0])
+# Estimate (README step 7): main axes to full speed in ~0.4 s, wrist ~5x faster.
+IRB5500_A_MAX = np.array([4.5, 5.5, 6.5, 25.0, 25.0, 35.0])
+
+
 def load_robot(name: str, T_world_base: npt.ArrayLike | None = None,
                tcp_offset: npt.ArrayLike | None = None) -> Robot:
-    """Load a robot ("abb_paint", "ur10") placed at `T_world_base` (4,4) (default: identity).
+    """Load a robot ("abb_paint", "irb5500", "ur10") placed at `T_world_base` (4,4) (default:
+    identity).
 
     tcp_offset: optional (4,4) T_flange_tcp [m] replacing the MJCF's tool offset (the TCP site
     moves; a generated MJCF in the temp dir becomes `mjcf_path`).
@@ -291,13 +304,24 @@ def load_robot(name: str, T_world_base: npt.ArrayLike | None = None,
             path = with_tcp_offset(path, "tcp", tcp_offset, "abb_paint")
         return Robot.from_mjcf("abb_paint", path, v_max=ABB_PAINT_V_MAX, a_max=ABB_PAINT_A_MAX,
                                T_world_base=T_world_base, opw=IRB4600_60_205)
+    if name == "irb5500":
+        from robots.opw import IRB5500_CLASS
+        path = IRB5500_MJCF
+        if tcp_offset is not None:
+            path = with_tcp_offset(path, "tcp", tcp_offset, "irb5500")
+        return Robot.from_mjcf("irb5500", path, v_max=IRB5500_V_MAX, a_max=IRB5500_A_MAX,
+                               T_world_base=T_world_base, opw=IRB5500_CLASS)
+    if name.endswith("_rail") and name[:-5] in ("abb_paint", "irb5500"):
+        from robots.rail import load_rail_robot
+        return load_rail_robot(name[:-5], T_world_rail=T_world_base, tcp_offset=tcp_offset)
     if name == "ur10":
         from robots.ur10 import load_ur10
         return load_ur10(T_world_base=T_world_base, tcp_offset=tcp_offset)
     raise RobotError(f"unknown robot {name!r}; choose one of {ROBOT_NAMES}")
 
 
-ROBOT_NAMES = ("abb_paint", "ur10")
+# "<arm>_rail": the arm on a default linear rail (`robots.rail`; T_world_base is the rail frame).
+ROBOT_NAMES = ("abb_paint", "irb5500", "ur10", "abb_paint_rail", "irb5500_rail")
 
 
 def bell_tool_offset(straight_m: float = 0.16, head_m: float = 0.12,

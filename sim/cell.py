@@ -159,6 +159,27 @@ def _camera_quat(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
     return quat_wxyz_from_matrix(np.column_stack([x, y, z]))
 
 
+
+def add_part_geoms(spec: mujoco.MjSpec, part: mujoco.MjsBody, surface: Surface,
+                   collision_piece_m: float, shell_thickness_m: float) -> None:
+    """Add the part's geoms to body `part`: the exact surface as a visual mesh (no contacts) and
+    thin convex collision slabs (`_collision_pieces`, pieces ~collision_piece_m [m] across,
+    shell_thickness_m [m] thick)."""
+    vis = spec.add_mesh(name="part_surface")
+    vis.uservert = np.ascontiguousarray(surface.vertices, float).ravel()
+    vis.userface = np.ascontiguousarray(surface.faces, np.int32).ravel()
+    vis.usernormal = np.ascontiguousarray(surface.normals, float).ravel()
+    vis.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+    part.add_geom(name="part_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname="part_surface",
+                  contype=0, conaffinity=0, group=1, density=0.0, rgba=[0.75, 0.77, 0.8, 1.0])
+    for i, cloud in enumerate(_collision_pieces(surface, collision_piece_m, shell_thickness_m)):
+        m = spec.add_mesh(name=f"part_collision_{i}")
+        m.uservert = np.ascontiguousarray(cloud, float).ravel()
+        m.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+        part.add_geom(name=f"part_collision_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
+                      meshname=f"part_collision_{i}", group=3, density=0.0,
+                      rgba=[0.5, 0.5, 0.5, 0.3])
+
 def _collision_pieces(surface: Surface, piece_m: float, thickness_m: float) -> list[np.ndarray]:
     """Vertex clouds (part frame) of thin convex slabs that cover the shell.
 
@@ -242,20 +263,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     # --- part: visual mesh (exact surface) + thin convex collision slabs ---------------------
     part = spec.worldbody.add_body(name=PART_BODY, pos=T_world_part[:3, 3],
                                    quat=quat_wxyz_from_matrix(T_world_part[:3, :3]))
-    vis = spec.add_mesh(name="part_surface")
-    vis.uservert = np.ascontiguousarray(surface.vertices, float).ravel()
-    vis.userface = np.ascontiguousarray(surface.faces, np.int32).ravel()
-    vis.usernormal = np.ascontiguousarray(surface.normals, float).ravel()
-    vis.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-    part.add_geom(name="part_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname="part_surface",
-                  contype=0, conaffinity=0, group=1, density=0.0, rgba=[0.75, 0.77, 0.8, 1.0])
-    for i, cloud in enumerate(_collision_pieces(surface, collision_piece_m, shell_thickness_m)):
-        m = spec.add_mesh(name=f"part_collision_{i}")
-        m.uservert = np.ascontiguousarray(cloud, float).ravel()
-        m.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-        part.add_geom(name=f"part_collision_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
-                      meshname=f"part_collision_{i}", group=3, density=0.0,
-                      rgba=[0.5, 0.5, 0.5, 0.3])
+    add_part_geoms(spec, part, surface, collision_piece_m, shell_thickness_m)
 
     # --- booth --------------------------------------------------------------------------------
     if booth:
@@ -336,7 +344,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
 
 def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, surface: Surface,
                 T_world_part: np.ndarray, T_world_base: np.ndarray, cams: Sequence[CameraSpec],
-                booth: bool) -> Cell:
+                booth: bool, prefix: str = ROBOT_PREFIX) -> Cell:
     def oid(kind: mujoco.mjtObj, name: str) -> int:
         i = mujoco.mj_name2id(model, kind, name)
         if i < 0:
@@ -345,7 +353,7 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
         return int(i)
 
     joint_names = tuple(robot.joint_names)
-    jids = [oid(mujoco.mjtObj.mjOBJ_JOINT, ROBOT_PREFIX + jn) for jn in joint_names]
+    jids = [oid(mujoco.mjtObj.mjOBJ_JOINT, prefix + jn) for jn in joint_names]
     act_ids = []
     for j in jids:
         hits = np.flatnonzero((model.actuator_trntype == mujoco.mjtTrn.mjTRN_JOINT)
@@ -354,7 +362,7 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
             raise CellError(f"joint {model.joint(j).name!r} has {len(hits)} actuators; the robot "
                             "MJCF needs exactly one motor per joint")
         act_ids.append(int(hits[0]))
-    base_id = oid(mujoco.mjtObj.mjOBJ_BODY, ROBOT_PREFIX + robot.base_body_name)
+    base_id = oid(mujoco.mjtObj.mjOBJ_BODY, prefix + robot.base_body_name)
     # Robot bodies: the base and everything below it.
     robot_bodies = [b for b in range(model.nbody) if _is_descendant(model, b, base_id)]
 
@@ -373,8 +381,8 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
         qpos_adr=model.jnt_qposadr[jids].astype(np.int64).copy(),
         dof_adr=model.jnt_dofadr[jids].astype(np.int64).copy(),
         actuator_ids=np.asarray(act_ids, np.int64), tau_max=tau_max,
-        tcp_site_id=oid(mujoco.mjtObj.mjOBJ_SITE, ROBOT_PREFIX + robot.tcp_site_name),
-        tcp_site_name=ROBOT_PREFIX + robot.tcp_site_name,
+        tcp_site_id=oid(mujoco.mjtObj.mjOBJ_SITE, prefix + robot.tcp_site_name),
+        tcp_site_name=prefix + robot.tcp_site_name,
         robot_body_ids=np.asarray(robot_bodies, np.int64),
         robot_body_names=tuple(model.body(b).name for b in robot_bodies),
         part_body_id=oid(mujoco.mjtObj.mjOBJ_BODY, PART_BODY), part_body_name=PART_BODY,

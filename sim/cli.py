@@ -174,6 +174,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from sim.scenario import load_scenario
 
     scn = load_scenario(args.scenario)
+    if args.disturb and not hasattr(scn, "disturbances"):
+        raise PaintcellError("--disturb applies to single-robot scenarios, not to a booth")
     if args.disturb:
         scn = replace(scn, disturbances={**scn.disturbances, **_key_values(args.disturb)})
         from sim.scenario_data import check_settings
@@ -197,7 +199,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return EXIT_OK if r["passed"] else EXIT_FAIL
     print(format_table([r]))
     if out is not None:
-        print(f"results: {out}" + ("" if args.no_report else f" (report: {out / 'report.html'})"))
+        html = (out / "report.html").exists()   # a booth writes no HTML report (yet)
+        print(f"results: {out}" + (f" (report: {out / 'report.html'})" if html else ""))
     return EXIT_OK if res.passed else EXIT_FAIL
 
 

@@ -190,7 +190,15 @@ def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool
     fast: coarse resolution and the scenario's fast planner overrides (CI checks).
     mode: "servo" (PD + inverse dynamics) or "kinematic" (ideal replay) execution.
     report: also write plots, renders and `report.html`.
+    A `sim.booth.Booth` runs through `sim.booth_run.run_booth` (metrics, traces and RAPID
+    modules; no HTML report yet).
     """
+    from sim.booth import Booth
+
+    if isinstance(scn, Booth):   # several robots on a conveyor: sim.booth_run
+        from sim.booth_run import run_booth
+
+        return run_booth(scn, out_dir, fast=fast, mode=mode)  # type: ignore[return-value]
     timings: dict[str, float] = {}
     # disable=None: tqdm draws only on a terminal, so CI logs and pipes stay clean.
     bar = tqdm(total=len(STAGES), desc=f"{scn.name}", unit="stage",

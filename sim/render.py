@@ -28,7 +28,7 @@ import sys
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import mujoco
 import numpy as np
@@ -737,7 +737,7 @@ def write_video(path: str | os.PathLike[str], frames: Sequence[np.ndarray] | Ite
             raise RenderError("MP4 needs imageio and imageio-ffmpeg (pip install imageio "
                               "imageio-ffmpeg); or write a .gif") from e
         with atomic_path(path) as tmp:
-            imageio.mimsave(tmp, frames, fps=fps, macro_block_size=1)
+            imageio.mimsave(tmp, cast(Any, frames), fps=fps, macro_block_size=1)
         return _readable(path)
     raise RenderError(f"unknown video format {path.suffix!r}: use .gif or .mp4")
 

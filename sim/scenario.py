@@ -157,9 +157,10 @@ class Scenario:
         return cli_main(["run", src, *(sys.argv[1:] if argv is None else argv)])
 
 
-def load_scenario(path: str | Path) -> Scenario:
+def load_scenario(path: str | Path) -> Any:
     """The scenario of a TOML file (read as data) or a Python script (imported; its `SCENARIO`),
-    with `source` filled in and every setting and threshold validated."""
+    with `source` filled in and every setting and threshold validated: a `Scenario`, or a
+    `sim.booth.Booth` for a booth of several robots (a TOML file with `[[robots]]` tables)."""
     from sim.scenario_data import check_settings, load_toml_scenario
 
     path = Path(path)
@@ -170,6 +171,10 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ScenarioError(f"scenario {path} is a folder; pass one scenario file (`paintcell "
                             "check` takes folders)")
     if path.suffix == ".toml":
+        if _is_booth_toml(path):   # several robots: imported only for a booth
+            from sim.booth_data import load_toml_booth
+
+            return load_toml_booth(path)
         return load_toml_scenario(path)
     if path.suffix != ".py":
         raise ScenarioError(f"scenario {path} is neither a .toml scenario nor a Python script "
@@ -192,13 +197,28 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ScenarioError(f"cannot import scenario {path}: {type(exc).__name__}: {exc}") \
             from exc
     scenario = getattr(module, "SCENARIO", None)
-    if not isinstance(scenario, Scenario):
-        raise ScenarioError(f"{path} defines no SCENARIO (a sim.scenario.Scenario); add one")
+    from sim.booth import Booth  # a booth script (several robots) runs like a scenario
+
+    if not isinstance(scenario, Scenario | Booth):
+        raise ScenarioError(f"{path} defines no SCENARIO (a sim.scenario.Scenario or a "
+                            "sim.booth.Booth); add one")
     from dataclasses import replace
 
     scenario = replace(scenario, source=str(path.resolve()))
-    check_settings(scenario, str(path))
+    if isinstance(scenario, Scenario):
+        check_settings(scenario, str(path))
     return scenario
+
+
+def _is_booth_toml(path: Path) -> bool:
+    """Whether a TOML file declares a booth (`[[robots]]` tables; `sim.booth_data`)."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as f:
+            return isinstance(tomllib.load(f).get("robots"), list)
+    except (OSError, tomllib.TOMLDecodeError):
+        return False   # the scenario loader reports the file's own error
 
 
 def find_scenarios(paths: list[str]) -> list[Path]:

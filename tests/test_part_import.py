@@ -338,3 +338,16 @@ def test_resolution_and_fast_work_for_mesh_parts(parts):
         assert _median_edge_m(fast) == pytest.approx(0.05, rel=0.3)
         for s in (full, fast):
             assert s.area == pytest.approx(truth["skin_m2"] + truth["hem_m2"], rel=REMESH_RTOL)
+
+
+@needs_shared
+def test_dropping_slivers_keeps_every_opening_of_a_real_part() -> None:
+    # crs_cowling_3_holes has three 236 mm holes (0.743 m loops, counted on the raw file with
+    # trimesh's own boundary); a sliver beside one of them pinched it into another loop.
+    raw = trimesh.load(SHARED / "crs_cowling_3_holes.stl")
+    path = raw.outline()
+    lengths = sorted(float(e.length(path.vertices)) for e in path.entities)
+    assert sum(0.70 < x < 0.80 for x in lengths) == 3
+    surf, _ = import_part(MeshPart(file=str(SHARED / "crs_cowling_3_holes.stl")), 0.025)
+    big = [o for o in surf.regions.openings if 0.70 < o.perimeter_m < 0.80]
+    assert len(big) == 3

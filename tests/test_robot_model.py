@@ -35,7 +35,7 @@ def _mj_model_at(robot) -> mujoco.MjModel:
     return spec.compile()
 
 
-@pytest.mark.parametrize("name", ["abb_paint", "ur10"])
+@pytest.mark.parametrize("name", ["abb_paint", "irb5500", "irb5500_rail", "ur10"])
 def test_mujoco_and_pinocchio_tcp_agree(name):
     robot = load_robot(name, T_world_base=T_BASE)
     model = _mj_model_at(robot)
@@ -48,7 +48,7 @@ def test_mujoco_and_pinocchio_tcp_agree(name):
         assert np.abs(T_mj[:3, :3] - T_pin[:3, :3]).max() < FK_AGREEMENT_ATOL_ROT
 
 
-@pytest.mark.parametrize("name", ["abb_paint", "ur10"])
+@pytest.mark.parametrize("name", ["abb_paint", "irb5500", "irb5500_rail", "ur10"])
 def test_gravity_torques_agree(name):
     """Same dynamics in both engines: Pinocchio RNEA at rest == MuJoCo's bias force."""
     robot = load_robot(name)
@@ -63,7 +63,7 @@ def test_gravity_torques_agree(name):
         assert np.allclose(g, data.qfrc_bias, atol=1e-6 * (1 + np.abs(g).max()))
 
 
-@pytest.mark.parametrize("name", ["abb_paint", "ur10"])
+@pytest.mark.parametrize("name", ["abb_paint", "irb5500", "irb5500_rail", "ur10"])
 def test_model_steps_under_random_torques_without_warnings(name):
     robot = load_robot(name)
     model = mujoco.MjModel.from_xml_path(str(robot.mjcf_path))
@@ -79,7 +79,7 @@ def test_model_steps_under_random_torques_without_warnings(name):
     assert np.all(np.isfinite(data.qpos))
 
 
-@pytest.mark.parametrize("name", ["abb_paint", "ur10"])
+@pytest.mark.parametrize("name", ["abb_paint", "irb5500", "irb5500_rail", "ur10"])
 def test_jacobian_matches_finite_differences(name):
     robot = load_robot(name, T_world_base=T_BASE)
     rng = np.random.default_rng(4)

@@ -1,0 +1,346 @@
+"""Run a `sim.booth.Booth` end to end: plans, allocation, programs, conveyor tracking, one MuJoCo
+booth with every robot at once, the film in the body frame, per-robot credit.
+
+Films (all on the merged body surface, in the body frame; the body's film is the sum of the
+robots' films):
+- plan: each robot's passes at planned timing;
+- trajectory: each robot's reference TCP (its tracked program, ideal kinematics) relative to
+  the body where the conveyor nominally puts it;
+- servo: the executed TCP relative to that nominal body position (the robots' servo error only);
+- executed: the executed TCP relative to where the carrier really was (MuJoCo's carrier joint).
+So loss = executed − plan σ/μ = time law (trajectory − plan) + servo (servo − trajectory)
++ conveyor tracking (executed − servo: the part not where the programs expect it).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import mujoco
+import numpy as np
+
+from planning.errors import PaintcellError
+from planning.plan import CoveragePlan
+from planning.surface import Surface
+from sim.booth import (
+    Booth,
+    BoothError,
+    Job,
+    arm_points,
+    pass_feasible,
+    rank_allocations,
+    stagger_starts,
+)
+from sim.booth_cell import BoothCell, build_booth_cell
+from sim.booth_film import merge_surfaces, robot_films
+from sim.conveyor import track_program
+from sim.joint_trajectory import RETRACT, JointTrajectory
+from sim.trace import ExecutedTrace
+from sim.validate import ValidationReport, collision_events
+
+#: allocations tried, best first, before giving up (their programs are cached per robot and job).
+MAX_ALLOCATIONS_TRIED = 8
+
+
+@dataclass
+class BoothResult:
+    """What a booth run produced. `report` is a `ValidationReport` (booth metrics and checks)."""
+
+    scenario: Booth
+    out_dir: Path | None
+    surface: Surface
+    plans: list[CoveragePlan]
+    jobs: dict[int, Job]
+    trajectories: list[JointTrajectory]
+    traces: list[ExecutedTrace]
+    report: ValidationReport
+    films_m: dict[str, np.ndarray] = field(default_factory=dict)
+    static_trajectories: list[JointTrajectory] = field(default_factory=list)
+    """Each robot's own program in the static cell, before staggering and tracking."""
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        """Every booth threshold met."""
+        return bool(self.report.passed)
+
+
+def _pad(traj: JointTrajectory, K: int) -> JointTrajectory:
+    """`traj` held at its last sample (at rest, brush off) up to K samples."""
+    n = K - len(traj.t_s)
+    if n <= 0:
+        return traj
+    dt = traj.dt_s
+    a = {name: getattr(traj, name) for name in JointTrajectory._ARRAYS}
+    ext = {"t_s": traj.t_s[-1] + dt * np.arange(1, n + 1),
+           "qd": np.zeros((n, a["qd"].shape[1])), "qdd": np.zeros((n, a["qdd"].shape[1])),
+           "v_tcp_planned": np.zeros(n), "paint_on": np.zeros(n, bool),
+           "pass_index": np.full(n, -1), "segment": np.full(n, RETRACT),
+           "s_pass_m": np.full(n, np.nan)}
+    out = {k: np.concatenate([v, ext[k] if k in ext else np.repeat(v[-1:], n, axis=0)])
+           for k, v in a.items()}
+    return JointTrajectory(**out, robot_name=traj.robot_name, joint_names=traj.joint_names,
+                           slowdowns=traj.slowdowns, pass_summary=traj.pass_summary,
+                           meta=dict(traj.meta))
+
+
+def _delay(traj: JointTrajectory, n: int) -> JointTrajectory:
+    """`traj` preceded by n samples holding its first one (at rest at home, brush off)."""
+    if n <= 0:
+        return traj
+    a = {name: getattr(traj, name) for name in JointTrajectory._ARRAYS}
+    head = {"qd": np.zeros((n, a["qd"].shape[1])), "qdd": np.zeros((n, a["qdd"].shape[1])),
+            "v_tcp_planned": np.zeros(n), "paint_on": np.zeros(n, bool),
+            "pass_index": np.full(n, -1), "s_pass_m": np.full(n, np.nan)}
+    out = {k: np.concatenate([head[k] if k in head else np.repeat(v[:1], n, axis=0), v])
+           for k, v in a.items() if k != "t_s"}
+    out["t_s"] = traj.t_s[0] + traj.dt_s * np.arange(len(traj.t_s) + n)
+    return JointTrajectory(**out, robot_name=traj.robot_name, joint_names=traj.joint_names,
+                           slowdowns=traj.slowdowns, pass_summary=traj.pass_summary,
+                           meta={**traj.meta, "start_delay_s": n * traj.dt_s})
+
+
+def combined_program(bcell: BoothCell, trajs: list[JointTrajectory], t_ref_s: float
+                     ) -> JointTrajectory:
+    """One program for the whole booth cell: every robot's columns, then the carrier's."""
+    t = trajs[0].t_s
+    q = [tr.q for tr in trajs]
+    qd = [tr.qd for tr in trajs]
+    qdd = [tr.qdd for tr in trajs]
+    if bcell.conveyor is not None:
+        q.append(bcell.conveyor.position_m(t, t_ref_s)[:, None])
+        qd.append(np.full((len(t), 1), bcell.conveyor.speed_m_s))
+        qdd.append(np.zeros((len(t), 1)))
+    first = trajs[0]
+    a = {name: getattr(first, name) for name in JointTrajectory._ARRAYS}
+    a.update(q=np.hstack(q), qd=np.hstack(qd), qdd=np.hstack(qdd),
+             paint_on=np.any([tr.paint_on for tr in trajs], axis=0))
+    return JointTrajectory(**a, robot_name="booth", joint_names=bcell.cell.joint_names)
+
+
+def robot_tcp(bcell: BoothCell, q_all: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per step, every robot's TCP from the booth's joint vector q_all (K, n):
+    positions (R, K, 3) [m] and rotations (R, K, 3, 3) in the world (MuJoCo kinematics)."""
+    m = bcell.cell.model
+    d = mujoco.MjData(m)
+    K, R = len(q_all), bcell.n_robots
+    pos, rot = np.empty((R, K, 3)), np.empty((R, K, 3, 3))
+    sites = np.asarray(bcell.tcp_site_ids)
+    adr = bcell.cell.qpos_adr
+    for k in range(K):
+        d.qpos[adr] = q_all[k]
+        mujoco.mj_kinematics(m, d)
+        pos[:, k] = d.site_xpos[sites]
+        rot[:, k] = d.site_xmat[sites].reshape(R, 3, 3)
+    return pos, rot
+
+
+def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = False,
+              mode: Literal["servo", "kinematic"] = "servo", progress: bool = True
+              ) -> BoothResult:
+    """Run the booth (module doc); write results to `out_dir` if given."""
+    from sim.booth_results import booth_metrics, write_booth_results
+    from sim.results_dir import new_results
+
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    surfaces, plans, T_body_parts = _plan_parts(booth, fast)
+    body = merge_surfaces(surfaces, T_body_parts, booth.name)
+    T_wb = booth.body_placement.matrix
+    robots = _load_robots(booth)
+    timings["plan"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    ranked, record = _allocate(booth, robots, plans, T_wb, T_body_parts)
+    # Rail robots place their carriage for each pass inside a range shrunk by the travel the
+    # conveyor tracking will add (half the line travel over the estimated cycle, +25 %).
+    shrink = 0.5 * booth.conveyor.speed_m_s * record.get("estimated_cycle_s", 0.0) * 1.25
+    planners = _load_robots(booth, shrink) if shrink > 0 else robots
+    cache: dict[tuple[int, Job], JointTrajectory] = {}
+    tried = []
+    for jobs in ranked[:MAX_ALLOCATIONS_TRIED]:
+        try:
+            trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_body_parts, cache)
+            static = list(trajs0)   # the programs as the robots' controllers run them (RAPID)
+            delays = _stagger(booth, robots, trajs0)
+        except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
+            tried.append({"jobs": {booth.robots[r].name: [j.part, j.first, j.end]
+                                   for r, j in jobs.items()}, "rejected": str(exc)})
+            continue
+        break
+    else:
+        raise BoothError(f"none of the {len(tried)} best allocations works (last: "
+                         f"{tried[-1]['rejected']}); move the robots")
+    record["rejected"] = tried
+    record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
+    trajs0 = [_delay(tr, d) for tr, d in zip(trajs0, delays, strict=True)]
+    record["start_delays_s"] = [d * trajs0[0].dt_s for d in delays]
+    timings["trajectory"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    K = max(len(tr.t_s) for tr in trajs0)
+    dt = trajs0[0].dt_s
+    t_ref = 0.5 * (K - 1) * dt
+    trajs = [track_program(r, _pad(tr, K), booth.conveyor, t_ref)
+             for r, tr in zip(robots, trajs0, strict=True)]
+    bcell = build_booth_cell(robots, body, T_wb, booth.conveyor)
+    from sim.execute import ServoSettings, execute
+    from sim.pipeline import settings_from
+
+    prog = combined_program(bcell, trajs, t_ref)
+    trace = execute(bcell.cell, prog, mode=mode,
+                    servo=settings_from(ServoSettings, booth.servo, "servo"))
+    timings["execute"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    pos, rot = robot_tcp(bcell, trace.q)
+    traces = _robot_traces(bcell, trace, trajs, pos, rot)
+    films = robot_films(booth, bcell, body, plans, jobs, T_body_parts, trajs, traces, trace,
+                        t_ref)
+    report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
+                           collision_events(trace), record, jobs,
+                           [len(x.vertices) for x in surfaces])
+    timings["validate"] = time.perf_counter() - t0
+    result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
+                         timings)
+    with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
+        if tmp is not None:
+            write_booth_results(result, tmp, robots)
+            result.out_dir = Path(out_dir)  # type: ignore[arg-type]
+    return result
+
+
+def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoveragePlan],
+                                                    list[np.ndarray]]:
+    from planning import parts
+    from planning.applicator import Applicator
+    from planning.coverage import PlannerSettings, plan_coverage
+    from sim.pipeline import settings_from
+
+    res = booth.fast_resolution_m if fast else booth.resolution_m
+    surfaces, plans, Ts = [], [], []
+    for bp in booth.parts:
+        if bp.part not in parts.PART_NAMES:
+            raise BoothError(f"booth part {bp.part!r} is not a library part "
+                             f"({', '.join(parts.PART_NAMES)})")
+        s = parts.get_part(bp.part, resolution_m=res)
+        kw = {**booth.planner, **bp.planner}
+        plans.append(plan_coverage(s, Applicator.default(),
+                                   settings_from(PlannerSettings, kw, "planner")))
+        surfaces.append(s)
+        Ts.append(bp.placement.matrix)
+    return surfaces, plans, Ts
+
+
+def _load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
+    """The booth's robots; rail robots with their travel shrunk by rail_shrink_m at both ends
+    (for planning the passes' carriage positions, leaving room for conveyor tracking)."""
+    from robots import load_robot
+    from robots.rail import RailSpec, load_rail_robot
+
+    out = []
+    for r in booth.robots:
+        if r.rail_m is not None or (rail_shrink_m > 0 and r.model.endswith("_rail")):
+            if not r.model.endswith("_rail"):
+                raise BoothError(f"robot {r.name!r} has rail_m but model {r.model!r} has no "
+                                 "rail; use '<arm>_rail'")
+            rng = r.rail_m if r.rail_m is not None else (-2.0, 2.0)
+            lo, hi = rng[0] + rail_shrink_m, rng[1] - rail_shrink_m
+            if lo >= hi:
+                raise BoothError(f"robot {r.name!r}: the conveyor tracking needs "
+                                 f"{2 * rail_shrink_m:.2f} m of its rail; lengthen rail_m or "
+                                 "slow the line")
+            out.append(load_rail_robot(r.model[:-5], T_world_rail=r.base.matrix,
+                                       rail=RailSpec(lower_m=lo, upper_m=hi,
+                                                     home_m=min(max(0.0, lo), hi))))
+        else:
+            out.append(load_robot(r.model, T_world_base=r.base.matrix))
+    return out
+
+
+def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: np.ndarray,
+              T_bp: list[np.ndarray]) -> tuple[list[dict[int, Job]], dict[str, Any]]:
+    if booth.allocation is not None:
+        names = [r.name for r in booth.robots]
+        jobs = {}
+        for rname, (p, a, b) in booth.allocation.items():
+            if rname not in names:
+                raise BoothError(f"allocation names robot {rname!r}; robots are {names}")
+            jobs[names.index(rname)] = Job(int(p), int(a), int(b))
+        return [jobs], {"rule": "fixed in the booth script"}
+    cache: dict[tuple[int, int, int], bool] = {}
+
+    def pass_ok(r: int, p: int, i: int) -> bool:
+        if (r, p, i) not in cache:
+            T = T_wb @ T_bp[p] @ plans[p].tcp_frames(i)
+            cache[(r, p, i)] = pass_feasible(robots[r], T)
+        return cache[(r, p, i)]
+
+    def reachable(r: int, job: Job) -> bool:
+        return all(pass_ok(r, job.part, i) for i in range(job.first, job.end))
+
+    durations = [np.array([ps.duration_s for ps in pl.passes]) for pl in plans]
+    return rank_allocations(len(robots), [len(pl.passes) for pl in plans], durations,
+                            reachable)
+
+
+def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> list[int]:
+    """Start delays [samples] of `sim.booth.stagger_starts` (none without a clearance limit)."""
+    if booth.thresholds.min_bell_distance_m is None:
+        return [0] * len(trajs)
+    sub = max(1, int(round(0.02 / trajs[0].dt_s)))    # arm points every 20 ms
+    pts = [arm_points(r, tr.q[::sub]) for r, tr in zip(robots, trajs, strict=True)]
+    return [sub * d for d in stagger_starts(pts, sub * trajs[0].dt_s,
+                                            booth.thresholds.min_bell_distance_m)]
+
+
+def _programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan], jobs: dict[int, Job],
+              T_wb: np.ndarray, T_bp: list[np.ndarray],
+              cache: dict[tuple[int, Job], JointTrajectory]) -> list[JointTrajectory]:
+    """Each robot's static program for its job (cached per robot and job)."""
+    from sim.pipeline import settings_from
+    from sim.trajectory import TrajectorySettings, build_program
+
+    out = []
+    for i, (spec, robot) in enumerate(zip(booth.robots, robots, strict=True)):
+        kw = dict(booth.trajectory)
+        if spec.home is not None:
+            kw["q_home"] = tuple(spec.home)
+        settings = settings_from(TrajectorySettings, kw, "trajectory")
+        job = jobs.get(i)
+        if job is None:
+            raise BoothError(f"robot {spec.name!r} got no job; remove it or give it one in "
+                             "Booth.allocation")
+        if (i, job) not in cache:
+            plan = dataclasses.replace(plans[job.part],
+                                       passes=plans[job.part].passes[job.first:job.end])
+            cache[(i, job)] = build_program(robot, plan, T_wb @ T_bp[job.part], settings)
+        out.append(cache[(i, job)])
+    return out
+
+
+def _robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTrajectory],
+                  pos: np.ndarray, rot: np.ndarray) -> list[ExecutedTrace]:
+    out = []
+    for i, (cols, tr) in enumerate(zip(bcell.columns, trajs, strict=True)):
+        mine = tuple(c for c in trace.contacts
+                     if bcell.robot_of_body(c.body1) == i or bcell.robot_of_body(c.body2) == i)
+        out.append(ExecutedTrace(
+            t_s=trace.t_s, q=trace.q[:, cols], qd=trace.qd[:, cols], tau=trace.tau[:, cols],
+            tcp_pos_world=pos[i], tcp_rot_world=rot[i], paint_on=tr.paint_on,
+            pass_index=tr.pass_index, mode=trace.mode, contacts=mine,
+            meta={"robot": bcell.robots[i].name},
+            tau_demand=None if trace.tau_demand is None else trace.tau_demand[:, cols]))
+    return out
+
+
+def json_dump(d: dict[str, Any]) -> str:
+    """JSON of a metrics dict (numpy scalars made plain)."""
+    from sim.pipeline import json_default
+
+    return json.dumps(d, indent=2, default=json_default)

@@ -1,0 +1,141 @@
+"""A paint arm on a linear rail (robots.rail): the same robot as on a fixed base at a fixed rail
+position (Pinocchio, MuJoCo), the per-pass rail position against a brute-force scan, and joint
+and rail limits re-measured on a produced program.
+
+(MuJoCo vs Pinocchio FK, gravity, random-torque stepping and the Jacobian of `irb5500_rail` are in
+tests/test_robot_model.py.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from planning.parts import get_part
+from robots import load_robot
+from robots.ik import IKSettings
+from robots.rail import RailSpec, best_rail_position, load_rail_robot, rail_cost
+from sim.cell import build_cell
+from sim.execute import execute
+from sim.joint_trajectory import PAINT
+from sim.scenario import load_scenario, pose
+from sim.trajectory import TrajectorySettings, build_program
+from tests.helpers import FK_AGREEMENT_ATOL_M
+
+T_RAIL = pose((-0.5, 0.2, 1.0), (0.0, 0.0, 0.3))
+ROOF_RAIL = "scenarios/roof_rail.toml"
+
+
+@pytest.fixture(scope="module")
+def rail_robot():
+    return load_rail_robot("irb5500", T_world_rail=T_RAIL)
+
+
+def _fixed_at(s_m: float):
+    """The plain 6-axis arm, its base where the carriage at s_m puts it (computed here, not by
+    robots.rail: the rail frame's +y times s)."""
+    T = T_RAIL.copy()
+    T[:3, 3] += s_m * T_RAIL[:3, 1]
+    return load_robot("irb5500", T_world_base=T)
+
+
+def test_rail_at_a_fixed_position_is_the_fixed_base_robot(rail_robot):
+    rng = np.random.default_rng(30)
+    for s in (-1.7, 0.0, 0.8):
+        fixed = _fixed_at(s)
+        Q = rng.uniform(fixed.q_lower, fixed.q_upper, (100, 6))
+        Q7 = np.column_stack([np.full(len(Q), s), Q])
+        assert np.abs(rail_robot.fk_many(Q7) - fixed.fk_many(Q)).max() < FK_AGREEMENT_ATOL_M
+        # The arm's Jacobian columns are the same; the rail's column is the rail direction.
+        J7, J6 = rail_robot.jacobian(Q7[0]), fixed.jacobian(Q[0])
+        assert np.abs(J7[:, 1:] - J6).max() < 1e-9
+        assert np.allclose(J7[:3, 0], T_RAIL[:3, 1]) and np.allclose(J7[3:, 0], 0.0)
+    assert np.allclose(rail_robot.q_lower[0], -2.0) and np.allclose(rail_robot.q_upper[0], 2.0)
+    assert rail_robot.joint_names[0] == "rail" and rail_robot.wrist_joint_index == 5
+
+
+def test_rail_spec_rejects_bad_values():
+    with pytest.raises(Exception, match="lower_m"):
+        RailSpec(lower_m=1.0, upper_m=-1.0)
+    with pytest.raises(Exception, match="home_m"):
+        RailSpec(home_m=5.0)
+
+
+@pytest.fixture(scope="module")
+def roof_case():
+    from sim.pipeline import load_robot_for, load_surface, make_plan
+
+    scn = load_scenario(ROOF_RAIL)
+    surface = load_surface(scn, fast=True)
+    plan = make_plan(scn, surface, fast=True)
+    return scn, surface, plan, load_robot_for(scn)
+
+
+def test_rail_position_is_the_minimum_of_its_cost(roof_case):
+    """The scan + Brent search lands on the minimum of the cost; a dense brute-force scan of the
+    whole rail finds nothing lower."""
+    scn, _, plan, robot = roof_case
+    s = IKSettings()
+    pref = robot.rail.arm.q_home
+    for i in (0, 2):
+        T = scn.part_placement.matrix @ plan.tcp_frames(i)
+        sub = T[np.unique(np.linspace(0, len(T) - 1, 40).astype(int))]
+        s_best, feasible = best_rail_position(robot, T, pref, s)
+        assert feasible
+        c_best = rail_cost(robot, sub, s_best, pref, s, (len(T) - 1) / (len(sub) - 1))[0]
+        js = (len(T) - 1) / (len(sub) - 1)
+        brute = min(rail_cost(robot, sub, x, pref, s, js)[0] for x in np.linspace(-2, 2, 401))
+        assert c_best <= brute + 1e-6
+
+
+def test_program_respects_joint_and_rail_limits(roof_case):
+    """Limits re-measured on the produced program by finite differences of q alone."""
+    scn, _, plan, robot = roof_case
+    settings = TrajectorySettings(**scn.trajectory)
+    traj = build_program(robot, plan, scn.part_placement.matrix, settings)
+    assert traj.meta["reachability"]["all_reachable"]
+    q, dt = traj.q, traj.dt_s
+    assert np.all(q >= robot.q_lower - 1e-9) and np.all(q <= robot.q_upper + 1e-9)
+    qd = np.diff(q, axis=0) / dt
+    qdd = np.diff(q, 2, axis=0) / dt**2
+    # Finite differences of the 1 kHz samples: within the robot's limits (rail: 1.5 m/s,
+    # 4 m/s²). The planning margins (95 % / 90 %) hold on the paint passes; a ruckig
+    # turn-around of this program uses 95.6 % of J3's speed (0.6 % over its margin, noted in
+    # the issue's closing note), so the hard limit is what is asserted here.
+    assert np.all(np.abs(qd).max(axis=0) <= robot.v_max)
+    assert np.all(np.abs(qdd).max(axis=0) <= robot.a_max * 1.001)
+    paint = traj.segment[1:] == PAINT
+    assert np.all(np.abs(qd[paint]).max(axis=0) <= settings.velocity_margin * robot.v_max * 1.001)
+    # The rail moves between passes and stands still while painting.
+    rail_in_pass = [np.ptp(q[traj.pass_index == i, 0]) for i in range(len(plan.passes))]
+    assert max(rail_in_pass) < 1e-9
+    assert np.ptp(q[:, 0]) > 0.1
+
+
+def test_rail_and_fixed_cells_execute_the_same_tcp_path(roof_case):
+    """MuJoCo: a program with the carriage held at s in the rail cell gives the TCP trace of the
+    same arm program in a fixed-base cell at that position (kinematic execution)."""
+    scn, surface, plan, robot = roof_case
+    s = 0.4
+    fixed = _fixed_at(s).placed(_fixed_at(s).T_world_base)
+    rail = robot.placed(T_RAIL)
+    traj6 = build_program(fixed, plan, scn.part_placement.matrix,
+                          TrajectorySettings(q_home=(0.0, -0.6, 0.3, 0.0, 0.9, 0.0),
+                                             approach_clearance_m=0.15,
+                                             retract_clearance_m=0.3))
+    from sim.joint_trajectory import JointTrajectory
+
+    K = 6000   # the approach and the first pass (6 s) keep the test short
+    arrays = {name: getattr(traj6, name)[:K] for name in JointTrajectory._ARRAYS}
+    traj6 = JointTrajectory(**arrays, robot_name=traj6.robot_name,
+                            joint_names=traj6.joint_names, meta=traj6.meta)
+    arrays["q"] = np.column_stack([np.full(K, s), traj6.q])
+    arrays["qd"] = np.column_stack([np.zeros(K), traj6.qd])
+    arrays["qdd"] = np.column_stack([np.zeros(K), traj6.qdd])
+    traj7 = JointTrajectory(**arrays, robot_name=rail.name, joint_names=rail.joint_names,
+                            meta=traj6.meta)
+    part = get_part("roof", resolution_m=0.05)
+    tr6 = execute(build_cell(fixed, part, scn.part_placement.matrix), traj6, mode="kinematic")
+    tr7 = execute(build_cell(rail, part, scn.part_placement.matrix), traj7, mode="kinematic")
+    assert np.abs(tr6.tcp_pos_world - tr7.tcp_pos_world).max() < FK_AGREEMENT_ATOL_M
+    assert np.abs(tr6.tcp_rot_world - tr7.tcp_rot_world).max() < FK_AGREEMENT_ATOL_M
