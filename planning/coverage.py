@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from planning.applicator import Applicator
 from planning.errors import PlanError
@@ -338,7 +339,14 @@ class _Planner:
         if c is None or c.s_max <= 0.5 * sp:
             return np.zeros((0, 3)), np.zeros((0, 3))
         keep = (c.s > 1e-6) & (c.s <= self.diag)
-        return c.points[keep], c.normals[keep]
+        pts, nrm = c.points[keep], c.normals[keep]
+        # a pass ending on the boundary has no surface ahead: a section that runs back along the
+        # pass (most of it within a sample spacing of it) is no continuation — the TCP would
+        # reverse on the spot and retrace the pass
+        body = foot[s <= s[-1] - 2 * sp]
+        if len(pts) and len(body) and np.median(cKDTree(body).query(pts)[0]) < sp:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        return pts, nrm
 
     def build_pass(self, foot: np.ndarray, normals: np.ndarray, inside: np.ndarray,
                    extend: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

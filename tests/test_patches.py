@@ -10,6 +10,7 @@ across the seam and in the patches' interiors, and the one-family plan of the sa
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +22,13 @@ from planning.metrics import uniformity
 from planning.patches import extrusion_residual, face_normals_areas, plan_patches, segment
 from planning.plan import CoveragePlan
 from planning.surface import Surface, grid_faces, surface_from_triangles
+
+
+# The bracket's 0.5 m faces were sized for the bell of issue 3 (kept as
+# scenarios/bells/issue3_bell.toml, 160 mm widths: 4 passes a face). With the issue-16 default bell
+# (330 mm) a face holds one pass and its edge passes, and the seam band reaches σ/μ 7.6 % against
+# 2.7 % inside — a known gap of the seam blending with wide bells (issue-16 closing note).
+ISSUE3_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "issue3_bell.toml"
 
 
 def bracket(res_m: float = 0.02) -> tuple[Surface, np.ndarray]:
@@ -41,7 +49,7 @@ def bracket(res_m: float = 0.02) -> tuple[Surface, np.ndarray]:
 @functools.lru_cache(maxsize=1)
 def _plans() -> tuple[Surface, np.ndarray, CoveragePlan, CoveragePlan]:
     s, t = bracket()
-    app = Applicator.default()
+    app = Applicator.from_toml(ISSUE3_BELL)
     return (s, t, plan_patches(s, app, start_point=np.array([0.0, 2.0, 1.0])),
             plan_coverage(s, app, PlannerSettings()))
 
