@@ -84,8 +84,15 @@ def test_film_across_the_seam_is_within_1_5x_the_interior() -> None:
     film1 = thickness(app, one.gun_samples(), s.vertices, s.normals)
     assert nsd(np.ones(len(x), bool)) < nsd(np.ones(len(x), bool), film1)
     rep = plan.settings["report"]
-    assert len(rep["patches"]) == 2 and sum(p["samples_switched_off_at_seams"]
-                                            for p in rep["patches"]) > 0
+    assert len(rep["patches"]) == 2
+    # The seam blending switches samples off. With the issue-16 film guard on each patch the
+    # best seam share switches none (whole-part σ/μ 5.355 % at shares ≥ 1.5 against 5.363 % at
+    # 1.0, which switches some off), so the mechanism is checked on the plain QP speeds the
+    # case was written for (film_guard=False: share 0.8, samples switched off).
+    plain = plan_patches(s, app, PlannerSettings(film_guard=False),
+                         start_point=np.array([0.0, 2.0, 1.0]))
+    assert sum(p["samples_switched_off_at_seams"]
+               for p in plain.settings["report"]["patches"]) > 0
 
 
 @pytest.mark.slow
