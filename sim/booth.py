@@ -123,6 +123,8 @@ class Booth:
     thresholds: BoothThresholds = BoothThresholds()
     allocation: dict[str, tuple[int, int, int]] | None = None
     source: str | None = None
+    applicator: str | None = None
+    """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
     sweep: dict[str, Any] = field(default_factory=dict)
     """Robustness sweeps (`paintcell sweep`) are not defined for a booth yet: always empty."""
 

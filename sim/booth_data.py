@@ -3,6 +3,7 @@
     name = "booth"
     resolution_m = 0.01
     fast_resolution_m = 0.025
+    applicator = "bells/my_bell.toml"                  # optional; relative to the booth file
     [body_placement]  xyz_m = [..], rpy_rad = [..]     # the body frame at conveyor position 0
     [conveyor]        speed_m_s = 0.05, direction = [1, 0, 0]   (+ mass_kg, force_max_n, ...)
     [[parts]]         part = "door", xyz_m = [..], rpy_rad = [..]   (+ [parts.planner])
@@ -30,7 +31,8 @@ from sim.conveyor import Conveyor
 from sim.scenario import Placement
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
-        "robots", "planner", "trajectory", "servo", "thresholds", "allocation")
+        "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
+        "applicator")
 _PART = ("part", "xyz_m", "rpy_rad", "planner")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -91,6 +93,12 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     th = _check_keys(d.get("thresholds", {}), tuple(f.name for f in fields(BoothThresholds)),
                      f"{where} [thresholds]")
     alloc = d.get("allocation")
+    app = d.get("applicator")
+    if app is not None:
+        if not isinstance(app, str):
+            raise BoothDataError(f"{where}: applicator = {app!r} must be a path to an applicator "
+                                 "TOML file, e.g. \"bells/my_bell.toml\"")
+        app = str((Path(where).parent / app).resolve())
     try:
         conv_kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
                                    for k, v in conv.items()}
@@ -106,7 +114,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                         for k, v in d.get("trajectory", {}).items()},
             servo=dict(d.get("servo", {})), thresholds=BoothThresholds(**th),
             allocation=None if alloc is None else {k: tuple(v) for k, v in alloc.items()},
-            source=source)
+            source=source, applicator=app)
     except PaintcellError as exc:
         raise BoothDataError(f"{where}: {exc}") from exc
 
