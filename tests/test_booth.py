@@ -51,7 +51,8 @@ ROOF_BOOTH = Booth(
     trajectory={"approach_clearance_m": 0.15, "retract_clearance_m": 0.3},
     thresholds=BoothThresholds(min_bell_distance_m=0.8),
     # the bell this cell was laid out for (see scenarios/booth.toml)
-    applicator=str(Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "issue3_bell.toml"),
+    applicator=str(Path(__file__).resolve().parents[1] / "scenarios" / "bells"
+                   / "issue3_bell.toml"),
 )
 
 

@@ -23,7 +23,6 @@ from planning.patches import extrusion_residual, face_normals_areas, plan_patche
 from planning.plan import CoveragePlan
 from planning.surface import Surface, grid_faces, surface_from_triangles
 
-
 # The bracket's 0.5 m faces were sized for the bell of issue 3 (kept as
 # scenarios/bells/issue3_bell.toml, 160 mm widths: 4 passes a face). With the issue-16 default bell
 # (330 mm) a face holds one pass and its edge passes, and the seam band reaches σ/μ 7.6 % against
