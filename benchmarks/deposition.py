@@ -19,16 +19,9 @@ from collections.abc import Callable
 import numpy as np
 
 from planning.applicator import Applicator
-from planning.deposition import (
-    BLOCK_POINTS,
-    CHUNK_SAMPLES,
-    GunSamples,
-    _candidate_blocks,
-    _make_blocks,
-    _tool_axes,
-    deposition_rate_reference,
-    thickness,
-)
+from planning.deposition import GunSamples, deposition_rate_reference, thickness
+from planning.deposition_kernel import BLOCK_POINTS, CHUNK_SAMPLES, _candidate_blocks, _make_blocks
+from planning.deposition_samples import _tool_axes
 
 
 def door_points() -> tuple[str, np.ndarray, np.ndarray]:

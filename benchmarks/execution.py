@@ -24,9 +24,10 @@ import numpy as np
 
 from planning.deposition import thickness
 from sim.cell import build_cell
-from sim.execute import ServoSettings, _set_torque_actuators, execute, inverse_dynamics
+from sim.execute import ServoSettings, execute
+from sim.execute_models import _set_torque_actuators, inverse_dynamics
 from sim.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
-from sim.scenario import load_scenario
+from sim.scenario_files import load_scenario
 from sim.validate import trajectory_gun_samples, validate
 
 DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"

@@ -22,7 +22,7 @@ from robots.placement import facing_grid, find_base_pose
 def main() -> None:
     from pathlib import Path
 
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
 
     SCENARIO = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "door.toml")
 

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.scenario import load_scenario
+from sim.scenario_files import load_scenario
 from sim.sweep import run_sweep
 from sim.sweep_spec import SweepSpec
 

@@ -19,7 +19,8 @@ import numpy as np
 import potpourri3d as pp3d
 from scipy.spatial import cKDTree
 
-from planning.offset import SurfaceGeometry, _crossings, _dedupe, _order_components, unit
+from planning.offset_polyline import unit
+from planning.offset_sections import SurfaceGeometry, _crossings, _dedupe, _order_components
 
 
 class HeatGeodesics:

@@ -15,25 +15,46 @@ through a boundary that crosses it. A curve that leaves through a boundary runni
 pass sample on, or next to, the boundary the pass itself ends at: the section plane nearly
 contains that boundary, and whether the section hugs it or leaves at once is decided by
 round-off) says nothing about the surface there; `walk` gives no offset beyond such an end.
+
+Plane sections of the mesh are in `planning.offset_sections`, polyline arc length, resampling
+and geodesic curvature in `planning.offset_polyline`; both are re-exported here.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components, depth_first_order
 
 from planning.errors import PlanError
+from planning.offset_polyline import arc_length, geodesic_curvature, resample, tangents, unit
+from planning.offset_sections import (
+    Section,
+    SurfaceGeometry,
+    _crossings,
+    _dedupe,
+    _order_components,
+    _signed,
+    plane_sections,
+)
 
-#: Points of a section closer than this are merged [m] (a plane through a vertex gives repeats).
-_MERGE_M = 1e-9
-#: Signed vertex distances below this count as exactly on the plane [m] (float64 round-off of
-#: differently associated dot products of ~1 m coordinates is ~1e-16).
-_ZERO_D_M = 1e-12
+__all__ = [
+    "IndexingCurve",
+    "Section",
+    "SurfaceGeometry",
+    "arc_length",
+    "check_offset_order",
+    "curve_through",
+    "geodesic_curvature",
+    "indexing_curves",
+    "plane_sections",
+    "resample",
+    "tangents",
+    "unit",
+    "walk",
+]
+
 #: An offset chord running backward by more than this fraction of its source step is a reversal
 #: (a cusp: the offset self-intersects) [-].
 _REVERSAL_FRACTION = 0.02
@@ -43,183 +64,6 @@ _END_TANGENT_M = 0.01
 #: this angle of the boundary's direction there: 45°, the boundary is then closer to the indexing
 #: direction than to the pass direction, so it is the boundary the pass ends at, not its side.
 _ALONG_BOUNDARY_COS = float(np.cos(np.pi / 4))
-
-
-@dataclass(frozen=True, eq=False)
-class SurfaceGeometry:
-    """Mesh connectivity precomputed once for repeated plane sections.
-
-    vertices: (N, 3) [m]; normals: (N, 3) unit, painted side; faces: (F, 3) int;
-    edges: (E, 2) unique vertex pairs; face_edges: (F, 3) index of each face's edges in `edges`;
-    edge_faces: (E, 2) the faces on each edge (-1 where the edge is on the boundary);
-    edge_length_m: median mesh edge length [m] (the mesh resolution);
-    boundary_dir: (E, 3) unit direction of the boundary at each boundary edge (the chord from
-        the previous to the next boundary vertex, so a staircase boundary reads as its trend),
-        zero on interior edges; None: not computed (no boundary test).
-    """
-
-    vertices: np.ndarray
-    normals: np.ndarray
-    faces: np.ndarray
-    edges: np.ndarray
-    face_edges: np.ndarray
-    edge_faces: np.ndarray
-    edge_length_m: float
-    boundary_dir: np.ndarray | None = None
-
-    @classmethod
-    def from_surface(cls, surface: Any) -> SurfaceGeometry:
-        """Build from a `planning.surface.Surface` (uses its vertices, normals, faces, mesh)."""
-        mesh = surface.mesh
-        edges = np.asarray(mesh.edges_unique, dtype=np.int64)
-        face_edges = np.asarray(mesh.faces_unique_edges, dtype=np.int64)
-        v = np.asarray(surface.vertices, float)
-        lengths = np.linalg.norm(v[edges[:, 0]] - v[edges[:, 1]], axis=1)
-        # invert face -> edge: each edge gets its (at most two, manifold) faces
-        e_flat = face_edges.reshape(-1)
-        f_flat = np.repeat(np.arange(len(face_edges)), 3)
-        order = np.argsort(e_flat, kind="stable")
-        e_sorted, f_sorted = e_flat[order], f_flat[order]
-        first = np.ones(len(e_sorted), bool)
-        first[1:] = e_sorted[1:] != e_sorted[:-1]
-        edge_faces = np.full((len(edges), 2), -1, dtype=np.int64)
-        edge_faces[e_sorted[first], 0] = f_sorted[first]
-        edge_faces[e_sorted[~first], 1] = f_sorted[~first]
-        faces = np.asarray(surface.faces, dtype=np.int64)
-        normals = np.asarray(surface.normals, float)
-        return cls(v, normals, faces, edges, face_edges, edge_faces,
-                   float(np.median(lengths)), _boundary_directions(v, faces, edges, edge_faces))
-
-
-def _boundary_directions(v: np.ndarray, faces: np.ndarray, edges: np.ndarray,
-                         edge_faces: np.ndarray) -> np.ndarray:
-    """(E, 3) unit boundary direction per boundary edge (zero elsewhere): the chord from the
-    boundary vertex before the edge to the one after it, following the faces' winding."""
-    out = np.zeros((len(edges), 3))
-    bnd = np.flatnonzero(edge_faces[:, 1] < 0)
-    if len(bnd) == 0:
-        return out
-    n = len(v)
-    # the boundary half-edges, oriented as their face winds them: loops of consistent direction
-    he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    key_he = np.minimum(he[:, 0], he[:, 1]) * n + np.maximum(he[:, 0], he[:, 1])
-    key_b = edges[bnd, 0] * n + edges[bnd, 1]       # edges_unique rows are sorted pairs
-    order = np.argsort(key_b)
-    pos = np.searchsorted(key_b[order], key_he)
-    pos = np.clip(pos, 0, len(bnd) - 1)
-    hit = key_b[order][pos] == key_he
-    a, b = he[hit, 0], he[hit, 1]
-    eid = bnd[order][pos[hit]]
-    nxt = np.arange(n)
-    prv = np.arange(n)
-    nxt[a] = b                                      # a manifold boundary vertex: one each way
-    prv[b] = a
-    chord = v[nxt[b]] - v[prv[a]]
-    out[eid] = unit(chord)
-    return out
-
-
-@dataclass(frozen=True, eq=False)
-class Section:
-    """One connected, ordered component of a plane–mesh section.
-
-    points: (K, 3) ordered points on mesh edges [m]; normals: (K, 3) unit surface normals;
-    closed: True when the component is a loop (last point connects to the first).
-    """
-
-    points: np.ndarray
-    normals: np.ndarray
-    closed: bool
-
-
-def unit(v: np.ndarray) -> np.ndarray:
-    """Rows of `v` (..., 3) scaled to unit length; zero rows stay zero."""
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.where(n > 0, n, 1.0)
-
-
-def _signed(geom: SurfaceGeometry, origin: np.ndarray, normal: np.ndarray) -> np.ndarray:
-    return (geom.vertices - origin) @ normal
-
-
-def _crossings(geom: SurfaceGeometry, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Crossing edges of the section with signed vertex distances d (N,).
-
-    Returns (edge ids (C,), points (C, 3), normals (C, 3)). Zero distances count as positive, so
-    a plane through a vertex crosses each edge at most once.
-    """
-    d = np.where(np.abs(d) < _ZERO_D_M, 0.0, d)      # round-off of a plane through vertices
-    pos = d >= 0
-    e = geom.edges
-    cross = np.flatnonzero(pos[e[:, 0]] != pos[e[:, 1]])
-    a, b = e[cross, 0], e[cross, 1]
-    t = (d[a] / (d[a] - d[b]))[:, None]
-    pts = geom.vertices[a] + t * (geom.vertices[b] - geom.vertices[a])
-    nrm = unit(geom.normals[a] + t * (geom.normals[b] - geom.normals[a]))
-    return cross, pts, nrm
-
-
-def _order_components(geom: SurfaceGeometry, d: np.ndarray, cross: np.ndarray,
-                      wanted: np.ndarray | None = None) -> list[tuple[np.ndarray, bool]]:
-    """Order crossing edges into polylines: each crossed face links its two crossed edges.
-
-    Returns (indices into `cross` in order, closed) per component (only the components holding
-    the `wanted` crossing indices when given).
-    """
-    n_cross = len(cross)
-    node = np.full(len(geom.edges), -1, dtype=np.int64)
-    node[cross] = np.arange(n_cross)
-    faces = np.unique(geom.edge_faces[cross])       # only faces touching a crossed edge
-    faces = faces[faces >= 0]
-    fn = node[geom.face_edges[faces]]               # (F', 3) crossing-node id or -1
-    hit = fn >= 0
-    two = hit.sum(axis=1) == 2
-    pairs = fn[two][hit[two]].reshape(-1, 2)
-    graph = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
-                          shape=(n_cross, n_cross)).tocsr()
-    graph = graph + graph.T
-    n_comp, labels = connected_components(graph, directed=False)
-    degree = np.diff(graph.indptr)
-    comps = range(n_comp) if wanted is None else np.unique(labels[wanted])
-    out = []
-    for c in comps:
-        members = np.flatnonzero(labels == c)
-        ends = members[degree[members] <= 1]
-        start = int(ends[0]) if len(ends) else int(members[0])
-        order = depth_first_order(graph, start, directed=False, return_predecessors=False)
-        closed = len(ends) == 0 and len(members) > 2
-        out.append((np.asarray(order), closed))
-    return out
-
-
-def _dedupe(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    if len(points) < 2:
-        return points, normals
-    keep = np.ones(len(points), bool)
-    keep[1:] = np.linalg.norm(np.diff(points, axis=0), axis=1) > _MERGE_M
-    return points[keep], normals[keep]
-
-
-def plane_sections(geom: SurfaceGeometry, origin: npt.ArrayLike,
-                   plane_normal: npt.ArrayLike) -> list[Section]:
-    """All components of the section of the mesh by a plane, each an ordered polyline.
-
-    origin: (3,) a point of the plane [m]; plane_normal: (3,) its normal (any length).
-    Returns the components (possibly none), longest first.
-    """
-    o = np.asarray(origin, float)
-    nrm = unit(np.asarray(plane_normal, float))
-    d = _signed(geom, o, nrm)
-    cross, pts, nn = _crossings(geom, d)
-    if len(cross) < 2:
-        return []
-    secs = []
-    for order, closed in _order_components(geom, d, cross):
-        p, n = _dedupe(pts[order], nn[order])
-        if len(p) >= 2:
-            secs.append(Section(p, n, closed))
-    secs.sort(key=lambda s: -float(np.linalg.norm(np.diff(s.points, axis=0), axis=1).sum()))
-    return secs
 
 
 @dataclass(frozen=True, eq=False)
@@ -396,67 +240,6 @@ def walk(curves: list[IndexingCurve | None], distance_m: float | np.ndarray
         a, b, ok = c.sample(dist[i:i + 1])
         pts[i], nrm[i], inside[i] = a[0], b[0], ok[0]
     return pts, nrm, inside
-
-
-def arc_length(points: npt.ArrayLike) -> np.ndarray:
-    """(M,) cumulative polyline arc length from the first point [m]."""
-    p = np.asarray(points, float)
-    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
-
-
-def resample(points: npt.ArrayLike, normals: npt.ArrayLike, spacing_m: float,
-             flags: npt.ArrayLike | None = None
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Resample a polyline at (nearly) uniform arc-length spacing, keeping both ends.
-
-    points: (M, 3) [m]; normals: (M, 3) interpolated linearly and renormalized;
-    flags: (M,) bool carried by nearest neighbour (default all True).
-    Returns points (Q, 3), normals (Q, 3), flags (Q,).
-    """
-    p = np.asarray(points, float)
-    n = np.asarray(normals, float)
-    f = np.ones(len(p), bool) if flags is None else np.asarray(flags, bool)
-    s = arc_length(p)
-    if s[-1] <= 0:
-        raise PlanError("cannot resample a curve of zero length; the pass degenerated to a point")
-    q = np.linspace(0.0, s[-1], max(2, int(np.ceil(s[-1] / spacing_m - 1e-9)) + 1))
-    pts = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
-    nrm = unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
-    idx = np.clip(np.searchsorted(s, q), 0, len(s) - 1)
-    prev = np.clip(idx - 1, 0, len(s) - 1)
-    nearest = np.where(np.abs(s[prev] - q) <= np.abs(s[idx] - q), prev, idx)
-    return pts, nrm, f[nearest]
-
-
-def tangents(points: npt.ArrayLike) -> np.ndarray:
-    """(M, 3) unit tangents of a polyline by central differences (one-sided at the ends)."""
-    p = np.asarray(points, float)
-    t = np.gradient(p, axis=0)
-    return unit(t)
-
-
-def geodesic_curvature(points: npt.ArrayLike, normals: npt.ArrayLike,
-                       smoothing_m: float = 0.1) -> np.ndarray:
-    """(M,) signed geodesic curvature κ_g = (d²r/ds²) · (n × T) of a curve in the surface [1/m].
-
-    points: (M, 3) curve on the surface [m]; normals: (M, 3) surface normals there.
-    smoothing_m: second differences are taken at this arc-length step (a mesh section is faceted,
-        so point-to-point differences are noisy); positive κ_g bends toward n × T (the left).
-    """
-    p = np.asarray(points, float)
-    n = np.asarray(normals, float)
-    s = arc_length(p)
-    if len(p) < 3 or s[-1] <= 0:
-        return np.zeros(len(p))
-    m = max(3, int(np.ceil(s[-1] / smoothing_m)) + 1)
-    q = np.linspace(0.0, s[-1], m)
-    h = q[1] - q[0]
-    r = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
-    nq = unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
-    t = unit(r[2:] - r[:-2])
-    k_vec = (r[2:] - 2.0 * r[1:-1] + r[:-2]) / (h * h)
-    kg = np.einsum("ij,ij->i", k_vec, np.cross(nq[1:-1], t))
-    return np.interp(s, q[1:-1], kg)
 
 
 def check_offset_order(source_points: np.ndarray, offset_points: np.ndarray,

@@ -19,7 +19,8 @@ import numpy as np
 import numpy.typing as npt
 
 from planning.errors import PlanError
-from planning.offset import SurfaceGeometry, plane_sections, resample
+from planning.offset_polyline import resample
+from planning.offset_sections import SurfaceGeometry, plane_sections
 
 #: Angular step of the orientation sweep [rad] (the paper sweeps the section-plane rotation).
 SWEEP_STEP_RAD = np.deg2rad(1.0)

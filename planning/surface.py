@@ -1,10 +1,14 @@
-"""Surfaces to paint: a triangle mesh in the part frame with normals and curvature per vertex.
+"""Surfaces to paint from parametric patches, and the entry point to the `Surface` type (a
+triangle mesh in the part frame [m] with normals and curvature per vertex).
 
 Parametric constructors (`plane`, `cylinder`, `extruded`, `bspline_patch`) sample a regular
 (u, v) grid and compute normals and curvature analytically from the first and second fundamental
 forms. `Surface.from_mesh` reads STL/OBJ/PLY through trimesh, repairs what can be repaired, and
 estimates normals and curvature discretely (`planning.curvature`, boundary normals extrapolated
 from the interior).
+
+The `Surface` type (with `surface_from_triangles`) is in `planning.surface_data`, mesh reading in
+`planning.surface_mesh_input`; both are re-exported here.
 
 Curvature sign (docs/interfaces.md): with the unit normal n pointing to the painted side, a
 principal curvature k is positive when the surface bends away from n — dn = k dr along a principal
@@ -13,330 +17,33 @@ direction, so a sphere with outward normal has k1 = k2 = H = +1/R.
 
 from __future__ import annotations
 
-import functools
-import os
-from dataclasses import dataclass, replace
-from pathlib import Path
-
 import numpy as np
 import numpy.typing as npt
-import trimesh
 from scipy.interpolate import BSpline, CubicSpline
 
-from planning.atomic_io import atomic_write_npz
 from planning.errors import SurfaceError
-from planning.regions import PartRegions
-from planning.transforms import check_pose
+from planning.surface_data import Surface, surface_from_triangles, vertex_areas_barycentric
+from planning.surface_mesh_input import load_clean_mesh
 
-_FORMAT = "paintcell.Surface/1"
-_ARRAY_FIELDS = ("vertices", "faces", "normals", "vertex_areas", "gaussian_curvature",
-                 "mean_curvature", "principal_curvatures", "principal_directions")
+__all__ = [
+    "Surface",
+    "bspline_patch",
+    "cylinder",
+    "extruded",
+    "greville_abscissae",
+    "grid_faces",
+    "load_clean_mesh",
+    "plane",
+    "surface_from_grid",
+    "surface_from_triangles",
+    "vertex_areas_barycentric",
+]
 
 # Parameter-space sampling used to measure arc length of a curve before resampling it [-].
 _ARC_SAMPLES = 4001
 
 
-@dataclass(frozen=True, eq=False)
-class Surface:
-    """A painted surface: triangle mesh + per-vertex normals and curvature, in the part frame.
-
-    name: part name.
-    vertices: (N, 3) positions in the part frame [m].
-    faces: (F, 3) int64 triangles, counter-clockwise seen from the painted side.
-    normals: (N, 3) unit normals pointing to the painted side (toward the gun).
-    vertex_areas: (N,) barycentric area (a third of each incident face) [m²]; sums to the area.
-    gaussian_curvature: (N,) K [1/m²].
-    mean_curvature: (N,) H [1/m], positive when the surface bends away from the normal.
-    principal_curvatures: (N, 2) k1 >= k2 [1/m].
-    principal_directions: (N, 2, 3) unit tangent directions of k1 and k2.
-    uv: (N, 2) patch parameters in metres of arc length along the mid iso-curves, or None.
-    grid_shape: (nu, nv) when vertex i*nv + j is grid node (u_i, v_j), else None.
-    regions: per-face labels of a real part (skin, hem, inner, back), its openings and the
-        regions the film is judged on (`planning.regions.PartRegions`), or None (all skin).
-    """
-
-    name: str
-    vertices: np.ndarray
-    faces: np.ndarray
-    normals: np.ndarray
-    vertex_areas: np.ndarray
-    gaussian_curvature: np.ndarray
-    mean_curvature: np.ndarray
-    principal_curvatures: np.ndarray
-    principal_directions: np.ndarray
-    uv: np.ndarray | None = None
-    grid_shape: tuple[int, int] | None = None
-    regions: PartRegions | None = None
-
-    def __post_init__(self) -> None:
-        n = len(self.vertices)
-        shapes = {
-            "vertices": (n, 3), "normals": (n, 3), "vertex_areas": (n,),
-            "gaussian_curvature": (n,), "mean_curvature": (n,),
-            "principal_curvatures": (n, 2), "principal_directions": (n, 2, 3),
-        }
-        if n < 3:
-            raise SurfaceError(f"surface {self.name!r} has {n} vertices; a surface needs >= 3")
-        for key, shape in shapes.items():
-            arr = getattr(self, key)
-            if not isinstance(arr, np.ndarray) or arr.shape != shape:
-                got = getattr(arr, "shape", type(arr).__name__)
-                raise SurfaceError(f"surface field {key} has shape {got}, expected {shape}")
-            if not np.all(np.isfinite(arr)):
-                raise SurfaceError(f"surface field {key} contains NaN or inf; rebuild the surface")
-        if self.faces.ndim != 2 or self.faces.shape[1] != 3 or len(self.faces) == 0:
-            raise SurfaceError(f"faces have shape {self.faces.shape}, expected (F>0, 3)")
-        if self.faces.min() < 0 or self.faces.max() >= n:
-            raise SurfaceError("faces index vertices out of range; rebuild the surface")
-        if self.uv is not None and self.uv.shape != (n, 2):
-            raise SurfaceError(f"uv has shape {self.uv.shape}, expected ({n}, 2) or None")
-        if self.grid_shape is not None and self.grid_shape[0] * self.grid_shape[1] != n:
-            raise SurfaceError(f"grid_shape {self.grid_shape} does not match {n} vertices")
-        if self.regions is not None and self.regions.face_labels.shape != (len(self.faces),):
-            raise SurfaceError(f"regions label {self.regions.face_labels.shape} faces, the "
-                               f"surface has {len(self.faces)}; rebuild the regions")
-
-    @functools.cached_property
-    def mesh(self) -> trimesh.Trimesh:
-        """The triangle mesh (trimesh, built once, not processed: vertex order is kept)."""
-        return trimesh.Trimesh(self.vertices, self.faces, process=False)
-
-    @property
-    def area(self) -> float:
-        """Total surface area [m²]."""
-        return float(self.vertex_areas.sum())
-
-    def transformed(self, T_new_part: npt.ArrayLike) -> Surface:
-        """A new Surface in another frame: `T_new_part` (4, 4) rigid, maps part to new coordinates.
-
-        Positions, normals and principal directions are moved; curvature, uv and areas are rigid
-        invariants and are kept.
-        """
-        T = check_pose(T_new_part, "surface transform", tol=1e-9, error=SurfaceError)
-        R, t = T[:3, :3], T[:3, 3]
-        regions = self.regions
-        if regions is not None:
-            regions = replace(regions, painted_direction=R @ regions.painted_direction)
-        return replace(
-            self,
-            vertices=self.vertices @ R.T + t,
-            normals=self.normals @ R.T,
-            principal_directions=self.principal_directions @ R.T,
-            regions=regions,
-        )
-
-    def judged_vertex_mask(self) -> np.ndarray | None:
-        """(N,) True on vertices of the regions the film is judged on, or None (every vertex)."""
-        if self.regions is None:
-            return None
-        return self.regions.vertex_mask(self.faces)
-
-    def region_surface(self, names: tuple[str, ...] = ("skin",)) -> Surface:
-        """The faces of the named regions as a Surface of their own (same name; curvature
-        re-estimated on the submesh), e.g. the skin the planner covers. Without regions: self."""
-        if self.regions is None:
-            return self
-        keep = self.regions.face_mask(names)
-        if keep.all():
-            return self
-        if not keep.any():
-            raise SurfaceError(f"surface {self.name!r} has no {'/'.join(names)} faces")
-        used, inv = np.unique(self.faces[keep], return_inverse=True)
-        sub = surface_from_triangles(self.name, self.vertices[used],
-                                     inv.reshape(-1, 3).astype(np.int64))
-        regs = replace(self.regions, face_labels=self.regions.face_labels[keep],
-                       face_piece=self.regions.face_piece[keep])
-        return replace(sub, regions=regs)
-
-    def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the surface to an `.npz` file atomically (exact round trip with `load`)."""
-        arrays = {k: getattr(self, k) for k in _ARRAY_FIELDS}
-        arrays["format"] = np.array(_FORMAT)
-        arrays["name"] = np.array(self.name)
-        if self.uv is not None:
-            arrays["uv"] = self.uv
-        if self.grid_shape is not None:
-            arrays["grid_shape"] = np.array(self.grid_shape, dtype=np.int64)
-        if self.regions is not None:
-            arrays["region_labels"] = self.regions.face_labels
-            arrays["region_piece"] = self.regions.face_piece
-            arrays["region_direction"] = self.regions.painted_direction
-            arrays["region_judged"] = np.array(self.regions.judged)
-        atomic_write_npz(path, arrays)
-
-    @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Surface:
-        """Read a surface written by `save`."""
-        path = Path(path)
-        if not path.is_file():
-            raise SurfaceError(f"surface file {path} does not exist; check the path")
-        with np.load(path) as z:
-            if "format" not in z or str(z["format"]) != _FORMAT:
-                raise SurfaceError(f"{path} is not a paintcell surface file; write it with "
-                                   "Surface.save")
-            kw = {k: np.array(z[k]) for k in _ARRAY_FIELDS}
-            uv = np.array(z["uv"]) if "uv" in z else None
-            grid = tuple(int(x) for x in z["grid_shape"]) if "grid_shape" in z else None
-            name = str(z["name"])
-            regions = None
-            if "region_labels" in z:  # openings are not stored: `paintcell inspect` finds them
-                regions = PartRegions(face_labels=np.array(z["region_labels"]),
-                                      face_piece=np.array(z["region_piece"]),
-                                      painted_direction=np.array(z["region_direction"]),
-                                      judged=tuple(str(x) for x in z["region_judged"]))
-        return cls(name=name, uv=uv, grid_shape=grid, regions=regions, **kw)  # type: ignore[arg-type]
-
-    @classmethod
-    def from_mesh(cls, path_or_mesh: str | os.PathLike[str] | trimesh.Trimesh,
-                  component: int | None = None, flip: bool = False,
-                  name: str | None = None) -> Surface:
-        """Read a triangle mesh (STL/OBJ/PLY path or a trimesh.Trimesh) into a Surface.
-
-        Repairs duplicate vertices, duplicate faces, collapsed faces (repeated vertex) and
-        inconsistent winding. Refuses (SurfaceError) an empty mesh, NaN/inf vertices, zero-area
-        faces with three distinct vertices (slivers), non-manifold edges, and more than one
-        connected component unless `component` picks one (0 = largest by face count).
-        Normals face the painted side: outward for a closed mesh, for an open mesh the side the
-        (area-weighted) majority of the input faces already faced; `flip` reverses it.
-        Normals and curvature are estimated discretely (`planning.curvature.discrete_curvature`):
-        vertex normals are area-weighted face averages, except on the boundary, where that
-        average is one-sided (it lags by about κ·h/2) and the normal is extrapolated from the
-        interior with the shape operator instead.
-        """
-        vertices, faces, default_name = load_clean_mesh(path_or_mesh, component=component,
-                                                        flip=flip)
-        return surface_from_triangles(name or default_name, vertices, faces)
-
-
-# --- mesh input --------------------------------------------------------------------------------
-# A face is a sliver (degenerate, not repairable by dropping it) below this area relative to the
-# squared bounding-box diagonal: 1e-12 is far below any real CAD tessellation (a 1 m part would
-# need a 1 µm² triangle) yet well above float64 round-off of a true zero-area face (~1e-16).
-_SLIVER_REL_AREA = 1e-12
-
-
-def load_clean_mesh(path_or_mesh: str | os.PathLike[str] | trimesh.Trimesh,
-                    component: int | None = None, flip: bool = False
-                    ) -> tuple[np.ndarray, np.ndarray, str]:
-    """Read, check and repair a triangle mesh; see `Surface.from_mesh` for what is refused.
-
-    Returns vertices (N, 3) [m], faces (F, 3) int64 consistently wound toward the painted side,
-    and a default name (the file stem, or "mesh").
-    """
-    src: object
-    if isinstance(path_or_mesh, trimesh.Trimesh):
-        src, name = path_or_mesh, "mesh"
-    else:
-        path = Path(path_or_mesh)
-        if not path.is_file():
-            raise SurfaceError(f"mesh file {path} does not exist; check the path")
-        try:
-            src = trimesh.load(path, force="mesh", process=False)
-        except Exception as exc:  # trimesh raises many types for unreadable files
-            raise SurfaceError(f"cannot read mesh {path} ({type(exc).__name__}: {exc}); "
-                               "export it as STL, OBJ or PLY") from exc
-        name = path.stem
-        if not isinstance(src, trimesh.Trimesh) or len(src.faces) == 0 \
-                or len(src.vertices) == 0:
-            # trimesh returns an empty mesh (no exception) for many unparseable files
-            raise SurfaceError(f"could not read {path} as a triangle mesh (no triangles found); "
-                               "export the part surface as an STL, OBJ or PLY triangle mesh")
-    if not isinstance(src, trimesh.Trimesh) or len(src.faces) == 0 or len(src.vertices) == 0:
-        raise SurfaceError("mesh is empty (no triangles); export the part surface as triangles")
-    v = np.asarray(src.vertices, dtype=float)
-    f = np.asarray(src.faces, dtype=np.int64)
-    bad = ~np.all(np.isfinite(v), axis=1)
-    if bad.any():
-        raise SurfaceError(f"mesh has {int(bad.sum())} vertices with NaN or inf coordinates; "
-                           "fix or re-export the mesh")
-    if f.min() < 0 or f.max() >= len(v):
-        raise SurfaceError("mesh faces index missing vertices; re-export the mesh")
-
-    m = trimesh.Trimesh(v, f, process=False)
-    m.merge_vertices()
-    f = np.asarray(m.faces, dtype=np.int64)
-    v = np.asarray(m.vertices, dtype=float)
-    # Collapsed faces (a repeated vertex after merging) carry no area: drop them.
-    f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])]
-    if len(f) == 0:
-        raise SurfaceError("every face of the mesh is degenerate; export the part surface again")
-    # Duplicate faces (same three vertices, either winding): keep the first.
-    _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
-    f = f[np.sort(first)]
-    area = 0.5 * np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
-                                axis=1)
-    diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
-    sliver = area <= _SLIVER_REL_AREA * diag2
-    if sliver.any():
-        raise SurfaceError(f"mesh has {int(sliver.sum())} zero-area faces with three distinct "
-                           f"vertices (first: face {int(np.flatnonzero(sliver)[0])}); collapse "
-                           "the slivers or remesh in your CAD/mesh tool")
-    edges = np.sort(f[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    _, edge_count = np.unique(edges, axis=0, return_counts=True)
-    if np.any(edge_count > 2):
-        raise SurfaceError(f"mesh has {int(np.sum(edge_count > 2))} non-manifold edges (shared "
-                           "by more than 2 faces); split or delete them (e.g. MeshLab: select "
-                           "non-manifold edges)")
-
-    m = trimesh.Trimesh(v, f, process=False)
-    groups = trimesh.graph.connected_components(m.face_adjacency, nodes=np.arange(len(f)),
-                                                min_len=1)
-    groups = sorted(groups, key=lambda g: (-len(g), int(np.min(g))))
-    sizes = ", ".join(str(len(g)) for g in groups)
-    if component is None and len(groups) > 1:
-        raise SurfaceError(f"mesh has {len(groups)} connected components (faces: {sizes}); "
-                           "pass component=k (0 = largest) or keep one part in the file")
-    k = 0 if component is None else int(component)
-    if not 0 <= k < len(groups):
-        raise SurfaceError(f"component={component} is out of range; the mesh has "
-                           f"{len(groups)} components (faces: {sizes})")
-    f = f[np.sort(np.asarray(groups[k]))]
-    used, f = np.unique(f, return_inverse=True)
-    f = f.reshape(-1, 3).astype(np.int64)
-    v = v[used]
-
-    cross_in = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    m = trimesh.Trimesh(v, f, process=False)
-    trimesh.repair.fix_winding(m)
-    if not m.is_winding_consistent:
-        raise SurfaceError("mesh cannot be wound consistently (non-orientable, Moebius-like); "
-                           "cut it into orientable pieces")
-    f = np.asarray(m.faces, dtype=np.int64)
-    if m.is_watertight:
-        out = float(m.volume) >= 0.0       # closed: paint the outside
-    else:                                   # open: the side most input area already faced
-        cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-        agree = np.sign((cross * cross_in).sum(1))
-        out = float(agree @ np.linalg.norm(cross_in, axis=1)) >= 0.0
-    if out == flip:
-        f = f[:, ::-1]
-    return v, np.ascontiguousarray(f), name
-
-
-# --- shared construction helpers -------------------------------------------------------------
-def vertex_areas_barycentric(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(N,) a third of the area of every incident face [m²] (vertices (N,3) [m], faces (F,3))."""
-    a = 0.5 * np.linalg.norm(np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
-                                      vertices[faces[:, 2]] - vertices[faces[:, 0]]), axis=1)
-    return np.bincount(faces.ravel(), weights=np.repeat(a / 3.0, 3), minlength=len(vertices))
-
-
-def surface_from_triangles(name: str, vertices: np.ndarray, faces: np.ndarray) -> Surface:
-    """Surface from a clean, consistently wound mesh, with discrete normal and curvature
-    estimates (`planning.curvature.discrete_curvature`)."""
-    from planning.curvature import discrete_curvature
-
-    vertices = np.ascontiguousarray(vertices, dtype=float)
-    faces = np.ascontiguousarray(faces, dtype=np.int64)
-    c = discrete_curvature(vertices, faces)
-    return Surface(
-        name=name, vertices=vertices, faces=faces, normals=c.normals,
-        vertex_areas=vertex_areas_barycentric(vertices, faces),
-        gaussian_curvature=c.gaussian, mean_curvature=c.mean,
-        principal_curvatures=c.principal, principal_directions=c.directions,
-    )
-
-
+# --- grid construction helpers ---------------------------------------------------------------
 def grid_faces(nu: int, nv: int) -> np.ndarray:
     """(2(nu-1)(nv-1), 3) triangles of a row-major grid, CCW seen from the side of r_u × r_v."""
     i, j = np.meshgrid(np.arange(nu - 1), np.arange(nv - 1), indexing="ij")

@@ -15,7 +15,6 @@ Every result carries a `ReachabilityReport`, re-measured from the joint solution
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -353,28 +352,6 @@ def solve_path(robot: Robot, T_world_tcp: npt.ArrayLike, q_seed: npt.ArrayLike |
     report = ReachabilityReport.measure(robot, q, T, free_spin=free_spin,
                                         thresholds=s.thresholds())
     return IKPathResult(q=q, reachability=report, branch=branch, method=method)
-
-
-def solve_paths(robot: Robot, paths: Sequence[npt.ArrayLike], q_seed: npt.ArrayLike | None = None,
-                free_spin: bool = False, settings: IKSettings | None = None
-                ) -> list[IKPathResult]:
-    """`solve_path` for each pass in order; each pass is seeded with the end of the previous one.
-    A robot on a rail (`robot.rail`) gets `robots.rail.solve_rail_paths` (rail position per pass).
-
-    The combined report: `ReachabilityReport.concatenate([r.reachability for r in results])`.
-    """
-    if getattr(robot, "rail", None) is not None:   # a 7th, linear axis: robots.rail resolves it
-        from robots.rail import solve_rail_paths
-
-        return solve_rail_paths(robot, paths, q_seed=q_seed, free_spin=free_spin,
-                                settings=settings)
-    results = []
-    seed = q_seed
-    for T in paths:
-        res = solve_path(robot, T, q_seed=seed, free_spin=free_spin, settings=settings)
-        results.append(res)
-        seed = res.q[-1]
-    return results
 
 
 def combined_report(results: list[IKPathResult]) -> ReachabilityReport:

@@ -28,9 +28,9 @@ from robots.ik import (
     branch_feasibility,
     combined_report,
     continuous_branches,
-    solve_paths,
 )
 from robots.opw import inverse
+from robots.paths import solve_paths
 from robots.reachability import ReachabilityReport
 from robots.robot import Robot
 

@@ -2,7 +2,7 @@
 
 `robots.placement.find_base_pose` used to rank bases by the worst joint-limit / wrist margin; on a
 real door it picked a base that lost 6.3 pp of film to time-law slowdowns. Here a candidate base
-is scored on the subsampled paths with the IK the run will use (`robots.ik.solve_paths`: closed
+is scored on the subsampled paths with the IK the run will use (`robots.paths.solve_paths`: closed
 form + DLS for the ABB arm, DLS for the UR10) by:
 
 - reachability and joint jumps (infeasible when a pose is unreachable or a joint jumps);
@@ -29,7 +29,8 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial import cKDTree
 
-from robots.ik import IKSettings, combined_report, solve_paths
+from robots.ik import IKSettings, combined_report
+from robots.paths import solve_paths
 from robots.robot import Robot
 
 #: the time law uses this share of the joint speed / acceleration limits (sim.trajectory default).

@@ -29,8 +29,9 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import minimize_scalar
 
+from robots.arms import load_arm
 from robots.errors import RobotError
-from robots.robot import Robot, load_robot, write_generated_mjcf
+from robots.robot import Robot, write_generated_mjcf
 
 #: worst-case margin [rad] to joint limits / wrist singularity below which a rail position costs
 #: more (a pass at the edge of the arm's range leaves the moves between passes no room).
@@ -156,14 +157,14 @@ def rail_mjcf(arm_mjcf: str | Path, rail: RailSpec, arm_home: npt.ArrayLike, ste
 def load_rail_robot(arm_name: str, T_world_rail: npt.ArrayLike | None = None,
                     rail: RailSpec | None = None, tcp_offset: npt.ArrayLike | None = None
                     ) -> Robot:
-    """The arm `arm_name` (`robots.load_robot` names with closed-form IK) on a linear rail.
+    """The arm `arm_name` (`robots.arms.load_arm` names with closed-form IK) on a linear rail.
 
     T_world_rail: (4, 4) rail frame in the world (carriage along its +y; the arm's base plate at
     its origin when the carriage is at 0). Returns a 7-joint `Robot` (`rail` first, [m]) whose
-    `rail` attribute is a `RailAxis`; `robots.ik.solve_paths` resolves its redundancy.
+    `rail` attribute is a `RailAxis`; `robots.paths.solve_paths` resolves its redundancy.
     """
     rail = rail or RailSpec()
-    arm = load_robot(arm_name, tcp_offset=tcp_offset)
+    arm = load_arm(arm_name, tcp_offset=tcp_offset)
     if arm.opw is None:
         raise RobotError(f"{arm_name} has no closed-form IK; a rail needs an ortho-parallel arm "
                          "(abb_paint or irb5500)")
@@ -244,7 +245,7 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
 def solve_rail_paths(robot: Robot, paths: Sequence[npt.ArrayLike],
                      q_seed: npt.ArrayLike | None = None, free_spin: bool = False,
                      settings: Any = None, q_pref: npt.ArrayLike | None = None) -> list[Any]:
-    """`robots.ik.solve_paths` for a rail robot: per pass, the rail position of
+    """`robots.paths.solve_paths` for a rail robot: per pass, the rail position of
     `best_rail_position`, then the arm's IK there (seeded with the previous pass's end).
 
     q_seed: (7,) [m, rad...]; q_pref: (6,) preferred arm configuration [rad] (default: the

@@ -289,41 +289,6 @@ IRB5500_V_MAX = np.deg2rad([100.0, 130.0, 130.0, 460.0, 460.0, 600.0])
 IRB5500_A_MAX = np.array([4.5, 5.5, 6.5, 25.0, 25.0, 35.0])
 
 
-def load_robot(name: str, T_world_base: npt.ArrayLike | None = None,
-               tcp_offset: npt.ArrayLike | None = None) -> Robot:
-    """Load a robot ("abb_paint", "irb5500", "ur10") placed at `T_world_base` (4,4) (default:
-    identity).
-
-    tcp_offset: optional (4,4) T_flange_tcp [m] replacing the MJCF's tool offset (the TCP site
-    moves; a generated MJCF in the temp dir becomes `mjcf_path`).
-    """
-    if name == "abb_paint":
-        from robots.opw import IRB4600_60_205
-        path = ABB_PAINT_MJCF
-        if tcp_offset is not None:
-            path = with_tcp_offset(path, "tcp", tcp_offset, "abb_paint")
-        return Robot.from_mjcf("abb_paint", path, v_max=ABB_PAINT_V_MAX, a_max=ABB_PAINT_A_MAX,
-                               T_world_base=T_world_base, opw=IRB4600_60_205)
-    if name == "irb5500":
-        from robots.opw import IRB5500_CLASS
-        path = IRB5500_MJCF
-        if tcp_offset is not None:
-            path = with_tcp_offset(path, "tcp", tcp_offset, "irb5500")
-        return Robot.from_mjcf("irb5500", path, v_max=IRB5500_V_MAX, a_max=IRB5500_A_MAX,
-                               T_world_base=T_world_base, opw=IRB5500_CLASS)
-    if name.endswith("_rail") and name[:-5] in ("abb_paint", "irb5500"):
-        from robots.rail import load_rail_robot
-        return load_rail_robot(name[:-5], T_world_rail=T_world_base, tcp_offset=tcp_offset)
-    if name == "ur10":
-        from robots.ur10 import load_ur10
-        return load_ur10(T_world_base=T_world_base, tcp_offset=tcp_offset)
-    raise RobotError(f"unknown robot {name!r}; choose one of {ROBOT_NAMES}")
-
-
-# "<arm>_rail": the arm on a default linear rail (`robots.rail`; T_world_base is the rail frame).
-ROBOT_NAMES = ("abb_paint", "irb5500", "ur10", "abb_paint_rail", "irb5500_rail")
-
-
 def bell_tool_offset(straight_m: float = 0.16, head_m: float = 0.12,
                      bend_rad: float = np.pi / 4) -> np.ndarray:
     """T_flange_tcp (4,4) of a bell atomizer: `straight_m` [m] along the flange axis, then a head of

@@ -27,7 +27,6 @@ per job — is enumerated (≤ a few hundred for four robots) and the one chosen
 from __future__ import annotations
 
 import itertools
-import sys
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -145,13 +144,6 @@ class Booth:
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe description."""
         return asdict(self)
-
-    def main(self, argv: list[str] | None = None) -> int:
-        """Entry point of a booth script: `paintcell run <this script>`."""
-        from sim.cli import main as cli_main
-
-        src = self.source or sys.argv[0]
-        return cli_main(["run", src, *(sys.argv[1:] if argv is None else argv)])
 
 
 @dataclass(frozen=True)

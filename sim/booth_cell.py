@@ -6,7 +6,7 @@ prefix (`r0/`, `r1/`, ...), the part — the deposition mesh and thin convex col
 `sim.cell` — in a body `part` that slides along the conveyor line on a servoed slide joint
 `conveyor` (a prismatic carrier with the part + skid mass), and the booth floor. Contact sensors
 see the `robots` subtree against the part, the floor and itself, so robot–robot contacts count
-like self-collisions; `_contacts` in `sim.execute` names them.
+like self-collisions; `_contacts` in `sim.execute_contacts` names them.
 
 The result is a `sim.cell.Cell` whose "robot" is the whole booth — all robots' joints, then the
 carrier — so `sim.execute.execute` runs every robot and the conveyor at once with its servo (PD +

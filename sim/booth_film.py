@@ -20,7 +20,7 @@ from sim.booth import Booth, Job
 from sim.booth_cell import BoothCell
 from sim.joint_trajectory import JointTrajectory
 from sim.trace import ExecutedTrace
-from sim.validate import executed_gun_samples
+from sim.validate_samples import executed_gun_samples
 
 #: a point is in an overlap band when at least two robots each lay this share of its film.
 OVERLAP_SHARE = 0.10

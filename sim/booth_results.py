@@ -16,6 +16,7 @@ Metrics (all in `ValidationReport.metrics`, units in the names):
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Any
 
@@ -26,8 +27,9 @@ from planning.surface import Surface
 from sim.booth import Booth, Job
 from sim.booth_cell import BoothCell
 from sim.joint_trajectory import JointTrajectory
+from sim.pipeline import json_default
 from sim.trace import ExecutedTrace
-from sim.validate import Check, ValidationReport
+from sim.validate_report import Check, ValidationReport
 
 
 def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) -> float:
@@ -165,7 +167,6 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     traces, one RAPID module per robot and `booth.png` (`sim.booth_plots`)."""
     from sim.booth_plots import booth_figure
     from sim.booth_rapid import booth_rapid_modules
-    from sim.booth_run import json_dump
 
     d = result.report.to_dict()
     d["scenario"] = {"name": result.scenario.name, "source": result.scenario.source}
@@ -179,3 +180,8 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     for name, text in booth_rapid_modules(result, robots).items():
         atomic_write_text(out / f"{name}.mod", text)
     booth_figure(result, out / "booth.png")
+
+
+def json_dump(d: dict[str, Any]) -> str:
+    """JSON of a metrics dict (numpy scalars made plain)."""
+    return json.dumps(d, indent=2, default=json_default)

@@ -15,7 +15,6 @@ So loss = executed − plan σ/μ = time law (trajectory − plan) + servo (serv
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,7 +40,8 @@ from sim.booth_film import merge_surfaces, robot_films
 from sim.conveyor import track_program
 from sim.joint_trajectory import RETRACT, JointTrajectory
 from sim.trace import ExecutedTrace
-from sim.validate import ValidationReport, collision_events
+from sim.validate_motion import collision_events
+from sim.validate_report import ValidationReport
 
 #: allocations tried, best first, before giving up (their programs are cached per robot and job).
 MAX_ALLOCATIONS_TRIED = 8
@@ -339,10 +339,3 @@ def _robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTraje
             meta={"robot": bcell.robots[i].name},
             tau_demand=None if trace.tau_demand is None else trace.tau_demand[:, cols]))
     return out
-
-
-def json_dump(d: dict[str, Any]) -> str:
-    """JSON of a metrics dict (numpy scalars made plain)."""
-    from sim.pipeline import json_default
-
-    return json.dumps(d, indent=2, default=json_default)

@@ -170,8 +170,10 @@ def _add_run(add_parser: Any) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from sim.booth import Booth
+    from sim.booth_run import run_booth
     from sim.pipeline import run_scenario
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
 
     scn = load_scenario(args.scenario)
     if args.disturb and not hasattr(scn, "disturbances"):
@@ -186,8 +188,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     worker = args.row_json is not None
     out = args.out or (args.out_under / scn.name if args.out_under is not None
                        else None if worker else _default_out(scn.name))
-    res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
-                       report=not (args.no_report or worker), progress=not worker)
+    if isinstance(scn, Booth):   # several robots on a conveyor
+        res: Any = run_booth(scn, out, fast=args.fast, mode=args.mode)
+    else:
+        res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
+                           report=not (args.no_report or worker), progress=not worker)
     r = row(scn.name, res.report)
     if worker:
         from planning.atomic_io import atomic_write_text
@@ -242,7 +247,7 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from planning.atomic_io import atomic_write_text
     from sim.pipeline import load_surface, make_plan, scenario_json
     from sim.results_dir import new_results
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
 
     scn = load_scenario(args.scenario)
     out = args.out or _default_out(scn.name)
@@ -387,3 +392,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 if __name__ == "__main__":
     raise SystemExit(main())
+
+
+def run_script(scenario: Any, argv: list[str] | None = None) -> int:
+    """Entry point of a scenario script: `paintcell run <the script>` with the script's command-line
+    arguments (or `argv`). A script ends with `raise SystemExit(run_script(SCENARIO))`."""
+    src = scenario.source or sys.argv[0]
+    return main(["run", src, *(sys.argv[1:] if argv is None else argv)])

@@ -45,7 +45,7 @@ def add_check(add_parser: Any) -> None:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    from sim.scenario import find_scenarios
+    from sim.scenario_files import find_scenarios
 
     scripts = find_scenarios(args.paths)
     rows: list[dict[str, Any]] = []

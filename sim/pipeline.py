@@ -190,15 +190,12 @@ def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool
     fast: coarse resolution and the scenario's fast planner overrides (CI checks).
     mode: "servo" (PD + inverse dynamics) or "kinematic" (ideal replay) execution.
     report: also write plots, renders and `report.html`.
-    A `sim.booth.Booth` runs through `sim.booth_run.run_booth` (metrics, traces and RAPID
-    modules; no HTML report yet).
+    A `sim.booth.Booth` (several robots) runs through `sim.booth_run.run_booth` instead; the
+    command line (`paintcell run`) picks the one that fits.
     """
-    from sim.booth import Booth
-
-    if isinstance(scn, Booth):   # several robots on a conveyor: sim.booth_run
-        from sim.booth_run import run_booth
-
-        return run_booth(scn, out_dir, fast=fast, mode=mode)  # type: ignore[return-value]
+    if not isinstance(scn, Scenario):
+        raise ScenarioError(f"run_scenario runs one robot's Scenario, got {type(scn).__name__}; "
+                            "run a booth with sim.booth_run.run_booth (or `paintcell run`)")
     timings: dict[str, float] = {}
     # disable=None: tqdm draws only on a terminal, so CI logs and pipes stay clean.
     bar = tqdm(total=len(STAGES), desc=f"{scn.name}", unit="stage",
@@ -276,13 +273,13 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
 
 
 def _servo(scn: Scenario) -> Any:
-    from sim.execute import ServoSettings
+    from sim.execute_settings import ServoSettings
 
     return settings_from(ServoSettings, scn.servo, "servo")
 
 
 def _disturbances(scn: Scenario) -> Any:
-    from sim.execute import Disturbances
+    from sim.execute_settings import Disturbances
 
     return settings_from(Disturbances, scn.disturbances, "disturbances") \
         if scn.disturbances else None

@@ -3,27 +3,25 @@
 Scenarios are data: a TOML file (`scenarios/door.toml`, format in docs/interfaces.md and
 `sim.scenario_data`) maps one-to-one onto the `Scenario` fields and is read without running any
 code. A Python script that builds one `Scenario` named `SCENARIO` is still accepted for users who
-want code (and `raise SystemExit(SCENARIO.main())` lets `python script.py` run it); only scenario
-files the user names on the command line are ever imported, never a file named in a results
-folder. `paintcell check scenarios/` loads every `*.toml` and `*.py` file of the folder.
+want code (and `raise SystemExit(run_script(SCENARIO))`, with `run_script` from `sim.cli`, lets
+`python script.py` run it); only scenario files the user names on the command line are ever
+imported, never a file named in a results folder (`sim.scenario_files` loads them).
+`paintcell check scenarios/` loads every `*.toml` and `*.py` file of the folder.
 """
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from planning.errors import PaintcellError
 from planning.part_spec import MeshPart
-from sim.validate import Thresholds
+from sim.scenario_checks import check_thresholds
+from sim.validate_report import Thresholds
 
-__all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "find_scenarios",
-           "load_scenario", "pose"]
+__all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "pose"]
 
 
 class ScenarioError(PaintcellError):
@@ -141,98 +139,8 @@ class Scenario:
                 raise ScenarioError(f"Scenario.{name} must be a dict of setting names to values")
         if not isinstance(self.thresholds, Thresholds):
             raise ScenarioError("Scenario.thresholds must be a sim.scenario.Thresholds")
-        from sim.scenario_data import check_thresholds
-
         check_thresholds(self.thresholds)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe description of the scenario (for reports); `scenario_from_dict` inverts it."""
         return asdict(self)
-
-    def main(self, argv: list[str] | None = None) -> int:
-        """Entry point of a scenario script: `paintcell run <this script>` with the given args."""
-        from sim.cli import main as cli_main
-
-        src = self.source or sys.argv[0]
-        return cli_main(["run", src, *(sys.argv[1:] if argv is None else argv)])
-
-
-def load_scenario(path: str | Path) -> Any:
-    """The scenario of a TOML file (read as data) or a Python script (imported; its `SCENARIO`),
-    with `source` filled in and every setting and threshold validated: a `Scenario`, or a
-    `sim.booth.Booth` for a booth of several robots (a TOML file with `[[robots]]` tables)."""
-    from sim.scenario_data import check_settings, load_toml_scenario
-
-    path = Path(path)
-    if not path.exists():
-        raise ScenarioError(f"scenario {path} does not exist; pass a scenario file such as "
-                            "scenarios/door.toml, or a folder of them")
-    if path.is_dir():
-        raise ScenarioError(f"scenario {path} is a folder; pass one scenario file (`paintcell "
-                            "check` takes folders)")
-    if path.suffix == ".toml":
-        if _is_booth_toml(path):   # several robots: imported only for a booth
-            from sim.booth_data import load_toml_booth
-
-            return load_toml_booth(path)
-        return load_toml_scenario(path)
-    if path.suffix != ".py":
-        raise ScenarioError(f"scenario {path} is neither a .toml scenario nor a Python script "
-                            "(.py defining SCENARIO)")
-    mod_name = f"paintcell_scenario_{path.stem}"
-    spec = importlib.util.spec_from_file_location(mod_name, path)
-    if spec is None or spec.loader is None:
-        raise ScenarioError(f"cannot import scenario {path}")
-    module = importlib.util.module_from_spec(spec)
-    # Run the script as a module, not as __main__, so it does not start a run on import.
-    try:
-        spec.loader.exec_module(module)
-    except PaintcellError as exc:
-        raise ScenarioError(f"scenario {path} is invalid: {exc}") from exc
-    except SystemExit as exc:  # a script that exits on import must not end paintcell silently
-        raise ScenarioError(f"scenario {path} called sys.exit({exc.code!r}) while loading; a "
-                            "scenario script defines SCENARIO and runs nothing on import") \
-            from exc
-    except Exception as exc:  # a syntax or name error in the user's script
-        raise ScenarioError(f"cannot import scenario {path}: {type(exc).__name__}: {exc}") \
-            from exc
-    scenario = getattr(module, "SCENARIO", None)
-    from sim.booth import Booth  # a booth script (several robots) runs like a scenario
-
-    if not isinstance(scenario, Scenario | Booth):
-        raise ScenarioError(f"{path} defines no SCENARIO (a sim.scenario.Scenario or a "
-                            "sim.booth.Booth); add one")
-    from dataclasses import replace
-
-    scenario = replace(scenario, source=str(path.resolve()))
-    if isinstance(scenario, Scenario):
-        check_settings(scenario, str(path))
-    return scenario
-
-
-def _is_booth_toml(path: Path) -> bool:
-    """Whether a TOML file declares a booth (`[[robots]]` tables; `sim.booth_data`)."""
-    import tomllib
-
-    try:
-        with open(path, "rb") as f:
-            return isinstance(tomllib.load(f).get("robots"), list)
-    except (OSError, tomllib.TOMLDecodeError):
-        return False   # the scenario loader reports the file's own error
-
-
-def find_scenarios(paths: list[str]) -> list[Path]:
-    """Scenario files named by `paths` (files, or folders searched for `*.toml` and `*.py`),
-    sorted by name within each folder."""
-    found: list[Path] = []
-    for p in map(Path, paths):
-        if p.is_dir():
-            found.extend(sorted((q for q in [*p.glob("*.toml"), *p.glob("*.py")]
-                                 if not q.name.startswith("_")), key=lambda q: q.name))
-        elif p.exists():
-            found.append(p)
-        else:
-            raise ScenarioError(f"scenario path {p} does not exist")
-    if not found:
-        raise ScenarioError(f"no scenario files (*.toml, *.py) found in {', '.join(paths)}")
-    return found

@@ -62,7 +62,7 @@ def prepare_payload(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> SweepPa
     from planning.deposition import thickness
     from planning.transforms import inverse_pose
     from sim.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
-    from sim.validate import trajectory_gun_samples
+    from sim.validate_samples import trajectory_gun_samples
 
     surface = load_surface(scn, fast)
     plan = make_plan(scn, surface, fast)

@@ -54,7 +54,7 @@ def add_sweep_parser(add_parser: Any) -> None:
 
 def cmd_sweep(args: argparse.Namespace) -> int:
     """Run `paintcell sweep`; exit 0, or 1 when a sweep limit of the scenario is not met."""
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
     from sim.sweep import run_sweep
     from sim.sweep_spec import spec_from_scenario
 

@@ -22,3 +22,13 @@ MAGNITUDE_FACTORS = ("part_offset_m", "part_rotation_rad", "tcp_offset_m")
 #: tolerances a paint shop asks about that this cell does not model (named in the error).
 NOT_MODELLED = {"conveyor_speed_m_s": "the cell has no conveyor: the part stands still"}
 METHODS = ("lhs", "mc")
+#: the per-sample figures (validation metric keys) a sweep records and summarizes, with units.
+SAMPLE_METRICS: dict[str, str] = {
+    "executed_nsd_pct": "%",
+    "executed_within_tolerance_pct": "%",
+    "executed_min_um": "µm",
+    "executed_mean_um": "µm",
+    "loss_pp": "pp",
+    "executed_cycle_time_s": "s",
+    "tracking_error_max_mm": "mm",
+}

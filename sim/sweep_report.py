@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from planning.atomic_io import atomic_write_text
-from sim.sweep_worker import SAMPLE_METRICS
+from sim.sweep_names import SAMPLE_METRICS
 
 #: figures plotted as histograms (the headline ones).
 HIST_FIGURES = ("executed_nsd_pct", "executed_within_tolerance_pct", "executed_min_um",

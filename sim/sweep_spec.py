@@ -29,7 +29,10 @@ from typing import Any
 import numpy as np
 
 from planning.errors import PaintcellError
-from sim.sweep_names import FACTORS, MAGNITUDE_FACTORS, METHODS, NOT_MODELLED
+from sim.sweep_names import FACTORS, MAGNITUDE_FACTORS, METHODS, NOT_MODELLED, SAMPLE_METRICS
+
+#: a sweep limit key: max_pNN_<figure> or min_pNN_<figure>
+_LIMIT_RE = re.compile(r"^(max|min)_p(\d{1,2})_(.+)$")
 
 
 class SweepError(PaintcellError):
@@ -224,8 +227,6 @@ def check_sweep_table(sweep: dict[str, Any]) -> None:
     """Validate a scenario's sweep table on load (one-line SweepError): known keys, factors and
     distributions, positive sample counts, a known method, a non-negative seed and workers, and
     well-formed limits. A table without factors is valid (factors may come from --vary)."""
-    from sim.sweep_stats import check_limits
-
     if not isinstance(sweep, dict):
         raise SweepError("sweep must be a table [sweep]")
     unknown = sorted(set(sweep) - set(SCENARIO_KEYS))
@@ -246,3 +247,20 @@ def check_sweep_table(sweep: dict[str, Any]) -> None:
     if not isinstance(limits, dict):
         raise SweepError("sweep limits must be a table [sweep.limits]")
     check_limits(limits)
+
+
+def check_limits(limits: dict[str, Any] | None) -> dict[str, float]:
+    """Validated limits (one-line SweepError naming the bad key and the valid forms)."""
+    out: dict[str, float] = {}
+    for key, val in (limits or {}).items():
+        if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val):
+            raise SweepError(f"sweep limit {key} = {val!r} must be a finite number")
+        m = _LIMIT_RE.match(key)
+        if key in ("min_yield_pct", "min_yield_lower_pct"):
+            pass
+        elif m is None or m.group(3) not in SAMPLE_METRICS:
+            raise SweepError(f"unknown sweep limit {key!r}; use max_pNN_<figure>, "
+                             f"min_pNN_<figure> (figures: {', '.join(SAMPLE_METRICS)}), "
+                             "min_yield_pct or min_yield_lower_pct")
+        out[key] = float(val)
+    return out

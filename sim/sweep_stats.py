@@ -21,19 +21,16 @@
 
 from __future__ import annotations
 
-import math
-import re
 from typing import Any
 
 import numpy as np
 from scipy import stats
 
-from sim.sweep_spec import SweepError, SweepSpec
-from sim.sweep_worker import SAMPLE_METRICS
+from sim.sweep_names import SAMPLE_METRICS
+from sim.sweep_spec import _LIMIT_RE, SweepSpec, check_limits
 
 QUANTILES = (5, 50, 95)
 CONFIDENCE = 0.95
-_LIMIT_RE = re.compile(r"^(max|min)_p(\d{1,2})_(.+)$")
 
 
 def yield_interval(passed: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
@@ -50,23 +47,6 @@ def quantiles(values: np.ndarray, qs: tuple[int, ...] = QUANTILES) -> dict[str, 
     v = np.asarray(values, float)
     v = v[np.isfinite(v)]
     return {f"p{q}": (float(np.percentile(v, q)) if len(v) else None) for q in qs}
-
-
-def check_limits(limits: dict[str, Any] | None) -> dict[str, float]:
-    """Validated limits (one-line SweepError naming the bad key and the valid forms)."""
-    out: dict[str, float] = {}
-    for key, val in (limits or {}).items():
-        if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val):
-            raise SweepError(f"sweep limit {key} = {val!r} must be a finite number")
-        m = _LIMIT_RE.match(key)
-        if key in ("min_yield_pct", "min_yield_lower_pct"):
-            pass
-        elif m is None or m.group(3) not in SAMPLE_METRICS:
-            raise SweepError(f"unknown sweep limit {key!r}; use max_pNN_<figure>, "
-                             f"min_pNN_<figure> (figures: {', '.join(SAMPLE_METRICS)}), "
-                             "min_yield_pct or min_yield_lower_pct")
-        out[key] = float(val)
-    return out
 
 
 def summarize(spec: SweepSpec, nominal: dict[str, Any] | None, records: list[dict[str, Any]],

@@ -17,17 +17,7 @@ from typing import Any
 import numpy as np
 
 from planning.errors import PaintcellError
-
-#: the per-sample figures (validation metric keys) a sweep records and summarizes, with units.
-SAMPLE_METRICS: dict[str, str] = {
-    "executed_nsd_pct": "%",
-    "executed_within_tolerance_pct": "%",
-    "executed_min_um": "µm",
-    "executed_mean_um": "µm",
-    "loss_pp": "pp",
-    "executed_cycle_time_s": "s",
-    "tracking_error_max_mm": "mm",
-}
+from sim.sweep_names import SAMPLE_METRICS
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,7 +75,7 @@ def context(payload: SweepPayload) -> WorkerContext:
 def disturbances_for(payload: SweepPayload, values: np.ndarray | None, seed: int) -> Any:
     """`Disturbances` of one sample: the scenario's own, with the sampled factors set and the
     sample's seed (values None: the nominal run, the scenario as declared)."""
-    from sim.execute import Disturbances
+    from sim.execute_settings import Disturbances
     from sim.pipeline import settings_from
 
     kw = dict(payload.scenario.disturbances)

@@ -192,7 +192,7 @@ def test_booth_toml_is_read_and_checked(tmp_path):
     """scenarios/booth.toml loads as a Booth through the scenario loader; unknown keys and a
     malformed rail are refused with one line naming the file and the valid keys."""
     from sim.booth_data import BoothDataError
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
 
     b = load_scenario("scenarios/booth.toml")
     assert isinstance(b, Booth) and [r.name for r in b.robots] == ["side_a", "side_b", "roof_l",

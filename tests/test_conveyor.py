@@ -17,8 +17,9 @@ from sim.cell import build_cell
 from sim.conveyor import Conveyor, ConveyorError, track_program
 from sim.execute import execute
 from sim.joint_trajectory import PAINT, JointTrajectory
-from sim.scenario import load_scenario, pose
-from sim.validate import executed_gun_samples
+from sim.scenario import pose
+from sim.scenario_files import load_scenario
+from sim.validate_samples import executed_gun_samples
 from tests.helpers import FK_AGREEMENT_ATOL_M
 
 

@@ -18,7 +18,7 @@ import pytest
 from planning.applicator import Applicator
 from planning.plan import CoveragePlan, PassPlan
 from planning.surface import Surface, plane
-from robots.robot import load_robot
+from robots.catalog import load_robot
 from sim.cell import Cell, build_cell
 from sim.execute import SETTLE_MAX_S, Disturbances, ExecutionError, ServoSettings, execute
 from sim.joint_trajectory import APPROACH, PAINT, JointTrajectory

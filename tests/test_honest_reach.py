@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 from planning.surface import plane
-from robots.ik import IKPathResult, solve_paths
+from robots.catalog import load_robot
+from robots.ik import IKPathResult
+from robots.paths import solve_paths
 from robots.reachability import ReachabilityReport
-from robots.robot import load_robot
 from sim.honest_reach import honest_reachability
 from sim.joint_trajectory import PAINT, JointTrajectory
 from sim.trace import Contact, ExecutedTrace

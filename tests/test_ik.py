@@ -14,9 +14,9 @@ from robots.ik import (
     dls,
     opw_branches,
     solve_path,
-    solve_paths,
 )
 from robots.opw import IRB4600_60_205, fit_to_limits, forward, inverse, wrap_pi
+from robots.paths import solve_paths
 from tests.helpers import IK_POS_TOL_M, IK_ROT_TOL_RAD, OPW_ROUND_TRIP_ATOL
 
 N_POSES = 1000

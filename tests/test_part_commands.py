@@ -63,7 +63,7 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     judged on the skin — the hem faces away from the bell and gets almost no paint, so the
     same film over every vertex would be far less uniform."""
     from sim.pipeline import run_scenario
-    from sim.scenario import load_scenario
+    from sim.scenario_files import load_scenario
 
     part = tmp_path / "parts" / "fender.stl"
     assert main(["generate", "fender", "--out", str(part)]) == 0

@@ -16,6 +16,7 @@ from sim.joint_trajectory import JointTrajectory
 from sim.trace import ExecutedTrace
 
 SCENARIO = '''
+from sim.cli import run_script
 from sim.scenario import Placement, Scenario, Thresholds, facing_robot
 
 SCENARIO = Scenario(
@@ -29,7 +30,7 @@ SCENARIO = Scenario(
 )
 
 if __name__ == "__main__":
-    raise SystemExit(SCENARIO.main())
+    raise SystemExit(run_script(SCENARIO))
 '''
 
 

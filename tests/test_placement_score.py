@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from robots.catalog import load_robot
 from robots.placement import facing_grid, find_base_pose
 from robots.placement_score import motion_score
-from robots.robot import load_robot
 from sim.trajectory import build_program
 from tests.test_trajectory import _plan
 
@@ -62,7 +62,7 @@ def test_clearance_counts_the_part_and_the_floor() -> None:
     r = robot.placed(C[1])
     free = motion_score(r, paths, speeds, floor_z_m=0.0)
     # a floor 0.3 m above the shoulder's lowest point: the arm is in it
-    from robots.ik import solve_paths
+    from robots.paths import solve_paths
     from robots.placement_score import arm_points
 
     q = np.concatenate([x.q for x in solve_paths(r, paths)])

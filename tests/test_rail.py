@@ -18,7 +18,8 @@ from robots.rail import RailSpec, best_rail_position, load_rail_robot, rail_cost
 from sim.cell import build_cell
 from sim.execute import execute
 from sim.joint_trajectory import PAINT
-from sim.scenario import load_scenario, pose
+from sim.scenario import pose
+from sim.scenario_files import load_scenario
 from sim.trajectory import TrajectorySettings, build_program
 from tests.helpers import FK_AGREEMENT_ATOL_M
 

@@ -9,7 +9,8 @@ import pytest
 
 from planning.plan import tcp_frames
 from robots import load_robot
-from robots.ik import combined_report, solve_paths
+from robots.ik import combined_report
+from robots.paths import solve_paths
 from robots.placement import facing_grid, find_base_pose
 from robots.reachability import ReachabilityReport
 

@@ -11,7 +11,7 @@ import pytest
 from PIL import Image
 
 from planning.surface import plane
-from sim import render
+from sim import render, render_backend
 from tests.helpers import RENDER_MIN_PIXEL_STD, RENDER_RAMP_MIN_LEVEL_GAP
 
 VMIN_UM, VMAX_UM = 10.0, 50.0
@@ -44,9 +44,11 @@ def test_backend_is_chosen():
 
 
 def test_no_backend_is_a_clear_error(monkeypatch):
-    monkeypatch.setattr(render, "_backend", None)
+    # The backend choice lives in sim.render_backend (render re-exports it): patch it there.
+    monkeypatch.setattr(render_backend, "_backend", None)
     monkeypatch.delenv("MUJOCO_GL", raising=False)
-    monkeypatch.setattr(render, "probe_backend", lambda name, timeout_s=0: "cannot open display")
+    monkeypatch.setattr(render_backend, "probe_backend",
+                        lambda name, timeout_s=0: "cannot open display")
     with pytest.raises(render.RenderBackendError) as e:
         render.backend_name()
     msg = str(e.value)

@@ -15,7 +15,7 @@ from PIL import Image
 from planning.surface import plane
 from sim import report
 from sim.joint_trajectory import JointTrajectory
-from sim.render import write_png, write_video
+from sim.render_images import write_png, write_video
 
 METRICS = {
     "planned_nsd_pct": 3.21,

@@ -18,7 +18,7 @@ from planning.coverage import PlannerSettings, plan_coverage
 from planning.errors import PlanError
 from planning.smoothing import limit_turn_rate, smooth_along, smoothed_surface, turn_rate_rad_m
 from planning.surface import Surface, grid_faces, plane, surface_from_triangles
-from robots.robot import load_robot
+from robots.catalog import load_robot
 from sim.joint_trajectory import PAINT
 from sim.trajectory import build_program
 

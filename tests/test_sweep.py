@@ -20,8 +20,8 @@ import pytest
 from scipy import stats
 
 from sim.cli import main
-from sim.execute import Disturbances
-from sim.scenario import load_scenario
+from sim.execute_settings import Disturbances
+from sim.scenario_files import load_scenario
 from sim.sweep import run_sweep, sample_path
 from sim.sweep_spec import SweepError, spec_from_scenario
 from sim.sweep_worker import RUN_KEYS

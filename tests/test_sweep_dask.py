@@ -21,7 +21,7 @@ from typing import Any
 
 import pytest
 
-from sim.scenario import load_scenario
+from sim.scenario_files import load_scenario
 from sim.sweep import run_sweep
 from sim.sweep_spec import spec_from_scenario
 from sim.sweep_worker import RUN_KEYS

@@ -363,7 +363,7 @@ def test_part_out_of_reach_raises_unreachable_with_the_ik_verdict(robot, plan) -
 def test_partly_unreachable_plan_that_cannot_be_built_raises_unreachable(robot, plan) -> None:
     """0.8 m further: 2 of 3 passes out of reach; the moves between them leave the joint limits.
     The error says so and carries the verdict (a `TrajectoryError` used to hide it)."""
-    from robots.ik import solve_paths
+    from robots.paths import solve_paths
 
     T = _far(0.8)
     ik = solve_paths(robot, [T @ plan.tcp_frames(i) for i in range(N_PASSES)],
@@ -377,7 +377,8 @@ def test_partly_unreachable_plan_that_cannot_be_built_raises_unreachable(robot, 
 def test_partly_unreachable_plan_is_still_timed_with_warnings(robot, plan) -> None:
     """A few poses off by millimetres: the program is built, the pass is named in
     meta['warnings'] and the reachability summary says not all poses are reachable."""
-    from robots.ik import IKPathResult, solve_paths
+    from robots.ik import IKPathResult
+    from robots.paths import solve_paths
     from robots.reachability import ReachabilityReport
 
     paths = [plan.tcp_frames(i) for i in range(N_PASSES)]

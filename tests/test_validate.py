@@ -265,7 +265,7 @@ def test_door_program_end_to_end() -> None:
     """Door plan → 1 kHz program → servo execution → validation, on the real pipeline."""
     from planning.coverage import PlannerSettings, plan_coverage
     from planning.parts import get_part
-    from robots.robot import load_robot
+    from robots.catalog import load_robot
     from sim.cell import build_cell
     from sim.execute import execute
     from sim.trajectory import TrajectorySettings, build_program
