@@ -127,7 +127,7 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
                    settings: IKSettings | None = None, score: str = "motion",
                    speeds_m_s: Sequence[npt.ArrayLike] | None = None,
                    part_points_world: npt.ArrayLike | None = None,
-                   floor_z_m: float | None = None
+                   floor_z_m: float | None = None, q_home: npt.ArrayLike | None = None
                    ) -> tuple[np.ndarray, PlacementReport]:
     """Best base pose T_world_base (4,4) for `paths` (list of (M,4,4) T_world_tcp, part placed).
 
@@ -139,7 +139,8 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
     (predicted time-law slowdown and film excess, jumps, clearance from `part_points_world`
     (K, 3) [m] and the floor at `floor_z_m` [m], joint margin); "margin": by the worst joint
     margin alone (the earlier rule). speeds_m_s: per path (M,) planned TCP speeds [m/s]
-    (default 0.5 m/s everywhere).
+    (default 0.5 m/s everywhere). q_home: (n,) the program's home [rad] (default the robot's):
+    the motion score also checks the clearance along the moves from and to it.
     Returns (T_world_base, PlacementReport); the report says when no candidate is feasible (the
     one with the most reachable poses is returned then).
     """
@@ -167,7 +168,8 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
     motion = None
     if score == "motion":
         motion = _motion_ranked(robot, C, top[np.isfinite(fine[0])], P, speeds_m_s,
-                                part_points_world, floor_z_m, max_poses_per_path, free_spin, s)
+                                part_points_world, floor_z_m, max_poses_per_path, free_spin, s,
+                                q_home)
         ok = {c: m for c, m in motion.items() if m.feasible}
         if ok:
             best = min(ok, key=lambda c: ok[c].cost)
@@ -180,8 +182,8 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
 
 def _motion_ranked(robot: Robot, C: np.ndarray, idx: np.ndarray, P: list[np.ndarray],
                    speeds: Sequence[npt.ArrayLike] | None, part_points: npt.ArrayLike | None,
-                   floor_z_m: float | None, n: int, free_spin: bool, s: IKSettings
-                   ) -> dict[int, Any]:
+                   floor_z_m: float | None, n: int, free_spin: bool, s: IKSettings,
+                   q_home: npt.ArrayLike | None = None) -> dict[int, Any]:
     """`MotionScore` of candidates C[idx] on the paths subsampled to ≤ n poses each."""
     from scipy.spatial import cKDTree
 
@@ -196,7 +198,8 @@ def _motion_ranked(robot: Robot, C: np.ndarray, idx: np.ndarray, P: list[np.ndar
     vs = [v[k] for v, k in zip(V, keep, strict=True)]
     tree = None if part_points is None else cKDTree(np.asarray(part_points, float))
     return {int(c): motion_score(robot.placed(C[c]), sub, vs, part_points=tree,
-                                 floor_z_m=floor_z_m, free_spin=free_spin, settings=s)
+                                 floor_z_m=floor_z_m, free_spin=free_spin, settings=s,
+                                 q_home=None if q_home is None else np.asarray(q_home, float))
             for c in idx}
 
 

@@ -12,7 +12,12 @@ form + DLS for the ABB arm, DLS for the UR10) by:
   the film (∝ 1/speed) comes out r times thick — the predicted film excess is the RMS of
   max(r − 1, 0) over the poses [%];
 - clearance of the arm (points along the chain of joint origins from the shoulder to the wrist,
-  a capsule of `link_radius_m`) from the part's points and the booth floor (infeasible when < 0);
+  a capsule of `link_radius_m`, and the tool from the flange halfway to the TCP, `tool_radius_m`)
+  from the part's points and the booth floor (infeasible when < 0),
+  at the paint poses and along the moves between them — home → first pass, each turn-around,
+  last pass → home — taken as straight lines in joint space (ruckig's time-synchronized moves
+  stay close to them); a base whose paint poses all clear the part can still swing the wrist
+  through it on the way home;
 - joint margin (joint limit and asin|sin q5| [rad]), which only counts below a comfort margin.
 
 cost = predicted film excess [%] + 10 × max(0, comfort − margin) [rad → %-equivalent]
@@ -86,13 +91,42 @@ def arm_points(robot: Robot, Q: np.ndarray, per_link: int = 4) -> np.ndarray:
     return np.concatenate([pts.reshape(len(Q), -1, 3), out[:, -1:]], axis=1)
 
 
+def tool_points(robot: Robot, Q: np.ndarray,
+                fractions: tuple[float, ...] = (0.0, 0.25, 0.5)) -> np.ndarray:
+    """(K, F, 3) points on the tool for joint rows Q (K, n) [rad], in the world [m]: the flange
+    origin and points on the straight line from it toward the TCP at `fractions` of the way (the
+    bell body and cup lie within the first half: the TCP sits a standoff beyond the cup)."""
+    T = robot.fk_many(Q)                                  # (K, 4, 4) T_world_tcp
+    flange = (T @ np.linalg.inv(robot.T_flange_tcp))[:, :3, 3]
+    f = np.asarray(fractions, float)[None, :, None]
+    return flange[:, None, :] + f * (T[:, None, :3, 3] - flange[:, None, :])
+
+
+def move_joints(q_paths: Sequence[np.ndarray], q_home: np.ndarray, n: int) -> np.ndarray:
+    """(K, nq) joint rows [rad] on the straight joint-space moves home → first pose, last pose
+    of each path → first of the next, last pose → home; `n` interior samples per move (ends
+    excluded: the paint poses are checked on their own). Paths without poses are skipped."""
+    ends = [np.asarray(q_home, float)]
+    for q in q_paths:
+        if len(q):
+            ends += [q[0], q[-1]]
+    ends.append(np.asarray(q_home, float))
+    a, b = np.array(ends[0::2]), np.array(ends[1::2])
+    f = (np.arange(1, n + 1) / (n + 1))[None, :, None]
+    return (a[:, None, :] + f * (b - a)[:, None, :]).reshape(-1, a.shape[1])
+
+
 def motion_score(robot: Robot, paths: Sequence[np.ndarray], speeds_m_s: Sequence[np.ndarray],
                  *, part_points: cKDTree | None = None, floor_z_m: float | None = None,
-                 link_radius_m: float = 0.12, free_spin: bool = False,
-                 settings: IKSettings | None = None) -> MotionScore:
+                 link_radius_m: float = 0.12, tool_radius_m: float = 0.07,
+                 free_spin: bool = False,
+                 settings: IKSettings | None = None, q_home: np.ndarray | None = None,
+                 move_samples: int = 12) -> MotionScore:
     """Score `robot` (at its base) on `paths` (list of (M, 4, 4) T_world_tcp) planned at
     `speeds_m_s` (list of (M,) TCP speeds [m/s]); part_points: a KD-tree of the part's points in
-    the world [m] (None: not checked); floor_z_m: the booth floor height [m] (None: none)."""
+    the world [m] (None: not checked); floor_z_m: the booth floor height [m] (None: none);
+    q_home: (n,) the program's home [rad] (default the robot's), start and end of the moves;
+    move_samples: joint-space samples per move checked for clearance."""
     s = settings or IKSettings()
     res = solve_paths(robot, list(paths), free_spin=free_spin, settings=s)
     rep = combined_report(res)
@@ -122,13 +156,16 @@ def motion_score(robot: Robot, paths: Sequence[np.ndarray], speeds_m_s: Sequence
     film = 100.0 * float(np.sqrt(np.mean(excess**2)))
     clearance = np.inf
     if part_points is not None or floor_z_m is not None:
-        Q = np.concatenate([r.q for r in res])
-        pts = arm_points(robot, Q).reshape(-1, 3)
-        if part_points is not None:
-            dist, _ = part_points.query(pts)
-            clearance = min(clearance, float(dist.min()) - link_radius_m)
-        if floor_z_m is not None:
-            clearance = min(clearance, float(pts[:, 2].min() - floor_z_m) - link_radius_m)
+        Q = np.concatenate([r.q for r in res] + [move_joints(
+            [r.q for r in res], robot.q_home if q_home is None else q_home, move_samples)])
+        Q = Q[np.isfinite(Q).all(axis=1)]
+        for pts, rad in ((arm_points(robot, Q).reshape(-1, 3), link_radius_m),
+                         (tool_points(robot, Q).reshape(-1, 3), tool_radius_m)):
+            if part_points is not None:
+                dist, _ = part_points.query(pts)
+                clearance = min(clearance, float(dist.min()) - rad)
+            if floor_z_m is not None:
+                clearance = min(clearance, float(pts[:, 2].min() - floor_z_m) - rad)
     feasible = rep.all_reachable and rep.continuous and clearance >= 0.0
     cost = (film + MARGIN_WEIGHT * max(0.0, s.comfort_margin_rad - margin) - 0.01 * margin
             if feasible else np.inf)

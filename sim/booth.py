@@ -88,6 +88,8 @@ class BoothThresholds:
     max_robot_collisions: robot–robot collision events alone.
     max_executed_nsd_pct: executed film σ/μ of the worst part [%] (the whole body's is reported;
         it also measures how far the parts' planned film builds differ).
+    max_body_nsd_pct: executed film σ/μ over the whole body [%] (with a common film build,
+        `Booth.common_film_build`, it measures the parts' edges and the robots' seams).
     max_abs_loss_pp: |executed − planned σ/μ| [pp]. max_cycle_time_s: booth cycle [s].
     min_bell_distance_m: smallest distance between two bells while both paint [m].
     max_torque_utilization: largest demanded/limit torque of any joint [-].
@@ -96,6 +98,7 @@ class BoothThresholds:
     max_collisions: int | None = 0
     max_robot_collisions: int | None = 0
     max_executed_nsd_pct: float | None = 20.0
+    max_body_nsd_pct: float | None = None
     max_abs_loss_pp: float | None = 1.0
     max_cycle_time_s: float | None = 120.0
     min_bell_distance_m: float | None = 0.8
@@ -121,6 +124,13 @@ class Booth:
     servo: dict[str, Any] = field(default_factory=dict)
     thresholds: BoothThresholds = BoothThresholds()
     allocation: dict[str, tuple[int, int, int]] | None = None
+    common_film_build: bool = True
+    """Scale each part's bell flow so every part's planned mean film is one target
+    (`sim.booth_build`); False: each part at the default flow, its own film build."""
+    film_target_um: float | None = None
+    """The common film build [µm] (None: the body's area-weighted planned mean)."""
+    blend_seams: bool = True
+    """Switch off the samples that paint other parts more than their own (`sim.booth_seams`)."""
     source: str | None = None
     applicator: str | None = None
     """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
@@ -193,7 +203,12 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
                       "reachable, split parts swept in step; the first whose programs keep "
                       "the arms apart (staggered starts) is taken",
               "candidates": n_considered, "feasible": len(ranked),
-              "estimated_cycle_s": ranked[0][0][0], "estimated_programs_s": list(ranked[0][0])}
+              "estimated_cycle_s": ranked[0][0][0], "estimated_programs_s": list(ranked[0][0]),
+              "best_ranked": [{"estimated_programs_s": list(c[0]),
+                               "jobs": {r: [j.part, j.first, j.end] for r, j in c[2].items()},
+                               "estimated_s": {r: estimate_s(durations[j.part][j.first:j.end])
+                                               for r, j in c[2].items()}}
+                              for c in ranked[:8]]}
     return [c[2] for c in ranked], record
 
 

@@ -29,16 +29,14 @@ from planning.surface import Surface
 from planning.transforms import check_pose, quat_wxyz_from_matrix
 from sim.cell import (
     _COLLISION_BIT,
-    _CONTACT_DATA_FOUND_DIST,
-    _CONTACT_REDUCE_MINDIST,
     BOOTH_BODY,
     PART_BODY,
-    SELF_CONTACT_SENSOR,
     TIMESTEP_S,
     Cell,
     CellError,
     RobotLike,
     _index_cell,
+    add_contact_sensors,
     add_part_geoms,
 )
 from sim.conveyor import Conveyor
@@ -184,15 +182,7 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
     for jn in names:
         spec.add_sensor(name=f"tau_{jn}", type=mujoco.mjtSensor.mjSENS_JOINTACTFRC,
                         objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=jn)
-    for partner in [PART_BODY] + ([BOOTH_BODY] if booth else []):
-        spec.add_sensor(name=f"contact_{partner}", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                        objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=ROBOTS_BODY,
-                        reftype=mujoco.mjtObj.mjOBJ_BODY, refname=partner,
-                        intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
-    spec.add_sensor(name=SELF_CONTACT_SENSOR, type=mujoco.mjtSensor.mjSENS_CONTACT,
-                    objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=ROBOTS_BODY,
-                    reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=ROBOTS_BODY,
-                    intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
+    add_contact_sensors(spec, ROBOTS_BODY, booth)
     try:
         model = spec.compile()
     except ValueError as exc:

@@ -15,7 +15,9 @@ A `[[robots]]` table with `rail` puts the arm on a linear rail with that carriag
 (the base is then the rail frame, `robots.rail`). `allocation` (optional table: robot name →
 [part index, first pass, end pass]) fixes the jobs. Every key is checked: unknown names are refused
 with one line naming the file, the table and the valid keys. A TOML file is a booth when it has
-`[[robots]]` tables.
+`[[robots]]` tables. `common_film_build` (default true) and `film_target_um` (default: the body's
+area-weighted planned mean) set one film build over the parts (`sim.booth_build`);
+`blend_seams` (default true) blends the seams between parts (`sim.booth_seams`).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from sim.scenario import Placement
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
+        "common_film_build", "film_target_um", "blend_seams",
         "applicator")
 _PART = ("part", "xyz_m", "rpy_rad", "planner")
 _ROBOT = ("name", "model", "base", "home", "rail")
@@ -114,9 +117,26 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                         for k, v in d.get("trajectory", {}).items()},
             servo=dict(d.get("servo", {})), thresholds=BoothThresholds(**th),
             allocation=None if alloc is None else {k: tuple(v) for k, v in alloc.items()},
+            common_film_build=_bool(d.get("common_film_build", True),
+                                    f"{where} common_film_build"),
+            blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
+            film_target_um=(None if d.get("film_target_um") is None
+                            else _positive(d["film_target_um"], f"{where} film_target_um")),
             source=source, applicator=app)
     except PaintcellError as exc:
         raise BoothDataError(f"{where}: {exc}") from exc
+
+
+def _bool(v: Any, where: str) -> bool:
+    if not isinstance(v, bool):
+        raise BoothDataError(f"{where} must be true or false, got {v!r}")
+    return v
+
+
+def _positive(v: Any, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0:
+        raise BoothDataError(f"{where} must be a number > 0 [µm], got {v!r}")
+    return float(v)
 
 
 def load_toml_booth(path: str | Path) -> Booth:

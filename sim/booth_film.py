@@ -69,7 +69,6 @@ def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[Cover
            traces: list[ExecutedTrace], trace: ExecutedTrace, t_ref: float
            ) -> dict[str, np.ndarray]:
     """Per robot and kind (plan, trajectory, servo, executed): film (R, N) [m]."""
-    app = plans[0].applicator
     pts, nrm = body.vertices, body.normals
     t = trace.t_s
     unit = booth.conveyor.unit
@@ -80,6 +79,7 @@ def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[Cover
                                                              "executed")}
     for i, (tr, ex) in enumerate(zip(trajs, traces, strict=True)):
         job = jobs[i]
+        app = plans[job.part].applicator   # each part at its own flow (`sim.booth_build`)
         sub = dataclasses.replace(plans[job.part],
                                   passes=plans[job.part].passes[job.first:job.end])
         out["plan"][i] = thickness(app, plan_gun_in_body(sub, T_bp[job.part]), pts, nrm)

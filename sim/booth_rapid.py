@@ -56,9 +56,11 @@ def _rail_values_mm(traj: JointTrajectory, via_dt_s: float) -> tuple[dict[int, f
 
 
 def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[str],
-                 conveyor: Any, delay_s: float = 0.0, via_dt_s: float = 0.2) -> str:
+                 conveyor: Any, delay_s: float = 0.0, via_dt_s: float = 0.2,
+                 flow_factor: float | None = None) -> str:
     """RAPID module text of one booth robot's static program (module doc); delay_s: its start
-    delay after the common start [s] (`sim.booth.stagger_starts`)."""
+    delay after the common start [s] (`sim.booth.stagger_starts`); flow_factor: its bell flow
+    relative to the applicator's (`sim.booth_build`), stated in the header."""
     arm, arm_traj = _arm_view(robot, traj)
     text = rapid_module(arm_traj, arm, module_name=name, via_dt_s=via_dt_s)
     lines = text.splitlines()
@@ -91,6 +93,9 @@ def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[
     ]
     if getattr(robot, "rail", None) is not None:
         head.append("  ! Rail: the carriage is external axis eax_a [mm] of every target.")
+    if flow_factor is not None:
+        head.append(f"  ! Bell flow: {flow_factor:.3f} x the applicator's nominal rate (the "
+                    "booth's common film build, sim.booth_build): set it in the brush table.")
     out: list[str] = []
     for ln in lines:
         if ln.startswith("  PERS tooldata tBell"):
@@ -113,6 +118,11 @@ def booth_rapid_modules(result: Any, robots: list[Any]) -> dict[str, str]:
     booth = result.scenario
     names = [f"T_{r.name.upper()}" for r in booth.robots]
     delays = result.report.metrics["allocation"].get("start_delays_s", [0.0] * len(names))
-    return {n: booth_module(rb, tr, n, names, booth.conveyor, d)
-            for n, rb, tr, d in zip(names, robots, result.static_trajectories, delays,
-                                    strict=True)}
+    build = result.report.metrics.get("film_build", {}).get("parts", {})
+    flows = []
+    for i in range(len(names)):
+        p = result.jobs[i].part
+        flows.append(build.get(f"{p}:{booth.parts[p].part}", {}).get("flow_factor"))
+    return {n: booth_module(rb, tr, n, names, booth.conveyor, d, flow_factor=f)
+            for n, rb, tr, d, f in zip(names, robots, result.static_trajectories, delays, flows,
+                                       strict=True)}

@@ -40,6 +40,13 @@ def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) ->
     return body_uniformity(film, areas, mask)
 
 
+def _torque_use(trace: ExecutedTrace, tau_max: np.ndarray) -> float:
+    """Largest demanded torque ÷ limit over a robot's joints (nan for a kinematic run)."""
+    if trace.tau_demand is None:
+        return float("nan")
+    return float((np.abs(trace.tau_demand) / np.asarray(tau_max, float)).max())
+
+
 def min_bell_distance(trajs: list[JointTrajectory]) -> float:
     """Smallest distance [m] between two robots' TCPs at a step where both paint (inf if never)."""
     best = np.inf
@@ -83,6 +90,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
             "program_s": own[i],
             "start_delay_s": float(trajs[i].meta.get("start_delay_s", 0.0)),
             "conveyor": trajs[i].meta.get("conveyor"),
+            "max_torque_utilization": _torque_use(traces[i], bcell.robots[i].tau_max),
         }
     robot_robot = [e for e in events if bcell.robot_of_body(e["body1"]) >= 0
                    and bcell.robot_of_body(e["body2"]) >= 0
@@ -100,6 +108,10 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
         "servo_nsd_pct": nsd["servo"], "executed_nsd_pct": nsd["executed"],
         "part_executed_nsd_pct": per_part,
         "max_part_executed_nsd_pct": max(per_part.values()),
+        "part_executed_mean_um": {
+            k: 1e6 * float(tot["executed"][offs[i]:offs[i + 1]] @ areas[offs[i]:offs[i + 1]]
+                           / areas[offs[i]:offs[i + 1]].sum())
+            for i, k in enumerate(per_part)},
         "loss_pp": nsd["executed"] - nsd["plan"],
         "loss_time_law_pp": nsd["trajectory"] - nsd["plan"],
         "loss_servo_pp": nsd["servo"] - nsd["trajectory"],
@@ -132,6 +144,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
              "events", "max"),
             ("executed σ/μ (worst part)", "max_part_executed_nsd_pct", th.max_executed_nsd_pct,
              "%", "max"),
+            ("executed σ/μ (whole body)", "executed_nsd_pct", th.max_body_nsd_pct, "%", "max"),
             ("|uniformity loss|", "abs_loss_pp", th.max_abs_loss_pp, "pp", "max"),
             ("cycle time", "executed_cycle_time_s", th.max_cycle_time_s, "s", "max"),
             ("bell distance", "min_bell_distance_m", th.min_bell_distance_m, "m", "min"),
@@ -163,8 +176,9 @@ def trajs_carrier(trace: ExecutedTrace, booth: Booth, trajs: list[JointTrajector
 
 
 def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
-    """metrics.json (booth metrics, per-robot credit, allocation), per-robot trajectories and
-    traces, one RAPID module per robot and `booth.png` (`sim.booth_plots`)."""
+    """metrics.json (booth metrics, per-robot credit, allocation, film build), per-robot
+    trajectories and traces, one RAPID module per robot, `booth.png` (`sim.booth_plots`),
+    `body_film.png` and `report.html` (`sim.booth_report`)."""
     from sim.booth_plots import booth_figure
     from sim.booth_rapid import booth_rapid_modules
 
@@ -180,6 +194,16 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     for name, text in booth_rapid_modules(result, robots).items():
         atomic_write_text(out / f"{name}.mod", text)
     booth_figure(result, out / "booth.png")
+    from sim.booth_film import overlap_mask
+    from sim.booth_report import body_film_figure, write_booth_report
+
+    ex = result.films_m["executed"]
+    body_film_figure(result.surface, result.part_vertex_counts, ex,
+                     [r.name for r in result.scenario.robots], out / "body_film.png",
+                     band=overlap_mask(ex),
+                     title=f"{result.scenario.name}: executed film over the whole body "
+                           f"(σ/μ {result.report.metrics['executed_nsd_pct']:.2f} %)")
+    write_booth_report(out)
 
 
 def json_dump(d: dict[str, Any]) -> str:

@@ -37,7 +37,7 @@ from sim.booth import (
 )
 from sim.booth_cell import BoothCell, build_booth_cell
 from sim.booth_film import merge_surfaces, robot_films
-from sim.conveyor import track_program
+from sim.conveyor import ConveyorError, track_program
 from sim.joint_trajectory import RETRACT, JointTrajectory
 from sim.trace import ExecutedTrace
 from sim.validate_motion import collision_events
@@ -63,6 +63,8 @@ class BoothResult:
     static_trajectories: list[JointTrajectory] = field(default_factory=list)
     """Each robot's own program in the static cell, before staggering and tracking."""
     timings_s: dict[str, float] = field(default_factory=dict)
+    part_vertex_counts: list[int] = field(default_factory=list)
+    """The parts' vertex counts, in the order they are stacked in `surface`."""
 
     @property
     def passed(self) -> bool:
@@ -150,7 +152,21 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     surfaces, plans, T_body_parts = _plan_parts(booth, fast)
+    build: dict[str, Any] = {"rule": "off: each part at the default bell flow"}
+    if booth.common_film_build:
+        from sim.booth_build import common_film_build
+
+        plans, build = common_film_build(surfaces, plans,
+                                         [f"{i}:{p.part}" for i, p in enumerate(booth.parts)],
+                                         booth.film_target_um)
     body = merge_surfaces(surfaces, T_body_parts, booth.name)
+    seams: dict[str, Any] = {"rule": "off" if not booth.blend_seams else "one part: no seams"}
+    if booth.blend_seams and len(plans) > 1:
+        from sim.booth_seams import blend_part_seams
+
+        plans, seams = blend_part_seams(body, plans, T_body_parts,
+                                        [len(x.vertices) for x in surfaces],
+                                        [f"{i}:{p.part}" for i, p in enumerate(booth.parts)])
     T_wb = booth.body_placement.matrix
     robots = _load_robots(booth)
     timings["plan"] = time.perf_counter() - t0
@@ -158,36 +174,31 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     t0 = time.perf_counter()
     ranked, record = _allocate(booth, robots, plans, T_wb, T_body_parts)
     # Rail robots place their carriage for each pass inside a range shrunk by the travel the
-    # conveyor tracking will add (half the line travel over the estimated cycle, +25 %).
+    # conveyor tracking will add (half the line travel over the estimated cycle, +25 %); if the
+    # staggered cycle came out longer and the tracking leaves a rail, once more with its cycle.
     shrink = 0.5 * booth.conveyor.speed_m_s * record.get("estimated_cycle_s", 0.0) * 1.25
-    planners = _load_robots(booth, shrink) if shrink > 0 else robots
-    cache: dict[tuple[int, Job], JointTrajectory] = {}
-    tried = []
-    for jobs in ranked[:MAX_ALLOCATIONS_TRIED]:
+    for attempt in range(2):
+        jobs, static, trajs0, tried = _choose(booth, robots, plans, ranked, T_wb, T_body_parts,
+                                              shrink)
+        K = max(len(tr.t_s) for tr in trajs0)
+        dt = trajs0[0].dt_s
+        t_ref = 0.5 * (K - 1) * dt
         try:
-            trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_body_parts, cache)
-            static = list(trajs0)   # the programs as the robots' controllers run them (RAPID)
-            delays = _stagger(booth, robots, trajs0)
-        except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
-            tried.append({"jobs": {booth.robots[r].name: [j.part, j.first, j.end]
-                                   for r, j in jobs.items()}, "rejected": str(exc)})
-            continue
-        break
-    else:
-        raise BoothError(f"none of the {len(tried)} best allocations works (last: "
-                         f"{tried[-1]['rejected']}); move the robots")
+            trajs = [track_program(r, _pad(tr, K), booth.conveyor, t_ref)
+                     for r, tr in zip(robots, trajs0, strict=True)]
+            break
+        except ConveyorError:
+            need = 0.5 * booth.conveyor.speed_m_s * (K - 1) * dt * 1.25
+            if attempt == 1 or need <= shrink:
+                raise
+            shrink = need
     record["rejected"] = tried
     record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
-    trajs0 = [_delay(tr, d) for tr, d in zip(trajs0, delays, strict=True)]
-    record["start_delays_s"] = [d * trajs0[0].dt_s for d in delays]
+    record["start_delays_s"] = [float(tr.meta.get("start_delay_s", 0.0)) for tr in trajs0]
+    record["rail_tracking_margin_m"] = shrink
     timings["trajectory"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    K = max(len(tr.t_s) for tr in trajs0)
-    dt = trajs0[0].dt_s
-    t_ref = 0.5 * (K - 1) * dt
-    trajs = [track_program(r, _pad(tr, K), booth.conveyor, t_ref)
-             for r, tr in zip(robots, trajs0, strict=True)]
     bcell = build_booth_cell(robots, body, T_wb, booth.conveyor)
     from sim.execute import ServoSettings, execute
     from sim.pipeline import settings_from
@@ -205,14 +216,40 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), record, jobs,
                            [len(x.vertices) for x in surfaces])
+    report.metrics["film_build"] = build
+    report.metrics["seams"] = seams
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
-                         timings)
+                         timings, [len(x.vertices) for x in surfaces])
     with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         if tmp is not None:
             write_booth_results(result, tmp, robots)
             result.out_dir = Path(out_dir)  # type: ignore[arg-type]
     return result
+
+
+def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
+            ranked: list[dict[int, Job]], T_wb: np.ndarray, T_bp: list[np.ndarray],
+            shrink_m: float) -> tuple[dict[int, Job], list[JointTrajectory],
+                                      list[JointTrajectory], list[dict[str, Any]]]:
+    """The first workable allocation of `ranked` (rails shrunk by shrink_m at both ends for the
+    passes): its jobs, static programs, staggered programs and the rejected ones."""
+    planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
+    cache: dict[tuple[int, Job], JointTrajectory] = {}
+    tried = []
+    for jobs in ranked[:MAX_ALLOCATIONS_TRIED]:
+        try:
+            trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_bp, cache)
+            delays = _stagger(booth, robots, trajs0)
+        except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
+            tried.append({"jobs": {booth.robots[r].name: [j.part, j.first, j.end]
+                                   for r, j in jobs.items()}, "rejected": str(exc)})
+            continue
+        # static: the programs as the robots' controllers run them (RAPID)
+        return jobs, list(trajs0), [_delay(tr, d) for tr, d in
+                                    zip(trajs0, delays, strict=True)], tried
+    raise BoothError(f"none of the {len(tried)} best allocations works (last: "
+                     f"{tried[-1]['rejected']}); move the robots")
 
 
 def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoveragePlan],

@@ -318,20 +318,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     for jn in joint_names:
         spec.add_sensor(name=f"tau_{jn}", type=mujoco.mjtSensor.mjSENS_JOINTACTFRC,
                         objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=ROBOT_PREFIX + jn)
-    partners = [PART_BODY] + ([BOOTH_BODY] if booth else [])
-    for partner in partners:
-        spec.add_sensor(name=f"contact_{partner}", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                        objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=base_name,
-                        reftype=mujoco.mjtObj.mjOBJ_BODY, refname=partner,
-                        intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
-    # Self-collision: the robot subtree against the same subtree matches the contacts whose two
-    # geoms both belong to the robot (MuJoCo 4.0 contact-sensor matching: each side's criterion
-    # must hold for one of the two geoms). Only contacts MuJoCo generated are seen, so the
-    # filtered (parent-child, welded) and excluded pairs never count.
-    spec.add_sensor(name=SELF_CONTACT_SENSOR, type=mujoco.mjtSensor.mjSENS_CONTACT,
-                    objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=base_name,
-                    reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=base_name,
-                    intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
+    add_contact_sensors(spec, base_name, booth)
 
     try:
         model = spec.compile()
@@ -340,6 +327,27 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
                         f"(tcp site {robot.tcp_site_name!r}, base {robot.base_body_name!r})"
                         ) from exc
     return _index_cell(model, spec, robot, surface, T_world_part, T_world_base, cams, booth)
+
+
+def add_contact_sensors(spec: mujoco.MjSpec, subtree_body: str, booth: bool) -> None:
+    """Contact sensors of the robot subtree rooted at `subtree_body` (MuJoCo body name): one per
+    partner (the part, and the booth floor when `booth`) and one for self-contact.
+
+    Self-collision: the subtree against the same subtree matches the contacts whose two geoms
+    both belong to it (MuJoCo 4.0 contact-sensor matching: each side's criterion must hold for one
+    of the two geoms). Only contacts MuJoCo generated are seen, so the filtered (parent-child,
+    welded) and excluded pairs never count. In a booth the subtree holds every robot, so
+    robot-robot contacts are self-contacts.
+    """
+    for partner in [PART_BODY] + ([BOOTH_BODY] if booth else []):
+        spec.add_sensor(name=f"contact_{partner}", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                        objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=subtree_body,
+                        reftype=mujoco.mjtObj.mjOBJ_BODY, refname=partner,
+                        intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
+    spec.add_sensor(name=SELF_CONTACT_SENSOR, type=mujoco.mjtSensor.mjSENS_CONTACT,
+                    objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=subtree_body,
+                    reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=subtree_body,
+                    intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
 
 
 def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, surface: Surface,

@@ -97,6 +97,10 @@ def main(argv: list[str] | None = None) -> int:
         code = _main(argv)
         # A signal that a library swallowed (see sim.interrupts) still ends the command as one.
         return EXIT_INTERRUPTED if interrupts.pending() is not None else code
+    except KeyboardInterrupt as exc:  # a signal while the parser was built, before the command
+        sys.stderr.write(f"paintcell: interrupted ({exc or 'SIGINT'}); nothing half-written was "
+                         "left\n")
+        return EXIT_INTERRUPTED
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
@@ -157,6 +161,9 @@ def _add_run(add_parser: Any) -> None:
                    help="servo: PD + inverse-dynamics control at 1 kHz; kinematic: ideal replay")
     r.add_argument("--no-report", action="store_true",
                    help="skip renders, plots and report.html (data files only)")
+    r.add_argument("--video", action="store_true",
+                   help="also render the execution video execution.gif (tens of seconds) and embed "
+                   "it in report.html (a few MB; without it the report stays under 2 MB)")
     r.add_argument("--disturb", action="append", default=[], metavar="KEY=VALUE",
                    help="robustness study: a sim.execute.Disturbances setting on top of the "
                    "scenario's, repeatable: part_offset_m [m], part_rotation_rad [rad], "
@@ -192,7 +199,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         res: Any = run_booth(scn, out, fast=args.fast, mode=args.mode)
     else:
         res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
-                           report=not (args.no_report or worker), progress=not worker)
+                           report=not (args.no_report or worker), progress=not worker,
+                           video=args.video)
     r = row(scn.name, res.report)
     if worker:
         from planning.atomic_io import atomic_write_text
@@ -277,6 +285,7 @@ def _add_validate(add_parser: Any) -> None:
 def _cmd_validate(args: argparse.Namespace) -> int:
     from planning.atomic_io import atomic_write_text
     from sim.pipeline import RunResult, json_default, load_surface, metrics_dict
+    from sim.report_film import FILM_NAME, save_film
     from sim.results_dir import lock_results, note_files, require_results
     from sim.run_files import load_run_dir, read_json
     from sim.validate import validate
@@ -300,7 +309,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, timings_s=stage_times,
                         fast=fast, mode=mode)
         atomic_write_text(old, json.dumps(metrics_dict(res), indent=2, default=json_default))
-        note_files(args.dir, ["metrics.json"])
+        save_film(args.dir / FILM_NAME, surface, rep)
+        note_files(args.dir, ["metrics.json", FILM_NAME])
     print(format_table([row(scn.name, rep)]))
     return EXIT_OK if rep.passed else EXIT_FAIL
 
@@ -362,8 +372,12 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 def _add_report(add_parser: Any) -> None:
     rep = add_parser("report", help="rebuild report.html of a folder",
-                     description="Rebuild report.html from the files of a results folder.")
+                     description="Rebuild report.html from the files of a results folder: verdict, "
+                     "film map, histogram vs the spec window, per-pass table; then the detail.")
     rep.add_argument("dir", type=Path, help=DIR_HELP)
+    rep.add_argument("--video", action="store_true",
+                     help="embed the folder's execution video execution.gif (made by "
+                     "`paintcell run --video`; adds a few MB)")
     rep.set_defaults(func=_cmd_report)
 
 
@@ -378,7 +392,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     with lock_results(args.dir, "report"):
         check_folder_files(args.dir)
         try:
-            path = write_report(args.dir)
+            path = write_report(args.dir, video=args.video)
         except (PaintcellError, OSError):
             raise
         except Exception as exc:  # a file whose content is valid JSON but not what it should be

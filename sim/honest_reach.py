@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from planning.plan import CoveragePlan
+from robots.rail import RAIL_JOINT
 from sim.joint_trajectory import PAINT, JointTrajectory
 from sim.trace import ExecutedTrace
 
@@ -40,8 +41,9 @@ class HonestReachSettings:
 
     slowdown_fraction: a pose whose TCP speed falls more than this fraction below the planned
         speed is not painted as planned (0.10: the film's ±10 % window) [-].
-    wrist_joint_index: the joint whose sin changes sign at the wrist singularity (J5 of the ABB
-        arm and of the UR10); None: flips are not counted.
+    wrist_joint_index: the arm joint whose sin changes sign at the wrist singularity (J5 of the
+        ABB arms and of the UR10; counted after the rail axis when the trajectory's first joint
+        is `robots.rail.RAIL_JOINT`); None: flips are not counted.
     """
 
     slowdown_fraction: float = 0.10
@@ -117,6 +119,8 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
         ks = np.unique(k[bad])
         slow[offsets[i] + ks[on_part[ks]]] = True
         wi = st.wrist_joint_index
+        if wi is not None and traj.joint_names and traj.joint_names[0] == RAIL_JOINT:
+            wi += 1          # a rail's prismatic axis comes first: the arm's wrist is one later
         if wi is not None and wi < traj.q.shape[1]:
             sg = np.sign(np.sin(traj.q[sel, wi]))
             change = np.flatnonzero(sg[1:] * sg[:-1] < 0) + 1

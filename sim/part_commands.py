@@ -195,7 +195,8 @@ def _rpy(R: np.ndarray) -> tuple[float, float, float]:
 
 def _placement(surf: Any) -> np.ndarray:
     """T_world_part: painted side toward a robot at the origin (−x), the part's longest extent
-    horizontal (along y), its centre 1.4 m in front of the robot and high enough above the floor."""
+    horizontal (along y), its centre 1.4 m in front of the robot and its lower edge ≥ 0.5 m above
+    the floor (the wrist of a pass along that edge stays clear of the floor)."""
     d = surf.regions.painted_direction
     skin = surf.vertices[surf.regions.vertex_mask(surf.faces, ("skin",))]
     c = skin.mean(0)
@@ -211,7 +212,7 @@ def _placement(surf: Any) -> np.ndarray:
     z_half = float(np.ptp((surf.vertices - c) @ R[2]) / 2)
     T = np.eye(4)
     T[:3, :3] = R
-    T[:3, 3] = [1.4, 0.0, max(1.0, z_half + 0.3)] - R @ c
+    T[:3, 3] = [1.4, 0.0, max(1.0, z_half + 0.5)] - R @ c
     return T
 
 
@@ -245,6 +246,13 @@ def _cmd_init(args: argparse.Namespace) -> int:
         raise PaintcellError(f"no planner setting plans {spec.file} ({len(tried)} tried; first: "
                              f"{tried[0]}); see `paintcell inspect` for its regions")
     paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
+    # The lowest pass (edge passes run outside the part) at least _MIN_TCP_Z_M above the floor:
+    # below that the wrist and the bell sweep the floor. The plan is in the part frame: lift both.
+    lift = _MIN_TCP_Z_M - min(float(p[:, 2, 3].min()) for p in paths)
+    if lift > 0:
+        T[2, 3] += lift
+        pl = Placement(tuple(float(x) for x in T[:3, 3]), pl.rpy_rad)  # type: ignore[arg-type]
+        paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
     # scored by what the run suffers: the plan's speeds, clearance from the part and the floor
     part_world = surf.vertices @ pl.matrix[:3, :3].T + pl.matrix[:3, 3]
     T_base, prep = find_base_pose(load_robot(args.robot), paths,
@@ -268,6 +276,9 @@ def _relpath(p: Path, start: Path) -> str:
 def _v(x: Any) -> str:
     return json.dumps(list(x) if isinstance(x, tuple) else x)
 
+
+#: Lowest TCP height of a pass `init` accepts [m]; the part is lifted until its plan clears it.
+_MIN_TCP_Z_M = 0.6
 
 #: Planner settings `init` tries in turn until one plans the part (the first is the defaults).
 _PLANNER_TRIES: tuple[dict[str, Any], ...] = (

@@ -184,12 +184,13 @@ def make_trajectory(scn: Scenario, robot: Any, plan: CoveragePlan) -> Any:
 
 def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool = False,
                  mode: Literal["servo", "kinematic"] = "servo", report: bool = True,
-                 progress: bool = True) -> RunResult:
+                 progress: bool = True, video: bool = False) -> RunResult:
     """Run the scenario end to end; write its results into `out_dir` (atomically) if given.
 
     fast: coarse resolution and the scenario's fast planner overrides (CI checks).
     mode: "servo" (PD + inverse dynamics) or "kinematic" (ideal replay) execution.
     report: also write plots, renders and `report.html`.
+    video: with `report`, also render the execution GIF and embed it in `report.html` (MBs).
     A `sim.booth.Booth` (several robots) runs through `sim.booth_run.run_booth` instead; the
     command line (`paintcell run`) picks the one that fits.
     """
@@ -201,14 +202,14 @@ def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool
     bar = tqdm(total=len(STAGES), desc=f"{scn.name}", unit="stage",
                disable=None if progress else True, leave=False)
     try:
-        return _run(scn, out_dir, fast, mode, report, bar, timings)
+        return _run(scn, out_dir, fast, mode, report, bar, timings, video)
     finally:
         bar.close()
 
 
 def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
          mode: Literal["servo", "kinematic"], report: bool,
-         bar: tqdm, timings: dict[str, float]) -> RunResult:
+         bar: tqdm, timings: dict[str, float], video: bool = False) -> RunResult:
     from sim.cell import build_cell
     from sim.execute import execute
     from sim.validate import validate
@@ -264,7 +265,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
         if tmp is not None:
             t0 = time.perf_counter()
             stage("report")
-            write_results(result, tmp, cell=cell if report else None)
+            write_results(result, tmp, cell=cell if report else None, video=video)
             done("report", t0)
             result.out_dir = Path(out_dir)  # type: ignore[arg-type]
         else:
@@ -315,8 +316,11 @@ def metrics_dict(result: RunResult) -> dict[str, Any]:
     return d
 
 
-def write_results(result: RunResult, out: Path, cell: Any = None) -> None:
-    """Write plan, trajectory, trace, metrics (and report files when `cell` is given) into `out`."""
+def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = False) -> None:
+    """Write plan, trajectory, trace, metrics, film (and report files when `cell` is given; the
+    execution GIF too with `video`) into `out`."""
+    from sim.report_film import FILM_NAME, save_film
+
     result.plan.save(out / "plan.json")
     result.trajectory.save_npz(out / "trajectory.npz")
     result.trajectory.save_csv(out / "trajectory.csv")
@@ -325,12 +329,13 @@ def write_results(result: RunResult, out: Path, cell: Any = None) -> None:
                                                            result.mode))
     atomic_write_text(out / "metrics.json", json.dumps(metrics_dict(result), indent=2,
                                                        default=json_default))
+    save_film(out / FILM_NAME, result.surface, result.report)
     if cell is not None:
         from sim.report import make_figures, write_report
 
         make_figures(out, surface=result.surface, plan=result.plan, trajectory=result.trajectory,
-                     trace=result.trace, report=result.report, cell=cell)
-        write_report(out)
+                     trace=result.trace, report=result.report, cell=cell, video=video)
+        write_report(out, video=video)
 
 
 def json_default(o: Any) -> Any:

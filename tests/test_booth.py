@@ -221,3 +221,45 @@ def test_booth_figure_is_written(roof_booth, tmp_path):
     path = booth_figure(roof_booth, tmp_path / "booth.png")
     with Image.open(path) as im:
         assert im.format == "PNG" and im.size[0] > 800
+
+
+def test_booth_report_in_a_browser(roof_booth, tmp_path):
+    """The booth's results folder holds report.html (from metrics.json) and the whole-body film
+    map; a real browser (headless Chromium) shows the figures, both images load, and the zone map
+    has each robot's colour (both robots lay most of the film somewhere: coverage credit > 0)."""
+    import json
+
+    from PIL import Image
+
+    from sim.booth_report import _ZONE_COLOURS
+    from sim.booth_results import write_booth_results
+
+    write_booth_results(roof_booth, tmp_path, _load_robots(ROOF_BOOTH))
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    with Image.open(tmp_path / "body_film.png") as im:
+        rgb = np.asarray(im.convert("RGB")).reshape(-1, 3)
+    for k in range(2):
+        c = np.array([int(_ZONE_COLOURS[k][i:i + 2], 16) for i in (1, 3, 5)])
+        assert (np.abs(rgb.astype(int) - c).max(axis=1) <= 2).sum() > 500, f"robot {k} zone"
+    browser = pytest.importorskip("playwright.sync_api")
+    import shutil
+
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        pytest.skip("no Chromium on this machine (the HTML is checked above without one)")
+    with browser.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=exe, args=["--no-sandbox"])
+        try:
+            page = b.new_page()
+            page.goto((tmp_path / "report.html").as_uri())
+            assert page.inner_text("#cycle") == f"{m['executed_cycle_time_s']:.2f} s"
+            assert page.inner_text("#body-nsd") == f"{m['executed_nsd_pct']:.2f} %"
+            assert "roof_l: roof passes" in page.inner_text("#chosen")
+            widths = page.eval_on_selector_all("img", "els => els.map(e => e.naturalWidth)")
+            text = page.inner_text("body")
+        finally:
+            b.close()
+    assert len(widths) == 2 and min(widths) > 500
+    for n in ("roof_l", "roof_r"):
+        assert text.count(n) >= 2      # robots table and allocation
+    assert "assignments enumerated" in text and "Film build" in text

@@ -111,3 +111,26 @@ def test_without_per_pose_arrays_the_losses_add_up() -> None:
     assert h is not None and not h["per_pose"]
     assert h["reachability_pct"] == pytest.approx(
         100.0 * (summary["n_poses"] - 3) / summary["n_poses"], abs=0.01)
+
+
+def test_wrist_flip_on_a_rail_robot_is_the_arms_j5() -> None:
+    """A rail robot's trajectory has the prismatic rail first: a sign change of sin of the
+    arm's J5 (column 5) inside a pass is a wrist flip; one of the arm's J4 (column 4) is not."""
+    plan, traj = _program(False)
+    sel = np.flatnonzero((traj.segment == PAINT) & (traj.pass_index == 1))
+    mid = sel[len(sel) // 2]
+
+    def rail_traj(col: int) -> JointTrajectory:
+        q = np.concatenate([np.zeros((len(traj.q), 1)), traj.q], axis=1)
+        # the column's sin made positive before mid-pass and negative from it on
+        q[sel, col] = np.where(sel < mid, 0.3, -0.3)
+        return dataclasses.replace(traj, q=q, qd=np.zeros_like(q), qdd=np.zeros_like(q),
+                                   joint_names=("rail", *traj.joint_names))
+
+    reach = traj.meta["reachability"]
+    wrist = rail_traj(5)
+    h = honest_reachability(plan, wrist, _replay(wrist), reach)
+    assert h is not None and h["n_config_flips"] == 1 and h["reachability_pct"] < 100.0
+    elbow_side = rail_traj(4)
+    h4 = honest_reachability(plan, elbow_side, _replay(elbow_side), reach)
+    assert h4 is not None and h4["n_config_flips"] == 0

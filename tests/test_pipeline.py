@@ -52,7 +52,7 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_run_writes_every_result_file(run_dir: Path) -> None:
     res = run_dir / "res"
     for name in ("plan.json", "plan.npz", "trajectory.npz", "trajectory.csv", "trace.npz",
-                 "metrics.json", "scenario.json"):
+                 "metrics.json", "scenario.json", "film.npz"):
         assert (res / name).is_file(), name
     # No temp folders or temp files left behind.
     assert not [p for p in run_dir.iterdir() if p.name.startswith(".")]
@@ -63,6 +63,13 @@ def test_run_writes_every_result_file(run_dir: Path) -> None:
     trace = ExecutedTrace.load_npz(res / "trace.npz")
     assert m["plan_summary"]["passes"] == len(plan.passes)
     assert m["executed_cycle_time_s"] == pytest.approx(trace.t_s[-1] - trace.t_s[0], abs=0.01)
+    # film.npz: the arrays behind the report's histogram agree with metrics.json
+    with np.load(res / "film.npz") as z:
+        w = np.where(z["judged"], z["vertex_areas_m2"], 0.0)
+        target = float(np.sum(w * z["planned_thickness_m"]) / w.sum())
+        ok = np.abs(z["executed_thickness_m"] - target) <= float(z["tolerance"]) * target
+    assert 1e6 * target == pytest.approx(m["planned_mean_um"], rel=1e-9)
+    assert 100 * w[ok].sum() / w.sum() == pytest.approx(m["executed_within_tolerance_pct"])
     # The CSV holds the same program as the npz, row for row.
     csv = np.loadtxt(res / "trajectory.csv", delimiter=",", skiprows=1)
     assert csv.shape[0] == len(traj.t_s)
@@ -82,6 +89,9 @@ def test_validate_export_and_report_on_the_results(run_dir: Path) -> None:
     text = (res / "small_panel.mod").read_text()
     plan = CoveragePlan.load(res / "plan.json")
     assert text.startswith("MODULE small_panel") and text.count("SetBrush 1;") == len(plan.passes)
+    out = _cli("report", "res", "--video", cwd=run_dir)  # the run made no GIF (--no-report)
+    assert out.returncode == 2 and "paintcell run --video" in out.stderr, out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1
     out = _cli("report", "res", cwd=run_dir)
     assert out.returncode == 0, out.stderr
     from sim.report import format_value

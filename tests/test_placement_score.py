@@ -63,13 +63,44 @@ def test_clearance_counts_the_part_and_the_floor() -> None:
     free = motion_score(r, paths, speeds, floor_z_m=0.0)
     # a floor 0.3 m above the shoulder's lowest point: the arm is in it
     from robots.paths import solve_paths
-    from robots.placement_score import arm_points
+    from robots.placement_score import arm_points, move_joints, tool_points
 
-    q = np.concatenate([x.q for x in solve_paths(r, paths)])
-    z_min = float(arm_points(r, q)[:, :, 2].min())
-    hit = motion_score(r, paths, speeds, floor_z_m=z_min + 0.3)
+    qs = [x.q for x in solve_paths(r, paths)]
+    # every joint row the score checks: the paint poses and the moves from home, between the
+    # passes and back home (12 samples each); the arm is a 0.12 m capsule, the tool 0.07 m
+    q = np.concatenate(qs + [move_joints(qs, r.q_home, 12)])
+    low = min(float(arm_points(r, q)[:, :, 2].min()) - 0.12,
+              float(tool_points(r, q)[:, :, 2].min()) - 0.07)
+    hit = motion_score(r, paths, speeds, floor_z_m=low + 0.12 + 0.3)
     assert free.feasible and free.clearance_m > 0
     assert not hit.feasible and hit.clearance_m == pytest.approx(-0.3 - 0.12, abs=1e-9)
+
+
+def test_clearance_counts_the_move_home() -> None:
+    """A part point where the wrist passes halfway along the move from the last paint pose back
+    home (FK of the joint-space midpoint) — clear of every paint pose by > 0.3 m — makes the
+    base infeasible; the same point is harmless when home is the last pose (no move)."""
+    from scipy.spatial import cKDTree
+
+    from robots.paths import solve_paths
+    from robots.placement_score import arm_points
+
+    robot, _, paths, speeds, C = _case()
+    r = robot.placed(C[1])
+    qs = [x.q for x in solve_paths(r, paths)]
+    q_home = np.asarray(r.q_home, float) + np.array([0.9, -0.3, 0.0, 0.0, 0.0, 0.0])
+    q_mid = 0.5 * (qs[-1][-1] + q_home)
+    wrist = arm_points(r, q_mid[None])[0, -1]                  # the last joint's origin
+    paint = arm_points(r, np.concatenate(qs)).reshape(-1, 3)
+    assert np.linalg.norm(paint - wrist, axis=1).min() > 0.3    # no paint pose comes near it
+    obstacle = cKDTree(wrist[None])
+    # 13 samples per move: the 7th is the midpoint, where the wrist sits on the point
+    hit = motion_score(r, paths, speeds, part_points=obstacle, q_home=q_home, move_samples=13)
+    assert not hit.feasible and hit.clearance_m == pytest.approx(-0.12, abs=1e-9)
+    # with home at the last paint pose's joints, only the approach and turn-arounds move
+    near = motion_score(r, paths, speeds, part_points=obstacle, q_home=qs[-1][-1],
+                        move_samples=13)
+    assert near.clearance_m > hit.clearance_m + 0.1
 
 
 def test_ur10_placement_is_scored_too() -> None:

@@ -113,11 +113,16 @@ def test_report_is_self_contained_html_with_every_metric(results):
     p.feed(text)
     p.close()
     assert not p.stack, f"unclosed tags {p.stack}"
-    # every image of the folder is embedded, and nothing is fetched from outside
+    # every PNG of the folder is embedded, the execution GIF only on request (issue 17: a
+    # report under 2 MB by default), and nothing is fetched from outside
     images = sorted(x for x in results.iterdir() if x.suffix in (".png", ".gif"))
-    assert len(p.srcs) == len(images) == 3
-    assert all(s.startswith(("data:image/png;base64,", "data:image/gif;base64,"))
-               for s in p.srcs)
+    assert len(p.srcs) == len(images) - 1 == 2
+    assert all(s.startswith("data:image/png;base64,") for s in p.srcs)
+    assert "paintcell report DIR --video" in html.unescape(text)
+    with_video = _Collect()
+    with_video.feed(report.write_report(results, video=True).read_text(encoding="utf-8"))
+    assert len(with_video.srcs) == len(images) == 3
+    assert sum(s.startswith("data:image/gif;base64,") for s in with_video.srcs) == 1
     assert not [h for h in p.hrefs if not h.startswith(("#", "data:"))]
     body = html.unescape("".join(p.text))
     # the thresholds: every check's name, value, limit and unit, and the overall verdict
@@ -235,3 +240,9 @@ def test_no_gl_backend_skips_renders_but_keeps_plots(tmp_path, monkeypatch):
     (tmp_path / "metrics.json").write_text(json.dumps({"passed": True}))
     text = html.unescape(report.write_report(tmp_path).read_text(encoding="utf-8"))
     assert "Skipped renders and video: no offscreen OpenGL backend: install libosmesa6" in text
+
+
+def test_video_on_request_needs_the_gif(results):
+    (results / "execution.gif").unlink()
+    with pytest.raises(report.ReportError, match="paintcell run --video"):
+        report.write_report(results, video=True)

@@ -1,0 +1,156 @@
+"""One film build over the body (sim.booth_build): each part's planned mean re-measured on its
+own surface equals the target, the film scales pointwise by one factor per part (the ESRB model
+is linear in its rates), each part's σ/μ is unchanged, the default target keeps the paint on the
+body, and an unreachable target is refused in one line."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from planning import parts
+from planning.applicator import Applicator
+from planning.coverage import PlannerSettings, plan_coverage
+from planning.deposition import thickness
+from sim.booth import BoothError
+from sim.booth_build import common_film_build
+
+RES_M = 0.03
+
+
+@pytest.fixture(scope="module")
+def two_parts():
+    out = []
+    for name, kw in (("roof", {"first_side": "left"}), ("door", {})):
+        s = parts.get_part(name, resolution_m=RES_M)
+        out.append((s, plan_coverage(s, Applicator.default(), PlannerSettings(**kw))))
+    return out
+
+
+def _film(plan, s):
+    return thickness(plan.applicator, plan.gun_samples(), s.vertices, s.normals)
+
+
+def _nsd(f, a):
+    mu = np.average(f, weights=a)
+    return np.sqrt(np.average((f - mu) ** 2, weights=a)) / mu
+
+
+@pytest.mark.parametrize("target_um", [None, 30.0])
+def test_every_part_reaches_the_common_film_build(two_parts, target_um):
+    surfaces = [s for s, _ in two_parts]
+    plans = [p for _, p in two_parts]
+    before = [_film(p, s) for s, p in two_parts]
+    areas = [s.vertex_areas for s in surfaces]
+    means = [np.average(f, weights=a) for f, a in zip(before, areas, strict=True)]
+    # The library parts really differ (the reason for the common build).
+    assert max(means) / min(means) > 1.3
+    new, rec = common_film_build(surfaces, plans, ["roof", "door"], target_um)
+    after = [_film(p, s) for s, p in zip(surfaces, new, strict=True)]
+    target = rec["target_um"] * 1e-6
+    if target_um is None:     # paint on the body unchanged: Σ A μ before = after
+        vol = sum(f @ a for f, a in zip(before, areas, strict=True))
+        assert sum(f @ a for f, a in zip(after, areas, strict=True)) == pytest.approx(vol,
+                                                                                    rel=1e-12)
+    else:
+        assert target == pytest.approx(30e-6, rel=1e-15)
+    for name, f0, f1, a in zip(("roof", "door"), before, after, areas, strict=True):
+        assert np.average(f1, weights=a) == pytest.approx(target, rel=1e-12)
+        on = f0 > 1e-3 * f0.max()
+        k = f1[on] / f0[on]
+        assert np.ptp(k) <= 1e-12 * k.mean() and k.mean() == pytest.approx(
+            rec["parts"][name]["flow_factor"], rel=1e-12)
+        assert _nsd(f1, a) == pytest.approx(_nsd(f0, a), rel=1e-12)
+    # The trajectories are untouched: same passes, same timing.
+    assert all(n.passes is p.passes for n, p in zip(new, plans, strict=True))
+
+
+def test_an_unreachable_film_build_is_refused_in_one_line(two_parts):
+    with pytest.raises(BoothError, match=r"needs .*× the bell flow, outside 0.2–5.0×; set "
+                                         r"film_target_um") as exc:
+        common_film_build([s for s, _ in two_parts], [p for _, p in two_parts],
+                          ["roof", "door"], 500.0)
+    assert "\n" not in str(exc.value)
+
+
+def test_booth_toml_film_build_keys(tmp_path):
+    from sim.booth_data import BoothDataError
+    from sim.scenario_files import load_scenario
+
+    head = 'name = "b"\n{}\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\n'
+    f = tmp_path / "b.toml"
+    f.write_text(head.format("film_target_um = 28.5\ncommon_film_build = false"))
+    b = load_scenario(f)
+    assert b.film_target_um == 28.5 and b.common_film_build is False
+    assert load_scenario("scenarios/booth.toml").common_film_build is True
+    for bad, msg in (("film_target_um = -1", "film_target_um must be a number > 0"),
+                     ('common_film_build = "yes"', "common_film_build must be true or false")):
+        f.write_text(head.format(bad))
+        with pytest.raises(BoothDataError, match=msg):
+            load_scenario(f)
+
+
+def _panels(gap_m: float):
+    """Two library panels (1 m × 0.8 m, +z painted) side by side along x, `gap_m` apart."""
+    from sim.booth_film import merge_surfaces
+
+    s = parts.get_part("panel", resolution_m=RES_M)
+    plan = plan_coverage(s, Applicator.default(), PlannerSettings())
+    Ts = []
+    for x in (-(0.5 + gap_m / 2), 0.5 + gap_m / 2):
+        T = np.eye(4)
+        T[0, 3] = x
+        Ts.append(T)
+    return merge_surfaces([s, s], Ts, "two"), [plan, plan], Ts, [len(s.vertices)] * 2
+
+
+def _body_film(body, plans, Ts):
+    from sim.booth_film import plan_gun_in_body
+
+    return sum(thickness(p.applicator, plan_gun_in_body(p, T), body.vertices, body.normals)
+               for p, T in zip(plans, Ts, strict=True))
+
+
+def test_seams_between_adjacent_parts_are_blended():
+    """Two panels 2 cm apart, each planned alone: their edge passes paint the seam twice. The
+    blend switches paint off only (the motion is unchanged), the chosen share is the best of
+    SEAM_SHARES re-measured by brute force, and the body's σ/μ falls well below the unblended
+    one; panels 1 m apart have no seam and nothing is switched off."""
+    from planning.patches import SEAM_SHARES, ownership_brush_off, seam_volumes
+    from sim.booth_seams import blend_part_seams, pass_in_body
+
+    body, plans, Ts, counts = _panels(0.02)
+    a = body.vertex_areas
+    new, rec = blend_part_seams(body, plans, Ts, counts, ["a", "b"])
+    before, after = _body_film(body, plans, Ts), _body_film(body, new, Ts)
+    assert _nsd(after, a) * 100 == pytest.approx(rec["body_planned_nsd_pct"], rel=1e-9)
+    assert _nsd(before, a) * 100 == pytest.approx(rec["unblended_planned_nsd_pct"], rel=1e-9)
+    assert _nsd(after, a) < 0.6 * _nsd(before, a)
+    assert sum(rec["samples_switched_off"].values()) > 0
+    for p0, p1 in zip(plans, new, strict=True):
+        for q0, q1 in zip(p0.passes, p1.passes, strict=True):
+            assert np.array_equal(q0.positions, q1.positions)
+            assert np.array_equal(q0.times_s, q1.times_s)
+            assert not np.any(q1.paint_on & ~q0.paint_on)          # only switched off
+    # Brute force over the shares (volumes per part on the body, films re-summed here).
+    offs = np.cumsum([0, *counts])
+    vols = []
+    for k, (p, T) in enumerate(zip(plans, Ts, strict=True)):
+        own = np.zeros(len(body.vertices), bool)
+        own[offs[k]:offs[k + 1]] = True
+        vols.append(seam_volumes(p.applicator, [pass_in_body(q, T) for q in p.passes], own,
+                                 body))
+    nsd = []
+    for share in SEAM_SHARES:
+        cand = [dataclasses.replace(p, passes=tuple(ownership_brush_off(list(p.passes), v,
+                                                                        share)[0]))
+                for p, v in zip(plans, vols, strict=True)]
+        nsd.append(_nsd(_body_film(body, cand, Ts), a))
+    assert rec["share"] == SEAM_SHARES[int(np.argmin(nsd))]
+    # Far apart: no seam.
+    body, plans, Ts, counts = _panels(1.0)
+    new, rec = blend_part_seams(body, plans, Ts, counts, ["a", "b"])
+    assert sum(rec["samples_switched_off"].values()) == 0
+    assert all(n is p for n, p in zip(new, plans, strict=True))
