@@ -7,7 +7,11 @@ whole plan with `planning.deposition.thickness` on the part's vertices and repor
 paper's normalized standard deviation, area-weighted) over two regions: the whole part, and the
 interior (vertices farther than `--band` from the part boundary, which leaves out the boundary
 effects of a short overspray). Planning time is the wall time of `plan_coverage` alone.
-Our bell and surfaces are not the paper's, so the paper's numbers are anchors, not targets.
+Every row prints constant speed and the speed-optimized plan (Algorithm 1 with the per-pass eq. 2
+QP and the film guard) for both regions, the paper's figure beside them, and a check that the
+optimized plan is no worse than constant speed on either region. The bell used is printed first.
+Our bell and surfaces are not the paper's, so the paper's numbers are anchors, not targets —
+except the planar sheet, where the issue asks for the paper's 2.64 % or better.
 """
 
 from __future__ import annotations
@@ -53,22 +57,29 @@ def main() -> None:
     app = Applicator.default()
     base = PlannerSettings()
     res = args.resolution
-    print(f"applicator: {app.name}; footprint radius {app.footprint_radius_m:.3f} m; "
-          f"standoff {app.standoff_m:.3f} m")
+    print(f"bell: {app.name} (planning/data/default_bell.toml) {app.to_dict()}; footprint radius "
+          f"{app.footprint_radius_m:.3f} m; standoff {app.standoff_m:.3f} m")
     print(f"parts at {res * 1000:.0f} mm; sigma/mu over the whole part and over the interior "
           f"(> {args.band * 1000:.0f} mm from the boundary)")
 
     # --- Fig. 5 ---------------------------------------------------------------------------------
     widths = np.arange(0.05, 0.6 + 1e-9, 0.005)
     curve = nsd_vs_index_width(app, widths)
-    pw = planar_index_width(app, base.w_min_m, base.w_max_m, base.w_res_m, base.u_max)
     # the sweet spot: the widest local minimum of the curve
     minima = np.flatnonzero((curve[1:-1] < curve[:-2]) & (curve[1:-1] < curve[2:])) + 1
     i_sweet = int(minima[-1]) if len(minima) else int(np.argmin(curve))
     print(f"fig5 sweet spot: {widths[i_sweet] * 1000:.0f} mm at sigma/mu "
           f"{curve[i_sweet] * 100:.2f} % (paper: ~525 mm for its atomizer)")
-    print(f"fig5 planar index width (largest with sigma/mu <= {base.u_max * 100:.0f} % in "
-          f"[{base.w_min_m * 1000:.0f}, {base.w_max_m * 1000:.0f}] mm): {pw.width_m * 1000:.0f} mm")
+    pw = planar_index_width(app, base.w_min_m, base.w_max_m, base.w_res_m, base.u_max,
+                            base.width_tolerance_m)
+    print("fig5 curve (index width mm: sigma/mu %): " + ", ".join(
+        f"{w * 1000:.0f}: {c * 100:.2f}" for w, c in zip(widths[::4], curve[::4], strict=True)))
+    print(f"fig5 planar index width: {pw.width_m * 1000:.0f} mm at sigma/mu "
+          f"{np.interp(pw.width_m, widths, curve) * 100:.2f} % — the largest width in "
+          f"[{base.w_min_m * 1000:.0f}, {base.w_max_m * 1000:.0f}] mm whose sigma/mu stays <= "
+          f"{base.u_max * 100:.0f} % for every width within +/-{base.width_tolerance_m * 1000:.0f}"
+          " mm (the paper's sensitivity rule for w_max; the plain rule would take the edge of the"
+          " feasible range)")
     _plot_fig5(Path(args.fig5), widths, curve, pw.width_m, base.u_max)
     print(f"fig5 written: {args.fig5}")
 
@@ -83,15 +94,18 @@ def main() -> None:
         ("Plane 235 mm overspray (panel)", parts.panel(res), replace(base, overspray_m=0.235),
          (3.88, None)),
     ]
+    failures: list[str] = []
     for label, surf, st, paper in rows1:
         c = evaluate(surf, app, replace(st, optimize_speed=False), args.band)
-        if paper[1] is None:
-            print(f"  {label:42s} paper {paper[0]:6.2f} %          | ours {c[0]:6.2f} %         "
-                  f" | interior {c[1]:6.2f} %          | {c[2]:.2f} s")
-            continue
         o = evaluate(surf, app, replace(st, optimize_speed=True), args.band)
-        print(f"  {label:42s} paper {paper[0]:6.2f} -> {paper[1]:6.2f} % | ours {c[0]:6.2f} -> "
-              f"{o[0]:6.2f} % | interior {c[1]:6.2f} -> {o[1]:6.2f} % | {c[2]:.2f} / {o[2]:.2f} s")
+        paper_txt = (f"{paper[0]:6.2f} -> {paper[1]:6.2f}" if paper[1] is not None
+                     else f"{paper[0]:6.2f} ->    -  ")
+        ok = o[0] <= c[0] + 1e-9 and o[1] <= c[1] + 1e-9
+        if not ok:
+            failures.append(label)
+        print(f"  {label:42s} paper {paper_txt} % | whole {c[0]:6.2f} -> {o[0]:6.2f} % | "
+              f"interior {c[1]:6.2f} -> {o[1]:6.2f} % | never worse: {'yes' if ok else 'NO'} | "
+              f"{c[2]:.2f} / {o[2]:.2f} s")
 
     # --- Table 2: index optimization (u_max = 4 %, long overspray) --------------------------------
     long = replace(base, overspray_m=0.3)
@@ -112,9 +126,20 @@ def main() -> None:
     for label, surf, st, paper in rows2:
         c = evaluate(surf, app, replace(st, optimize_speed=False), args.band)
         o = evaluate(surf, app, replace(st, optimize_speed=True), args.band)
-        print(f"  {label:40s} paper {paper:6.2f} % | ours {c[0]:6.2f} / {o[0]:6.2f} % | "
-              f"interior {c[1]:6.2f} / {o[1]:6.2f} % | {o[3]:2d} passes | min/mean {o[4]:.2f} | "
-              f"{o[2]:.2f} s")
+        ok = o[0] <= c[0] + 1e-9 and o[1] <= c[1] + 1e-9
+        if not ok:
+            failures.append(label)
+        print(f"  {label:40s} paper {paper:6.2f} % | whole {c[0]:6.2f} / {o[0]:6.2f} % | "
+              f"interior {c[1]:6.2f} / {o[1]:6.2f} % | never worse: {'yes' if ok else 'NO'} | "
+              f"{o[3]:2d} passes | min/mean {o[4]:.2f} | {o[2]:.2f} s")
+        if label.startswith("Planar sheet"):
+            print(f"  planar sheet whole-part sigma/mu {o[0]:.2f} % vs the paper's 2.64 %: "
+                  f"{'met' if o[0] <= 2.64 else 'NOT met'}")
+            if o[0] > 2.64:
+                failures.append("planar sheet above 2.64 %")
+    print("\nspeed optimization never worse than constant speed (whole and interior), planar "
+          "sheet <= 2.64 %: " + ("all rows pass" if not failures else
+                                  "FAILED: " + "; ".join(failures)))
 
     # --- planning time at default settings --------------------------------------------------------
     door_default = parts.door()

@@ -9,8 +9,12 @@ The cross profile of an (infinitely long) pass at speed v is the line integral o
          = (1/v) [ A0 σx √(2π) e^{-y²/2σy²}  +  Σ_k Ak ∫ e^{-(√(x²+y²) − μk)²/2σk²} dx ]
 
 The bivariate part integrates in closed form; the ring part by Gauss–Legendre quadrature over
-|x| ≤ √((μk + 9σk)² − y²) (vectorized over all y). A cross profile fixes A0·σx, not A0 and σx
-apart: the stripe fit holds σx/σy at the initial guess's ratio (1 unless `initial` says).
+|x| ≤ √((μk + 9σk)² − y²) (vectorized over all y). One cross profile fixes A0·σx, not A0 and σx
+apart: the single-stripe fit holds σx/σy at the initial guess's ratio (1 unless `initial` says).
+Two stripes crossing at right angles (one pass along x, one along y, on the same panel or two
+panels) give ∫ f dx (y) and ∫ f dy (x): the central Gaussian contributes A0 σx √(2π) e^{-y²/2σy²}
+to the first and A0 σy √(2π) e^{-x²/2σx²} to the second (the rings are round and contribute the
+same function to both), so `fit_applicator_from_crossing_stripes` determines A0, σx and σy.
 """
 
 from __future__ import annotations
@@ -76,6 +80,72 @@ def stripe_profile(app: Applicator, y_m: npt.ArrayLike, speed_m_s: float) -> np.
         if a > 0:
             out = out + a * ring_line_integral(y.reshape(-1), mu, s).reshape(y.shape)
     return out / speed_m_s
+
+
+def stripe_profile_across_x(app: Applicator, x_m: npt.ArrayLike, speed_m_s: float) -> np.ndarray:
+    """Film (P,) [m] across a pass that travels along the tool y axis (the crossing stripe), at
+    offsets x_m (P,) [m]: (1/v) ∫ f(x, y) dy."""
+    swapped = Applicator(standoff_m=app.standoff_m, a0_m_s=app.a0_m_s, sigma_x_m=app.sigma_y_m,
+                         sigma_y_m=app.sigma_x_m, ring_amplitudes_m_s=app.ring_amplitudes_m_s,
+                         ring_radii_m=app.ring_radii_m, ring_sigmas_m=app.ring_sigmas_m)
+    return stripe_profile(swapped, x_m, speed_m_s)
+
+
+def fit_applicator_from_crossing_stripes(y_m: npt.ArrayLike, thickness_y_m: npt.ArrayLike,
+                                         x_m: npt.ArrayLike, thickness_x_m: npt.ArrayLike,
+                                         speed_m_s: float, standoff_m: float,
+                                         initial: Applicator | None = None) -> CalibrationResult:
+    """Fit every model parameter (A0, σx, σy apart, and the rings) to two crossing stripes.
+
+    y_m, thickness_y_m: (P,) cross profile of a pass along the tool x axis (travel), sampled
+        across it [m]; x_m, thickness_x_m: (Q,) cross profile of a pass along the tool y axis,
+        sampled across it [m] (the bell turned by 90° relative to its path, or the panel);
+    speed_m_s: speed of both passes [m/s]; standoff_m: the test standoff [m];
+    initial: starting model (default: the shipped bell's shape scaled to the stripes).
+    Both stripes are centred at 0 (fit each centre first with `fit_applicator_from_stripe` if
+    needed). The residual is reported over both profiles together [m].
+    """
+    y = np.asarray(y_m, float).reshape(-1)
+    ty = np.asarray(thickness_y_m, float).reshape(-1)
+    x = np.asarray(x_m, float).reshape(-1)
+    tx = np.asarray(thickness_x_m, float).reshape(-1)
+    if len(y) != len(ty) or len(x) != len(tx):
+        raise ApplicatorError(f"stripe samples and thicknesses differ in length ({len(y)}/"
+                              f"{len(ty)}, {len(x)}/{len(tx)}); give one thickness per position")
+    _check_data(y, ty)
+    _check_data(x, tx)
+    if not (speed_m_s > 0 and standoff_m > 0):
+        raise ApplicatorError("speed_m_s and standoff_m must be > 0")
+    peak = float(max(np.max(np.abs(ty)), np.max(np.abs(tx))))
+    if peak <= 0:
+        raise ApplicatorError("the stripes have no paint (all thickness zero); check the data")
+    w = np.clip(ty, 0.0, None)
+    width = float(np.sqrt(np.sum(w * y * y) / np.sum(w)))
+    order = np.argsort(y)
+    volume_rate = float(np.sum(w[order] * np.gradient(y[order]))) * speed_m_s
+    init = _initial_guess(initial, standoff_m, width, volume_rate)
+    theta0, lo, hi = _pack(init, stripe=False)
+    amp_idx = np.array([0, 3, 4])
+    amp_scale = max(float(np.max(theta0[amp_idx])), 1e-30)
+    theta0[amp_idx] /= amp_scale
+
+    def model(theta: np.ndarray) -> np.ndarray:
+        th = theta.copy()
+        th[amp_idx] *= amp_scale
+        app = _unpack(th, standoff_m, None, init.name)
+        return np.concatenate([stripe_profile(app, y, speed_m_s),
+                               stripe_profile_across_x(app, x, speed_m_s)])
+
+    data = np.concatenate([ty, tx])
+    res = least_squares(lambda th: (model(th) - data) / peak, theta0, bounds=(lo, hi),
+                        x_scale="jac", method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12,
+                        max_nfev=2000)
+    th = res.x.copy()
+    th[amp_idx] *= amp_scale
+    app = _unpack(th, standoff_m, None, "calibrated")
+    rms = float(np.sqrt(np.mean((model(res.x) - data) ** 2)))
+    return CalibrationResult(app, rms, rms / peak, (0.0, 0.0), bool(res.success),
+                             str(res.message))
 
 
 def _check_data(*arrays: np.ndarray) -> None:

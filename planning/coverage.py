@@ -28,6 +28,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from planning.applicator import Applicator
 from planning.errors import PlanError
@@ -81,6 +82,8 @@ class PlannerSettings:
     a_max_m_s2: TCP acceleration bound of the QP's linearized constraint [m/s²].
     n_knots: optimized speed knots per pass (slowness interpolated linearly between them).
     w_min_m / w_max_m / w_res_m: index-width search range SR and its resolution [m].
+    width_tolerance_m: a width is feasible only if σ/μ ≤ u_max also holds for widths this much
+        narrower and wider [m] (paper §4.1: w_max chosen by the σ/μ sensitivity; 0: plain rule).
     n_future: future passes considered in the extruded / curved search (the paper's n = 4).
     future_grid_n: widths tried for each future pass after the candidate (evenly spread over
         SR, ends included): the brute force costs future_grid_n^(n_future − 1) per candidate.
@@ -89,6 +92,8 @@ class PlannerSettings:
         the pass direction about the average normal from the part x axis [rad].
     start_position: None (curvature divider / area median) or fraction in [0, 1] of the altitude.
     optimize_speed: run the speed QP on every pass (False: constant v_nominal).
+    speed_objective: "paper" (eq. 2 with K_j fixed from the constant-speed profile) or
+        "centred" (each curve's deviation from its current mean); see `planning.speed_qp`.
     sample_spacing_m: spacing of the TCP samples along passes and of the offset computation [m].
     band_curves: J sub-offset curves of the speed band (odd; curve 0 is the pass itself).
     band_half_width: the band spans ± this fraction of the local index width.
@@ -97,6 +102,11 @@ class PlannerSettings:
     max_markers: at most this many markers per pass.
     profile_spacing_m: spacing of the optimization-profile points on indexing curves [m].
     edge_passes: keep the first offset that lies completely outside as a sideways overspray pass.
+    film_guard: after the per-pass speed QPs, simulate the film of the whole plan on the part and
+        keep the optimized speeds only where they are no worse than constant speed on the film
+        itself, whole part and interior (farther than film_guard_band_m [m] from the boundary):
+        speeds v_nom + α (v_QP − v_nom), α ∈ {1, ¾, ½, ¼, 0}: the best whole-part film among
+        the blends no worse than constant speed on both.
     first_side: "right" (offset to the right of the start curve first, Algorithm 1 as written),
         "left" (the start curve reversed), or "best" (run both, keep the plan with the smaller
         largest predicted optimization-profile σ/μ; the semi-global search depends on the order).
@@ -129,12 +139,14 @@ class PlannerSettings:
     w_min_m: float = 0.10
     w_max_m: float = 0.45
     w_res_m: float = 0.01
+    width_tolerance_m: float = 0.025
     n_future: int = 4
     future_grid_n: int = 6
     width_change_weight: float = 1.0
     orientation: float | str = "auto"
     start_position: float | None = None
     optimize_speed: bool = True
+    speed_objective: str = "paper"
     sample_spacing_m: float = 0.02
     band_curves: int = 5
     band_half_width: float = 1.0
@@ -143,6 +155,8 @@ class PlannerSettings:
     max_markers: int = 7
     profile_spacing_m: float = 0.01
     edge_passes: bool = True
+    film_guard: bool = True
+    film_guard_band_m: float = 0.1
     first_side: str = "best"
     max_passes: int = 200
     smoothing_m: float | str | None = "auto"
@@ -161,7 +175,8 @@ class PlannerSettings:
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
                     or v <= 0:
                 raise PlanError(f"PlannerSettings.{name} = {v!r} must be a finite number > 0")
-        for name in ("overspray_m", "width_change_weight", "band_half_width"):
+        for name in ("overspray_m", "width_change_weight", "band_half_width",
+                     "width_tolerance_m", "film_guard_band_m"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
                     or v < 0:
@@ -194,13 +209,16 @@ class PlannerSettings:
             raise PlanError(f"PlannerSettings.max_opening_fraction = "
                             f"{self.max_opening_fraction!r} must be in (0, 1]")
         for name in ("optimize_speed", "edge_passes", "geodesic_fallback",
-                     "plan_across_openings", "patches"):
+                     "plan_across_openings", "patches", "film_guard"):
             if not isinstance(getattr(self, name), bool):
                 raise PlanError(f"PlannerSettings.{name} = {getattr(self, name)!r} must be "
                                 "True or False")
         if self.first_side not in ("right", "left", "best"):
             raise PlanError(f"PlannerSettings.first_side = {self.first_side!r}: use 'right', "
                             "'left' or 'best'")
+        if self.speed_objective not in ("paper", "centred"):
+            raise PlanError(f"PlannerSettings.speed_objective = {self.speed_objective!r}: use "
+                            "'paper' or 'centred'")
         p = self.start_position
         if p is not None and (isinstance(p, bool) or not isinstance(p, int | float)
                               or not 0.0 <= p <= 1.0):
@@ -225,7 +243,7 @@ class PlannerSettings:
         """The speed-QP settings these planner settings imply."""
         return SpeedSettings(v_nominal_m_s=self.v_nominal_m_s, v_min_m_s=self.v_min_m_s,
                              v_max_m_s=self.v_max_m_s, a_max_m_s2=self.a_max_m_s2,
-                             n_knots=self.n_knots)
+                             n_knots=self.n_knots, objective=self.speed_objective)
 
 
 @dataclass(eq=False)
@@ -245,6 +263,9 @@ class _PassGeom:
     #: straight continuation beyond (head, tail) before the overspray [m]: the stretch of the
     #: source pass whose offsets are undefined (curves that left along the boundary)
     extra_m: tuple[float, float] = (0.0, 0.0)
+    #: TCP samples with overspray and their speeds, set when the pass is timed (Algorithm 1:
+    #: right after the pass is generated)
+    timing: dict[str, Any] | None = None
 
 
 def _mirror(c: IndexingCurve | None) -> IndexingCurve | None:
@@ -273,8 +294,22 @@ class _Planner:
         self.cache: dict[bytes, np.ndarray] = {}
         self.cache_hits = 0
         self.diag = float(np.linalg.norm(np.ptp(surface.vertices, axis=0)))
+        self.speed_settings = settings.speed_settings()
+        self.speed_caps: dict[int, np.ndarray] = {}
+        self.tool_x: dict[int, np.ndarray] = {}
+        self._nominal_width: float | None = None
         self.heat: Any = None          # planning.geodesic.HeatGeodesics, built when first needed
         self.smooth_scale = 0.0        # smoothing scale of the planning surface [m]
+
+    @property
+    def nominal_width(self) -> float:
+        """The bell's planar Fig. 5 width in SR [m]: the band scale of the start curve, whose
+        neighbours do not exist yet when Algorithm 1 optimizes its speed."""
+        if self._nominal_width is None:
+            st = self.st
+            self._nominal_width = planar_index_width(self.app, st.w_min_m, st.w_max_m, st.w_res_m,
+                                                     st.u_max, st.width_tolerance_m).width_m
+        return self._nominal_width
 
     def geodesic_offset(self, p: _PassGeom, distance_m: float
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -304,7 +339,14 @@ class _Planner:
         if c is None or c.s_max <= 0.5 * sp:
             return np.zeros((0, 3)), np.zeros((0, 3))
         keep = (c.s > 1e-6) & (c.s <= self.diag)
-        return c.points[keep], c.normals[keep]
+        pts, nrm = c.points[keep], c.normals[keep]
+        # a pass ending on the boundary has no surface ahead: a section that runs back along the
+        # pass (most of it within a sample spacing of it) is no continuation — the TCP would
+        # reverse on the spot and retrace the pass
+        body = foot[s <= s[-1] - 2 * sp]
+        if len(pts) and len(body) and np.median(cKDTree(body).query(pts)[0]) < sp:
+            return np.zeros((0, 3)), np.zeros((0, 3))
+        return pts, nrm
 
     def build_pass(self, foot: np.ndarray, normals: np.ndarray, inside: np.ndarray,
                    extend: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -387,7 +429,8 @@ class _Planner:
                                           known_s, self.widths, self.future, self.st.n_future,
                                           w_prev))
         w0, feasible, worst = choose_constant_width(searches, self.st.u_max, w_prev,
-                                                    self.st.width_change_weight)
+                                                    self.st.width_change_weight,
+                                                    self.st.width_tolerance_m)
         return w0, {"rule": "constant-index over markers", "markers": int(len(marks)),
                     "feasible": feasible, "worst_marker_nsd_pct": 100.0 * worst}
 
@@ -397,11 +440,20 @@ def _is_planar(surface: Any) -> bool:
 
 
 def plan_coverage(surface: Surface, applicator: Applicator,
-                  settings: PlannerSettings | None = None) -> CoveragePlan:
+                  settings: PlannerSettings | None = None,
+                  speed_caps_m_s: dict[int, np.ndarray] | None = None,
+                  tool_x: dict[int, np.ndarray] | None = None) -> CoveragePlan:
     """Plan uniform coverage of `surface` with `applicator` (paper Algorithm 1).
 
     surface: a `planning.surface.Surface` in its part frame; applicator: the deposition model;
-    settings: `PlannerSettings` (defaults when None).
+    settings: `PlannerSettings` (defaults when None);
+    speed_caps_m_s: optional per-pass speed upper bounds {side: (M,) [m/s]}, one per TCP sample of
+        that pass in its generation direction (`plan.passes[i]` reversed when i is odd): the speed
+        QP re-plans under them (robot-aware speeds, `sim.speed_feedback`). A re-plan with the same
+        part and settings reproduces the same passes, so caps taken from a plan fit its re-plan;
+    tool_x: optional per-pass bell x axes {side: (M, 3)} in the part frame, same sample order as
+        the caps: the orientation the robot will hold about the spray axis (a robot that frees
+        the bell's spin); the deposition model (QP, film) then uses it as the travel axis.
     Returns a `CoveragePlan` in the part frame: passes in execution order (side −k … +k,
     alternating direction), TCP at standoff along the normal, speeds and times, on_part /
     paint_on flags, index widths, the start-curve rule and the settings (with a `report` entry:
@@ -433,12 +485,23 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     surface = smoothed_surface(surface, smooth_scale)
     pl = _Planner(surface, applicator, st)
     pl.smooth_scale = smooth_scale
+    for side, cap in (speed_caps_m_s or {}).items():
+        cap = np.asarray(cap, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(cap)) or np.any(cap <= 0):
+            raise PlanError(f"speed caps of pass {side} must be finite speeds > 0 [m/s]")
+        pl.speed_caps[int(side)] = cap
+    for side, xs in (tool_x or {}).items():
+        xs = np.asarray(xs, dtype=float)
+        if xs.ndim != 2 or xs.shape[1] != 3 or not np.all(np.isfinite(xs)):
+            raise PlanError(f"tool_x of pass {side} must be finite (M, 3) directions")
+        pl.tool_x[int(side)] = xs
     sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
                             geom=pl.geom)
     planar = _is_planar(surface)
     planar_w = None
     if planar:
-        pw = planar_index_width(applicator, st.w_min_m, st.w_max_m, st.w_res_m, st.u_max)
+        pw = planar_index_width(applicator, st.w_min_m, st.w_max_m, st.w_res_m, st.u_max,
+                                st.width_tolerance_m)
         planar_w = pw
     # Algorithm 1 does not say which side is offset first, and the semi-global width search
     # (known passes on one side, free future passes on the other) depends on it: "best" runs
@@ -459,13 +522,22 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     if not candidates:
         raise errors[0]
     _, reversed_start, passes = min(candidates, key=lambda c: c[0])
+    bad = [f"pass {p.side}: {p.info['feedback_mismatch']}" for p in passes.values()
+           if "feedback_mismatch" in p.info]
+    if bad:
+        raise PlanError("speed caps / bell axes do not fit this plan (" + "; ".join(bad) + "); "
+                        "they must come from a plan of the same part and settings")
     plan_passes = _time_passes(pl, passes, st)
     n_brush_off = 0
     if openings:
         plan_passes, n_brush_off = brush_off_openings(
             applicator, plan_passes, fill_samples(real_surface, openings),
             st.max_opening_fraction)
+    guard: dict[str, Any] = {}
+    if st.optimize_speed and st.film_guard:
+        plan_passes, guard = _film_guard(pl, real_surface, plan_passes)
     report = {
+        "film_guard": guard,
         "start_rule": sc.rule,
         "first_side": ("left" if reversed_start else "right") + f" ({st.first_side})",
         "predicted_worst_nsd_pct": [c[0] for c in candidates],
@@ -493,6 +565,7 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
     st = pl.st
     start = _PassGeom(start_pts, start_nrm, np.ones(len(start_pts), bool), 0, float("nan"))
     start.info = {"rule": "start curve"}
+    _time_pass(pl, start, pl.nominal_width)      # Algorithm 1: optimize the start curve's speed
     passes: dict[int, _PassGeom] = {0: start}
     right_widths: list[float] = []
     for sign in (1, -1):
@@ -543,11 +616,13 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                     edge.info = dict(info, edge=True)
                     # its band lies on the part, between it and the previous pass
                     edge.source = (curves, sign * w0)
+                    _time_pass(pl, edge, w0)
                     passes[side] = edge
                 break
             foot, normals, on_part = pl.build_pass(pts, nrm, inside)
             new = _PassGeom(foot, normals, on_part, side, w0)
             new.info = info
+            _time_pass(pl, new, w0)                 # Algorithm 1: optimize the new pass's speed
             passes[side] = new
             widths_this_side.append(w0)
             cur = new
@@ -620,76 +695,152 @@ def _band(pl: _Planner, p: _PassGeom, half_width_m: float) -> SubOffsetBand | No
     return SubOffsetBand(tuple(pts_l), tuple(nrm_l), tuple(len_l))
 
 
+def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
+    """Add overspray and TCP poses to a pass and optimize its speed (paper §3) — called as
+    Algorithm 1 generates the pass. The band spans ± band_half_width · w_local [m] (the width to
+    the pass it was offset from; for the start curve, the bell's planar Fig. 5 width)."""
+    if p.timing is not None:
+        return
+    st, app = pl.st, pl.app
+    h = app.standoff_m
+    foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
+                                             (st.overspray_m + p.extra_m[0],
+                                              st.overspray_m + p.extra_m[1]),
+                                             st.sample_spacing_m, h)
+    axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
+                           st.max_axis_turn_rad_m, h)
+    pos = foot - h * axes
+    seg = np.diff(pos, axis=0)
+    seg_len = np.linalg.norm(seg, axis=1)
+    if np.any(seg_len <= 0):
+        raise PlanError(f"pass {p.side} has repeated TCP samples; refine the mesh")
+    travel = tangents(pos)
+    travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
+    # the bell's spin follows the travel direction: bound its turning rate too (a noisy pass end
+    # or a scanned rim whips joint 6 otherwise)
+    travel = limit_turn_rate(pos, travel, st.max_axis_turn_rad_m)
+    tx = pl.tool_x.get(p.side)
+    if tx is not None and len(tx) != len(pos):
+        p.info["feedback_mismatch"] = f"tool_x: {len(tx)} samples, the pass {len(pos)}"
+        tx = None
+    if tx is not None:
+        travel = tx
+    travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
+    speeds = np.full(len(pos), st.v_nominal_m_s)
+    nsd_c = nsd_o = float("nan")
+    # caps and bell axes of a re-plan belong to the passes of the order the plan chose; in the
+    # other order of first_side="best" a side can be another pass: skipped there, an error only
+    # if the chosen order does not fit (checked in plan_coverage)
+    cap = pl.speed_caps.get(p.side)
+    if cap is not None and len(cap) != len(pos):
+        p.info["feedback_mismatch"] = f"speed caps: {len(cap)} samples, the pass {len(pos)}"
+        cap = None
+    if st.optimize_speed:
+        band = _band(pl, p, st.band_half_width * w_local)
+        p.info["speed_status"] = "constant: no band on the part"
+        if band is not None:
+            mid = 0.5 * (pos[1:] + pos[:-1])
+            ax = unit(0.5 * (axes[1:] + axes[:-1]))
+            tr = seg if tx is None else 0.5 * (travel[1:] + travel[:-1])
+            tr = unit(tr - np.sum(tr * ax, axis=1, keepdims=True) * ax)
+            res = optimize_pass_speed(app, mid, ax, tr, seg_len, band, pl.speed_settings, cap)
+            speeds = np.asarray(res.sample_speeds_m_s, float)
+            nsd_c, nsd_o = float(res.nsd_constant_pct), float(res.nsd_optimized_pct)
+            p.info["speed_status"] = res.status
+    else:
+        p.info["speed_status"] = "constant: optimize_speed off"
+        if cap is not None:
+            speeds = np.minimum(speeds, cap)
+    p.timing = dict(pos=pos, axes=axes, travel=travel, on_part=on_part, speeds=speeds,
+                    nsd_c=nsd_c, nsd_o=nsd_o)
+
+
 def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
                  st: PlannerSettings) -> list[PassPlan]:
-    """Add overspray, TCP poses, speeds (QP or constant), then order for execution."""
-    app = pl.app
-    h = app.standoff_m
-    sides = sorted(passes)
+    """Order the timed passes for execution (boustrophedon: every other pass reversed)."""
     out: list[PassPlan] = []
-    speed_settings = st.speed_settings()
-    for order, side in enumerate(sides):
+    for order, side in enumerate(sorted(passes)):
         p = passes[side]
-        foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
-                                                 (st.overspray_m + p.extra_m[0],
-                                                  st.overspray_m + p.extra_m[1]),
-                                                 st.sample_spacing_m, h)
-        axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
-                               st.max_axis_turn_rad_m, h)
-        pos = foot - h * axes
-        seg = np.diff(pos, axis=0)
-        seg_len = np.linalg.norm(seg, axis=1)
-        if np.any(seg_len <= 0):
-            raise PlanError(f"pass {side} has repeated TCP samples; refine the mesh")
-        travel = tangents(pos)
-        travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
-        # the bell's spin follows the travel direction: bound its turning rate too (a noisy
-        # pass end or a scanned rim whips joint 6 otherwise)
-        travel = limit_turn_rate(pos, travel, st.max_axis_turn_rad_m)
-        travel = unit(travel - np.sum(travel * axes, axis=1, keepdims=True) * axes)
-        # neighbours' widths for the band and the report
-        # the gaps on both sides of this pass: toward the start curve it is the pass's own
-        # width; away from it, the next pass's (the start curve has a pass on each side)
-        outer = [side + 1, side - 1] if side == 0 else [side + int(np.sign(side))]
-        gaps = [p.width_m] + [passes[s].width_m for s in outer if s in passes]
-        nb = [w for w in gaps if np.isfinite(w)]
-        w_local = float(np.mean(nb)) if nb else st.w_max_m
-        nsd_c = nsd_o = float("nan")
-        times_seg = seg_len / st.v_nominal_m_s
-        if st.optimize_speed:
-            band = _band(pl, p, st.band_half_width * w_local)
-            p.info["speed_status"] = "constant: no band on the part"
-            if band is not None:
-                mid = 0.5 * (pos[1:] + pos[:-1])
-                ax = unit(0.5 * (axes[1:] + axes[:-1]))
-                tr = unit(seg - np.sum(seg * ax, axis=1, keepdims=True) * ax)
-                res = optimize_pass_speed(app, mid, ax, tr, seg_len, band, speed_settings)
-                times_seg = np.asarray(res.segment_times_s, float)
-                nsd_c, nsd_o = float(res.nsd_constant_pct), float(res.nsd_optimized_pct)
-                p.info["speed_status"] = res.status
-        else:
-            p.info["speed_status"] = "constant: optimize_speed off"
+        if p.timing is None:
+            _time_pass(pl, p, p.width_m if np.isfinite(p.width_m) else pl.nominal_width)
+        tm = p.timing
+        assert tm is not None
+        pos, axes, travel = tm["pos"], tm["axes"], tm["travel"]
+        on_part, speeds = tm["on_part"], tm["speeds"]
         kg = geodesic_curvature(p.foot, p.normals)
         kg_max = float(np.max(np.abs(kg[p.on_part]))) if p.on_part.any() else 0.0
         p.info["max_geodesic_curvature_1_m"] = kg_max
-        if order % 2 == 1:                      # boustrophedon: every other pass reversed
+        if order % 2 == 1:
             pos, axes, travel = pos[::-1], axes[::-1], -travel[::-1]
-            on_part, times_seg, seg_len = on_part[::-1], times_seg[::-1], seg_len[::-1]
-        v_seg = seg_len / times_seg
-        speeds = np.empty(len(pos))
-        speeds[0], speeds[-1] = v_seg[0], v_seg[-1]
-        speeds[1:-1] = 0.5 * (v_seg[1:] + v_seg[:-1])
-        # One timing for film and robot (PassPlan): the TCP follows the sample speeds at constant
-        # acceleration between samples, so the times come from the speeds, not from the QP's
-        # per-segment times (they differ by up to ~3 % where the optimized slowness kinks).
+            on_part, speeds = on_part[::-1], speeds[::-1]
+        # One timing for film and robot: the speed QP optimizes the sample speeds under the
+        # robot's constant-acceleration law, so these times are the QP's segment times exactly.
         times = times_from_speeds(pos, speeds)
         out.append(PassPlan(
             positions=np.ascontiguousarray(pos), spray_axes=np.ascontiguousarray(axes),
-            travel_dirs=np.ascontiguousarray(travel), speeds_m_s=speeds, times_s=times,
-            on_part=np.ascontiguousarray(on_part), paint_on=np.ones(len(pos), bool), side=side,
-            index_width_m=p.width_m, max_geodesic_curvature_1_m=kg_max,
-            nsd_constant_pct=nsd_c, nsd_optimized_pct=nsd_o))
+            travel_dirs=np.ascontiguousarray(travel), speeds_m_s=np.ascontiguousarray(speeds),
+            times_s=times, on_part=np.ascontiguousarray(on_part),
+            paint_on=np.ones(len(pos), bool), side=side, index_width_m=p.width_m,
+            max_geodesic_curvature_1_m=kg_max, nsd_constant_pct=tm["nsd_c"],
+            nsd_optimized_pct=tm["nsd_o"]))
     return out
+
+
+def _blend(passes: list[PassPlan], alpha: float, base: list[np.ndarray]) -> list[PassPlan]:
+    """Passes with sample speeds base + α (v − base) (times rebuilt by the robot's rule)."""
+    out = []
+    for p, b in zip(passes, base, strict=True):
+        v = b + alpha * (p.speeds_m_s - b)
+        out.append(PassPlan(positions=p.positions, spray_axes=p.spray_axes,
+                            travel_dirs=p.travel_dirs, speeds_m_s=v,
+                            times_s=times_from_speeds(p.positions, v), on_part=p.on_part,
+                            paint_on=p.paint_on, side=p.side, index_width_m=p.index_width_m,
+                            max_geodesic_curvature_1_m=p.max_geodesic_curvature_1_m,
+                            nsd_constant_pct=p.nsd_constant_pct,
+                            nsd_optimized_pct=p.nsd_optimized_pct))
+    return out
+
+
+def _film_guard(pl: _Planner, surface: Surface, passes: list[PassPlan]
+                ) -> tuple[list[PassPlan], dict[str, Any]]:
+    """Keep the speed-optimized passes only as far as the simulated film on the part is no worse
+    than at constant speed, on the whole part and on its interior (σ/μ, area weighted)."""
+    from planning.deposition import thickness
+    from planning.metrics import boundary_band_mask, boundary_vertices, uniformity
+
+    st = pl.st
+    mask = boundary_band_mask(surface.vertices,
+                              surface.vertices[boundary_vertices(surface.faces)],
+                              st.film_guard_band_m)
+    has_interior = bool(mask.any())
+    base = []
+    for order, p in enumerate(passes):
+        cap = pl.speed_caps.get(p.side)
+        b = np.full(len(p.speeds_m_s), st.v_nominal_m_s)
+        if cap is not None:
+            b = np.minimum(b, cap[::-1] if order % 2 == 1 else cap)
+        base.append(b)
+
+    def nsd(alpha: float) -> tuple[float, float]:
+        cand = _blend(passes, alpha, base)
+        plan = CoveragePlan(surface_name=surface.name, applicator=pl.app, passes=tuple(cand),
+                            start_rule="", settings={})
+        film = thickness(pl.app, plan.gun_samples(), surface.vertices, surface.normals)
+        whole = uniformity(film, surface.vertex_areas).nsd_pct
+        inner = uniformity(film, surface.vertex_areas, mask=mask).nsd_pct if has_interior \
+            else whole
+        return whole, inner
+
+    const = nsd(0.0)
+    tried = {a: nsd(a) for a in (1.0, 0.75, 0.5, 0.25)}
+    tried[0.0] = const
+    # the blend with the best whole-part film among those no worse than constant speed on the
+    # interior and the whole part (α = 0, constant speed, always qualifies)
+    ok = [a for a, (w, i) in tried.items() if w <= const[0] and i <= const[1]]
+    alpha = min(ok, key=lambda a: (tried[a][0], -a))
+    info = {"alpha": alpha, "constant_whole_pct": const[0], "constant_interior_pct": const[1],
+            "tried": {str(a): list(v) for a, v in tried.items()}}
+    return (passes if alpha == 1.0 else _blend(passes, alpha, base)), info
 
 
 def _with_overspray(foot: np.ndarray, normals: np.ndarray, on_part: np.ndarray,

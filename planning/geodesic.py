@@ -55,7 +55,7 @@ class HeatGeodesics:
             return np.zeros((0, 3)), np.zeros((0, 3))
         comps = []
         for order, _closed in _order_components(self.geom, phi, cross):
-            p, n = _dedupe(pts[order], nrm[order])
+            p, n = despike(*_dedupe(pts[order], nrm[order]))
             if len(p) >= 2:
                 comps.append((float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()), p, n))
         if not comps:
@@ -66,6 +66,36 @@ class HeatGeodesics:
         if float((p[-1] - p[0]) @ chord) < 0:
             p, n = p[::-1], n[::-1]
         return p, n
+
+
+def despike(points: np.ndarray, normals: np.ndarray, max_turn_rad: float = 2.0 * np.pi / 3.0
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """The polyline `points` (M, 3) without its spikes: interior vertices where it turns back by
+    more than `max_turn_rad` [rad] are dropped, round after round, until none is left (a spike
+    that goes out and retraces itself collapses from its apex inwards); `normals` (M, 3) follow.
+    A level set extracted edge by edge on a coarse, creased mesh can run out along a dangling
+    branch and back; a pass along it would make the bell reverse on the spot (an unbounded turn
+    the TCP cannot follow). Corners below the bound (wavefronts meeting) are kept."""
+    p, n = np.asarray(points, float), np.asarray(normals, float)
+    cos_max = np.cos(max_turn_rad)
+    while len(p) >= 3:
+        d = np.diff(p, axis=0)
+        length = np.linalg.norm(d, axis=1)
+        dup = np.concatenate([[False], length <= 1e-12])      # a spike folded onto itself
+        if dup.any():
+            p, n = p[~dup], n[~dup]
+            continue
+        d = d / length[:, None]
+        c = np.einsum("ij,ij->i", d[1:], d[:-1])            # cos of the turn at vertex i + 1
+        apex = np.flatnonzero(c < cos_max) + 1
+        if not len(apex):
+            break
+        # one round drops non-adjacent apices only (two neighbours judged on the same segment)
+        keep_apex = apex[np.concatenate([[True], np.diff(apex) > 1])]
+        mask = np.ones(len(p), bool)
+        mask[keep_apex] = False
+        p, n = p[mask], n[mask]
+    return p, n
 
 
 def _dense(points: np.ndarray, spacing_m: float) -> np.ndarray:

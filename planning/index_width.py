@@ -107,26 +107,53 @@ def nsd_vs_index_width(app: Applicator, widths: npt.ArrayLike,
 class PlanarWidth:
     """Planar index-width choice (paper §4.1).
 
-    width_m: the largest width in the search range with σ/μ ≤ u_max (or the σ/μ minimizer when
-        none is feasible) [m]; feasible: whether u_max was met; widths_m / nsd: the curve.
+    width_m: the largest robustly feasible width (see `planar_index_width`), or the σ/μ
+        minimizer when none is feasible [m]; feasible: whether u_max was met; widths_m / nsd: the
+        Fig. 5 curve over the search range (σ/μ as fractions); tolerance_m: the sensitivity
+        window used.
     """
 
     width_m: float
     feasible: bool
     widths_m: np.ndarray
     nsd: np.ndarray
+    tolerance_m: float = 0.0
+
+
+def robust_feasible(widths_m: np.ndarray, nsd: np.ndarray, u_max: float,
+                    tolerance_m: float) -> np.ndarray:
+    """(W,) bool: σ/μ ≤ u_max at w and at every searched width within ±tolerance_m of it.
+
+    The paper (§4.1) chooses w_max "according to the standard deviation sensitivity": near the
+    sweet spot σ/μ changes fast with the width, so a width is only accepted when a pass placed
+    `tolerance_m` [m] off still meets u_max. widths_m (W,) increasing [m]; nsd (W,) fractions.
+    Widths whose window reaches past the searched range are judged on the part inside it.
+    """
+    w = np.asarray(widths_m, float)
+    ok = np.asarray(nsd, float) <= u_max
+    if tolerance_m <= 0:
+        return ok
+    near = np.abs(w[:, None] - w[None, :]) <= tolerance_m + 1e-9
+    return np.all(~near | ok[None, :], axis=1)
 
 
 def planar_index_width(app: Applicator, w_min_m: float, w_max_m: float, w_res_m: float,
-                       u_max: float) -> PlanarWidth:
-    """Choose the planar index width: cost ∝ 1/w over the feasible set {w ∈ SR : σ/μ(w) ≤ u_max},
-    i.e. the largest feasible width (paper §4.1). u_max is a fraction (0.04 = 4 %)."""
+                       u_max: float, tolerance_m: float = 0.0) -> PlanarWidth:
+    """Choose the planar index width (paper §4.1): cost ∝ 1/w over the feasible set, i.e. the
+    largest width whose σ/μ stays ≤ u_max within ±tolerance_m [m] (`robust_feasible`; 0: the
+    plain rule σ/μ(w) ≤ u_max). u_max is a fraction (0.04 = 4 %)."""
     widths = search_range(w_min_m, w_max_m, w_res_m)
-    nsd = nsd_vs_index_width(app, widths)
-    ok = nsd <= u_max
+    # the curve is evaluated a tolerance beyond SR so the window of the widest width is judged
+    pad = np.arange(1, int(np.ceil(tolerance_m / w_res_m - 1e-9)) + 1) * w_res_m
+    ext = np.concatenate([widths[0] - pad[::-1], widths, widths[-1] + pad])
+    ext = ext[ext > 0]
+    nsd_ext = nsd_vs_index_width(app, ext)
+    inside = (ext >= widths[0] - 1e-12) & (ext <= widths[-1] + 1e-12)
+    ok = robust_feasible(ext, nsd_ext, u_max, tolerance_m)[inside]
+    nsd = nsd_ext[inside]
     if ok.any():
-        return PlanarWidth(float(widths[ok].max()), True, widths, nsd)
-    return PlanarWidth(float(widths[int(np.argmin(nsd))]), False, widths, nsd)
+        return PlanarWidth(float(widths[ok].max()), True, widths, nsd, tolerance_m)
+    return PlanarWidth(float(widths[int(np.argmin(nsd))]), False, widths, nsd, tolerance_m)
 
 
 def cross_profiles(app: Applicator, curve: IndexingCurve, travel_dir: npt.ArrayLike,
@@ -226,16 +253,19 @@ def search_widths(film: np.ndarray, gun_step_m: float, gun_s0_index: int, point_
 
 
 def choose_constant_width(searches: list[WidthSearch], u_max: float, w_prev_m: float | None,
-                          change_weight: float = 1.0) -> tuple[float, bool, float]:
+                          change_weight: float = 1.0,
+                          tolerance_m: float = 0.0) -> tuple[float, bool, float]:
     """Pick w0 under the constant-index restriction (paper §4.3): feasible at every marker, cost
     w_max/w0 + change_weight · |w0 − w−1| / w_max (small widths and width changes penalized).
 
+    tolerance_m: a width is feasible only when the worst-marker σ/μ meets u_max within ±tolerance_m
+    [m] of it too (`robust_feasible`, the paper's sensitivity rule for w_max).
     Returns (w0 [m], feasible, worst-marker σ/μ at w0 (fraction)). When no width is feasible at
     all markers, the width with the smallest worst-marker σ/μ is returned with feasible False.
     """
     widths = searches[0].widths_m
     worst = np.max(np.stack([s.best_nsd for s in searches]), axis=0)
-    ok = worst <= u_max
+    ok = robust_feasible(widths, worst, u_max, tolerance_m)
     wmax = float(widths.max())
     if ok.any():
         cost = wmax / widths

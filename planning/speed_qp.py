@@ -1,24 +1,37 @@
-"""Per-pass speed optimization: the paper's eq. 2 (Atkar et al. 2004, §3) as a QP solved by OSQP.
+"""Per-pass speed optimization: the paper's eq. 2 (Atkar et al. 2004, §3), solved by SQP + OSQP.
 
-A pass is cut into n segments of length s_i; the TCP sits at each segment centre for a time t_i
-(speed v_i = s_i / t_i). A band of J sub-offset curves around the pass (curve 0 is the pass's own
-foot-point curve) samples the surface; D_j[e, f] is the film-thickness rate on segment e of curve j
-while the TCP is at the centre of pass segment f, so the film on curve j is D_j T.
+A pass is cut into n segments of length s_i between n + 1 samples. A band of J sub-offset curves
+around the pass (curve 0 is the pass's own foot-point curve) samples the surface; D_j[e, f] is the
+film-thickness rate on segment e of curve j while the TCP is at the centre of pass segment f, so
+the film on curve j is D_j T for the segment times T.
 
-Objective (the paper's weighted normalized deviation, squared so that it is the QP the paper calls
-it), with segment-length weights ℓ_e / Σℓ on every curve (the continuous σ along the curve):
+Speed representation (paper: "linear variation in speed between the segments for which we
+optimize"): K knot speeds at samples spread evenly in arc length, speed linear in arc length
+between them, so every sample speed is v_p = v_nom · (M y)_p with y the relative knot speeds. The
+TCP moves at constant tangential acceleration between samples (the robot's time law, the
+`PassPlan` timing rule), so the time on segment i is t_i = 2 s_i / (v_p[i] + v_p[i+1]): the plan's
+times rebuilt from its sample speeds equal the times this module optimizes, exactly.
 
-    J(T) = Σ_j (w_j / k_j²) · Σ_e (ℓ_e / Σℓ) · ((D_j T)_e − mean_ℓ(D_j T))²
+Objective (eq. 2 squared, the quadratic form the paper names), with length weights r_e = ℓ_e/Σℓ:
 
-k_j = mean_ℓ(D_j T_beg) and w_j = k_j / Σ k are fixed at the constant nominal speed T_beg.
-Constraints: mean_ℓ(D_0 T) = k_0 (the average film along the pass, one scalar);
-s_i / v_max ≤ t_i ≤ s_i / v_min; the paper's linearized acceleration bound
-|s_{i+1} t_i − s_i t_{i+1}| ≤ a_max s_{i+1} s_i² / v_max³.
+    J(y) = Σ_j (w_j / k_j²) · Σ_e r_je · ((D_j T(y))_e − K_je)²
 
-The paper optimizes over a sub-sample of segments with linear interpolation between them. Here the
-knots carry the slowness u = 1/v, interpolated linearly in arc length to the fine segments, so
-T = diag(s) · L · u_knots stays linear in the decision variables. The variable OSQP sees is
-z = u_knots / u_nominal (1 at constant speed): every term is O(1), whatever the units of D.
+`objective="paper"`: K_j = k_j · 1 with k_j = mean_ℓ(D_j T_beg) fixed from the constant-speed
+profile T_beg (paper §3), w_j = k_j / Σk. `objective="centred"` (a variant kept as an option):
+K_j is the current mean of D_j T, so only the spread along each curve is penalized.
+Equality D_0 T = K_0: its length-weighted mean holds exactly (the speeds are rescaled after every
+step); the rest of the vector D_0 T − K_0 is curve 0's term of the objective. A vector equality of
+m_0 rows in K < m_0 unknowns is infeasible in general (the paper itself says it makes the profiles
+yield "approximately the same average paint deposition").
+Bounds: v_min ≤ v ≤ v_max at the knots (and so everywhere between them); optional per-sample
+upper bounds (robot-aware re-planning, `sim.speed_feedback`); the paper's conservative linear
+acceleration bound in speed form, |v_{p+1} − v_p| ≤ a_max s_p / v_max, which guarantees
+|a| = |v_{p+1}² − v_p²| / (2 s_p) ≤ a_max.
+
+T(y) is not linear in y, so the problem is solved by Gauss–Newton SQP from y = 1 (constant
+speed): each step is a QP in the knot speeds (OSQP) with a trust region, accepted when the true
+objective decreases and every constraint re-measures feasible. The result is never worse on the
+band than constant speed (the start point).
 """
 
 from __future__ import annotations
@@ -27,6 +40,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -37,14 +51,18 @@ from planning.applicator import Applicator
 from planning.deposition import deposition_rate
 from planning.errors import PlanError
 
-#: Relative tolerance of the re-measured constraints of an accepted solution: the equality
-#: |mean(D_0 T) / k_0 − 1| and the acceleration rows as a fraction of their bound. OSQP's polished
-#: solutions meet them to ~1e-10; ADMM-only solutions at eps 1e-8 to ~1e-7.
+#: Relative tolerance of re-measured constraints (bounds, acceleration) of an accepted profile.
 CONSTRAINT_RTOL = 1e-6
-
+#: The QP steps keep this relative margin inside the speed and acceleration bounds, so that the
+#: exact rescaling for the average-film equality (a factor 1 + O(step²)) stays feasible.
+BOUND_MARGIN = 0.01
 #: Curves whose mean film at nominal speed is below this fraction of the largest curve's receive
 #: (almost) no paint from this pass: 1/k_j² would blow their weight up, so they leave the objective.
 MIN_CURVE_FILM_REL = 1e-3
+#: Weight of (mean film on curve 0 / k_0 − 1)² in the SQP's merit function (J is ~1e-4..1e-2).
+EQUALITY_PENALTY = 1e4
+OBJECTIVES = ("paper", "centred")
+
 
 class SpeedQPError(PlanError):
     """Speed-optimization inputs or settings are invalid."""
@@ -52,16 +70,15 @@ class SpeedQPError(PlanError):
 
 @dataclass(frozen=True)
 class SpeedSettings:
-    """Settings of the per-pass speed QP.
+    """Settings of the per-pass speed optimization.
 
     v_nominal_m_s: constant start speed v_nom [m/s]; it sets the target film (T_beg = s / v_nom).
-    v_min_m_s: lowest TCP speed allowed on the pass [m/s], > 0.
-    v_max_m_s: highest TCP speed allowed on the pass [m/s], ≥ v_min.
-    a_max_m_s2: TCP acceleration bound of the paper's linearized constraint [m/s²], > 0.
-    n_knots: optimized sub-sample of segments (≥ 2); slowness 1/v is linear in arc length between
-        knots. The paper's trick: fine segments for the objective, few variables for the solver.
-    eps: OSQP absolute and relative tolerance (the problem is scaled to O(1)).
-    max_iter: OSQP iteration limit.
+    v_min_m_s / v_max_m_s: lowest / highest TCP speed allowed on the pass [m/s].
+    a_max_m_s2: TCP acceleration bound [m/s²], > 0.
+    n_knots: optimized knot speeds (≥ 2); speed is linear in arc length between knots.
+    objective: "paper" (K_j fixed at constant speed) or "centred" (K_j the current mean).
+    max_iter: SQP steps at most. trust_region: largest relative knot-speed change per step.
+    eps: OSQP tolerance of each step's QP.
     """
 
     v_nominal_m_s: float = 0.5
@@ -69,25 +86,28 @@ class SpeedSettings:
     v_max_m_s: float = 1.0
     a_max_m_s2: float = 5.0
     n_knots: int = 30
-    eps: float = 1e-8
-    max_iter: int = 20000
+    objective: str = "paper"
+    max_iter: int = 12
+    trust_region: float = 0.3
+    eps: float = 1e-7
 
     def __post_init__(self) -> None:
-        for name in ("v_nominal_m_s", "v_min_m_s", "v_max_m_s", "a_max_m_s2", "eps"):
+        for name in ("v_nominal_m_s", "v_min_m_s", "v_max_m_s", "a_max_m_s2", "eps",
+                     "trust_region"):
             v = getattr(self, name)
-            if not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) \
+                    or v <= 0:
                 raise SpeedQPError(f"SpeedSettings.{name} = {v!r} must be a finite number > 0")
-        if self.v_min_m_s > self.v_max_m_s:
-            raise SpeedQPError(f"SpeedSettings: v_min_m_s = {self.v_min_m_s} > v_max_m_s = "
-                               f"{self.v_max_m_s}; choose v_min ≤ v_nominal ≤ v_max")
         if not self.v_min_m_s <= self.v_nominal_m_s <= self.v_max_m_s:
-            raise SpeedQPError(f"SpeedSettings: v_nominal_m_s = {self.v_nominal_m_s} lies outside "
-                               f"[v_min, v_max] = [{self.v_min_m_s}, {self.v_max_m_s}]; "
-                               "choose v_min ≤ v_nominal ≤ v_max")
-        if not isinstance(self.n_knots, int) or self.n_knots < 2:
-            raise SpeedQPError(f"SpeedSettings.n_knots = {self.n_knots!r} must be an int ≥ 2")
-        if not isinstance(self.max_iter, int) or self.max_iter < 1:
-            raise SpeedQPError(f"SpeedSettings.max_iter = {self.max_iter!r} must be an int ≥ 1")
+            raise SpeedQPError(f"SpeedSettings: need v_min ≤ v_nominal ≤ v_max, got "
+                               f"{self.v_min_m_s}, {self.v_nominal_m_s}, {self.v_max_m_s} m/s")
+        for name, lo in (("n_knots", 2), ("max_iter", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+                raise SpeedQPError(f"SpeedSettings.{name} = {v!r} must be an int ≥ {lo}")
+        if self.objective not in OBJECTIVES:
+            raise SpeedQPError(f"SpeedSettings.objective = {self.objective!r}: use one of "
+                               f"{', '.join(OBJECTIVES)}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,8 +131,7 @@ class SubOffsetBand:
                                f"{len(self.lengths)}")
         pts, nrm, lens = [], [], []
         for j, (p, n, s) in enumerate(zip(self.points, self.normals, self.lengths, strict=True)):
-            p = np.asarray(p, dtype=float)
-            n = np.asarray(n, dtype=float)
+            p, n = np.asarray(p, dtype=float), np.asarray(n, dtype=float)
             s = np.asarray(s, dtype=float).reshape(-1)
             if p.ndim != 2 or p.shape[1] != 3 or len(p) < 1 or n.shape != p.shape:
                 raise SpeedQPError(f"sub-offset curve {j}: points {p.shape} and normals {n.shape} "
@@ -138,336 +157,363 @@ class SubOffsetBand:
 
 @dataclass(frozen=True, eq=False)
 class SpeedResult:
-    """Optimized (or constant, on fallback) speed profile of one pass.
+    """Speed profile of one pass.
 
-    segment_times_s: (n,) time t_i the TCP spends in pass segment i [s].
-    speeds_m_s: (n,) TCP speed v_i = s_i / t_i in segment i [m/s].
-    nsd_constant_pct / nsd_optimized_pct: band σ/μ at constant nominal speed and at the returned
-        profile [%]: sqrt(Σ_j w_j (σ_j/μ_j)²), the square root of the QP objective with each curve's
-        mean re-measured (w_j fixed at constant speed, length-weighted σ_j and μ_j).
-    nsd_constant_per_curve_pct / nsd_optimized_per_curve_pct: (J,) σ_j/μ_j of each curve [%]
-        (nan for curves that get almost no paint from this pass and so leave the objective).
-    curve_weights: (J,) w_j (0 for curves left out).
-    status: "optimal", "optimal (unpolished ADMM solution)" when OSQP's polishing failed but the
-        ADMM solution re-measured feasible and better, or "constant: <why>" on fallback.
-    solve_time_s: wall time of the whole call (matrices, OSQP, re-measurement) [s].
-    knot_indices: (K,) indices of the fine segments that carry the optimized knots.
-    osqp_iterations: ADMM iterations (0 when OSQP did not run).
+    sample_speeds_m_s: (n + 1,) TCP speed at the pass samples [m/s] (what the plan stores).
+    segment_times_s: (n,) time on segment i, 2 s_i / (v_i + v_{i+1}) [s].
+    speeds_m_s: (n,) mean speed s_i / t_i of each segment [m/s].
+    nsd_constant_pct / nsd_optimized_pct: band σ/μ at constant speed and at the returned profile
+        [%]: sqrt(Σ_j w_j (σ_j/μ_j)²), each curve's σ and μ re-measured (length weighted).
+    curve_weights: (J,) w_j (0 for curves left out). knot_indices: (K,) samples carrying knots.
+    objective_constant / objective_optimized: J(y) of eq. 2 at y = 1 and at the result.
+    status: "optimal", "iteration limit" (a feasible improvement, not converged) or
+        "constant: <why>". iterations: accepted SQP steps. solve_time_s: wall time [s].
     """
 
+    sample_speeds_m_s: np.ndarray
     segment_times_s: np.ndarray
-    speeds_m_s: np.ndarray
     nsd_constant_pct: float
     nsd_optimized_pct: float
-    nsd_constant_per_curve_pct: np.ndarray
-    nsd_optimized_per_curve_pct: np.ndarray
     curve_weights: np.ndarray
-    status: str
-    solve_time_s: float
     knot_indices: np.ndarray
-    osqp_iterations: int = 0
+    objective_constant: float
+    objective_optimized: float
+    status: str
+    iterations: int
+    solve_time_s: float
+
+    @property
+    def speeds_m_s(self) -> np.ndarray:
+        """(n,) mean speed of each segment [m/s]."""
+        v = self.sample_speeds_m_s
+        return 0.5 * (v[1:] + v[:-1])
 
     @property
     def optimized(self) -> bool:
-        """True when the returned profile is the QP's, not the constant fallback."""
-        return self.status.startswith("optimal")
+        """True when the returned profile is not the constant start profile."""
+        return not self.status.startswith("constant")
 
-    @property
-    def seg_lengths_m(self) -> np.ndarray:
-        """(n,) pass segment lengths s_i = v_i t_i [m]."""
-        return self.speeds_m_s * self.segment_times_s
+
+def knot_interpolation(sample_arc_m: npt.ArrayLike, n_knots: int) -> tuple[np.ndarray, np.ndarray]:
+    """Linear interpolation in arc length from knot samples to all samples.
+
+    sample_arc_m: (N,) increasing arc length of the pass samples [m].
+    n_knots: requested knots K (≥ 2); min(K, N) distinct samples, first and last included,
+        spread evenly in arc length.
+    Returns (M (N, K), knot_indices (K,)); row p of M holds the weights of sample p on the two
+    knots around it (a convex combination; M[knot_indices] = I).
+    """
+    x = np.asarray(sample_arc_m, dtype=float)
+    n = len(x)
+    if n_knots >= n:
+        return np.eye(n), np.arange(n)
+    idx = np.unique(np.clip(np.searchsorted(x, np.linspace(x[0], x[-1], n_knots)), 0, n - 1))
+    idx[0], idx[-1] = 0, n - 1
+    idx = np.unique(idx)
+    xk = x[idx]
+    hi = np.clip(np.searchsorted(xk, x, side="right"), 1, len(idx) - 1)
+    lo = hi - 1
+    frac = np.clip((x - xk[lo]) / (xk[hi] - xk[lo]), 0.0, 1.0)
+    M = np.zeros((n, len(idx)))
+    rows = np.arange(n)
+    M[rows, lo] = 1.0 - frac
+    M[rows, hi] += frac
+    return M, idx
 
 
 @dataclass(frozen=True, eq=False)
 class SpeedObjective:
-    """The QP in knot variables z = u_knots / u_nominal: J(z) = ½ zᵀ P z, A z ∈ [l, u].
+    """Eq. 2 as a function of the relative knot speeds y (y = 1: constant v_nominal).
 
-    P: (K, K) dense Hessian of the band objective (OSQP's ½ convention: J = ½ zᵀPz).
-    interp: (n, K) L, fine-segment relative slowness = L z (rows are convex combinations).
-    t_beg_s: (n,) constant-speed segment times s_i / v_nominal [s].
-    eq_row: (K,) the average-film equality eq_row · z = 1.
-    curve_mats: J matrices G_j = D_j diag(T_beg) L, (m_j, K): the film on curve j is G_j z [m].
-    curve_lengths: J arrays (m_j,) segment lengths [m].
-    k: (J,) mean film of each curve at constant speed [m].
-    weights: (J,) w_j (0 for curves left out).
-    knot_indices: (K,) fine segments carrying the knots.
+    rates: J matrices D_j (m_j, n) [m/s]. r: J arrays (m_j,) length weights ℓ/Σℓ.
+    seg_lengths: (n,) [m]. interp: M (n + 1, K). k: (J,) mean film at constant speed [m].
+    weights: (J,) w_j / k_j² (0 for curves left out). objective: "paper" or "centred".
     """
 
-    P: np.ndarray
+    rates: tuple[np.ndarray, ...]
+    r: tuple[np.ndarray, ...]
+    seg_lengths: np.ndarray
+    v_nominal_m_s: float
     interp: np.ndarray
-    t_beg_s: np.ndarray
-    eq_row: np.ndarray
-    curve_mats: tuple[np.ndarray, ...]
-    curve_lengths: tuple[np.ndarray, ...]
     k: np.ndarray
     weights: np.ndarray
-    knot_indices: np.ndarray
+    objective: str
 
-    def value(self, z: npt.ArrayLike) -> float:
-        """J(z) = ½ zᵀ P z, dimensionless (σ²/μ² with means fixed at constant speed)."""
-        z = np.asarray(z, dtype=float)
-        return float(0.5 * z @ self.P @ z)
+    def segment_times(self, y: npt.ArrayLike) -> np.ndarray:
+        """(n,) t_i = 2 s_i / (v_i + v_{i+1}) with sample speeds v = v_nom · M y [s]."""
+        rho = self._avg @ np.asarray(y, dtype=float)
+        return self.seg_lengths / (self.v_nominal_m_s * rho)
 
-    def gradient(self, z: npt.ArrayLike) -> np.ndarray:
-        """(K,) ∇J(z) = P z."""
-        return self.P @ np.asarray(z, dtype=float)
+    @property
+    def _avg(self) -> np.ndarray:
+        return 0.5 * (self.interp[1:] + self.interp[:-1])
 
-    def segment_times(self, z: npt.ArrayLike) -> np.ndarray:
-        """(n,) segment times T = T_beg ⊙ (L z) [s]."""
-        return self.t_beg_s * (self.interp @ np.asarray(z, dtype=float))
+    def _residuals(self, t: np.ndarray) -> list[np.ndarray]:
+        out = []
+        for D, r, k, w in zip(self.rates, self.r, self.k, self.weights, strict=True):
+            if w <= 0:
+                out.append(np.zeros(0))
+                continue
+            f = D @ t
+            out.append(f - (r @ f if self.objective == "centred" else k))
+        return out
 
+    def value(self, y: npt.ArrayLike) -> float:
+        """J(y), dimensionless."""
+        res = self._residuals(self.segment_times(y))
+        return float(sum(w * (r @ e**2) for e, r, w in zip(res, self.r, self.weights, strict=True)
+                         if w > 0))
 
-def knot_interpolation(seg_lengths: npt.ArrayLike, n_knots: int) -> tuple[np.ndarray, np.ndarray]:
-    """Linear interpolation in arc length from knot segments to all segments.
+    def jacobians(self, y: npt.ArrayLike) -> tuple[np.ndarray, list[np.ndarray]]:
+        """(T (n,), per-curve dF_j/dy (m_j, K)) at y: dt_i/dy = −t_i · A_i / ρ_i."""
+        y = np.asarray(y, dtype=float)
+        A = self._avg
+        t = self.segment_times(y)
+        # A has ≤ 3 nonzeros a row: D_j · dT through a sparse dT, not small dense GEMMs (which
+        # multi-threaded BLAS runs ~100× slower on a loaded 2-core machine)
+        dT_t = sp.csr_matrix((-(t / (A @ y))[:, None] * A).T)
+        return t, [np.ascontiguousarray((dT_t @ D.T).T) if w > 0 else np.zeros((0, len(y)))
+                   for D, w in zip(self.rates, self.weights, strict=True)]
 
-    seg_lengths: (n,) pass segment lengths [m], > 0.
-    n_knots: requested knots K (≥ 2); min(K, n) distinct segments are used, first and last
-        included, spread evenly in arc length.
-    Returns (L (n, K), knot_indices (K,)); L[i] holds the weights of segment i's centre on the two
-    knots around it (a convex combination; L[knot_indices] = I).
-    """
-    s = np.asarray(seg_lengths, dtype=float)
-    centres = np.cumsum(s) - 0.5 * s
-    n = len(s)
-    if n_knots >= n:
-        return np.eye(n), np.arange(n)
-    targets = np.linspace(centres[0], centres[-1], n_knots)
-    idx = np.unique(np.clip(np.searchsorted(centres, targets), 0, n - 1))
-    idx[0], idx[-1] = 0, n - 1
-    idx = np.unique(idx)
-    xk = centres[idx]
-    k = len(idx)
-    hi = np.clip(np.searchsorted(xk, centres, side="right"), 1, k - 1)
-    lo = hi - 1
-    frac = np.clip((centres - xk[lo]) / (xk[hi] - xk[lo]), 0.0, 1.0)
-    L = np.zeros((n, k))
-    rows = np.arange(n)
-    L[rows, lo] = 1.0 - frac
-    L[rows, hi] += frac
-    return L, idx
-
-
-def _curve_nsd(film: np.ndarray, lengths: np.ndarray) -> tuple[float, float]:
-    """Length-weighted (mean [m], σ/μ) of a film along one curve."""
-    w = lengths / lengths.sum()
-    mu = float(w @ film)
-    if mu <= 0:
-        return mu, float("inf")
-    return mu, float(np.sqrt(w @ (film - mu) ** 2) / mu)
-
-
-def band_nsd(rates: Sequence[np.ndarray], curve_lengths: Sequence[np.ndarray],
-             segment_times_s: npt.ArrayLike, weights: npt.ArrayLike) -> tuple[float, np.ndarray]:
-    """Re-measured band uniformity of a time profile.
-
-    rates: J matrices D_j (m_j, n) film-thickness rate [m/s].
-    curve_lengths: J arrays (m_j,) segment lengths [m].
-    segment_times_s: (n,) times per pass segment [s].
-    weights: (J,) w_j; curves with w_j = 0 are reported as nan and left out.
-    Returns (sqrt(Σ_j w_j (σ_j/μ_j)²) as a fraction, (J,) per-curve σ_j/μ_j as fractions).
-    """
-    t = np.asarray(segment_times_s, dtype=float)
-    w = np.asarray(weights, dtype=float)
-    per = np.full(len(rates), np.nan)
-    for j, (D, ell) in enumerate(zip(rates, curve_lengths, strict=True)):
-        if w[j] > 0:
-            per[j] = _curve_nsd(D @ t, ell)[1]
-    used = w > 0
-    return float(np.sqrt(np.sum(w[used] * per[used] ** 2))), per
+    def gradient(self, y: npt.ArrayLike) -> np.ndarray:
+        """(K,) ∇J(y) (for the centred objective the mean's derivative drops out, Σ r e = 0)."""
+        t, jac = self.jacobians(y)
+        g = np.zeros(len(np.asarray(y)))
+        for e, r, w, Jf in zip(self._residuals(t), self.r, self.weights, jac, strict=True):
+            if w > 0:
+                g += 2.0 * w * Jf.T @ (r * e)
+        return g
 
 
 def build_speed_objective(rates: Sequence[npt.ArrayLike], curve_lengths: Sequence[npt.ArrayLike],
                           seg_lengths: npt.ArrayLike, settings: SpeedSettings) -> SpeedObjective:
-    """Assemble the QP of eq. 2 in knot variables from the band's rate matrices.
+    """Eq. 2 for one pass from the band's rate matrices (see the module note).
 
-    rates: J matrices D_j (m_j, n): film-thickness rate [m/s] on segment e of curve j while the
-        TCP is at the centre of pass segment f (curve 0 = the pass's foot-point curve).
-    curve_lengths: J arrays (m_j,) segment lengths of the curves [m].
-    seg_lengths: (n,) pass segment lengths [m].
-    settings: speed limits, a_max and knot count.
+    rates: J matrices D_j (m_j, n) [m/s]; curve_lengths: J arrays (m_j,) [m];
+    seg_lengths: (n,) pass segment lengths [m]; settings: the speed settings.
     """
     s = np.asarray(seg_lengths, dtype=float)
     t_beg = s / settings.v_nominal_m_s
-    L, knots = knot_interpolation(s, settings.n_knots)
-    # G_j = D_j diag(T_beg) L through a sparse L (≤ 2 entries a row): O(m_j n) work, and no small
-    # dense GEMMs, which multi-threaded BLAS runs 100× slower on a loaded 2-core machine.
-    TL_t = sp.csr_matrix((t_beg[:, None] * L).T)
-    mats = []
-    k = np.zeros(len(rates))
-    for j, D in enumerate(rates):
-        G = np.ascontiguousarray((TL_t @ np.asarray(D, dtype=float).T).T)
-        mats.append(G)
-        ell = np.asarray(curve_lengths[j], dtype=float)
-        k[j] = (ell @ G.sum(axis=1)) / ell.sum()
+    D = tuple(np.asarray(d, dtype=float) for d in rates)
+    r = tuple(np.asarray(c, dtype=float) / np.sum(c) for c in curve_lengths)
+    k = np.array([ri @ (Dj @ t_beg) for Dj, ri in zip(D, r, strict=True)])
     if not k[0] > 0:
         raise SpeedQPError("the pass deposits no paint on its own foot-point curve (j = 0); "
                            "check the standoff, spray axes and band points")
     used = k >= MIN_CURVE_FILM_REL * k.max()
-    w = np.where(used, k, 0.0)
-    w /= w.sum()
-    blocks = []
-    for j in np.flatnonzero(used).tolist():
-        ell = np.asarray(curve_lengths[j], dtype=float)
-        r = ell / ell.sum()
-        C = mats[j] - r @ mats[j]           # (I − 1 rᵀ) G_j: centred film along curve j
-        blocks.append(np.sqrt(r)[:, None] * C * (math.sqrt(w[j]) / k[j]))
-    B = np.concatenate(blocks)
-    P = 2.0 * np.einsum("ik,il->kl", B, B)  # J = ½ zᵀPz = Σ ‖B_j z‖²
-    ell0 = np.asarray(curve_lengths[0], dtype=float)
-    eq_row = (ell0 @ mats[0]) / (ell0.sum() * k[0])
-    return SpeedObjective(P=0.5 * (P + P.T), interp=L, t_beg_s=t_beg, eq_row=eq_row,
-                          curve_mats=tuple(mats),
-                          curve_lengths=tuple(np.asarray(c, dtype=float) for c in curve_lengths),
-                          k=k, weights=w, knot_indices=knots)
+    w = np.where(used, k, 0.0) / np.sum(k[used])
+    M, _ = knot_interpolation(np.concatenate([[0.0], np.cumsum(s)]), settings.n_knots)
+    return SpeedObjective(rates=D, r=r, seg_lengths=s, v_nominal_m_s=settings.v_nominal_m_s,
+                          interp=M, k=k, weights=np.where(used, w / np.where(used, k, 1) ** 2, 0),
+                          objective=settings.objective)
 
 
-def accel_residuals(segment_times_s: npt.ArrayLike, seg_lengths: npt.ArrayLike,
-                    settings: SpeedSettings) -> np.ndarray:
-    """(n−1,) paper's linearized acceleration rows as a fraction of their bound.
-
-    Row i: (s_{i+1} t_i − s_i t_{i+1}) / (a_max s_{i+1} s_i² / v_max³); feasible when |row| ≤ 1.
-    """
+def band_nsd(rates: Sequence[np.ndarray], curve_lengths: Sequence[np.ndarray],
+             segment_times_s: npt.ArrayLike, weights: npt.ArrayLike) -> float:
+    """sqrt(Σ_j w_j (σ_j/μ_j)²) of a time profile (fraction), curves with w_j = 0 left out;
+    σ_j, μ_j length-weighted along curve j."""
     t = np.asarray(segment_times_s, dtype=float)
-    s = np.asarray(seg_lengths, dtype=float)
-    bound = settings.a_max_m_s2 * s[1:] * s[:-1] ** 2 / settings.v_max_m_s ** 3
-    return (s[1:] * t[:-1] - s[:-1] * t[1:]) / bound
-
-
-def _constraint_violation(rates: Sequence[np.ndarray], curve_lengths: Sequence[np.ndarray],
-                          k0: float, t: np.ndarray, s: np.ndarray, settings: SpeedSettings) -> str:
-    """Empty string when T meets every constraint of eq. 2 (within CONSTRAINT_RTOL), else why."""
-    lo, hi = s / settings.v_max_m_s, s / settings.v_min_m_s
-    if np.any(t < lo * (1 - CONSTRAINT_RTOL)) or np.any(t > hi * (1 + CONSTRAINT_RTOL)):
-        return "speed bounds violated"
-    acc = np.max(np.abs(accel_residuals(t, s, settings)))
-    if acc > 1 + CONSTRAINT_RTOL:
-        return f"acceleration bound violated ({acc:.3g} × bound)"
-    ell0 = curve_lengths[0]
-    eq = abs((ell0 @ (rates[0] @ t)) / (ell0.sum() * k0) - 1)
-    if eq > CONSTRAINT_RTOL:
-        return f"average-film equality off by {eq:.2g}"
-    return ""
-
-
-def _repair(x: np.ndarray, eq_row: np.ndarray, dL: np.ndarray, acc_b: np.ndarray,
-            z_lo: float, z_hi: float) -> np.ndarray:
-    """Move an ADMM solution (feasible only to OSQP's eps) onto the constraints of eq. 2.
-
-    z = 1 (constant speed) meets every constraint with the acceleration rows slack (dL·1 = 0,
-    eq_row·1 = 1). So: clip to the box; shift along 1 to meet the equality exactly (the shift
-    leaves the acceleration rows unchanged and leaves the box by at most that shift, ~eps); then
-    pull toward 1 just enough that every acceleration row meets its bound (the convex combination
-    keeps the equality and the box).
-    """
-    z = np.clip(x, z_lo, z_hi)
-    z = z + (1.0 - eq_row @ z)
-    rows = np.abs(dL @ (z - 1.0))
-    over = rows > acc_b
-    if np.any(over):
-        lam = float(np.min(acc_b[over] / rows[over]))
-        z = 1.0 + lam * (z - 1.0)
-    return z
+    total = 0.0
+    for D, ell, w in zip(rates, curve_lengths, np.asarray(weights, float), strict=True):
+        if w > 0:
+            r = ell / ell.sum()
+            f = D @ t
+            mu = r @ f
+            total += w * (r @ (f - mu) ** 2) / mu**2
+    return math.sqrt(total)
 
 
 def optimize_speed_from_rates(rates: Sequence[npt.ArrayLike],
-                              curve_lengths: Sequence[npt.ArrayLike],
-                              seg_lengths: npt.ArrayLike,
-                              settings: SpeedSettings) -> SpeedResult:
-    """Solve eq. 2 for one pass given the band's rate matrices (the solver half of the problem).
+                              curve_lengths: Sequence[npt.ArrayLike], seg_lengths: npt.ArrayLike,
+                              settings: SpeedSettings,
+                              v_upper_m_s: npt.ArrayLike | None = None) -> SpeedResult:
+    """Solve eq. 2 for one pass given the band's rate matrices.
 
-    rates: J matrices D_j (m_j, n) film-thickness rate [m/s] on curve j's segments per TCP
-        position at the centre of pass segment f; curve 0 is the pass's foot-point curve.
-    curve_lengths: J arrays (m_j,) segment lengths of the curves [m].
-    seg_lengths: (n,) pass segment lengths [m], > 0.
-    settings: SpeedSettings.
-    Returns a SpeedResult; never worse (band σ/μ) than constant nominal speed.
+    rates: J matrices D_j (m_j, n) [m/s]; curve_lengths: J arrays (m_j,) [m];
+    seg_lengths: (n,) pass segment lengths [m], > 0; settings: SpeedSettings;
+    v_upper_m_s: optional (n + 1,) per-sample speed upper bounds [m/s] (e.g. what the robot's
+        time law can follow); where one is below the start profile, the first accepted step is
+        the best feasible profile even if the band σ/μ rises.
     """
     t0 = time.perf_counter()
     s = np.asarray(seg_lengths, dtype=float).reshape(-1)
     n = len(s)
     if n < 2 or not np.all(np.isfinite(s)) or np.any(s <= 0):
-        raise SpeedQPError(f"seg_lengths must be ≥ 2 finite lengths > 0 [m], got {n} values "
-                           f"(min {s.min() if n else float('nan')})")
+        raise SpeedQPError(f"seg_lengths must be ≥ 2 finite lengths > 0 [m], got {n} values")
     if len(rates) != len(curve_lengths) or not rates:
         raise SpeedQPError(f"{len(rates)} rate matrices for {len(curve_lengths)} curves; "
                            "give one (m_j, n) matrix per sub-offset curve")
-    D = [np.asarray(r, dtype=float) for r in rates]
-    for j, Dj in enumerate(D):
-        m = len(np.asarray(curve_lengths[j]).reshape(-1))
-        if Dj.shape != (m, n) or not np.all(np.isfinite(Dj)) or np.any(Dj < 0):
-            raise SpeedQPError(f"rate matrix {j} has shape {Dj.shape}, expected ({m}, {n}) with "
-                               "finite rates ≥ 0 [m/s]")
     ells = [np.asarray(c, dtype=float).reshape(-1) for c in curve_lengths]
+    for j, Dj in enumerate(rates):
+        Dj = np.asarray(Dj)
+        if Dj.shape != (len(ells[j]), n) or not np.all(np.isfinite(Dj)) or np.any(Dj < 0):
+            raise SpeedQPError(f"rate matrix {j} has shape {Dj.shape}, expected "
+                               f"({len(ells[j])}, {n}) with finite rates ≥ 0 [m/s]")
+    obj = build_speed_objective(rates, ells, s, settings)
+    M = obj.interp
+    K = M.shape[1]
+    vn = settings.v_nominal_m_s
+    z_lo, z_hi = settings.v_min_m_s / vn, settings.v_max_m_s / vn
+    cap = np.full(n + 1, z_hi)
+    if v_upper_m_s is not None:
+        ub = np.asarray(v_upper_m_s, dtype=float).reshape(-1)
+        if len(ub) != n + 1 or not np.all(ub > 0):
+            raise SpeedQPError(f"v_upper_m_s needs {n + 1} speeds > 0 [m/s] (one per sample)")
+        cap = np.minimum(cap, ub / vn)
+    floor = np.minimum(z_lo, 0.9 * cap)
+    dv_max = settings.a_max_m_s2 * s / (settings.v_max_m_s * vn)       # |Δy| per segment
+    Dm = M[1:] - M[:-1]
+    w_used = np.flatnonzero(obj.weights > 0)
 
-    obj = build_speed_objective(D, ells, s, settings)
-    t_const = obj.t_beg_s
-    nsd_c, per_c = band_nsd(D, ells, t_const, obj.weights)
+    def violation(y: np.ndarray) -> float:
+        v = M @ y
+        return float(max(np.max(v / cap - 1), np.max(floor / v - 1),
+                         np.max(np.abs(Dm @ y) / dv_max - 1), 0.0))
 
-    def result(t: np.ndarray, status: str, iters: int = 0) -> SpeedResult:
-        if not status.startswith("optimal"):
-            t = t_const
-        nsd_o, per_o = band_nsd(D, ells, t, obj.weights)
-        return SpeedResult(segment_times_s=t.copy(), speeds_m_s=s / t,
-                           nsd_constant_pct=100 * nsd_c, nsd_optimized_pct=100 * nsd_o,
-                           nsd_constant_per_curve_pct=100 * per_c,
-                           nsd_optimized_per_curve_pct=100 * per_o,
-                           curve_weights=obj.weights, status=status,
-                           solve_time_s=time.perf_counter() - t0,
-                           knot_indices=obj.knot_indices, osqp_iterations=iters)
+    def feasible(y: np.ndarray) -> bool:
+        return violation(y) <= CONSTRAINT_RTOL
 
-    z_lo = settings.v_nominal_m_s / settings.v_max_m_s
-    z_hi = settings.v_nominal_m_s / settings.v_min_m_s
-    if z_hi - z_lo <= 1e-9:
-        return result(t_const, "constant: speed window closed (v_min = v_max)")
+    def mean0(y: np.ndarray) -> float:
+        return float(obj.r[0] @ (obj.rates[0] @ obj.segment_times(y)))
 
-    # A z ∈ [l, u]: the equality, the knot bounds (which bound every fine segment, L being a
-    # convex interpolation), the acceleration rows through L divided by s_i s_{i+1} u_nominal.
-    K = obj.P.shape[0]
-    L = obj.interp
-    dL = L[:-1] - L[1:]
-    acc_b = settings.a_max_m_s2 * s[:-1] * settings.v_nominal_m_s / settings.v_max_m_s ** 3
-    A = sp.vstack([sp.csc_matrix(obj.eq_row[None, :]), sp.identity(K, format="csc"),
-                   sp.csc_matrix(dL)], format="csc")
-    lo = np.concatenate([[1.0], np.full(K, z_lo), -acc_b])
-    hi = np.concatenate([[1.0], np.full(K, z_hi), acc_b])
-    P = sp.triu(sp.csc_matrix(obj.P), format="csc")
-    solver = osqp.OSQP()
-    solver.setup(P, np.zeros(K), A, lo, hi, verbose=False, eps_abs=settings.eps,
-                 eps_rel=settings.eps, max_iter=settings.max_iter, polishing=True,
-                 polish_refine_iter=10, scaling=10)
-    solver.warm_start(x=np.ones(K))
-    res = solver.solve(raise_error=False)
-    iters = int(res.info.iter)
-    if res.info.status_val not in (1, 2) or res.x is None or not np.all(np.isfinite(res.x)):
-        return result(t_const, f"constant: OSQP {res.info.status}", iters)
-    z = _repair(np.asarray(res.x, dtype=float), obj.eq_row, dL, acc_b, z_lo, z_hi)
-    t = obj.segment_times(z)
-    why = _constraint_violation(D, ells, obj.k[0], t, s, settings)
-    if why:
-        return result(t_const, f"constant: {why} after OSQP {res.info.status}", iters)
-    nsd_o, _ = band_nsd(D, ells, t, obj.weights)
-    if not nsd_o < nsd_c:
-        return result(t_const, "constant: optimized profile no better than constant speed", iters)
-    # Polishing may fail silently (status_polish = -1) and leave the ADMM solution; it is kept
-    # because it re-measured feasible and better, and the status says so.
-    polished = res.info.status_polish == 1
-    return result(t, "optimal" if polished else "optimal (unpolished ADMM solution)", iters)
+    def rescale(y: np.ndarray) -> np.ndarray:
+        """Meet the average-film equality exactly by scaling all knot speeds (film ∝ 1/speed)
+        when that keeps every bound; else keep y (its QP met the equality to first order, and
+        the SQP steps drive the remainder to zero)."""
+        c = mean0(y) / obj.k[0]
+        return y * c if feasible(y * c) else y
+
+    def result(y: np.ndarray, status: str, iters: int) -> SpeedResult:
+        t = obj.segment_times(y)
+        w = obj.weights * obj.k**2
+        return SpeedResult(sample_speeds_m_s=vn * (M @ y), segment_times_s=t,
+                           nsd_constant_pct=100 * band_nsd(obj.rates, ells, s / vn, w),
+                           nsd_optimized_pct=100 * band_nsd(obj.rates, ells, t, w),
+                           curve_weights=w, knot_indices=knot_interpolation(
+                               np.concatenate([[0.0], np.cumsum(s)]), settings.n_knots)[1],
+                           objective_constant=obj.value(np.ones(K)),
+                           objective_optimized=obj.value(y), status=status, iterations=iters,
+                           solve_time_s=time.perf_counter() - t0)
+
+    y = np.ones(K)
+    start_ok = feasible(y)
+    if z_hi - z_lo <= 1e-9 and start_ok:
+        return result(y, "constant: speed window closed (v_min = v_max)", 0)
+    def merit(y: np.ndarray) -> float:
+        # eq. 2's objective plus a stiff penalty on the average-film equality, so that a step
+        # is not accepted for lowering J by letting the (second-order) equality error grow
+        return obj.value(y) + EQUALITY_PENALTY * (mean0(y) / obj.k[0] - 1.0) ** 2
+
+    J = merit(y) if start_ok else math.inf
+    # a start that breaks the speed caps is first moved onto them (restoration steps, no trust
+    # region, accepted while the violation shrinks); then the usual descent
+    tr = settings.trust_region if start_ok else 10.0
+    lo_m, hi_m = floor * (1 + BOUND_MARGIN), cap * (1 - BOUND_MARGIN)
+    accepted, converged = 0, False
+    for _ in range(settings.max_iter):
+        t, jac = obj.jacobians(y)
+        res = obj._residuals(t)
+        P = np.zeros((K, K))
+        q = np.zeros(K)
+        for j in w_used.tolist():
+            Jf = jac[j]
+            if obj.objective == "centred":
+                Jf = Jf - obj.r[j] @ Jf
+            wr = obj.weights[j] * obj.r[j]
+            P += 2.0 * Jf.T @ (wr[:, None] * Jf)
+            q += 2.0 * Jf.T @ (wr * res[j])
+        # linearized average-film equality, relative to k_0 (O(1): OSQP's tolerances are absolute)
+        eq = (obj.r[0] @ jac[0]) / obj.k[0]
+        e0 = 1.0 - (obj.r[0] @ (obj.rates[0] @ t)) / obj.k[0]
+        dm = dv_max * (1 - BOUND_MARGIN)
+        A = sp.vstack([sp.csc_matrix(M), sp.csc_matrix(Dm), sp.identity(K, format="csc"),
+                       sp.csc_matrix(eq[None, :])], format="csc")
+        lo = np.concatenate([lo_m - M @ y, -dm - Dm @ y, np.full(K, -tr), [e0]])
+        hi = np.concatenate([hi_m - M @ y, dm - Dm @ y, np.full(K, tr), [e0]])
+        lo = np.minimum(lo, hi)
+        solver = osqp.OSQP()
+        solver.setup(sp.triu(sp.csc_matrix(P + 1e-12 * np.eye(K)), format="csc"), q, A, lo, hi,
+                     verbose=False, eps_abs=settings.eps, eps_rel=settings.eps, max_iter=20000,
+                     polishing=True)
+        sol = solver.solve(raise_error=False)
+        if sol.info.status_val not in (1, 2) or sol.x is None or not np.all(np.isfinite(sol.x)):
+            tr *= 0.5
+            if tr < 1e-4:
+                break
+            continue
+        cand = rescale(y + np.asarray(sol.x))
+        J_new = merit(cand) if feasible(cand) else math.inf
+        if not math.isfinite(J) and not math.isfinite(J_new):
+            if violation(cand) < violation(y) * (1 - 1e-3):
+                y = cand                              # restoration: closer to the caps
+                continue
+            break
+        if not math.isfinite(J):
+            tr = settings.trust_region               # feasible now: descend from here
+            y, J, accepted = cand, J_new, accepted + 1
+            continue
+        if J_new < J:
+            step = float(np.max(np.abs(cand - y)))
+            y, J, accepted = cand, J_new, accepted + 1
+            if step < 1e-6 or (math.isfinite(J) and J_new > (1 - 1e-9) * J and step < 1e-3):
+                converged = True
+                break
+        else:
+            tr *= 0.5
+            if tr < 1e-4:
+                converged = True
+                break
+    if not math.isfinite(J):
+        return result(np.ones(K), "constant: no profile meets the speed upper bounds", accepted)
+    y = _project_equality(y, obj, M, Dm, dv_max, lo_m, hi_m, feasible, mean0, settings.eps)
+    if accepted == 0:
+        return result(y, "constant: no step improved eq. 2 on this band", 0)
+    return result(y, "optimal" if converged else "iteration limit", accepted)
+
+
+def _project_equality(y: np.ndarray, obj: SpeedObjective, M: np.ndarray, Dm: np.ndarray,
+                      dv_max: np.ndarray, lo_m: np.ndarray, hi_m: np.ndarray, feasible: Any,
+                      mean0: Any, eps: float) -> np.ndarray:
+    """Newton projection onto the average-film equality: the smallest knot change meeting the
+    linearized equality within the bounds, repeated while the residual shrinks (≤ 8 times)."""
+    K = len(y)
+    for _ in range(8):
+        err = abs(mean0(y) / obj.k[0] - 1)
+        if err < 1e-12:
+            break
+        _, jac = obj.jacobians(y)
+        eq = (obj.r[0] @ jac[0]) / obj.k[0]
+        e0 = 1.0 - mean0(y) / obj.k[0]
+        dm = dv_max * (1 - BOUND_MARGIN / 2)
+        A = sp.vstack([sp.csc_matrix(M), sp.csc_matrix(Dm), sp.csc_matrix(eq[None, :])],
+                      format="csc")
+        lo = np.concatenate([np.minimum(lo_m - M @ y, 0), np.minimum(-dm - Dm @ y, 0), [e0]])
+        hi = np.concatenate([np.maximum(hi_m - M @ y, 0), np.maximum(dm - Dm @ y, 0), [e0]])
+        solver = osqp.OSQP()
+        solver.setup(sp.identity(K, format="csc"), np.zeros(K), A, lo, hi, verbose=False,
+                     eps_abs=min(eps, 1e-9), eps_rel=min(eps, 1e-9), max_iter=20000,
+                     polishing=True)
+        sol = solver.solve(raise_error=False)
+        if sol.x is None or not np.all(np.isfinite(sol.x)):
+            break
+        cand = y + np.asarray(sol.x)
+        if not feasible(cand) or abs(mean0(cand) / obj.k[0] - 1) >= err:
+            break
+        y = cand
+    return y
 
 
 def optimize_pass_speed(app: Applicator, centers: npt.ArrayLike, spray_axes: npt.ArrayLike,
                         travel_dirs: npt.ArrayLike, seg_lengths: npt.ArrayLike,
-                        band: SubOffsetBand, settings: SpeedSettings) -> SpeedResult:
-    """Optimize the speed profile of one pass (paper §3, eq. 2) with OSQP.
+                        band: SubOffsetBand, settings: SpeedSettings,
+                        v_upper_m_s: npt.ArrayLike | None = None) -> SpeedResult:
+    """Optimize the speed profile of one pass (paper §3, eq. 2).
 
-    app: the deposition model.
-    centers: (n, 3) TCP positions at the middle of the n pass segments [m] (part frame).
-    spray_axes: (n, 3) unit spray directions at those positions.
-    travel_dirs: (n, 3) unit travel directions, orthogonal to the spray axes.
-    seg_lengths: (n,) pass segment lengths [m], > 0.
-    band: the sub-offset curves (curve 0 = the pass's foot-point curve), same frame as centers.
-    settings: speed limits, a_max and knot count.
-    Returns the SpeedResult; constant nominal speed (and a status saying why) whenever the QP
-    fails or does not improve the band σ/μ.
+    app: the deposition model; centers: (n, 3) TCP positions at the middle of the n pass
+    segments [m]; spray_axes: (n, 3) unit spray directions there; travel_dirs: (n, 3) unit travel
+    directions; seg_lengths: (n,) [m]; band: the sub-offset curves (curve 0 = the pass's foot
+    curve), same frame; settings: SpeedSettings; v_upper_m_s: optional (n + 1,) per-sample speed
+    upper bounds [m/s].
     """
     c = np.asarray(centers, dtype=float)
     a = np.asarray(spray_axes, dtype=float)
@@ -478,34 +524,8 @@ def optimize_pass_speed(app: Applicator, centers: npt.ArrayLike, spray_axes: npt
         if arr.shape != (n, 3) or not np.all(np.isfinite(arr)):
             raise SpeedQPError(f"{name} has shape {arr.shape}, expected finite ({n}, 3) to match "
                                f"{n} seg_lengths")
-    # One dense call for the whole band, split per curve: D_j = rate.T, (m_j, n).
     rate = deposition_rate(app, c, a, d, np.concatenate(band.points),
                            np.concatenate(band.normals))
     splits = np.cumsum([len(p) for p in band.points])[:-1]
     rates = [r.T for r in np.split(np.asarray(rate), splits, axis=1)]
-    return optimize_speed_from_rates(rates, band.lengths, s, settings)
-
-
-def sample_pass_profile(result: SpeedResult, arc_m: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
-    """Speed and time of a SpeedResult at arbitrary arc-length positions along the pass.
-
-    result: the pass's SpeedResult.
-    arc_m: (M,) arc length from the start of the first segment [m], within [0, Σ s_i].
-    Returns (speeds (M,) [m/s], times (M,) [s] from the pass start). Times integrate the
-    piecewise-constant segment speeds, so the time spent in each segment is exactly
-    `segment_times_s` (what the deposition model assumed); speeds interpolate the slowness 1/v
-    linearly between segment centres (the smooth command for the robot; constant beyond the
-    first and last centres). The two agree to first order in the segment length.
-    """
-    x = np.asarray(arc_m, dtype=float)
-    s = result.seg_lengths_m
-    t = result.segment_times_s
-    edges = np.concatenate([[0.0], np.cumsum(s)])
-    if np.any(x < -1e-9 * edges[-1]) or np.any(x > edges[-1] * (1 + 1e-9)):
-        raise SpeedQPError(f"arc positions must lie in [0, {edges[-1]:.6g}] m (the pass length)")
-    x = np.clip(x, 0.0, edges[-1])
-    seg = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(s) - 1)
-    times = np.concatenate([[0.0], np.cumsum(t)])[seg] + (x - edges[seg]) / result.speeds_m_s[seg]
-    centres = edges[:-1] + 0.5 * s
-    speeds = 1.0 / np.interp(x, centres, 1.0 / result.speeds_m_s)
-    return speeds, times
+    return optimize_speed_from_rates(rates, band.lengths, s, settings, v_upper_m_s)

@@ -132,6 +132,8 @@ class Booth:
     blend_seams: bool = True
     """Switch off the samples that paint other parts more than their own (`sim.booth_seams`)."""
     source: str | None = None
+    applicator: str | None = None
+    """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
     sweep: dict[str, Any] = field(default_factory=dict)
     """The `paintcell sweep` table (`sim.sweep_spec.SCENARIO_KEYS`); a booth sweep varies the
     line speed (`sim.sweep_booth`)."""

@@ -3,6 +3,7 @@
     name = "booth"
     resolution_m = 0.01
     fast_resolution_m = 0.025
+    applicator = "bells/my_bell.toml"                  # optional; relative to the booth file
     [body_placement]  xyz_m = [..], rpy_rad = [..]     # the body frame at conveyor position 0
     [conveyor]        speed_m_s = 0.05, direction = [1, 0, 0]   (+ mass_kg, force_max_n, ...)
     [[parts]]         part = "door", xyz_m = [..], rpy_rad = [..]   (+ [parts.planner])
@@ -33,7 +34,7 @@ from sim.scenario import Placement
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
-        "common_film_build", "film_target_um", "blend_seams", "sweep")
+        "common_film_build", "film_target_um", "blend_seams", "sweep", "applicator")
 _PART = ("part", "xyz_m", "rpy_rad", "planner")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -95,6 +96,12 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                      f"{where} [thresholds]")
     alloc = d.get("allocation")
     sweep = d.get("sweep", {})
+    app = d.get("applicator")
+    if app is not None:
+        if not isinstance(app, str):
+            raise BoothDataError(f"{where}: applicator = {app!r} must be a path to an applicator "
+                                 "TOML file, e.g. \"bells/my_bell.toml\"")
+        app = str((Path(where).parent / app).resolve())
     try:
         if sweep:
             from sim.sweep_booth import check_booth_factors
@@ -121,7 +128,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
             film_target_um=(None if d.get("film_target_um") is None
                             else _positive(d["film_target_um"], f"{where} film_target_um")),
-            source=source, sweep=dict(sweep))
+            source=source, sweep=dict(sweep), applicator=app)
     except PaintcellError as exc:
         raise BoothDataError(f"{where}: {exc}") from exc
 

@@ -303,6 +303,8 @@ def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoverageP
     from sim.pipeline import settings_from
 
     res = booth.fast_resolution_m if fast else booth.resolution_m
+    app = Applicator.default() if booth.applicator is None \
+        else Applicator.from_toml(booth.applicator)
     surfaces, plans, Ts = [], [], []
     for bp in booth.parts:
         if bp.part not in parts.PART_NAMES:
@@ -310,7 +312,7 @@ def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoverageP
                              f"({', '.join(parts.PART_NAMES)})")
         s = parts.get_part(bp.part, resolution_m=res)
         kw = {**booth.planner, **bp.planner}
-        plans.append(plan_coverage(s, Applicator.default(),
+        plans.append(plan_coverage(s, app,
                                    settings_from(PlannerSettings, kw, "planner")))
         surfaces.append(s)
         Ts.append(bp.placement.matrix)

@@ -237,6 +237,8 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
         stage("trajectory")
         robot = load_robot_for(scn)
         traj = make_trajectory(scn, robot, plan)
+        from sim.speed_feedback import robot_aware_run  # re-plan speeds the robot can follow
+        plan, traj = robot_aware_run(scn, surface, robot, plan, traj, fast)
         traj.meta["plan_digest"] = plan.content_digest()
         done("trajectory", t0)
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import itertools
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -46,8 +47,12 @@ ROOF_BOOTH = Booth(
                    HOME, rail_m=(-1.2, 1.2)),
     ),
     conveyor=Conveyor(speed_m_s=0.05),
+    planner={"width_tolerance_m": 0.0},
     trajectory={"approach_clearance_m": 0.15, "retract_clearance_m": 0.3},
     thresholds=BoothThresholds(min_bell_distance_m=0.8),
+    # the bell this cell was laid out for (see scenarios/booth.toml)
+    applicator=str(Path(__file__).resolve().parents[1] / "scenarios" / "bells"
+                   / "issue3_bell.toml"),
 )
 
 
@@ -200,6 +205,11 @@ def test_booth_toml_is_read_and_checked(tmp_path):
         load_scenario(bad)
     bad.write_text('name = "b"\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\nrail = 2\n')
     with pytest.raises(BoothDataError, match="rail = \\[lower, upper\\]"):
+        load_scenario(bad)
+    # the bell: a path relative to the booth file, shared by all robots
+    assert b.applicator == str((Path("scenarios") / "bells" / "issue3_bell.toml").resolve())
+    bad.write_text('name = "b"\napplicator = 3\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\n')
+    with pytest.raises(BoothDataError, match="applicator = 3 must be a path"):
         load_scenario(bad)
 
 

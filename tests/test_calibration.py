@@ -11,10 +11,12 @@ from scipy import integrate
 
 from planning.applicator import Applicator
 from planning.calibration import (
+    fit_applicator_from_crossing_stripes,
     fit_applicator_from_grid,
     fit_applicator_from_stripe,
     ring_line_integral,
     stripe_profile,
+    stripe_profile_across_x,
 )
 from planning.errors import ApplicatorError
 
@@ -134,3 +136,43 @@ def test_grid_shape_mismatch_names_expected_shapes() -> None:
         fit_applicator_from_grid(x, x[:30], np.ones((31, 41)), 0.25)
     with pytest.raises(ApplicatorError, match="2-D grid"):
         fit_applicator_from_grid(x, x, np.ones(41), 0.25)
+
+
+def test_crossing_stripe_is_the_quadrature_of_f_along_y() -> None:
+    x = np.array([0.0, 0.04, 0.13, 0.25])
+    v = 0.4
+    want = [integrate.quad(lambda yy, xx=xx: float(TRUE.flux(xx, yy)), -1.0, 1.0,
+                           points=[0.0], limit=200)[0] / v for xx in x]
+    np.testing.assert_allclose(stripe_profile_across_x(TRUE, x, v), want, rtol=1e-8)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_crossing_stripes_determine_sigma_x_and_sigma_y(seed: int) -> None:
+    """Two noisy stripes crossing at right angles recover A0, σx and σy apart (one stripe only
+    fixes A0·σx), and the rings, within the calibration tolerance."""
+    true = Applicator(standoff_m=0.25, a0_m_s=3e-5, sigma_x_m=0.05, sigma_y_m=0.08,
+                      ring_amplitudes_m_s=[1e-5, 6e-6], ring_radii_m=[0.12, 0.21],
+                      ring_sigmas_m=[0.04, 0.035])
+    rng = np.random.default_rng(seed)
+    y = np.linspace(-0.4, 0.4, 161)
+    ty = stripe_profile(true, y, 0.5) * (1 + 0.005 * rng.standard_normal(len(y)))
+    tx = stripe_profile_across_x(true, y, 0.5) * (1 + 0.005 * rng.standard_normal(len(y)))
+    res = fit_applicator_from_crossing_stripes(y, ty, y, tx, 0.5, 0.25)
+    assert res.success
+    d, e = res.applicator.to_dict(), true.to_dict()
+    for key in ("a0_m_s", "sigma_x_m", "sigma_y_m"):
+        assert d[key] == pytest.approx(e[key], rel=CALIBRATION_PARAM_RTOL), key
+    for key in ("ring_amplitudes_m_s", "ring_radii_m", "ring_sigmas_m"):
+        np.testing.assert_allclose(d[key], e[key], rtol=CALIBRATION_PARAM_RTOL, err_msg=key)
+    assert res.residual_rel < 0.01
+
+
+def test_crossing_stripes_bad_data_raise() -> None:
+    y = np.linspace(-0.3, 0.3, 40)
+    t = stripe_profile(TRUE, y, 0.5)
+    with pytest.raises(ApplicatorError):
+        fit_applicator_from_crossing_stripes(y, t[:-1], y, t, 0.5, 0.25)
+    with pytest.raises(ApplicatorError):
+        fit_applicator_from_crossing_stripes(y, np.zeros(40), y, np.zeros(40), 0.5, 0.25)
+    with pytest.raises(ApplicatorError):
+        fit_applicator_from_crossing_stripes(y, t, y, t, 0.0, 0.25)

@@ -59,16 +59,34 @@ def test_fig5_curve_matches_poisson_summation(sigma_y: float) -> None:
     np.testing.assert_allclose(got, want, atol=NSD_TRUNCATION_ATOL)
 
 
-def test_planar_width_is_largest_feasible_point_of_fig5() -> None:
+def _brute_force_nsd(app: Applicator, w: float) -> float:
+    """σ/μ of the film of parallel straight passes w apart on a plane, by direct 2-D quadrature of
+    the applicator's f(x, y) (independent of planning.index_width): each pass contributes
+    ∫ f(x, y − k w) dx, summed over every pass that reaches the profile."""
+    x = np.linspace(-0.6, 0.6, 1201)
+    yq = (np.arange(200) + 0.5) / 200 * w
+    k = np.arange(-int(0.6 / w) - 2, int(0.6 / w) + 3)
+    dy = (yq[:, None] - k[None, :] * w).reshape(-1)
+    stripe = np.trapezoid(app.flux(x[None, :], dy[:, None]), x, axis=1).reshape(len(yq), len(k))
+    film = stripe.sum(axis=1)
+    return float(film.std() / film.mean())
+
+
+@pytest.mark.parametrize("tolerance_m", [0.0, 0.025])
+def test_planar_width_equals_brute_force_grid_search(tolerance_m: float) -> None:
+    """The planar rule against a brute-force search over the grid of widths: the largest width
+    whose brute-force σ/μ stays ≤ u_max within ±tolerance."""
     app = Applicator.default()
-    u_max = 0.04
-    res = planar_index_width(app, 0.10, 0.45, 0.01, u_max)
+    u_max, res_m = 0.04, 0.01
+    res = planar_index_width(app, 0.20, 0.45, res_m, u_max, tolerance_m)
+    grid = np.round(np.arange(0.20 - 0.03, 0.45 + 0.03 + 1e-9, res_m), 6)
+    brute = {float(w): _brute_force_nsd(app, float(w)) for w in grid}
+    feasible = [w for w in grid if 0.20 - 1e-9 <= w <= 0.45 + 1e-9
+                and all(brute[float(v)] <= u_max for v in grid if abs(v - w) <= tolerance_m + 1e-9)]
     assert res.feasible
-    # re-measure the curve independently of the stored one
-    curve = nsd_vs_index_width(app, res.widths_m)
-    np.testing.assert_allclose(curve, res.nsd, rtol=1e-12)
-    assert curve[np.isclose(res.widths_m, res.width_m)][0] <= u_max
-    assert np.all(curve[res.widths_m > res.width_m + 1e-9] > u_max)
+    assert res.width_m == pytest.approx(max(feasible), abs=1e-9)
+    for w, c in zip(res.widths_m, res.nsd, strict=True):
+        assert c == pytest.approx(brute[float(np.round(w, 6))], abs=NSD_TRUNCATION_ATOL)
 
 
 def test_planar_width_infeasible_returns_min_and_flags() -> None:
@@ -130,8 +148,15 @@ def test_search_widths_on_plane_reproduces_uniform_spacing_nsd() -> None:
     w = 0.2
     known = -w * np.arange(1, 6)
     res = search_widths(film, step, g0, point_s, known, np.array([w]), np.array([w]), 4, w)
-    want = nsd_vs_index_width(app, [w])[0]
-    assert res.best_nsd[0] == pytest.approx(want, abs=NSD_TRUNCATION_ATOL + 2e-3)
+    # truth: the film of the same passes by a 2-D quadrature of f (not the Fig. 5 function)
+    x = np.linspace(-0.6, 0.6, 1201)
+    prof_s = point_s[(point_s >= -w - 1e-9) & (point_s <= w + 1e-9)]
+    passes = np.concatenate([known, [0.0], w * np.arange(1, 5)])
+    dy = (prof_s[:, None] - passes[None, :]).reshape(-1)
+    film_q = np.trapezoid(app.flux(x[None, :], dy[:, None]), x, axis=1).reshape(len(prof_s), -1)
+    total = film_q.sum(axis=1)
+    # the module integrates over ±1.25 footprint radii, the truth over ±0.6 m (observed 1.5e-6)
+    assert res.best_nsd[0] == pytest.approx(total.std() / total.mean(), abs=1e-5)
 
 
 def test_choose_constant_width_prefers_large_feasible_and_penalizes_change() -> None:

@@ -216,3 +216,27 @@ def test_reversing_offset_is_refused() -> None:
     bad[5:7, 0] = bad[5:7, 0][::-1] + [0.15, -0.15]     # a swallowtail
     with pytest.raises(PlanError, match="self-intersects"):
         check_offset_order(src, bad, "offset +1")
+
+
+def test_sphere_cap_start_curve_is_a_great_circle_through_the_axis() -> None:
+    """Analytic sphere cap (R = 0.6 m, 60° half-angle): ∫K dA = 2π(1 − cos 60°) = π; by
+    symmetry the Gaussian-curvature divider is the plane through the cap's axis, so the start
+    curve is a great circle: its points lie on the sphere (to the facet sag e²/8R of the 24 mm
+    icosphere edges, 1.2e-4 m) in a plane through the centre."""
+    import trimesh
+
+    from planning.surface import Surface
+
+    radius = 0.6
+    ico = trimesh.creation.icosphere(subdivisions=5, radius=radius)
+    keep = ico.triangles_center[:, 2] > radius * np.cos(np.radians(60))
+    cap = trimesh.Trimesh(ico.vertices, ico.faces[keep])
+    cap.remove_unreferenced_vertices()
+    sc = select_start_curve(Surface.from_mesh(cap, name="cap"))
+    assert "gaussian-curvature divider" in sc.rule
+    assert sc.total_k_rad == pytest.approx(np.pi, rel=1e-3)         # code: 5e-4
+    assert abs(sc.plane_offset_m) < 1e-9                               # plane through the centre
+    assert abs(sc.plane_normal[2]) < 1e-9                              # ... and the axis
+    sag = 0.024**2 / (8 * radius)
+    np.testing.assert_allclose(np.linalg.norm(sc.points, axis=1), radius, atol=1.5 * sag)
+    np.testing.assert_allclose(sc.points @ sc.plane_normal, sc.plane_offset_m, atol=1e-12)

@@ -1,0 +1,78 @@
+"""Robot-aware speeds (sim.speed_feedback): caps measured from a joint program's TCP speeds, mapped
+onto the plan's samples in each pass's generation direction, and obeyed by the re-plan."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+
+from planning import parts
+from planning.applicator import Applicator
+from planning.coverage import PlannerSettings, plan_coverage
+from sim.speed_feedback import SLOW_REL, achieved_speeds, speed_caps
+
+APP = Applicator.default()
+ST = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=8, film_guard=False)
+
+
+def _program(plan, slow: dict[int, tuple[float, float, float]], dt: float = 0.002):
+    """A stand-in joint program: each pass followed at its planned speed, except where `slow`
+    {pass: (s0, s1, factor)} scales the speed down over the arc [s0, s1] [m]."""
+    t_all, s_all, i_all = [], [], []
+    t0 = 0.0
+    for i, p in enumerate(plan.passes):
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                                 axis=1))])
+        s_fine = np.linspace(0.0, s_plan[-1], 4000)
+        v = np.interp(s_fine, s_plan, p.speeds_m_s)
+        if i in slow:
+            s0, s1, f = slow[i]
+            v = np.where((s_fine >= s0) & (s_fine <= s1), f * v, v)
+        t = np.concatenate([[0.0], np.cumsum(2 * np.diff(s_fine) / (v[1:] + v[:-1]))])
+        tq = np.arange(0.0, t[-1], dt)
+        t_all.append(t0 + tq)
+        s_all.append(np.interp(tq, t, s_fine))
+        i_all.append(np.full(len(tq), i))
+        t0 += t[-1] + 1.0
+    return SimpleNamespace(t_s=np.concatenate(t_all), s_pass_m=np.concatenate(s_all),
+                           pass_index=np.concatenate(i_all))
+
+
+def test_caps_follow_the_slowdown_in_generation_direction_and_the_replan_obeys_them() -> None:
+    s = parts.panel(0.04)
+    plan = plan_coverage(s, APP, ST)
+    # an unslowed program reaches the plan's speeds: no caps
+    free = _program(plan, {})
+    for p, v in zip(plan.passes, achieved_speeds(plan, free), strict=True):
+        np.testing.assert_allclose(v, p.speeds_m_s, rtol=1e-2)   # one-sided ds/dt at the ends
+    caps, n_new, _ = speed_caps(plan, free)
+    assert caps == {} and n_new == 0
+    # pass 1 (run reversed) slowed to 70 % over 0.3-0.5 m of its executed arc
+    prog = _program(plan, {1: (0.3, 0.5, 0.7)})
+    caps, n_new, worst = speed_caps(plan, prog)
+    assert set(caps) == {plan.passes[1].side} and n_new > 0
+    assert 25.0 <= worst <= 31.0
+    p = plan.passes[1]
+    cap_exec = caps[p.side][::-1]                       # back to execution order
+    s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                             axis=1))])
+    inside = (s_plan > 0.34) & (s_plan < 0.46)
+    assert np.all(cap_exec[inside] < 0.75 * p.speeds_m_s[inside])
+    outside = (s_plan < 0.2) | (s_plan > 0.6)
+    assert np.all(np.isinf(cap_exec[outside]))
+    assert SLOW_REL < 0.3
+    # the re-plan keeps the geometry and meets the caps at every sample
+    finite = {k: np.where(np.isfinite(v), v, ST.v_max_m_s) for k, v in caps.items()}
+    again = plan_coverage(s, APP, ST, speed_caps_m_s=finite)
+    q = again.passes[1]
+    np.testing.assert_allclose(q.positions, p.positions)
+    assert np.all(q.speeds_m_s <= finite[p.side][::-1] * (1 + 1e-6))
+    # caps that do not fit the plan are refused with the reason
+    try:
+        plan_coverage(s, APP, replace(ST, sample_spacing_m=0.05), speed_caps_m_s=finite)
+    except Exception as e:  # noqa: BLE001 - the planner's PlanError
+        assert "do not fit" in str(e)
+    else:
+        raise AssertionError("caps of another plan were accepted")
