@@ -237,7 +237,6 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
         stage("trajectory")
         robot = load_robot_for(scn)
         traj = make_trajectory(scn, robot, plan)
-        from sim.speed_feedback import robot_aware_run  # re-plan speeds the robot can follow
         plan, traj = robot_aware_run(scn, surface, robot, plan, traj, fast)
         traj.meta["plan_digest"] = plan.content_digest()
         done("trajectory", t0)
@@ -271,6 +270,26 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
         else:
             bar.update(1)
     return result
+
+
+def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, traj: Any,
+                    fast: bool = False) -> tuple[CoveragePlan, Any]:
+    """Robot-aware speeds (`sim.speed_feedback.robot_aware_plan`) with the scenario's applicator,
+    planner settings and trajectory builder; the rounds are recorded in the program's
+    meta["speed_feedback"]."""
+    from sim.speed_feedback import robot_aware_plan
+
+    # the planner covers a real part's skin (as `sim.pipeline.make_plan` does)
+    res = robot_aware_plan(surface.region_surface(("skin",)), load_applicator(scn),
+                           planner_settings(scn, fast), plan, traj,
+                           lambda p: make_trajectory(scn, robot, p),
+                           T_world_part=scn.part_placement.matrix)
+    res.trajectory.meta["speed_feedback"] = {
+        "rounds": res.rounds,
+        "capped_passes": sorted(int(k) for k in res.caps_m_s),
+        "capped_samples": int(sum(int(np.sum(v < np.inf)) for v in res.caps_m_s.values())),
+    }
+    return res.plan, res.trajectory
 
 
 def _servo(scn: Scenario) -> Any:

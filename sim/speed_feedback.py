@@ -186,22 +186,3 @@ def robot_aware_plan(surface: Surface, app: Applicator, settings: PlannerSetting
         res.rounds.append({"capped_samples": 0.0, "max_deficit_pct": worst,
                            "cycle_s": float(res.trajectory.t_s[-1])})
     return res
-
-
-def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, traj: Any,
-                    fast: bool = False) -> tuple[CoveragePlan, Any]:
-    """The pipeline's hook: `robot_aware_plan` with the scenario's applicator, planner settings
-    and trajectory builder; the rounds are recorded in the program's meta["speed_feedback"]."""
-    from sim.pipeline import load_applicator, make_trajectory, planner_settings
-
-    # the planner covers a real part's skin (as `sim.pipeline.make_plan` does)
-    res = robot_aware_plan(surface.region_surface(("skin",)), load_applicator(scn),
-                           planner_settings(scn, fast), plan, traj,
-                           lambda p: make_trajectory(scn, robot, p),
-                           T_world_part=scn.part_placement.matrix)
-    res.trajectory.meta["speed_feedback"] = {
-        "rounds": res.rounds,
-        "capped_passes": sorted(int(k) for k in res.caps_m_s),
-        "capped_samples": int(sum(int(np.sum(v < np.inf)) for v in res.caps_m_s.values())),
-    }
-    return res.plan, res.trajectory
