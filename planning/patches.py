@@ -174,7 +174,8 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
 
     Blending: the seam share (`ownership_brush_off`) is chosen among `SEAM_SHARES` as the one
     whose film over the whole part (deposition model on the real mesh) has the smallest σ/μ."""
-    from planning.coverage import PlannerSettings, plan_coverage
+    from planning.coverage_family import plan_family
+    from planning.coverage_settings import PlannerSettings
     from planning.deposition import thickness
     from planning.metrics import uniformity
 
@@ -185,7 +186,7 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
     pts = patches_of(surface, labels)
     raw, vols = [], []
     for pt in pts:                          # a few patches per part
-        pl = plan_coverage(pt.surface, app, st)
+        pl = plan_family(pt.surface, app, st)
         own = np.zeros(len(surface.vertices), bool)
         own[pt.vertex_ids] = True
         raw.append(list(pl.passes))
