@@ -1,4 +1,4 @@
-"""One film build over the whole body (`sim.booth_run` applies it after planning the parts).
+"""One film build over the whole body (`sim.booth_programs` applies it after planning the parts).
 
 Each library part is planned on its own: the planner picks its pass spacing from the part's
 curvature, so at the same bell flow and nominal speed the parts get different film builds

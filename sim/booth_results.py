@@ -67,7 +67,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
                   jobs: dict[int, Job], part_counts: list[int]) -> ValidationReport:
     """The booth's `ValidationReport` (module doc). trajs0: each robot's own program (static, not
     delayed); trajs: the tracked programs on the booth clock. part_counts: the parts' vertex
-    counts, in the order `sim.booth_run.merge_surfaces` stacked them into `body`."""
+    counts, in the order `sim.booth_film.merge_surfaces` stacked them into `body`."""
     from sim.booth_film import overlap_mask
 
     areas = body.vertex_areas

@@ -1,4 +1,4 @@
-"""Seams between the body's parts blended (`sim.booth_run` applies it after the film build).
+"""Seams between the body's parts blended (`sim.booth_programs` applies it after the film build).
 
 Each part is planned on its own, so its edge passes and overspray paint whatever lies next to it
 on the body: a neighbouring part's edge (the door's top edge next to the roof, the fender next to

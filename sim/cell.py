@@ -31,21 +31,20 @@ import numpy.typing as npt
 from planning.errors import PaintcellError
 from planning.surface import Surface
 from planning.transforms import check_pose, quat_wxyz_from_matrix
+from sim.cell_part import add_part_geoms
+from sim.cell_sensors import BOOTH_BODY, PART_BODY, SELF_CONTACT_SENSOR, add_contact_sensors
+
+__all__ = ["BOOTH_BODY", "PART_BODY", "ROBOT_PREFIX", "SELF_CONTACT_SENSOR", "TIMESTEP_S",
+           "CameraSpec", "Cell", "CellError", "RobotLike", "add_contact_sensors", "add_part_geoms",
+           "build_cell"]
 
 #: physics and control rate: 1 kHz (DESIGN.md, execution).
 TIMESTEP_S = 1e-3
 #: prefix of every name that comes from the robot's MJCF inside the cell.
 ROBOT_PREFIX = "robot/"
-PART_BODY = "part"
-BOOTH_BODY = "booth"
-#: contact sensor data: found (1) + dist (8) (MuJoCo mjtConDataField bits), reduce = mindist.
-_CONTACT_DATA_FOUND_DIST = 1 | 8
-_CONTACT_REDUCE_MINDIST = 1
 #: contype/conaffinity bit shared by the robot's collision geoms, the part slabs and the floor
 #: (MuJoCo's default 1): any two of them collide, the robot's links with each other included.
 _COLLISION_BIT = 1
-#: name of the robot-vs-robot (self-collision) contact sensor.
-SELF_CONTACT_SENSOR = "contact_self"
 
 
 class CellError(PaintcellError):
@@ -159,49 +158,6 @@ def _camera_quat(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
     return quat_wxyz_from_matrix(np.column_stack([x, y, z]))
 
 
-
-def add_part_geoms(spec: mujoco.MjSpec, part: mujoco.MjsBody, surface: Surface,
-                   collision_piece_m: float, shell_thickness_m: float) -> None:
-    """Add the part's geoms to body `part`: the exact surface as a visual mesh (no contacts) and
-    thin convex collision slabs (`_collision_pieces`, pieces ~collision_piece_m [m] across,
-    shell_thickness_m [m] thick)."""
-    vis = spec.add_mesh(name="part_surface")
-    vis.uservert = np.ascontiguousarray(surface.vertices, float).ravel()
-    vis.userface = np.ascontiguousarray(surface.faces, np.int32).ravel()
-    vis.usernormal = np.ascontiguousarray(surface.normals, float).ravel()
-    vis.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-    part.add_geom(name="part_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname="part_surface",
-                  contype=0, conaffinity=0, group=1, density=0.0, rgba=[0.75, 0.77, 0.8, 1.0])
-    for i, cloud in enumerate(_collision_pieces(surface, collision_piece_m, shell_thickness_m)):
-        m = spec.add_mesh(name=f"part_collision_{i}")
-        m.uservert = np.ascontiguousarray(cloud, float).ravel()
-        m.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-        part.add_geom(name=f"part_collision_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
-                      meshname=f"part_collision_{i}", group=3, density=0.0,
-                      rgba=[0.5, 0.5, 0.5, 0.3])
-
-def _collision_pieces(surface: Surface, piece_m: float, thickness_m: float) -> list[np.ndarray]:
-    """Vertex clouds (part frame) of thin convex slabs that cover the shell.
-
-    Faces are binned by centroid into cubes of edge `piece_m`; each bin's vertices are offset by
-    ±thickness/2 along their normals; MuJoCo takes the convex hull of each cloud. The hull of a
-    piece deviates from the shell by at most its sagitta, piece²/(8 R) (1.3 mm for 0.1 m on R=1 m).
-    """
-    v, f, nrm = surface.vertices, surface.faces, surface.normals
-    cent = v[f].mean(axis=1)
-    key = np.floor((cent - cent.min(0)) / piece_m).astype(np.int64)
-    _, inv = np.unique(key, axis=0, return_inverse=True)
-    order = np.argsort(inv.ravel(), kind="stable")
-    bounds = np.searchsorted(inv.ravel()[order], np.arange(inv.max() + 2))
-    half = 0.5 * thickness_m
-    pieces = []
-    for b in range(len(bounds) - 1):
-        faces_b = f[order[bounds[b]:bounds[b + 1]]]
-        idx = np.unique(faces_b)
-        pieces.append(np.vstack([v[idx] + half * nrm[idx], v[idx] - half * nrm[idx]]))
-    return pieces
-
-
 def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, booth: bool = True,
                cameras: Sequence[CameraSpec] = (),
                collision_piece_m: float = 0.1, shell_thickness_m: float = 0.002) -> Cell:
@@ -215,7 +171,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     cameras: fixed cameras compiled into the model (default none: renders frame the part with
         `sim.render.part_cameras`, free cameras that need nothing in the model).
     collision_piece_m, shell_thickness_m: size of the convex collision slabs and their thickness
-        [m] (see `_collision_pieces`).
+        [m] (see `sim.cell_part._collision_pieces`).
     Raises CellError when the robot MJCF lacks a named joint, site or body, or the poses are bad.
     """
     if not isinstance(surface, Surface):
@@ -327,27 +283,6 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
                         f"(tcp site {robot.tcp_site_name!r}, base {robot.base_body_name!r})"
                         ) from exc
     return _index_cell(model, spec, robot, surface, T_world_part, T_world_base, cams, booth)
-
-
-def add_contact_sensors(spec: mujoco.MjSpec, subtree_body: str, booth: bool) -> None:
-    """Contact sensors of the robot subtree rooted at `subtree_body` (MuJoCo body name): one per
-    partner (the part, and the booth floor when `booth`) and one for self-contact.
-
-    Self-collision: the subtree against the same subtree matches the contacts whose two geoms
-    both belong to it (MuJoCo 4.0 contact-sensor matching: each side's criterion must hold for one
-    of the two geoms). Only contacts MuJoCo generated are seen, so the filtered (parent-child,
-    welded) and excluded pairs never count. In a booth the subtree holds every robot, so
-    robot-robot contacts are self-contacts.
-    """
-    for partner in [PART_BODY] + ([BOOTH_BODY] if booth else []):
-        spec.add_sensor(name=f"contact_{partner}", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                        objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=subtree_body,
-                        reftype=mujoco.mjtObj.mjOBJ_BODY, refname=partner,
-                        intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
-    spec.add_sensor(name=SELF_CONTACT_SENSOR, type=mujoco.mjtSensor.mjSENS_CONTACT,
-                    objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=subtree_body,
-                    reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=subtree_body,
-                    intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
 
 
 def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, surface: Surface,

@@ -7,8 +7,8 @@ slide) is commanded along v + δv, so the body drifts from where the programs ex
 δv · (t − t_ref) — behind or ahead of the bells — the collisions see it, and the executed film
 (the executed TCP against where the carrier really was) counts it as conveyor loss.
 
-The client builds the booth's programs once (`sim.booth_run.booth_programs`) and sends them with
-the plan and trajectory films (which the line speed does not change) to every worker once. A
+The client builds the booth's programs once (`sim.booth_programs.booth_programs`) and sends them
+with the plan and trajectory films (which the line speed does not change) to every worker once. A
 worker loads the robots and compiles the booth cell on its first sample and keeps them.
 """
 
@@ -34,7 +34,7 @@ BOOTH_EXTRA = tuple(BOOTH_METRICS)
 class BoothPayload:
     """What every sample of a booth sweep shares (pickled to each worker once).
 
-    programs: `sim.booth_run.BoothPrograms` without robot models; films: plan and trajectory
+    programs: `sim.booth_programs.BoothPrograms` without robot models; films: plan and trajectory
     films (R, N) [m] on `programs.body.vertices`.
     """
 
@@ -59,7 +59,7 @@ def check_booth_factors(names: tuple[str, ...]) -> None:
 def prepare_booth_payload(booth: Any, names: tuple[str, ...], digest: str, fast: bool,
                           mode: str) -> BoothPayload:
     """Build the booth's programs and the two speed-independent films, once."""
-    from sim.booth_run import booth_programs
+    from sim.booth_programs import booth_programs
 
     check_booth_factors(names)
     progs = booth_programs(booth, fast)
@@ -106,7 +106,7 @@ def _context(payload: BoothPayload) -> _BoothContext:
     ctx = _CONTEXTS.get(payload.digest)
     if ctx is None:
         from sim.booth_cell import build_booth_cell
-        from sim.booth_run import _load_robots
+        from sim.booth_programs import _load_robots
         from sim.execute import ServoSettings
         from sim.pipeline import settings_from
 

@@ -28,8 +28,9 @@ from sim.booth import (
     stagger_starts,
 )
 from sim.booth_film import gun_in_body, plan_gun_in_body
+from sim.booth_programs import _load_robots
 from sim.booth_rapid import booth_rapid_modules
-from sim.booth_run import _load_robots, run_booth
+from sim.booth_run import run_booth
 from sim.conveyor import Conveyor
 from sim.scenario import Placement
 
