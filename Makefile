@@ -24,7 +24,7 @@ test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"
 
 lint: $(STAMP)
-	$(BIN)/ruff check planning robots sim scenarios tests benchmarks
+	$(BIN)/ruff check paintcell tests benchmarks
 	$(BIN)/mypy
 
 bench: $(STAMP)

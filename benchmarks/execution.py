@@ -1,7 +1,8 @@
 """Benchmark of MuJoCo execution and validation on the door program.
 
 Builds the door scenario's plan and 1 kHz joint program (`scenarios/door.toml` through
-`sim.pipeline`: the ABB-style arm, the door upright in front of it), then times, best of `--repeat`:
+`paintcell.sim.app.pipeline`: the ABB-style arm, the door upright in front of it), then times, best
+of `--repeat`:
 building the cell, servo execution (split into the inverse-dynamics feed-forward and the rollout),
 kinematic replay, and the validate step (three thickness maps: plan, trajectory, executed; the
 trajectory map alone is timed too). Real-time factor = simulated time ÷ wall time. Prints the
@@ -22,13 +23,13 @@ from typing import Any
 
 import numpy as np
 
-from planning.deposition import thickness
-from sim.cell import build_cell
-from sim.execute import ServoSettings, execute
-from sim.execute_models import _set_torque_actuators, inverse_dynamics
-from sim.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
-from sim.scenario_files import load_scenario
-from sim.validate import trajectory_gun_samples, validate
+from paintcell.planning.paint.deposition import thickness
+from paintcell.sim.app.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
+from paintcell.sim.app.scenario_files import load_scenario
+from paintcell.sim.execution.cell import build_cell
+from paintcell.sim.execution.execute import ServoSettings, execute
+from paintcell.sim.execution.execute_models import _set_torque_actuators, inverse_dynamics
+from paintcell.sim.validation.validate import trajectory_gun_samples, validate
 
 DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
 

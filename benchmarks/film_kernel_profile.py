@@ -1,6 +1,7 @@
 """Where the compiled film kernel's time goes, and what a change of it buys, in one process.
 
-Variants of `planning.deposition_jit` are compiled from its own source with one change each
+Variants of `paintcell.planning.paint.deposition_jit` are compiled from its own source with one
+change each
 (cache off) and timed on the door problem of `benchmarks/deposition.py` (door at 5 mm under a
 raster of 2,140 gun samples, the same evaluated pairs for every variant), one thread,
 round-robin, best CPU time of --rounds rounds (other jobs share this machine: CPU time, not
@@ -26,10 +27,10 @@ import types
 
 import numpy as np
 
-import planning
-from planning import deposition as dep
-from planning import deposition_jit as jit
-from planning.applicator import Applicator
+import paintcell.planning
+from paintcell.planning.paint import deposition as dep
+from paintcell.planning.paint import deposition_jit as jit
+from paintcell.planning.paint.applicator import Applicator
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from deposition import door_points, evaluated_pairs, raster  # noqa: E402
@@ -50,7 +51,8 @@ VARIANTS: dict[str, list[tuple[str, str]]] = {
 
 
 def compile_variant(name: str, subs: list[tuple[str, str]]) -> types.ModuleType:
-    """`planning.deposition_jit` from its source with `subs` applied (no on-disk cache)."""
+    """`paintcell.planning.paint.deposition_jit` from its source with `subs` applied (no on-disk
+    cache)."""
     src = inspect.getsource(jit).replace("cache=True", "cache=False")
     for old, new in subs:
         if old not in src:
@@ -77,12 +79,12 @@ def main() -> None:
     mods = {k: compile_variant(k, v) for k, v in VARIANTS.items()}
     best = {k: np.inf for k in mods}
     err = {}
-    shipped = sys.modules["planning.deposition_jit"]
+    shipped = sys.modules["paintcell.planning.paint.deposition_jit"]
     try:
         for rnd in range(args.rounds + 1):           # round 0 compiles
             for k, mod in mods.items():
-                sys.modules["planning.deposition_jit"] = mod
-                planning.deposition_jit = mod  # type: ignore[attr-defined]
+                sys.modules["paintcell.planning.paint.deposition_jit"] = mod
+                paintcell.planning.paint.deposition_jit = mod  # type: ignore[attr-defined]
                 c0 = time.process_time()
                 out = dep.thickness(app, gun, p, n, backend="numba", threads=1)
                 c = time.process_time() - c0
@@ -91,8 +93,8 @@ def main() -> None:
                 else:
                     best[k] = min(best[k], c)
     finally:
-        sys.modules["planning.deposition_jit"] = shipped
-        planning.deposition_jit = shipped  # type: ignore[attr-defined]
+        sys.modules["paintcell.planning.paint.deposition_jit"] = shipped
+        paintcell.planning.paint.deposition_jit = shipped  # type: ignore[attr-defined]
     base = best["shipped"]
     for k in mods:
         print(f"{k:<34} CPU {best[k] * 1e3:7.1f} ms  {pairs / best[k] / 1e6:6.1f} M evaluated "

@@ -11,10 +11,10 @@ import time
 
 import numpy as np
 
-from planning.plan import tcp_frames
-from robots import load_robot
-from robots.ik import dls, opw_branches, solve_path
-from robots.opw import inverse
+from paintcell.planning.coverage.plan import tcp_frames
+from paintcell.robots import load_robot
+from paintcell.robots.ik import dls, opw_branches, solve_path
+from paintcell.robots.opw import inverse
 
 
 def door_paths(n_pass: int = 5, n_per_pass: int = 400) -> list[np.ndarray]:

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from planning.mesh_io import read_part_file
-from planning.mesh_repair import remesh, repair
-from planning.part_import import split_pieces
-from planning.regions import face_areas
+from paintcell.planning.surface.mesh_io import read_part_file
+from paintcell.planning.surface.mesh_repair import remesh, repair
+from paintcell.planning.surface.part_import import split_pieces
+from paintcell.planning.surface.regions import face_areas
 
 MESH = Path(__file__).resolve().parents[1] / ".." / "shared" / "meshes" / \
     "bezier_part_scan_12_pieces.ply"

@@ -1,4 +1,5 @@
-"""Placement search time: margin-only ranking vs the motion score (robots.placement_score).
+"""Placement search time: margin-only ranking vs the motion score
+(paintcell.robots.placement_score).
 
 Door plan (library door at 25 mm, the default planner) placed as scenarios/door.toml places it;
 `find_base_pose` over the default facing grid (765 bases) for the ABB arm, and over a 2 × 3 grid
@@ -12,17 +13,17 @@ import time
 
 import numpy as np
 
-from planning.applicator import Applicator
-from planning.coverage import PlannerSettings, plan_coverage
-from planning.parts import get_part
-from robots import load_robot
-from robots.placement import facing_grid, find_base_pose
+from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.surface.parts import get_part
+from paintcell.robots import load_robot
+from paintcell.robots.placement import facing_grid, find_base_pose
 
 
 def main() -> None:
     from pathlib import Path
 
-    from sim.scenario_files import load_scenario
+    from paintcell.sim.app.scenario_files import load_scenario
 
     SCENARIO = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "door.toml")
 

@@ -1,7 +1,7 @@
 """Per-part table of the real-part scenarios (issue 12): film, loss, tolerance window, cycle time,
 honest reachability, joint jumps and collisions — the README table, reproduced.
 
-Each scenario runs as `python -m sim.cli run SCENARIO [--fast] --out DIR` in its own process (the
+Each scenario runs as `python -m paintcell run SCENARIO [--fast] --out DIR` in its own process (the
 way `paintcell check` runs it) and the table is read back from the run's metrics.json, so the
 figures are exactly the ones a user gets from `paintcell run`.
 
@@ -11,7 +11,8 @@ figures are exactly the ones a user gets from `paintcell run`.
 
 Columns: planned and executed σ/μ over the judged skin [%]; loss = executed − planned σ/μ [pp];
 area of the judged skin whose executed film lies within ±10 % of its mean [%]; executed cycle
-time [s]; honest reachability [%] (`sim.honest_reach`: IK reached, no jump or flip into the pose,
+time [s]; honest reachability [%] (`paintcell.sim.validation.honest_reach`: IK reached, no jump or
+flip into the pose,
 no contact, time law ≥ 90 % of the planned speed); poses reached through a joint jump or a
 configuration flip; collision events; and the PASS/FAIL of the scenario's own thresholds.
 """
@@ -45,7 +46,7 @@ _COLS = (("planned σ/μ %", "planned_nsd_pct", "{:.2f}"),
 
 def run_one(scenario: Path, *, fast: bool, out: Path) -> tuple[dict, float]:
     """Run one scenario in a child process; its metrics.json and the wall time [s]."""
-    cmd = [sys.executable, "-m", "sim.cli", "run", str(scenario), "--out", str(out),
+    cmd = [sys.executable, "-m", "paintcell", "run", str(scenario), "--out", str(out),
            "--no-report"]
     if fast:
         cmd.append("--fast")

@@ -1,6 +1,9 @@
-"""Benchmark of `sim.trajectory.build_program` on the whole door program (ABB-style arm).
+"""Benchmark of `paintcell.sim.motion.trajectory.build_program` on the whole door program (ABB-style
+arm).
 
-The door plan comes from `planning.coverage.plan_coverage(planning.parts.door(), default bell,
+The door plan comes from
+`paintcell.planning.coverage.coverage.plan_coverage(paintcell.planning.surface.parts.door(), default
+bell,
 default PlannerSettings())` (its planning time is printed but is not part of the trajectory
 build). The door stands upright 1.55 m in front of the arm's base, centre 1.1 m high, painted
 side toward the robot, passes horizontal (the placement of benchmarks/execution.py). Prints the
@@ -17,11 +20,11 @@ import time
 
 import numpy as np
 
-from planning import parts
-from planning.applicator import Applicator
-from planning.coverage import PlannerSettings, plan_coverage
-from robots import load_robot
-from sim.trajectory import TrajectorySettings, build_program
+from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.surface import parts
+from paintcell.robots import load_robot
+from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
 
 # The door placement of benchmarks/execution.py: standing, painted side (part +z) toward the
 # robot (world −x), part x (extrusion, the pass direction) horizontal along world −y, centre

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from planning.applicator import FOOTPRINT_REL, Applicator
-from planning.errors import ApplicatorError
+from paintcell.planning.errors import ApplicatorError
+from paintcell.planning.paint.applicator import FOOTPRINT_REL, Applicator
 
 from .helpers import DEPOSITION_EXACT_RTOL
 
@@ -116,7 +116,8 @@ def test_arrays_are_read_only() -> None:
 
 
 def test_default_bell_matches_its_documented_properties() -> None:
-    """The TOML's claims, re-measured independently of planning.index_width: the stripe from the
+    """The TOML's claims, re-measured independently of paintcell.planning.coverage.index_width: the
+    stripe from the
     quadrature of f over x, the raster σ/μ by periodic summation of that stripe."""
     app = Applicator.default()
     assert app.name == "default_bell"

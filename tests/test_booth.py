@@ -1,4 +1,5 @@
-"""The booth (sim.booth, sim.booth_run, sim.booth_rapid): superposition of the robots' films,
+"""The booth (paintcell.sim.booth.booth, paintcell.sim.booth.booth_run,
+paintcell.sim.booth.booth_rapid): superposition of the robots' films,
 allocation and staggering against brute force, RAPID modules per robot.
 
 (`paintcell check scenarios/ --fast` runs the four-robot scenarios/booth.toml end to end in CI.)
@@ -14,8 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planning.deposition import GunSamples, thickness
-from sim.booth import (
+from paintcell.planning.paint.deposition import GunSamples, thickness
+from paintcell.sim.app.scenario import Placement
+from paintcell.sim.booth.booth import (
     STAGGER_STEP_S,
     BodyPart,
     Booth,
@@ -27,12 +29,11 @@ from sim.booth import (
     estimate_s,
     stagger_starts,
 )
-from sim.booth_film import gun_in_body, plan_gun_in_body
-from sim.booth_programs import _load_robots
-from sim.booth_rapid import booth_rapid_modules
-from sim.booth_run import run_booth
-from sim.conveyor import Conveyor
-from sim.scenario import Placement
+from paintcell.sim.booth.booth_film import gun_in_body, plan_gun_in_body
+from paintcell.sim.booth.booth_programs import _load_robots
+from paintcell.sim.booth.booth_rapid import booth_rapid_modules
+from paintcell.sim.booth.booth_run import run_booth
+from paintcell.sim.booth.conveyor import Conveyor
 
 HOME = (0.0, 0.0, -0.6, 0.3, 0.0, 0.9, 0.0)
 #: relative round-off of a sum of O(10^4) positive deposition terms in float64.
@@ -192,8 +193,8 @@ def test_stagger_keeps_the_clearance_and_is_minimal():
 def test_booth_toml_is_read_and_checked(tmp_path):
     """scenarios/booth.toml loads as a Booth through the scenario loader; unknown keys and a
     malformed rail are refused with one line naming the file and the valid keys."""
-    from sim.booth_data import BoothDataError
-    from sim.scenario_files import load_scenario
+    from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.sim.booth.booth_data import BoothDataError
 
     b = load_scenario("scenarios/booth.toml")
     assert isinstance(b, Booth) and [r.name for r in b.robots] == ["side_a", "side_b", "roof_l",
@@ -217,7 +218,7 @@ def test_booth_toml_is_read_and_checked(tmp_path):
 def test_booth_figure_is_written(roof_booth, tmp_path):
     from PIL import Image
 
-    from sim.booth_plots import booth_figure
+    from paintcell.sim.booth.booth_plots import booth_figure
 
     path = booth_figure(roof_booth, tmp_path / "booth.png")
     with Image.open(path) as im:
@@ -232,8 +233,8 @@ def test_booth_report_in_a_browser(roof_booth, tmp_path):
 
     from PIL import Image
 
-    from sim.booth_report import _ZONE_COLOURS
-    from sim.booth_results import write_booth_results
+    from paintcell.sim.booth.booth_report import _ZONE_COLOURS
+    from paintcell.sim.booth.booth_results import write_booth_results
 
     write_booth_results(roof_booth, tmp_path, _load_robots(ROOF_BOOTH))
     m = json.loads((tmp_path / "metrics.json").read_text())

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from planning.applicator import Applicator
-from planning.calibration import (
+from paintcell.planning.errors import ApplicatorError
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.paint.calibration import (
     fit_applicator_from_crossing_stripes,
     fit_applicator_from_grid,
     fit_applicator_from_stripe,
@@ -18,7 +19,6 @@ from planning.calibration import (
     stripe_profile,
     stripe_profile_across_x,
 )
-from planning.errors import ApplicatorError
 
 from .helpers import CALIBRATION_PARAM_RTOL
 

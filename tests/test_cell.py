@@ -1,4 +1,5 @@
-"""sim.cell: the MuJoCo paint cell compiles, holds what execution needs, and runs warning-free."""
+"""paintcell.sim.execution.cell: the MuJoCo paint cell compiles, holds what execution needs, and
+runs warning-free."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from planning.surface import plane
-from sim.cell import CameraSpec, Cell, CellError, build_cell
+from paintcell.planning.surface.surface import plane
+from paintcell.sim.execution.cell import CameraSpec, Cell, CellError, build_cell
 from tests.test_execute import make_case, make_cell
 
 
@@ -23,7 +24,8 @@ def test_cell_indexes_robot_part_booth_and_sensors() -> None:
     assert cell.joint_names == tuple(case.robot.joint_names)
     assert len(cell.qpos_adr) == len(cell.actuator_ids) == case.robot.nq
     assert cell.part_body_name == "part" and cell.booth_body_name == "booth"
-    # No preset cameras in the model: renders frame the part with sim.render.part_cameras.
+    # No preset cameras in the model: renders frame the part with
+    # paintcell.sim.output.render.part_cameras.
     assert cell.camera_names == () and m.ncam == 0
     assert m.nlight >= 1
     # The part's visual mesh is the surface itself, placed at T_world_part.
@@ -93,7 +95,7 @@ def test_no_robot_links_overlap_by_construction(name: str) -> None:
     """Self-contacts are real collisions: at the home pose no two robot bodies touch (a pair whose
     collision geoms overlap by construction at a joint would touch at every pose), and no pair
     touches in every one of a set of random poses within the joint limits."""
-    from robots import load_robot
+    from paintcell.robots import load_robot
 
     case = make_case()
     cell = build_cell(load_robot(name), case.surface, case.T_world_part)
@@ -140,7 +142,7 @@ def test_self_contact_sensor_sees_self_collisions_only() -> None:
 def test_robot_geoms_collide_with_each_other_whatever_their_bits(tmp_path: Path) -> None:
     """A robot MJCF that switches self-collision off with split bits (contype 2, conaffinity 1:
     the links still hit the part) gets its collision geoms colliding with each other again."""
-    from robots import load_robot
+    from paintcell.robots import load_robot
 
     robot = load_robot("abb_paint")
     xml = Path(robot.mjcf_path).read_text()
@@ -211,7 +213,7 @@ def test_cell_compiles_without_attach_or_compiler_warnings() -> None:
 
 @pytest.mark.parametrize("surface", [None, "door", np.zeros((3, 3))])
 def test_surface_type_is_checked_at_entry(surface) -> None:
-    from robots import load_robot
+    from paintcell.robots import load_robot
 
-    with pytest.raises(CellError, match="surface must be a planning.surface.Surface"):
+    with pytest.raises(CellError, match=r"surface must be a Surface \(paintcell.planning.surface"):
         build_cell(load_robot("abb_paint"), surface, np.eye(4))

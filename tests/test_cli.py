@@ -9,13 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from sim.cli import EXIT_USAGE, build_parser, main, write_junit
+from paintcell.sim.app.cli import EXIT_USAGE, build_parser, main, write_junit
 
 COMMANDS = ["run", "check", "plan", "validate", "export", "report"]
 
 
 def _run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "sim.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "paintcell", *args], capture_output=True,
                           text=True, cwd=cwd, timeout=120)
 
 
@@ -70,13 +70,13 @@ def test_junit_xml_is_valid_with_one_case_per_scenario(tmp_path: Path) -> None:
 
 BROKEN = {
     "typo.py": '''
-from sim.scenario import Placement, Scenario
+from paintcell.sim.app.scenario import Placement, Scenario
 SCENARIO = Scenario(name="typo", part="panel", part_placement=Placement(),
                     planner={"v_nominl_m_s": 0.4})
 ''',
     "syntax.py": "SCENARIO = Scenario(\n",
     "badvalue.py": '''
-from sim.scenario import Placement, Scenario
+from paintcell.sim.app.scenario import Placement, Scenario
 SCENARIO = Scenario(name="badvalue", part="panel", part_placement=Placement(),
                     fast_resolution_m=-0.01)
 ''',

@@ -1,4 +1,5 @@
-"""The compiled film kernel (planning.deposition_jit) against the numpy kernel and the literal
+"""The compiled film kernel (paintcell.planning.paint.deposition_jit) against the numpy kernel and
+the literal
 DESIGN.md formula.
 
 - numba vs the numpy kernel (same culling, an independent implementation of the arithmetic) on a
@@ -18,9 +19,9 @@ import math
 import numpy as np
 import pytest
 
-from planning import deposition_jit as jit
-from planning.applicator import Applicator
-from planning.deposition import (
+from paintcell.planning.paint import deposition_jit as jit
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.paint.deposition import (
     DepositionError,
     GunSamples,
     deposition_rate_reference,

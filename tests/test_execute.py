@@ -1,4 +1,5 @@
-"""sim.execute: servo and kinematic execution of a joint trajectory on the MuJoCo cell.
+"""paintcell.sim.execution.execute: servo and kinematic execution of a joint trajectory on the
+MuJoCo cell.
 
 The test case (shared with tests/test_validate.py): the ABB-style arm paints a small plane with two
 back-and-forth passes made in joint space (joint 1 sweeps, a Jacobian step indexes between them);
@@ -15,14 +16,20 @@ from typing import Any
 import numpy as np
 import pytest
 
-from planning.applicator import Applicator
-from planning.plan import CoveragePlan, PassPlan
-from planning.surface import Surface, plane
-from robots.catalog import load_robot
-from sim.cell import Cell, build_cell
-from sim.execute import SETTLE_MAX_S, Disturbances, ExecutionError, ServoSettings, execute
-from sim.joint_trajectory import APPROACH, PAINT, JointTrajectory
-from sim.trace import ExecutedTrace, TraceError
+from paintcell.planning.coverage.plan import CoveragePlan, PassPlan
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.surface.surface import Surface, plane
+from paintcell.robots.catalog import load_robot
+from paintcell.sim.execution.cell import Cell, build_cell
+from paintcell.sim.execution.execute import (
+    SETTLE_MAX_S,
+    Disturbances,
+    ExecutionError,
+    ServoSettings,
+    execute,
+)
+from paintcell.sim.execution.trace import ExecutedTrace, TraceError
+from paintcell.sim.motion.joint_trajectory import APPROACH, PAINT, JointTrajectory
 from tests.helpers import REPLAY_TCP_ATOL_MM, SERVO_TRACKING_MAX_MM
 
 DT_S = 1e-3

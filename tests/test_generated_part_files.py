@@ -1,6 +1,7 @@
 """The generated CAD-like meshes the real-part scenarios paint (scenarios/parts/cad_*.ply) are the
 generator's output for seed 0 (`paintcell generate KIND --out scenarios/parts/cad_KIND.ply`):
-re-generated here and compared face by face, so a change to planning/cad_like.py cannot leave
+re-generated here and compared face by face, so a change to paintcell/planning/surface/cad_like.py
+cannot leave
 the scenarios painting a stale file."""
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from planning.cad_like import PART_KINDS, make_part
+from paintcell.planning.surface.cad_like import PART_KINDS, make_part
 
 PARTS = Path(__file__).resolve().parents[1] / "scenarios" / "parts"
 

@@ -1,4 +1,5 @@
-"""Heat-method geodesic offsets (planning.geodesic) and the planner's fallback to them.
+"""Heat-method geodesic offsets (paintcell.planning.coverage.geodesic) and the planner's fallback to
+them.
 
 Independent truths: the distance from a straight line on a plane is |y|, on a cylinder the arc
 R·|θ| from the apex line (closed forms); on a real mesh where section-plane walking self-
@@ -15,13 +16,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from planning.applicator import Applicator
-from planning.coverage import PlannerSettings, plan_coverage
-from planning.errors import PlanError
-from planning.geodesic import HeatGeodesics, _dense, despike
-from planning.offset import SurfaceGeometry
-from planning.plan import CoveragePlan
-from planning.surface import Surface, cylinder, plane
+from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.planning.coverage.geodesic import HeatGeodesics, _dense, despike
+from paintcell.planning.coverage.offset import SurfaceGeometry
+from paintcell.planning.coverage.plan import CoveragePlan
+from paintcell.planning.errors import PlanError
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.surface.surface import Surface, cylinder, plane
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 RES_M = 0.01

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planning.plan import tcp_frames
-from robots import RobotError, load_robot
-from robots.ik import (
+from paintcell.planning.coverage.plan import tcp_frames
+from paintcell.robots import RobotError, load_robot
+from paintcell.robots.ik import (
     IKSettings,
     branch_feasibility,
     cold_start,
@@ -15,8 +15,8 @@ from robots.ik import (
     opw_branches,
     solve_path,
 )
-from robots.opw import IRB4600_60_205, fit_to_limits, forward, inverse, wrap_pi
-from robots.paths import solve_paths
+from paintcell.robots.opw import IRB4600_60_205, fit_to_limits, forward, inverse, wrap_pi
+from paintcell.robots.paths import solve_paths
 from tests.helpers import IK_POS_TOL_M, IK_ROT_TOL_RAD, OPW_ROUND_TRIP_ATOL
 
 N_POSES = 1000
@@ -260,9 +260,9 @@ def test_seed_selects_the_nearest_comfortable_branch(abb):
 
 @pytest.fixture(scope="module")
 def door_plan():
-    from planning.applicator import Applicator
-    from planning.coverage import PlannerSettings, plan_coverage
-    from planning.parts import get_part
+    from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.planning.paint.applicator import Applicator
+    from paintcell.planning.surface.parts import get_part
 
     surface = get_part("door", resolution_m=0.02)
     return plan_coverage(surface, Applicator.default(), PlannerSettings(optimize_speed=False))

@@ -10,10 +10,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planning.plan import tcp_frames
-from robots import load_robot
-from robots.ik import solve_path
-from robots.opw import forward, inverse, wrap_pi
+from paintcell.planning.coverage.plan import tcp_frames
+from paintcell.robots import load_robot
+from paintcell.robots.ik import solve_path
+from paintcell.robots.opw import forward, inverse, wrap_pi
 from tests.helpers import FK_AGREEMENT_ATOL_M, IK_POS_TOL_M, OPW_ROUND_TRIP_ATOL
 
 T_BASE = np.array([[0.0, -1.0, 0.0, 0.3], [1.0, 0.0, 0.0, -0.2], [0.0, 0.0, 1.0, 1.5],

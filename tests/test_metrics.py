@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from planning.metrics import (
+from paintcell.planning.paint.metrics import (
     MetricsError,
     boundary_band_mask,
     boundary_vertices,

@@ -1,10 +1,12 @@
-"""Openings (planning.openings): passes run straight across holes, the brush goes off only where
+"""Openings (paintcell.planning.coverage.openings): passes run straight across holes, the brush goes
+off only where
 most of the spray would go through.
 
 The part: a 1.0 m × 0.8 m plate (10 mm grid) with a 0.40 m × 0.24 m window and a 0.12 m service
 hole cut out (the grid faces inside them removed). Independent truth for the re-measurement: the
 removed faces themselves (the exact opening area), sampled densely with trimesh, and the
-deposition model's rate matrix (planning.deposition.deposition_rate) — not the fill fans the
+deposition model's rate matrix (paintcell.planning.paint.deposition.deposition_rate) — not the fill
+fans the
 planner used.
 """
 
@@ -17,12 +19,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from planning.applicator import Applicator
-from planning.coverage import PlannerSettings, plan_coverage
-from planning.deposition import deposition_rate
-from planning.openings import find_openings
-from planning.plan import CoveragePlan
-from planning.surface import Surface, plane, surface_from_triangles
+from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.planning.coverage.openings import find_openings
+from paintcell.planning.coverage.plan import CoveragePlan
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.paint.deposition import deposition_rate
+from paintcell.planning.surface.surface import Surface, plane, surface_from_triangles
 
 WINDOW = (-0.3, 0.1, -0.12, 0.12)      # x0, x1, y0, y1 [m]
 HOLE_C, HOLE_R = (0.3, 0.15), 0.06     # service hole centre (x, y), radius [m]

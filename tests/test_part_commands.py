@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from planning.metrics import uniformity
-from sim.cli import EXIT_USAGE, build_parser, main
+from paintcell.planning.paint.metrics import uniformity
+from paintcell.sim.app.cli import EXIT_USAGE, build_parser, main
 
 
 @pytest.mark.parametrize("cmd", ["inspect", "init", "generate"])
@@ -62,8 +62,8 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     """generate → init → run --fast on a fender: the scenario runs as written, and the film is
     judged on the skin — the hem faces away from the bell and gets almost no paint, so the
     same film over every vertex would be far less uniform."""
-    from sim.pipeline import run_scenario
-    from sim.scenario_files import load_scenario
+    from paintcell.sim.app.pipeline import run_scenario
+    from paintcell.sim.app.scenario_files import load_scenario
 
     part = tmp_path / "parts" / "fender.stl"
     assert main(["generate", "fender", "--out", str(part)]) == 0
@@ -78,7 +78,7 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     scn = load_scenario(toml)
     res = run_scenario(scn, tmp_path / "run", fast=True, mode="kinematic", report=False)
     # the init base reaches every plan pose (IK); the honest figure also counts slowdowns and
-    # contacts (sim.honest_reach) and says which
+    # contacts (paintcell.sim.validation.honest_reach) and says which
     m = res.report.metrics
     assert m["ik_reachability_pct"] == 100.0
     assert m["reachability_pct"] == 100.0 or "painted as planned (" in m["reachability_verdict"]

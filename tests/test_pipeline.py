@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planning.plan import CoveragePlan
-from sim.joint_trajectory import JointTrajectory
-from sim.trace import ExecutedTrace
+from paintcell.planning.coverage.plan import CoveragePlan
+from paintcell.sim.execution.trace import ExecutedTrace
+from paintcell.sim.motion.joint_trajectory import JointTrajectory
 
 SCENARIO = '''
-from sim.cli import run_script
-from sim.scenario import Placement, Scenario, Thresholds, facing_robot
+from paintcell.sim.app.cli import run_script
+from paintcell.sim.app.scenario import Placement, Scenario, Thresholds, facing_robot
 
 SCENARIO = Scenario(
     name="{name}",
@@ -35,7 +35,7 @@ if __name__ == "__main__":
 
 
 def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "sim.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "paintcell", *args], capture_output=True,
                           text=True, cwd=cwd, timeout=600)
 
 
@@ -94,7 +94,7 @@ def test_validate_export_and_report_on_the_results(run_dir: Path) -> None:
     assert len(out.stderr.strip().splitlines()) == 1
     out = _cli("report", "res", cwd=run_dir)
     assert out.returncode == 0, out.stderr
-    from sim.report import format_value
+    from paintcell.sim.output.report import format_value
 
     html = (res / "report.html").read_text()
     assert "small_panel" in html and format_value(after["executed_nsd_pct"]) in html

@@ -1,5 +1,7 @@
-"""Placement scored by what the run suffers (robots.placement_score), checked against the real
-time law: TOPP-RA on the program built at the chosen base (sim.trajectory.build_program), not
+"""Placement scored by what the run suffers (paintcell.robots.placement_score), checked against the
+real
+time law: TOPP-RA on the program built at the chosen base
+(paintcell.sim.motion.trajectory.build_program), not
 the score's own finite differences.
 """
 
@@ -11,10 +13,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robots.catalog import load_robot
-from robots.placement import facing_grid, find_base_pose
-from robots.placement_score import motion_score
-from sim.trajectory import build_program
+from paintcell.robots.catalog import load_robot
+from paintcell.robots.placement import facing_grid, find_base_pose
+from paintcell.robots.placement_score import motion_score
+from paintcell.sim.motion.trajectory import build_program
 from tests.test_trajectory import _plan
 
 
@@ -62,8 +64,8 @@ def test_clearance_counts_the_part_and_the_floor() -> None:
     r = robot.placed(C[1])
     free = motion_score(r, paths, speeds, floor_z_m=0.0)
     # a floor 0.3 m above the shoulder's lowest point: the arm is in it
-    from robots.paths import solve_paths
-    from robots.placement_score import arm_points, move_joints, tool_points
+    from paintcell.robots.paths import solve_paths
+    from paintcell.robots.placement_score import arm_points, move_joints, tool_points
 
     qs = [x.q for x in solve_paths(r, paths)]
     # every joint row the score checks: the paint poses and the moves from home, between the
@@ -82,8 +84,8 @@ def test_clearance_counts_the_move_home() -> None:
     base infeasible; the same point is harmless when home is the last pose (no move)."""
     from scipy.spatial import cKDTree
 
-    from robots.paths import solve_paths
-    from robots.placement_score import arm_points
+    from paintcell.robots.paths import solve_paths
+    from paintcell.robots.placement_score import arm_points
 
     robot, _, paths, speeds, C = _case()
     r = robot.placed(C[1])

@@ -9,9 +9,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from planning.applicator import Applicator
-from planning.errors import PlanError
-from planning.plan import TIMING_RTOL, CoveragePlan, PassPlan, times_from_speeds
+from paintcell.planning.coverage.plan import TIMING_RTOL, CoveragePlan, PassPlan, times_from_speeds
+from paintcell.planning.errors import PlanError
+from paintcell.planning.paint.applicator import Applicator
 
 M = 6
 

@@ -1,4 +1,4 @@
-"""sim.plots: every figure is a non-blank PNG; bad inputs raise PlotError."""
+"""paintcell.sim.output.plots: every figure is a non-blank PNG; bad inputs raise PlotError."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from planning.surface import plane
-from sim import plots
+from paintcell.planning.surface.surface import plane
+from paintcell.sim.output import plots
 from tests.helpers import RENDER_MIN_PIXEL_STD
 
 

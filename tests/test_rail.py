@@ -1,4 +1,5 @@
-"""A paint arm on a linear rail (robots.rail): the same robot as on a fixed base at a fixed rail
+"""A paint arm on a linear rail (paintcell.robots.rail): the same robot as on a fixed base at a
+fixed rail
 position (Pinocchio, MuJoCo), the per-pass rail position against a brute-force scan, and joint
 and rail limits re-measured on a produced program.
 
@@ -11,16 +12,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from planning.parts import get_part
-from robots import load_robot
-from robots.ik import IKSettings
-from robots.rail import RailSpec, best_rail_position, load_rail_robot, rail_cost
-from sim.cell import build_cell
-from sim.execute import execute
-from sim.joint_trajectory import PAINT
-from sim.scenario import pose
-from sim.scenario_files import load_scenario
-from sim.trajectory import TrajectorySettings, build_program
+from paintcell.planning.surface.parts import get_part
+from paintcell.robots import load_robot
+from paintcell.robots.ik import IKSettings
+from paintcell.robots.rail import RailSpec, best_rail_position, load_rail_robot, rail_cost
+from paintcell.sim.app.scenario import pose
+from paintcell.sim.app.scenario_files import load_scenario
+from paintcell.sim.execution.cell import build_cell
+from paintcell.sim.execution.execute import execute
+from paintcell.sim.motion.joint_trajectory import PAINT
+from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
 from tests.helpers import FK_AGREEMENT_ATOL_M
 
 T_RAIL = pose((-0.5, 0.2, 1.0), (0.0, 0.0, 0.3))
@@ -34,7 +35,7 @@ def rail_robot():
 
 def _fixed_at(s_m: float):
     """The plain 6-axis arm, its base where the carriage at s_m puts it (computed here, not by
-    robots.rail: the rail frame's +y times s)."""
+    paintcell.robots.rail: the rail frame's +y times s)."""
     T = T_RAIL.copy()
     T[:3, 3] += s_m * T_RAIL[:3, 1]
     return load_robot("irb5500", T_world_base=T)
@@ -64,7 +65,7 @@ def test_rail_spec_rejects_bad_values():
 
 @pytest.fixture(scope="module")
 def roof_case():
-    from sim.pipeline import load_robot_for, load_surface, make_plan
+    from paintcell.sim.app.pipeline import load_robot_for, load_surface, make_plan
 
     scn = load_scenario(ROOF_RAIL)
     surface = load_surface(scn, fast=True)
@@ -124,7 +125,7 @@ def test_rail_and_fixed_cells_execute_the_same_tcp_path(roof_case):
                           TrajectorySettings(q_home=(0.0, -0.6, 0.3, 0.0, 0.9, 0.0),
                                              approach_clearance_m=0.15,
                                              retract_clearance_m=0.3))
-    from sim.joint_trajectory import JointTrajectory
+    from paintcell.sim.motion.joint_trajectory import JointTrajectory
 
     K = 6000   # the approach and the first pass (6 s) keep the test short
     arrays = {name: getattr(traj6, name)[:K] for name in JointTrajectory._ARRAYS}

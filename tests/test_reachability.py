@@ -7,12 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from planning.plan import tcp_frames
-from robots import load_robot
-from robots.ik import combined_report
-from robots.paths import solve_paths
-from robots.placement import facing_grid, find_base_pose
-from robots.reachability import ReachabilityReport
+from paintcell.planning.coverage.plan import tcp_frames
+from paintcell.robots import load_robot
+from paintcell.robots.ik import combined_report
+from paintcell.robots.paths import solve_paths
+from paintcell.robots.placement import facing_grid, find_base_pose
+from paintcell.robots.reachability import ReachabilityReport
 
 
 def _panel_raster(T_world_part: np.ndarray, width=1.0, height=1.0, n_pass=6, step=0.01,

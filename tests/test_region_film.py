@@ -1,4 +1,5 @@
-"""Hem and flange film reported apart (sim.region_film): closed-form films on a plate whose
+"""Hem and flange film reported apart (paintcell.sim.validation.region_film): closed-form films on a
+plate whose
 strips are labelled hem and edge."""
 
 from __future__ import annotations
@@ -8,9 +9,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from planning.regions import REGION_NAMES, PartRegions
-from planning.surface import plane
-from sim.region_film import region_film
+from paintcell.planning.surface.regions import REGION_NAMES, PartRegions
+from paintcell.planning.surface.surface import plane
+from paintcell.sim.validation.region_film import region_film
 
 
 def test_region_means_are_the_closed_form_averages() -> None:

@@ -1,4 +1,5 @@
-"""sim.render: backend choice, film colour map, compositing over a compiled model, writers."""
+"""paintcell.sim.output.render: backend choice, film colour map, compositing over a compiled model,
+writers."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from planning.surface import plane
-from sim import render, render_backend
+from paintcell.planning.surface.surface import plane
+from paintcell.sim.output import render, render_backend
 from tests.helpers import RENDER_MIN_PIXEL_STD, RENDER_RAMP_MIN_LEVEL_GAP
 
 VMIN_UM, VMAX_UM = 10.0, 50.0
@@ -44,7 +45,8 @@ def test_backend_is_chosen():
 
 
 def test_no_backend_is_a_clear_error(monkeypatch):
-    # The backend choice lives in sim.render_backend (render re-exports it): patch it there.
+    # The backend choice lives in paintcell.sim.output.render_backend (render re-exports it): patch
+    # it there.
     monkeypatch.setattr(render_backend, "_backend", None)
     monkeypatch.delenv("MUJOCO_GL", raising=False)
     monkeypatch.setattr(render_backend, "probe_backend",

@@ -29,8 +29,8 @@ def _tool():
 @pytest.fixture(scope="module")
 def door(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("door") / "door"
-    proc = subprocess.run([sys.executable, "-m", "sim.cli", "run", "scenarios/door.toml", "--fast",
-                           "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-m", "paintcell", "run", "scenarios/door.toml",
+                           "--fast", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
                           timeout=1200, env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert proc.returncode in (0, 1), proc.stderr[-3000:]
     return out

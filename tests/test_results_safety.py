@@ -21,8 +21,8 @@ from pathlib import Path
 
 import pytest
 
-from sim.cli import EXIT_INTERRUPTED, EXIT_USAGE, main
-from sim.results_dir import MARKER, new_results
+from paintcell.sim.app.cli import EXIT_INTERRUPTED, EXIT_USAGE, main
+from paintcell.sim.output.results_dir import MARKER, new_results
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -65,12 +65,12 @@ def _env() -> dict[str, str]:
 
 
 def _cli(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "sim.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "paintcell", *args], capture_output=True,
                           text=True, cwd=cwd, timeout=timeout, env=_env())
 
 
 def _start(*args: str, cwd: Path) -> subprocess.Popen[str]:
-    return subprocess.Popen([sys.executable, "-m", "sim.cli", *args], stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-m", "paintcell", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, cwd=cwd, env=_env())
 
 
@@ -125,7 +125,7 @@ def test_python_scenario_with_a_nan_threshold_is_refused(tmp_path: Path,
                                                          capsys: pytest.CaptureFixture[str]) \
         -> None:
     script = tmp_path / "nan.py"
-    script.write_text("from sim.scenario import Placement, Scenario, Thresholds\n"
+    script.write_text("from paintcell.sim.app.scenario import Placement, Scenario, Thresholds\n"
                       "SCENARIO = Scenario(name='nan', part='panel', part_placement=Placement(),"
                       " thresholds=Thresholds(max_loss_pp=float('nan')))\n")
     assert main(["run", str(script), "--fast", "--out", str(tmp_path / "o")]) == EXIT_USAGE
@@ -226,9 +226,9 @@ def test_a_signal_a_library_swallows_still_interrupts(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # trimesh imports optional modules inside `except BaseException`: a Ctrl-C that lands there
     # is swallowed. Replay it with a real SIGINT raised inside such a block during the plan.
-    import sim.pipeline
+    import paintcell.sim.app.pipeline
 
-    real = sim.pipeline.load_surface
+    real = paintcell.sim.app.pipeline.load_surface
 
     def swallowing_load(*args: object, **kw: object) -> object:
         try:
@@ -238,7 +238,7 @@ def test_a_signal_a_library_swallows_still_interrupts(
             pass
         return real(*args, **kw)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(sim.pipeline, "load_surface", swallowing_load)
+    monkeypatch.setattr(paintcell.sim.app.pipeline, "load_surface", swallowing_load)
     with new_results(tmp_path / "res", "run") as tmp:
         (tmp / "plan.json").write_text('{"old": 1}')  # type: ignore[operator]
     before = _snapshot(tmp_path / "res")
@@ -370,7 +370,7 @@ def test_check_survives_exits_exceptions_crashes_and_memory_hogs(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     d = tmp_path / "scn"
     d.mkdir()
-    head = ("from sim.scenario import Placement, Scenario\n"
+    head = ("from paintcell.sim.app.scenario import Placement, Scenario\n"
             "SCENARIO = Scenario(name='{n}', part='panel', part_placement=Placement())\n")
     (d / "a_exit.py").write_text("import sys\nsys.exit(0)\n")
     (d / "b_memory.py").write_text(head.format(n="b") + "raise MemoryError('planted')\n")

@@ -7,8 +7,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from robots import RobotError, bell_tool_offset, load_robot
-from robots.opw import forward
+from paintcell.robots import RobotError, bell_tool_offset, load_robot
+from paintcell.robots.opw import forward
 from tests.helpers import FK_AGREEMENT_ATOL_M, FK_AGREEMENT_ATOL_ROT, JACOBIAN_FD_ATOL
 
 T_BASE = np.array([[0.0, -1.0, 0.0, 0.3], [1.0, 0.0, 0.0, -0.2], [0.0, 0.0, 1.0, 0.5],
@@ -157,12 +157,13 @@ def test_placed_robot_moves_fk_and_jacobian_with_the_base():
 
 
 def test_generated_mjcf_write_leaves_no_temp_file_on_failure(tmp_path, monkeypatch):
-    """`write_generated_mjcf` writes through `planning.atomic_io`: a failed rename removes the
+    """`write_generated_mjcf` writes through `paintcell.planning.atomic_io`: a failed rename removes
+    the
     temp file instead of leaking it."""
     import os
     import tempfile
 
-    from robots.robot import write_generated_mjcf
+    from paintcell.robots.robot import write_generated_mjcf
 
     monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
 

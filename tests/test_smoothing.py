@@ -1,4 +1,4 @@
-"""Plan on a smooth approximation, paint the real part (planning.smoothing).
+"""Plan on a smooth approximation, paint the real part (paintcell.planning.coverage.smoothing).
 
 Independent truths: a flat sheet is a fixed point of the heat flow; over a generated crease (two
 planes folded 30°, a discrete curvature of ~25 1/m on the crease line) the bell axis of the
@@ -13,14 +13,19 @@ import functools
 import numpy as np
 import pytest
 
-from planning.applicator import Applicator
-from planning.coverage import PlannerSettings, plan_coverage
-from planning.errors import PlanError
-from planning.smoothing import limit_turn_rate, smooth_along, smoothed_surface, turn_rate_rad_m
-from planning.surface import Surface, grid_faces, plane, surface_from_triangles
-from robots.catalog import load_robot
-from sim.joint_trajectory import PAINT
-from sim.trajectory import build_program
+from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.planning.coverage.smoothing import (
+    limit_turn_rate,
+    smooth_along,
+    smoothed_surface,
+    turn_rate_rad_m,
+)
+from paintcell.planning.errors import PlanError
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.surface.surface import Surface, grid_faces, plane, surface_from_triangles
+from paintcell.robots.catalog import load_robot
+from paintcell.sim.motion.joint_trajectory import PAINT
+from paintcell.sim.motion.trajectory import build_program
 
 BOUND_RAD_M = 4.0
 

@@ -1,4 +1,5 @@
-"""Robot-aware speeds (sim.speed_feedback): caps measured from a joint program's TCP speeds, mapped
+"""Robot-aware speeds (paintcell.sim.motion.speed_feedback): caps measured from a joint program's
+TCP speeds, mapped
 onto the plan's samples in each pass's generation direction, and obeyed by the re-plan."""
 
 from __future__ import annotations
@@ -8,10 +9,10 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from planning import parts
-from planning.applicator import Applicator
-from planning.coverage import PlannerSettings, plan_coverage
-from sim.speed_feedback import SLOW_REL, achieved_speeds, speed_caps
+from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.surface import parts
+from paintcell.sim.motion.speed_feedback import SLOW_REL, achieved_speeds, speed_caps
 
 APP = Applicator.default()
 ST = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=8, film_guard=False)

@@ -1,13 +1,12 @@
-"""Start curve (paper §2.3) and the in-surface curve geometry it is built from (planning.offset)."""
+"""Start curve (paper §2.3) and the in-surface curve geometry it is built from
+(paintcell.planning.coverage.offset)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from planning import parts
-from planning.errors import PlanError
-from planning.offset import (
+from paintcell.planning.coverage.offset import (
     IndexingCurve,
     SurfaceGeometry,
     arc_length,
@@ -19,13 +18,15 @@ from planning.offset import (
     resample,
     walk,
 )
-from planning.start_curve import (
+from paintcell.planning.coverage.start_curve import (
     altitude_sweep,
     average_normal,
     divider_offset,
     select_start_curve,
 )
-from planning.surface import plane
+from paintcell.planning.errors import PlanError
+from paintcell.planning.surface import parts
+from paintcell.planning.surface.surface import plane
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
 
 RES = 0.025
@@ -225,7 +226,7 @@ def test_sphere_cap_start_curve_is_a_great_circle_through_the_axis() -> None:
     icosphere edges, 1.2e-4 m) in a plane through the centre."""
     import trimesh
 
-    from planning.surface import Surface
+    from paintcell.planning.surface.surface import Surface
 
     radius = 0.6
     ico = trimesh.creation.icosphere(subdivisions=5, radius=radius)

@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from planning.curvature import (
+from paintcell.planning.coverage.offset import SurfaceGeometry
+from paintcell.planning.errors import SurfaceError
+from paintcell.planning.surface.curvature import (
     boundary_vertex_mask,
     discrete_curvature,
     mixed_voronoi_areas,
     vertex_normals,
 )
-from planning.errors import SurfaceError
-from planning.offset import SurfaceGeometry
-from planning.surface import (
+from paintcell.planning.surface.surface import (
     Surface,
     bspline_patch,
     cylinder,

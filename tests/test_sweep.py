@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from sim.cli import main
-from sim.execute_settings import Disturbances
-from sim.scenario_files import load_scenario
-from sim.sweep import run_sweep, sample_path
-from sim.sweep_spec import SweepError, spec_from_scenario
-from sim.sweep_worker import RUN_KEYS
+from paintcell.sim.app.cli import main
+from paintcell.sim.app.scenario_files import load_scenario
+from paintcell.sim.execution.execute_settings import Disturbances
+from paintcell.sim.sweeps.sweep import run_sweep, sample_path
+from paintcell.sim.sweeps.sweep_spec import SweepError, spec_from_scenario
+from paintcell.sim.sweeps.sweep_worker import RUN_KEYS
 from tests.sweep_cases import plate_scenario
 
 pytestmark = pytest.mark.slow

@@ -1,4 +1,4 @@
-"""Booth sweeps over the conveyor's speed error (`sim.sweep_booth`).
+"""Booth sweeps over the conveyor's speed error (`paintcell.sim.sweeps.sweep_booth`).
 
 The slow test sends a small sweep of the two-robot roof booth through a real Dask cluster
 (a `dask scheduler` and two `dask worker` processes on 127.0.0.1, started by the fixture of
@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.sweep import run_sweep
-from sim.sweep_spec import SweepError, SweepSpec
-from sim.sweep_worker import RUN_KEYS
+from paintcell.sim.sweeps.sweep import run_sweep
+from paintcell.sim.sweeps.sweep_spec import SweepError, SweepSpec
+from paintcell.sim.sweeps.sweep_worker import RUN_KEYS
 from tests.sweep_cases import plate_scenario
 from tests.test_booth import ROOF_BOOTH
 from tests.test_sweep_dask import cluster  # noqa: F401 - the loopback cluster fixture
@@ -31,7 +31,7 @@ SPEC = SweepSpec.from_strings(["conveyor_speed_error_m_s=uniform(-0.01, 0.01)"],
 def test_factors_that_do_not_fit_the_scenario_are_refused(tmp_path: Path) -> None:
     """A line-speed error on the single-robot cell, a single-robot factor on a booth: one-line
     errors naming the fix, before anything is planned or written."""
-    from sim.scenario_files import load_scenario
+    from paintcell.sim.app.scenario_files import load_scenario
 
     plate = load_scenario(plate_scenario(tmp_path / "case"))
     with pytest.raises(SweepError, match="no conveyor; sweep a booth scenario"):
@@ -47,8 +47,8 @@ def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
 
     import tomli_w
 
-    from sim.booth_data import BoothDataError
-    from sim.scenario_files import load_scenario
+    from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.sim.booth.booth_data import BoothDataError
 
     b = load_scenario("scenarios/booth.toml")
     assert b.sweep["factors"] == {"conveyor_speed_error_m_s": "normal(0, 0.0025)"}
@@ -63,10 +63,10 @@ def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_conveyor_speed_sweep_on_a_loopback_cluster(
         tmp_path: Path, cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:  # noqa: F811
-    from planning.deposition import thickness
-    from sim.booth_film import body_uniformity, gun_in_body
-    from sim.sweep import spec_digest
-    from sim.sweep_booth import prepare_booth_payload, run_booth_sample
+    from paintcell.planning.paint.deposition import thickness
+    from paintcell.sim.booth.booth_film import body_uniformity, gun_in_body
+    from paintcell.sim.sweeps.sweep import spec_digest
+    from paintcell.sim.sweeps.sweep_booth import prepare_booth_payload, run_booth_sample
 
     address, _ = cluster
     res = run_sweep(ROOF_BOOTH, SPEC, tmp_path / "remote", fast=True, mode="kinematic",

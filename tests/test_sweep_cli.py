@@ -9,13 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from sim.cli import EXIT_USAGE, build_parser, main
+from paintcell.sim.app.cli import EXIT_USAGE, build_parser, main
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "sim.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "paintcell", *args], capture_output=True,
                           text=True, cwd=ROOT, timeout=120)
 
 

@@ -21,10 +21,10 @@ from typing import Any
 
 import pytest
 
-from sim.scenario_files import load_scenario
-from sim.sweep import run_sweep
-from sim.sweep_spec import spec_from_scenario
-from sim.sweep_worker import RUN_KEYS
+from paintcell.sim.app.scenario_files import load_scenario
+from paintcell.sim.sweeps.sweep import run_sweep
+from paintcell.sim.sweeps.sweep_spec import spec_from_scenario
+from paintcell.sim.sweeps.sweep_worker import RUN_KEYS
 from tests.sweep_cases import plate_scenario
 
 pytestmark = pytest.mark.slow

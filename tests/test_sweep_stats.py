@@ -15,8 +15,14 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from sim.sweep_spec import Distribution, SweepError, SweepSpec, spec_from_scenario
-from sim.sweep_stats import check_limits, limit_checks, quantiles, sensitivity, yield_interval
+from paintcell.sim.sweeps.sweep_spec import Distribution, SweepError, SweepSpec, spec_from_scenario
+from paintcell.sim.sweeps.sweep_stats import (
+    check_limits,
+    limit_checks,
+    quantiles,
+    sensitivity,
+    yield_interval,
+)
 
 
 def test_clopper_pearson_matches_closed_forms() -> None:
@@ -121,7 +127,7 @@ def test_scenario_files_check_their_sweep_table_on_load(tmp_path: object) -> Non
 
     import tomli_w
 
-    from sim.scenario_data import ScenarioDataError, load_toml_scenario
+    from paintcell.sim.app.scenario_data import ScenarioDataError, load_toml_scenario
     from tests.sweep_cases import SCENARIO
 
     folder = Path(str(tmp_path))

@@ -1,12 +1,13 @@
-"""sim.time_law on a Cartesian robot (TCP = q), where every bound has a closed form."""
+"""paintcell.sim.motion.time_law on a Cartesian robot (TCP = q), where every bound has a closed
+form."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from sim.joint_trajectory import TrajectoryError
-from sim.time_law import JointPath, make_grid, parameterize_pass
+from paintcell.sim.motion.joint_trajectory import TrajectoryError
+from paintcell.sim.motion.time_law import JointPath, make_grid, parameterize_pass
 from tests.helpers import FD_LIMIT_RTOL, SPEED_FOLLOW_RTOL
 
 DT = 1e-3
@@ -92,7 +93,8 @@ def test_boundary_speed_is_clipped_when_unreachable() -> None:
                             sd_start_m_s=0.0)
     assert law.sd_end_clipped
     assert law.sd_grid[0] == 0.0
-    # Within the 0.1 % step back from the feasibility edge (sim.time_law._reachable_end).
+    # Within the 0.1 % step back from the feasibility edge
+    # (paintcell.sim.motion.time_law._reachable_end).
     assert law.sd_grid[-1] == pytest.approx(np.sqrt(2 * 1.0 * 0.1), rel=2e-3)
 
 

@@ -1,4 +1,5 @@
-"""sim.trajectory: the whole program re-measured by finite differences of its 1 kHz samples."""
+"""paintcell.sim.motion.trajectory: the whole program re-measured by finite differences of its 1 kHz
+samples."""
 
 from __future__ import annotations
 
@@ -8,11 +9,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from planning.applicator import Applicator
-from planning.plan import CoveragePlan, PassPlan
-from robots import load_robot
-from robots.errors import UnreachableError
-from sim.joint_trajectory import (
+from paintcell.planning.coverage.plan import CoveragePlan, PassPlan
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.robots import load_robot
+from paintcell.robots.errors import UnreachableError
+from paintcell.sim.motion.joint_trajectory import (
     APPROACH,
     PAINT,
     RETRACT,
@@ -20,7 +21,7 @@ from sim.joint_trajectory import (
     JointTrajectory,
     TrajectoryError,
 )
-from sim.trajectory import TrajectorySettings, build_program
+from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
 from tests.helpers import FD_LIMIT_RTOL, SPEED_FOLLOW_RTOL, TCP_PATH_ATOL_M
 
 # Straight passes 1 m long, 20 mm samples (the planner's default spacing), spray straight down,
@@ -50,7 +51,7 @@ def _plan(v_m_s: float | np.ndarray = 0.5, x0: float = 0.9, spacing: float = 0.2
 
 def _ik(robot, T_world_tcp: np.ndarray, q0: np.ndarray) -> np.ndarray:
     """Warm-started Gauss-Newton IK along a path (test-local, so the trajectory tests do not
-    depend on robots.ik), clipped to the joint limits."""
+    depend on paintcell.robots.ik), clipped to the joint limits."""
     m, d, fid = robot.pin_model, robot.pin_data, robot.tcp_frame_id
     q, out = np.array(q0, float), []
     for T in T_world_tcp:
@@ -356,14 +357,14 @@ def test_part_out_of_reach_raises_unreachable_with_the_ik_verdict(robot, plan) -
         build_program(robot, plan, _far(8.0))
     msg = str(info.value)
     assert "UNREACHABLE 153/153 poses" in msg and "m out of reach" in msg
-    assert "robots.placement.find_base_pose" in msg and "\n" not in msg
+    assert "paintcell.robots.placement.find_base_pose" in msg and "\n" not in msg
     assert "nan" not in msg.lower()
 
 
 def test_partly_unreachable_plan_that_cannot_be_built_raises_unreachable(robot, plan) -> None:
     """0.8 m further: 2 of 3 passes out of reach; the moves between them leave the joint limits.
     The error says so and carries the verdict (a `TrajectoryError` used to hide it)."""
-    from robots.paths import solve_paths
+    from paintcell.robots.paths import solve_paths
 
     T = _far(0.8)
     ik = solve_paths(robot, [T @ plan.tcp_frames(i) for i in range(N_PASSES)],
@@ -377,9 +378,9 @@ def test_partly_unreachable_plan_that_cannot_be_built_raises_unreachable(robot, 
 def test_partly_unreachable_plan_is_still_timed_with_warnings(robot, plan) -> None:
     """A few poses off by millimetres: the program is built, the pass is named in
     meta['warnings'] and the reachability summary says not all poses are reachable."""
-    from robots.ik import IKPathResult
-    from robots.paths import solve_paths
-    from robots.reachability import ReachabilityReport
+    from paintcell.robots.ik import IKPathResult
+    from paintcell.robots.paths import solve_paths
+    from paintcell.robots.reachability import ReachabilityReport
 
     paths = [plan.tcp_frames(i) for i in range(N_PASSES)]
     ik = solve_paths(robot, paths, q_seed=robot.q_home)

@@ -1,4 +1,5 @@
-"""planning.transforms: the one rigid-pose check, pose inverse and rotation conversions, held to
+"""paintcell.planning.transforms: the one rigid-pose check, pose inverse and rotation conversions,
+held to
 scipy's `Rotation` and MuJoCo's own conversions."""
 
 from __future__ import annotations
@@ -8,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from planning.errors import PaintcellError
-from planning.transforms import (
+from paintcell.planning.errors import PaintcellError
+from paintcell.planning.transforms import (
     TransformError,
     check_pose,
     check_poses,

@@ -23,7 +23,7 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 VIEWPORT = (1280, 800)
-#: elements of the first screen (sim.report_sections ids).
+#: elements of the first screen (paintcell.sim.output.report_sections ids).
 FIRST_SCREEN = ("#verdict", "#film-map", "#film-histogram", "#pass-table")
 
 
@@ -83,7 +83,7 @@ def inspect_report(html_path: str | Path, png: str | Path | None = None,
 def run_door(out: Path) -> Path:
     """`paintcell run scenarios/door.toml --fast --out OUT`; return OUT/report.html."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, "-m", "sim.cli", "run", "scenarios/door.toml",
+    proc = subprocess.run([sys.executable, "-m", "paintcell.sim.app.cli", "run", "scenarios/door.toml",
                            "--fast", "--out", str(out)], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=1200)
     if proc.returncode not in (0, 1):  # 1: a threshold failed; the report is still written

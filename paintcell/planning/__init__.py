@@ -1,0 +1,1 @@
+"""Geometry and paint physics: part file → surface → coverage plan. Knows nothing of robots."""

@@ -1,0 +1,84 @@
+"""Algorithm 1 of the paper: start curve, offsets within the surface at optimized index widths,
+per-pass speed optimization, assembled into a `CoveragePlan`.
+
+    select the start curve (§2.3); optimize its speed (§3)
+    repeat: offset the latest pass to its right at the index width of §4; optimize its speed
+    until the offset lies completely outside the surface
+    the same to the left of the start curve
+
+Index widths: planar surfaces use the Fig. 5 rule (`planar_index_width`, one width for all
+passes). Curved surfaces (extruded or not) use markers along the current pass spaced by its total
+curvature; at each marker the surface is approximated by the extrusion of the marker's indexing
+curve and the brute-force search over n future passes (eq. 3) gives the best σ/μ per candidate
+width; the paper's constant-index restriction keeps the widths feasible at every marker, and the
+cost penalizes small widths and |w0 − w−1|. The new pass is the offset of every sample of the
+current pass by w0 along its indexing curve (geodesic), continued within the surface to the
+boundary and beyond it by `overspray_m` along the tangent. After the last pass that touches the
+surface, the first offset that lies completely outside is kept as a sideways overspray pass
+(`edge_passes`), painted over the virtual extension of the surface. Where the current pass's end
+samples have no offset there (their indexing curves left the surface along the boundary the pass
+ends at, `paintcell.planning.coverage.offset.walk`), the edge pass continues straight along its own
+path as far as
+the current pass reaches, then by the overspray.
+
+The code lives in `coverage_settings` (`PlannerSettings`), `coverage_planner` (pass geometry and
+the width choice), `coverage_timing` (overspray, band, speed QP, execution order) and
+`coverage_family` (Algorithm 1 on one pass family); this module is the entry point `plan_coverage`
+(input checks, then patches or one family) and re-exports their public names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from paintcell.planning.coverage.coverage_family import PLANAR_CURVATURE_1_M, plan_family
+from paintcell.planning.coverage.coverage_settings import PlannerSettings
+from paintcell.planning.coverage.patches import plan_patches
+from paintcell.planning.coverage.plan import CoveragePlan
+from paintcell.planning.errors import PlanError
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.surface.surface import Surface
+
+__all__ = ["PLANAR_CURVATURE_1_M", "PlannerSettings", "plan_coverage", "plan_family"]
+
+
+def plan_coverage(surface: Surface, applicator: Applicator,
+                  settings: PlannerSettings | None = None,
+                  speed_caps_m_s: dict[int, np.ndarray] | None = None,
+                  tool_x: dict[int, np.ndarray] | None = None) -> CoveragePlan:
+    """Plan uniform coverage of `surface` with `applicator` (paper Algorithm 1).
+
+    surface: a `paintcell.planning.surface.surface.Surface` in its part frame; applicator: the
+    deposition model;
+    settings: `PlannerSettings` (defaults when None);
+    speed_caps_m_s: optional per-pass speed upper bounds {side: (M,) [m/s]}, one per TCP sample of
+        that pass in its generation direction (`plan.passes[i]` reversed when i is odd): the speed
+        QP re-plans under them (robot-aware speeds, `paintcell.sim.motion.speed_feedback`). A
+        re-plan with the same
+        part and settings reproduces the same passes, so caps taken from a plan fit its re-plan;
+    tool_x: optional per-pass bell x axes {side: (M, 3)} in the part frame, same sample order as
+        the caps: the orientation the robot will hold about the spray axis (a robot that frees
+        the bell's spin); the deposition model (QP, film) then uses it as the travel axis.
+    Returns a `CoveragePlan` in the part frame: passes in execution order (side −k … +k,
+    alternating direction), TCP at standoff along the normal, speeds and times, on_part /
+    paint_on flags, index widths, the start-curve rule and the settings (with a `report` entry:
+    per-pass width choice, markers, speed-QP status). The plan holds no wall-clock timing, so
+    the same input gives a byte-identical saved plan (the pipeline records stage times).
+    Raises PlanError when an offset self-intersects or the loop does not terminate.
+    """
+    if not isinstance(surface, Surface):
+        raise PlanError(f"plan_coverage needs a paintcell.planning.surface.surface.Surface, got "
+                        f"{type(surface).__name__}; build one with Surface.from_mesh or "
+                        "paintcell.planning.surface.parts.get_part")
+    if not isinstance(applicator, Applicator):
+        raise PlanError("plan_coverage needs an Applicator (paintcell.planning.paint.applicator), "
+                        f"got {type(applicator).__name__}; use Applicator.default() or from_toml")
+    if settings is not None and not isinstance(settings, PlannerSettings):
+        raise PlanError(f"plan_coverage settings must be PlannerSettings or None, got "
+                        f"{type(settings).__name__}; use PlannerSettings.from_dict for a dict")
+    st = PlannerSettings() if settings is None else settings
+    if st.patches:
+        return plan_patches(surface, applicator, replace(st, patches=False))
+    return plan_family(surface, applicator, st, speed_caps_m_s, tool_x)

@@ -1,0 +1,2 @@
+"""Paint physics: the ESRB bell deposition model, its calibration and the film uniformity
+metrics."""

@@ -1,0 +1,313 @@
+"""The compiled film kernel: `paintcell.planning.paint.deposition.thickness` in numba (CPU) or CUDA
+(GPU).
+
+Same formula, same culling and the same pairs as the numpy kernel of
+`paintcell.planning.paint.deposition`
+(see its module doc): points in Z-order blocks of `BLOCK_POINTS`, gun samples in consecutive
+chunks of `CHUNK_SAMPLES`; a (chunk, block) pair is evaluated, every sample of the chunk against
+every point of the block, when the block's bounding sphere meets the spray cone of any sample of
+the chunk. Per evaluated pair
+
+    thickness += dwell · f(h·dx/dz, h·dy/dz) · max(−n·d, 0) · clip(h/dz, 0, 1e12)³ / h,
+
+exponents clamped at −700 as in the numpy kernel. The CPU inner loop has no branches (a
+vectorizing exp of < 1e-14 relative error), so the result agrees with the numpy kernel to
+round-off (tests: 1e-12 relative per point on a flat plate, 1e-9 of the peak on curved parts);
+the sum over samples runs in sample order for every point, so it does not depend on the number
+of threads.
+
+CPU: `numba.njit(parallel=True)`, one block of points a task (threads from `numba`'s pool:
+`NUMBA_NUM_THREADS` or the `threads` argument). GPU: a `numba.cuda` kernel, one point a thread,
+chosen at run time when `numba.cuda.is_available()` (and `PAINTCELL_GPU` is not `0`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import os
+from typing import Any
+
+import numpy as np
+
+
+def _prefer_512_bit_vectors() -> None:
+    """On AVX-512 hosts let LLVM use 512-bit vectors (its x86 tuning prefers 256-bit; the
+    branch-free film loop runs ~1.5× faster per core with 512, benchmarks/deposition.py). Only
+    when the user has not set NUMBA_CPU_FEATURES and before numba compiles anything."""
+    if "NUMBA_CPU_FEATURES" in os.environ:
+        return
+    try:
+        import llvmlite.binding as llvm
+        import numba.core.config as cfg
+
+        feats = llvm.get_host_cpu_features().flatten()
+        if "+avx512f" in feats.split(",") and getattr(cfg, "CPU_FEATURES", None) is None:
+            setattr(cfg, "CPU_FEATURES", feats + ",-prefer-256-bit")  # noqa: B010 (untyped)
+    except Exception:  # any trouble: numba's defaults
+        return
+
+
+try:  # numba is a dependency; the numpy kernel stays as the reference if it cannot load
+    _prefer_512_bit_vectors()
+    import numba
+    from numba import njit, prange
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover - exercised only without numba
+    HAVE_NUMBA = False
+
+#: exponents are clamped here, as in the numpy kernel (e^-700 ≈ 1e-304: zero for any film).
+EXP_FLOOR = 700.0
+#: h/dz is clipped to this (as in the numpy kernel).
+#: rings the CPU kernel evaluates inline (the Applicator model has two).
+MAX_RINGS = 2
+INV_MAX = 1e12
+
+
+def params(app: Any) -> np.ndarray:
+    """Packed applicator parameters (float64): h, A0, 1/(2σx²), 1/(2σy²), then per ring A, μ,
+    1/(σ√2) (rings with A ≤ 0 dropped)."""
+    rings = [(float(a), float(m), 1.0 / (float(s) * math.sqrt(2.0)))
+             for a, m, s in zip(app.ring_amplitudes_m_s, app.ring_radii_m, app.ring_sigmas_m,
+                                strict=True) if a > 0]
+    head = [app.standoff_m, app.a0_m_s, 0.5 / app.sigma_x_m**2, 0.5 / app.sigma_y_m**2]
+    return np.array(head + [v for r in rings for v in r], float)
+
+
+if HAVE_NUMBA:
+    @njit(cache=True, inline="always", fastmath={"contract"})
+    def _exp_neg(x: float) -> float:
+        """e^x for x ≤ 0, branch-free (so loops of it vectorize): x clamped at −`EXP_FLOOR`
+        (as numpy's kernel does), e^x = 2^k · e^r with k = round(x / ln 2) and r = x − k·ln 2
+        (Cody–Waite: ln 2 split so k·LN2_HI is exact), |r| ≤ 0.347, e^r by its degree-11
+        Taylor polynomial (truncation ≤ 0.347¹²/12! = 6.3e-15 relative; degree 13 cost ~7 %
+        more kernel time for nothing a film can show: benchmarks/film_kernel_profile.py),
+        2^k built in the exponent bits. Relative error below 1e-14."""
+        x = max(x, -EXP_FLOOR)
+        k = math.floor(x * 1.4426950408889634 + 0.5)
+        r = (x - k * 0.693145751953125) - k * 1.4286068203094173e-06
+        p = 1.0 / 39916800.0
+        p = p * r + 1.0 / 3628800.0
+        p = p * r + 1.0 / 362880.0
+        p = p * r + 1.0 / 40320.0
+        p = p * r + 1.0 / 5040.0
+        p = p * r + 1.0 / 720.0
+        p = p * r + 1.0 / 120.0
+        p = p * r + 1.0 / 24.0
+        p = p * r + 1.0 / 6.0
+        p = p * r + 0.5
+        p = p * r + 1.0
+        p = p * r + 1.0
+        bits = np.int64((np.int64(k) + 1023) << 52)
+        return p * bits.view(np.float64)
+
+    @njit(cache=True, inline="always")
+    def _cone_hit(cx: float, cy: float, cz: float, rho: float, g: np.ndarray, a: np.ndarray,
+                  s: int, tan_cone: float) -> bool:
+        d0, d1, d2 = cx - g[s, 0], cy - g[s, 1], cz - g[s, 2]
+        dz = d0 * a[s, 0] + d1 * a[s, 1] + d2 * a[s, 2]
+        lat = math.sqrt(max(d0 * d0 + d1 * d1 + d2 * d2 - dz * dz, 0.0))
+        far = dz + rho
+        return far > 0.0 and lat - rho <= tan_cone * far
+
+    @njit(cache=True, parallel=True, fastmath={"contract"})
+    def _film_cpu(pts: np.ndarray, nrm: np.ndarray, starts: np.ndarray, centers: np.ndarray,
+                  radii: np.ndarray, g: np.ndarray, xh: np.ndarray, yh: np.ndarray,
+                  a: np.ndarray, coef: np.ndarray, chunk: int, tan_cone: float,
+                  prm: np.ndarray, out: np.ndarray, evaluated: np.ndarray) -> None:
+        """out[i] = Σ_s coef_s · h·rate_s(p_i) over the evaluated (chunk, block) pairs.
+
+        pts, nrm: (3, N) sorted into blocks (rows x, y, z); starts: (nb + 1,) block offsets;
+        centers (nb, 3), radii (nb,): bounding spheres; g, xh, yh, a: (S, 3); coef: (S,)
+        dwell/h [s/m]; prm: `params`. evaluated: (nb,) pairs evaluated per block (output).
+        The inner loop (the points of a block for one sample) has no branches: points behind
+        the gun or facing away get weight 0 exactly as in the numpy kernel.
+        """
+        nb = len(starts) - 1
+        s_all = len(g)
+        h, amp0, cx2, cy2 = prm[0], prm[1], prm[2], prm[3]
+        nr = (len(prm) - 4) // 3
+        # up to two rings inline (the Applicator's model); a third would be dropped: guarded
+        # by the caller
+        ra1 = prm[4] if nr > 0 else 0.0
+        rm1 = prm[5] if nr > 0 else 0.0
+        rc1 = prm[6] if nr > 0 else 1.0
+        ra2 = prm[7] if nr > 1 else 0.0
+        rm2 = prm[8] if nr > 1 else 0.0
+        rc2 = prm[9] if nr > 1 else 1.0
+        for b in prange(nb):
+            i0, i1 = starts[b], starts[b + 1]
+            cx, cy, cz, rho = centers[b, 0], centers[b, 1], centers[b, 2], radii[b]
+            count = 0
+            px, py, pz = pts[0, i0:i1], pts[1, i0:i1], pts[2, i0:i1]
+            qx, qy, qz = nrm[0, i0:i1], nrm[1, i0:i1], nrm[2, i0:i1]
+            m = i1 - i0
+            acc = np.zeros(m)
+            for c0 in range(0, s_all, chunk):
+                c1 = min(c0 + chunk, s_all)
+                hit = False
+                for s in range(c0, c1):
+                    if _cone_hit(cx, cy, cz, rho, g, a, s, tan_cone):
+                        hit = True
+                        break
+                if not hit:
+                    continue
+                count += (c1 - c0) * m
+                for s in range(c0, c1):
+                    gs0, gs1, gs2 = g[s, 0], g[s, 1], g[s, 2]
+                    x0, x1, x2 = xh[s, 0], xh[s, 1], xh[s, 2]
+                    y0, y1, y2 = yh[s, 0], yh[s, 1], yh[s, 2]
+                    a0, a1, a2 = a[s, 0], a[s, 1], a[s, 2]
+                    w = coef[s]
+                    for i in range(m):
+                        d0, d1, d2 = px[i] - gs0, py[i] - gs1, pz[i] - gs2
+                        dz = d0 * a0 + d1 * a1 + d2 * a2
+                        nd = max(-(qx[i] * d0 + qy[i] * d1 + qz[i] * d2), 0.0)
+                        inv = min(max(h / dz, 0.0), INV_MAX)
+                        u = (d0 * x0 + d1 * x1 + d2 * x2) * inv
+                        v = (d0 * y0 + d1 * y1 + d2 * y2) * inv
+                        u2 = u * u
+                        v2 = v * v
+                        r = math.sqrt(u2 + v2)
+                        t1 = (r - rm1) * rc1
+                        t2 = (r - rm2) * rc2
+                        f = (amp0 * _exp_neg(-(u2 * cx2 + v2 * cy2)) + ra1 * _exp_neg(-t1 * t1)
+                             + ra2 * _exp_neg(-t2 * t2))
+                        acc[i] += w * (f * (nd * inv * inv * inv))
+            out[i0:i1] = acc
+            evaluated[b] = count
+
+
+def film_cpu(blocks_pts: np.ndarray, blocks_nrm: np.ndarray, starts: np.ndarray,
+             centers: np.ndarray, radii: np.ndarray, g: np.ndarray, xh: np.ndarray,
+             yh: np.ndarray, a: np.ndarray, coef: np.ndarray, chunk: int, tan_cone: float,
+             prm: np.ndarray, threads: int | None = None) -> tuple[np.ndarray, int]:
+    """(film (N,) [m] in block order, pairs evaluated) on the CPU (numba); at most
+    `MAX_RINGS` rings in `prm`."""
+    if (len(prm) - 4) // 3 > MAX_RINGS:
+        raise ValueError(f"the compiled kernel takes at most {MAX_RINGS} rings")
+    out = np.zeros(len(blocks_pts))
+    evaluated = np.zeros(len(starts) - 1, np.int64)
+    old = numba.get_num_threads()
+    if threads is not None:
+        most = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
+        numba.set_num_threads(max(1, min(int(threads), most)))
+    try:
+        # dynamic scheduling: blocks under the program cost far more than blocks outside it
+        with numba.parallel_chunksize(1):
+            _film_cpu(np.ascontiguousarray(blocks_pts.T), np.ascontiguousarray(blocks_nrm.T),
+                      starts, centers, radii, g, xh, yh, a, coef,
+                      int(chunk), float(tan_cone), prm, out, evaluated)
+    finally:
+        numba.set_num_threads(old)
+    return out, int(evaluated.sum())
+
+
+# --- GPU -----------------------------------------------------------------------------------------
+_GPU_KERNEL: Any = None
+
+
+def gpu_available() -> bool:
+    """True when numba.cuda sees a GPU and `PAINTCELL_GPU` is not "0"."""
+    if not HAVE_NUMBA or os.environ.get("PAINTCELL_GPU", "1") == "0":
+        return False
+    return _cuda_present()
+
+
+@functools.lru_cache(maxsize=1)
+def _cuda_present() -> bool:
+    """Asked once a process (loading the driver costs time on a machine without one)."""
+    try:
+        from numba import cuda
+        return bool(cuda.is_available())
+    except Exception:  # no driver, no toolkit: the CPU kernel it is
+        return False
+
+
+def _gpu_kernel() -> Any:
+    global _GPU_KERNEL
+    if _GPU_KERNEL is None:
+        from numba import cuda
+
+        @cuda.jit
+        def kern(pts: Any, nrm: Any, block_of: Any, cand: Any, g: Any, xh: Any, yh: Any,
+                 a: Any, coef: Any, chunk: int, prm: Any, out: Any) -> None:
+            i: int = cuda.grid(1)  # type: ignore[call-arg]
+            if i >= pts.shape[0]:
+                return
+            b = block_of[i]
+            acc = 0.0
+            nr = (prm.shape[0] - 4) // 3
+            for c in range(cand.shape[0]):
+                if not cand[c, b]:
+                    continue
+                c1 = min((c + 1) * chunk, g.shape[0])
+                for s in range(c * chunk, c1):
+                    d0 = pts[i, 0] - g[s, 0]
+                    d1 = pts[i, 1] - g[s, 1]
+                    d2 = pts[i, 2] - g[s, 2]
+                    dz = d0 * a[s, 0] + d1 * a[s, 1] + d2 * a[s, 2]
+                    nd = -(nrm[i, 0] * d0 + nrm[i, 1] * d1 + nrm[i, 2] * d2)
+                    if dz <= 0.0 or nd <= 0.0:
+                        continue
+                    inv = min(prm[0] / dz, INV_MAX)
+                    u = (d0 * xh[s, 0] + d1 * xh[s, 1] + d2 * xh[s, 2]) * inv
+                    v = (d0 * yh[s, 0] + d1 * yh[s, 1] + d2 * yh[s, 2]) * inv
+                    u2 = u * u
+                    v2 = v * v
+                    f = prm[1] * math.exp(max(-(u2 * prm[2] + v2 * prm[3]), -EXP_FLOOR))
+                    r = math.sqrt(u2 + v2)
+                    for k in range(nr):
+                        t = (r - prm[5 + 3 * k]) * prm[6 + 3 * k]
+                        f += prm[4 + 3 * k] * math.exp(max(-t * t, -EXP_FLOOR))
+                    acc += coef[s] * f * nd * inv * inv * inv
+            out[i] = acc
+
+        _GPU_KERNEL = kern
+    return _GPU_KERNEL
+
+
+def film_gpu(blocks_pts: np.ndarray, blocks_nrm: np.ndarray, starts: np.ndarray,
+             cand: np.ndarray, g: np.ndarray, xh: np.ndarray, yh: np.ndarray, a: np.ndarray,
+             coef: np.ndarray, chunk: int, prm: np.ndarray) -> np.ndarray:
+    """The same sums on a CUDA GPU; cand: (n_chunks, nb) bool, the evaluated (chunk, block)
+    pairs (from `candidates_cpu`). Not run on the 2-core development machine (no GPU there)."""
+    from numba import cuda
+
+    block_of = np.repeat(np.arange(len(starts) - 1), np.diff(starts)).astype(np.int64)
+    out = cuda.device_array(len(blocks_pts))
+    kern = _gpu_kernel()
+    tpb = 128
+    kern[(len(blocks_pts) + tpb - 1) // tpb, tpb](
+        cuda.to_device(blocks_pts), cuda.to_device(blocks_nrm), cuda.to_device(block_of),
+        cuda.to_device(cand), cuda.to_device(g), cuda.to_device(xh), cuda.to_device(yh),
+        cuda.to_device(a), cuda.to_device(coef), int(chunk), cuda.to_device(prm), out)
+    return np.asarray(out.copy_to_host())
+
+
+if HAVE_NUMBA:
+    @njit(cache=True, parallel=True)
+    def _cand(centers: np.ndarray, radii: np.ndarray, g: np.ndarray, a: np.ndarray, chunk: int,
+              tan_cone: float, cand: np.ndarray) -> None:
+        nb = len(radii)
+        s_all = len(g)
+        for b in prange(nb):
+            cx, cy, cz, rho = centers[b, 0], centers[b, 1], centers[b, 2], radii[b]
+            for c in range(cand.shape[0]):
+                for s in range(c * chunk, min((c + 1) * chunk, s_all)):
+                    d0, d1, d2 = cx - g[s, 0], cy - g[s, 1], cz - g[s, 2]
+                    dz = d0 * a[s, 0] + d1 * a[s, 1] + d2 * a[s, 2]
+                    lat = math.sqrt(max(d0 * d0 + d1 * d1 + d2 * d2 - dz * dz, 0.0))
+                    far = dz + rho
+                    if far > 0.0 and lat - rho <= tan_cone * far:
+                        cand[c, b] = True
+                        break
+
+
+def candidates_cpu(centers: np.ndarray, radii: np.ndarray, g: np.ndarray, a: np.ndarray,
+                   chunk: int, tan_cone: float) -> np.ndarray:
+    """(n_chunks, nb) bool: the (chunk, block) pairs the kernel evaluates (same test as the
+    numpy kernel's `_candidate_blocks`)."""
+    cand = np.zeros((-(-len(g) // chunk), len(radii)), np.bool_)
+    _cand(centers, radii, g, a, int(chunk), float(tan_cone), cand)
+    return cand

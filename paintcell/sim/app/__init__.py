@@ -1,0 +1,2 @@
+"""The application: scenarios, the pipeline that chains the stages, and the `paintcell` command
+line."""

@@ -1,0 +1,299 @@
+"""A paint booth: several robots, a car body of several library parts, a conveyor.
+
+`Booth` declares the job like `paintcell.sim.app.scenario.Scenario` does for one robot: the body's
+parts and
+where they sit in the body frame, the body's placement at conveyor position 0, the robots (model,
+base — a rail robot's base is its rail frame —, home), the conveyor and the thresholds.
+`paintcell.sim.booth.booth_run.run_booth` runs it end to end; `paintcell check` runs a booth script
+like any
+scenario script (`SCENARIO = Booth(...)`).
+
+Allocation (`allocate`): the jobs are whole parts or two pieces of a part (its passes split at
+a pass boundary). Every assignment of one job per robot — each part whole or split, one robot
+per job — is enumerated (≤ a few hundred for four robots) and the one chosen:
+1. every job is reachable by its robot (closed-form IK feasibility of every pass: inside the
+   limits, off the wrist singularity; a rail robot at its best rail position per pass);
+2. the booth cycle — the longest robot's estimated program: paint time of its passes plus
+   TURN_S per turn-around and APPROACH_RETRACT_S — is the smallest; ties go to the smallest
+   second-longest program, and so on (lexicographic min-max: the work is spread evenly); the
+   candidates are tried in that order (`rank_allocations`) until one passes step 3;
+3. no two bells in the same zone: the two pieces of a split part are painted in the same pass
+   order and direction at the same time, so the two bells stay a piece's width apart; robots on
+   neighbouring parts can still meet at the seam, so the programs are then staggered
+   (`stagger_starts`): robot by robot, the smallest start delay (a hold at home, in steps of
+   STAGGER_STEP_S) that keeps its bell, wrist and elbow `min_bell_distance_m` from every earlier
+   robot's at every instant (checked every 20 ms). The smallest bell-to-bell distance of the
+   executed programs is checked against the same limit, and MuJoCo counts robot–robot contacts.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from paintcell.planning.errors import PaintcellError
+from paintcell.sim.app.scenario import Placement
+from paintcell.sim.booth.conveyor import Conveyor
+
+#: cycle estimate of the allocation: time per turn-around and for approach + retract [s]
+#: (measured on the library parts' programs: turn-arounds 0.8–1.8 s, approach + retract 3–5 s).
+TURN_S = 1.2
+APPROACH_RETRACT_S = 4.0
+#: start-delay step and largest delay of `stagger_starts` [s].
+STAGGER_STEP_S = 0.25
+STAGGER_MAX_S = 20.0
+
+
+class BoothError(PaintcellError):
+    """A booth is mis-specified or cannot be allocated."""
+
+
+@dataclass(frozen=True)
+class BoothRobot:
+    """One robot of the booth.
+
+    name: short label (reports, RAPID task names). model: `paintcell.robots.load_robot` name (a rail
+    robot:
+    "<arm>_rail"). base: base placement in the world (a rail robot: its rail frame; the carriage
+    slides along the frame's +y). home: joint values [rad] (rail: [m] first) where its program
+    starts and ends (None: the model's home). rail_m: (lower, upper) carriage travel of a rail
+    robot [m] (None: `paintcell.robots.rail.RailSpec`'s ±2 m).
+    """
+
+    name: str
+    model: str = "irb5500"
+    base: Placement = Placement()
+    home: tuple[float, ...] | None = None
+    rail_m: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
+            raise BoothError(f"robot name {self.name!r} must be letters, digits, '_' or '-'")
+
+
+@dataclass(frozen=True)
+class BodyPart:
+    """A library part of the body and its placement in the body frame (x along the car)."""
+
+    part: str
+    placement: Placement
+    planner: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class BoothThresholds:
+    """Pass/fail limits of a booth run (None disables a check).
+
+    max_collisions: robot–part, robot–booth and robot–robot (and self) collision events.
+    max_robot_collisions: robot–robot collision events alone.
+    max_executed_nsd_pct: executed film σ/μ of the worst part [%] (the whole body's is reported;
+        it also measures how far the parts' planned film builds differ).
+    max_body_nsd_pct: executed film σ/μ over the whole body [%] (with a common film build,
+        `Booth.common_film_build`, it measures the parts' edges and the robots' seams).
+    max_abs_loss_pp: |executed − planned σ/μ| [pp]. max_cycle_time_s: booth cycle [s].
+    min_bell_distance_m: smallest distance between two bells while both paint [m].
+    max_torque_utilization: largest demanded/limit torque of any joint [-].
+    """
+
+    max_collisions: int | None = 0
+    max_robot_collisions: int | None = 0
+    max_executed_nsd_pct: float | None = 20.0
+    max_body_nsd_pct: float | None = None
+    max_abs_loss_pp: float | None = 1.0
+    max_cycle_time_s: float | None = 120.0
+    min_bell_distance_m: float | None = 0.8
+    max_torque_utilization: float | None = 1.0
+
+
+@dataclass(frozen=True)
+class Booth:
+    """A booth job (module doc). `robots` and `parts` are tuples; `trajectory` and `servo` hold
+    `TrajectorySettings` / `ServoSettings` fields shared by all robots. `allocation` fixes the
+    jobs instead of the automatic choice: {robot name: [part index, first pass, end pass]}.
+    """
+
+    name: str
+    parts: tuple[BodyPart, ...]
+    robots: tuple[BoothRobot, ...]
+    body_placement: Placement = Placement()
+    conveyor: Conveyor = Conveyor()
+    resolution_m: float = 0.01
+    fast_resolution_m: float = 0.025
+    planner: dict[str, Any] = field(default_factory=dict)
+    trajectory: dict[str, Any] = field(default_factory=dict)
+    servo: dict[str, Any] = field(default_factory=dict)
+    thresholds: BoothThresholds = BoothThresholds()
+    allocation: dict[str, tuple[int, int, int]] | None = None
+    common_film_build: bool = True
+    """Scale each part's bell flow so every part's planned mean film is one target
+    (`paintcell.sim.booth.booth_build`); False: each part at the default flow, its own film
+    build."""
+    film_target_um: float | None = None
+    """The common film build [µm] (None: the body's area-weighted planned mean)."""
+    blend_seams: bool = True
+    """Switch off the samples that paint other parts more than their own
+    (`paintcell.sim.booth.booth_seams`)."""
+    source: str | None = None
+    applicator: str | None = None
+    """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
+    sweep: dict[str, Any] = field(default_factory=dict)
+    """The `paintcell sweep` table (`paintcell.sim.sweeps.sweep_spec.SCENARIO_KEYS`); a booth sweep
+    varies the
+    line speed (`paintcell.sim.sweeps.sweep_booth`)."""
+
+    def __post_init__(self) -> None:
+        if not self.parts or not self.robots:
+            raise BoothError("a booth needs at least one part and one robot")
+        names = [r.name for r in self.robots]
+        if len(set(names)) != len(names):
+            raise BoothError(f"robot names must be unique, got {names}")
+        if not isinstance(self.conveyor, Conveyor):
+            raise BoothError("Booth.conveyor must be a paintcell.sim.booth.conveyor.Conveyor")
+
+    @property
+    def part(self) -> str:
+        """Label of the body (the `check` table's part column)."""
+        return "+".join(p.part for p in self.parts)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe description."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Job:
+    """Passes [first, end) of part `part` (index into `Booth.parts`)."""
+
+    part: int
+    first: int
+    end: int
+
+
+def job_options(n_passes: list[int]) -> list[list[list[Job]]]:
+    """Per part, its ways of being cut into jobs: whole, or two pieces at any pass boundary."""
+    out = []
+    for p, n in enumerate(n_passes):
+        out.append([[Job(p, 0, n)]] + [[Job(p, 0, k), Job(p, k, n)] for k in range(1, n)])
+    return out
+
+
+def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
+                     reachable: Any) -> tuple[list[dict[int, Job]], dict[str, Any]]:
+    """Every feasible allocation of the module doc, best first.
+
+    n_passes: per part, its number of passes; durations: per part, (P,) planned pass times [s];
+    reachable(robot, job) -> bool. Returns the allocations ({robot index: Job}), best first by
+    lexicographic min-max of the estimated program times, and a record of the search.
+    """
+    ranked: list[tuple[tuple[float, ...], int, dict[int, Job]]] = []
+    n_considered = 0
+    for cut in itertools.product(*job_options(n_passes)):
+        jobs = [j for part_jobs in cut for j in part_jobs]
+        if len(jobs) > n_robots:
+            continue
+        for robots in itertools.permutations(range(n_robots), len(jobs)):
+            n_considered += 1
+            if not all(reachable(r, j) for r, j in zip(robots, jobs, strict=True)):
+                continue
+            est = [estimate_s(durations[j.part][j.first:j.end]) for j in jobs]
+            # Lexicographic min-max: the longest program first, then the next longest, ...
+            ranked.append((tuple(sorted(est, reverse=True)), len(ranked),
+                           dict(zip(robots, jobs, strict=True))))
+    if not ranked:
+        raise BoothError(f"no allocation puts every part within reach ({n_considered} "
+                         "candidates); move the robots or add one")
+    ranked.sort(key=lambda c: (c[0], c[1]))
+    record = {"rule": "lexicographic min-max of the estimated program times, every job "
+                      "reachable, split parts swept in step; the first whose programs keep "
+                      "the arms apart (staggered starts) is taken",
+              "candidates": n_considered, "feasible": len(ranked),
+              "estimated_cycle_s": ranked[0][0][0], "estimated_programs_s": list(ranked[0][0]),
+              "best_ranked": [{"estimated_programs_s": list(c[0]),
+                               "jobs": {r: [j.part, j.first, j.end] for r, j in c[2].items()},
+                               "estimated_s": {r: estimate_s(durations[j.part][j.first:j.end])
+                                               for r, j in c[2].items()}}
+                              for c in ranked[:8]]}
+    return [c[2] for c in ranked], record
+
+
+def allocate(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
+             reachable: Any) -> tuple[dict[int, Job], dict[str, Any]]:
+    """The best allocation of `rank_allocations` and its record."""
+    ranked, record = rank_allocations(n_robots, n_passes, durations, reachable)
+    return ranked[0], record
+
+
+def estimate_s(pass_durations: np.ndarray) -> float:
+    """Estimated program time of a job [s]: paint + turn-arounds + approach and retract."""
+    return float(np.sum(pass_durations) + TURN_S * max(len(pass_durations) - 1, 0)
+                 + APPROACH_RETRACT_S)
+
+
+def pass_feasible(robot: Any, T_world_tcp: np.ndarray) -> bool:
+    """Whether one pass is feasible for the robot in closed form (subsampled to 40 poses): some
+    branch inside the limits, off the wrist singularity (a rail robot: at some rail position)."""
+    from paintcell.robots.ik import IKSettings, branch_feasibility, opw_branches
+
+    keep = np.unique(np.linspace(0, len(T_world_tcp) - 1, 40).astype(int))
+    sub = T_world_tcp[keep]
+    js = max(1.0, (len(T_world_tcp) - 1) / max(len(keep) - 1, 1))   # subsampling widens jumps
+    settings = IKSettings()
+    if getattr(robot, "rail", None) is not None:
+        from paintcell.robots.rail import rail_cost
+
+        spec = robot.rail.spec
+        return any(rail_cost(robot, sub, s, robot.rail.arm.q_home, settings, js)[1]
+                   for s in np.linspace(spec.lower_m, spec.upper_m, 21))
+    if robot.opw is None:
+        raise BoothError(f"{robot.name}: booth allocation needs closed-form IK (abb_paint, "
+                         "irb5500 or their _rail variants)")
+    Q, _, within = opw_branches(robot, sub, robot.q_home)
+    return bool(branch_feasibility(robot, Q, within, settings, js).feasible.any())
+
+
+def stagger_starts(paths: list[np.ndarray], dt_s: float, min_distance_m: float) -> list[int]:
+    """Start delays [samples] that keep every two robots' arms `min_distance_m` [m] apart.
+
+    paths: per robot, positions (K_i, P, 3) [m] of P points along its arm (the bell, the wrist
+    centre, the elbow) every dt_s [s]; a delayed robot holds its first pose, a finished one its
+    last. Greedy in robot order: each robot takes the smallest delay (multiples of
+    STAGGER_STEP_S, up to STAGGER_MAX_S) that keeps each of its points that far from each point
+    of the robots before it. Raises BoothError when no delay is enough.
+    """
+    step = max(1, int(round(STAGGER_STEP_S / dt_s)))
+    delays: list[int] = []
+    for i, p in enumerate(paths):
+        for d in range(0, int(round(STAGGER_MAX_S / dt_s)) + 1, step):
+            K = max([len(p) + d] + [len(q) + e for q, e in zip(paths[:i], delays, strict=True)])
+            idx = np.arange(K)
+            mine = p[np.clip(idx - d, 0, len(p) - 1)]                          # (K, P, 3)
+            ok = all(np.linalg.norm(mine[:, :, None] - q[np.clip(idx - e, 0, len(q) - 1)]
+                                    [:, None], axis=3).min() >= min_distance_m
+                     for q, e in zip(paths[:i], delays, strict=True))
+            if ok:
+                delays.append(d)
+                break
+        else:
+            raise BoothError(f"robot {i}'s arm comes closer than {min_distance_m} m to another "
+                             f"for every start delay up to {STAGGER_MAX_S} s; change the "
+                             "allocation or the robots' places")
+    return delays
+
+
+def arm_points(robot: Any, q: np.ndarray) -> np.ndarray:
+    """(K, 3, 3) world positions [m] of the bell (TCP), the wrist centre (joint5) and the elbow
+    (joint3) of `robot` at joint values q (K, n)."""
+    import pinocchio as pin
+
+    m, d = robot.pin_model, robot.pin_model.createData()
+    ids = [m.getJointId("joint5"), m.getJointId("joint3")]
+    out = np.empty((len(q), 3, 3))
+    for k, qk in enumerate(q):
+        pin.forwardKinematics(m, d, qk)
+        out[k, 0] = pin.updateFramePlacement(m, d, robot.tcp_frame_id).translation
+        out[k, 1] = d.oMi[ids[0]].translation
+        out[k, 2] = d.oMi[ids[1]].translation
+    return out

@@ -1,0 +1,293 @@
+"""What a booth run builds before it executes: the parts' plans (common film build, blended
+seams), the allocation of passes to robots, each robot's program, staggered starts and conveyor
+tracking (`booth_programs` -> `BoothPrograms`; `paintcell.sim.booth.booth_run.run_booth` and
+`paintcell.sim.sweeps.sweep_booth`
+execute them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from paintcell.planning.coverage.plan import CoveragePlan
+from paintcell.planning.errors import PaintcellError
+from paintcell.planning.surface.surface import Surface
+from paintcell.sim.booth.booth import (
+    Booth,
+    BoothError,
+    Job,
+    arm_points,
+    pass_feasible,
+    rank_allocations,
+    stagger_starts,
+)
+from paintcell.sim.booth.booth_film import merge_surfaces
+from paintcell.sim.booth.conveyor import ConveyorError, track_program
+from paintcell.sim.motion.joint_trajectory import RETRACT, JointTrajectory
+
+#: allocations tried, best first, before giving up (their programs are cached per robot and job).
+MAX_ALLOCATIONS_TRIED = 8
+
+
+def _pad(traj: JointTrajectory, K: int) -> JointTrajectory:
+    """`traj` held at its last sample (at rest, brush off) up to K samples."""
+    n = K - len(traj.t_s)
+    if n <= 0:
+        return traj
+    dt = traj.dt_s
+    a = {name: getattr(traj, name) for name in JointTrajectory._ARRAYS}
+    ext = {"t_s": traj.t_s[-1] + dt * np.arange(1, n + 1),
+           "qd": np.zeros((n, a["qd"].shape[1])), "qdd": np.zeros((n, a["qdd"].shape[1])),
+           "v_tcp_planned": np.zeros(n), "paint_on": np.zeros(n, bool),
+           "pass_index": np.full(n, -1), "segment": np.full(n, RETRACT),
+           "s_pass_m": np.full(n, np.nan)}
+    out = {k: np.concatenate([v, ext[k] if k in ext else np.repeat(v[-1:], n, axis=0)])
+           for k, v in a.items()}
+    return JointTrajectory(**out, robot_name=traj.robot_name, joint_names=traj.joint_names,
+                           slowdowns=traj.slowdowns, pass_summary=traj.pass_summary,
+                           meta=dict(traj.meta))
+
+
+def _delay(traj: JointTrajectory, n: int) -> JointTrajectory:
+    """`traj` preceded by n samples holding its first one (at rest at home, brush off)."""
+    if n <= 0:
+        return traj
+    a = {name: getattr(traj, name) for name in JointTrajectory._ARRAYS}
+    head = {"qd": np.zeros((n, a["qd"].shape[1])), "qdd": np.zeros((n, a["qdd"].shape[1])),
+            "v_tcp_planned": np.zeros(n), "paint_on": np.zeros(n, bool),
+            "pass_index": np.full(n, -1), "s_pass_m": np.full(n, np.nan)}
+    out = {k: np.concatenate([head[k] if k in head else np.repeat(v[:1], n, axis=0), v])
+           for k, v in a.items() if k != "t_s"}
+    out["t_s"] = traj.t_s[0] + traj.dt_s * np.arange(len(traj.t_s) + n)
+    return JointTrajectory(**out, robot_name=traj.robot_name, joint_names=traj.joint_names,
+                           slowdowns=traj.slowdowns, pass_summary=traj.pass_summary,
+                           meta={**traj.meta, "start_delay_s": n * traj.dt_s})
+
+
+@dataclass
+class BoothPrograms:
+    """What a booth run builds before it executes (`booth_programs`); a sweep
+    (`paintcell.sim.sweeps.sweep_booth`)
+    builds it once and executes it under many disturbances.
+
+    surfaces: the parts' surfaces (part frames); body: their merge in the body frame;
+    T_body_parts: (4, 4) part placements in the body frame; jobs: robot index → its job;
+    record: the allocation record; static: each robot's own program (static cell, not delayed);
+    trajs: the programs delayed, padded to one clock and tracking the conveyor; t_ref_s: when the
+    body passes its nominal placement [s]; robots: the loaded robot models (None once sent to a
+    worker, which loads its own); film_build, seams: the records of
+    `paintcell.sim.booth.booth_build` and
+    `paintcell.sim.booth.booth_seams` (the plans already carry their effect).
+    """
+
+    surfaces: list[Surface]
+    body: Surface
+    plans: list[CoveragePlan]
+    T_body_parts: list[np.ndarray]
+    jobs: dict[int, Job]
+    record: dict[str, Any]
+    static: list[JointTrajectory]
+    trajs: list[JointTrajectory]
+    t_ref_s: float
+    robots: list[Any] | None
+    timings_s: dict[str, float] = field(default_factory=dict)
+    film_build: dict[str, Any] = field(default_factory=dict)
+    """How each part's flow was scaled to the common film build
+    (`paintcell.sim.booth.booth_build`)."""
+    seams: dict[str, Any] = field(default_factory=dict)
+    """How the seams between parts were blended (`paintcell.sim.booth.booth_seams`)."""
+
+
+def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
+    """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc)."""
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    surfaces, plans, T_body_parts = _plan_parts(booth, fast)
+    build: dict[str, Any] = {"rule": "off: each part at the default bell flow"}
+    if booth.common_film_build:
+        from paintcell.sim.booth.booth_build import common_film_build
+
+        plans, build = common_film_build(surfaces, plans,
+                                         [f"{i}:{p.part}" for i, p in enumerate(booth.parts)],
+                                         booth.film_target_um)
+    body = merge_surfaces(surfaces, T_body_parts, booth.name)
+    seams: dict[str, Any] = {"rule": "off" if not booth.blend_seams else "one part: no seams"}
+    if booth.blend_seams and len(plans) > 1:
+        from paintcell.sim.booth.booth_seams import blend_part_seams
+
+        plans, seams = blend_part_seams(body, plans, T_body_parts,
+                                        [len(x.vertices) for x in surfaces],
+                                        [f"{i}:{p.part}" for i, p in enumerate(booth.parts)])
+    T_wb = booth.body_placement.matrix
+    robots = _load_robots(booth)
+    timings["plan"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    ranked, record = _allocate(booth, robots, plans, T_wb, T_body_parts)
+    # Rail robots place their carriage for each pass inside a range shrunk by the travel the
+    # conveyor tracking will add (half the line travel over the estimated cycle, +25 %); if the
+    # staggered cycle came out longer and the tracking leaves a rail, once more with its cycle.
+    shrink = 0.5 * booth.conveyor.speed_m_s * record.get("estimated_cycle_s", 0.0) * 1.25
+    for attempt in range(2):
+        jobs, static, trajs0, tried = _choose(booth, robots, plans, ranked, T_wb, T_body_parts,
+                                              shrink)
+        K = max(len(tr.t_s) for tr in trajs0)
+        dt = trajs0[0].dt_s
+        t_ref = 0.5 * (K - 1) * dt
+        try:
+            trajs = [track_program(r, _pad(tr, K), booth.conveyor, t_ref)
+                     for r, tr in zip(robots, trajs0, strict=True)]
+            break
+        except ConveyorError:
+            need = 0.5 * booth.conveyor.speed_m_s * (K - 1) * dt * 1.25
+            if attempt == 1 or need <= shrink:
+                raise
+            shrink = need
+    record["rejected"] = tried
+    record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
+    record["start_delays_s"] = [float(tr.meta.get("start_delay_s", 0.0)) for tr in trajs0]
+    record["rail_tracking_margin_m"] = shrink
+    timings["trajectory"] = time.perf_counter() - t0
+    return BoothPrograms(surfaces, body, plans, T_body_parts, jobs, record, static, trajs, t_ref,
+                         robots, timings, build, seams)
+
+
+def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
+            ranked: list[dict[int, Job]], T_wb: np.ndarray, T_bp: list[np.ndarray],
+            shrink_m: float) -> tuple[dict[int, Job], list[JointTrajectory],
+                                      list[JointTrajectory], list[dict[str, Any]]]:
+    """The first workable allocation of `ranked` (rails shrunk by shrink_m at both ends for the
+    passes): its jobs, static programs, staggered programs and the rejected ones."""
+    planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
+    cache: dict[tuple[int, Job], JointTrajectory] = {}
+    tried = []
+    for jobs in ranked[:MAX_ALLOCATIONS_TRIED]:
+        try:
+            trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_bp, cache)
+            delays = _stagger(booth, robots, trajs0)
+        except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
+            tried.append({"jobs": {booth.robots[r].name: [j.part, j.first, j.end]
+                                   for r, j in jobs.items()}, "rejected": str(exc)})
+            continue
+        # static: the programs as the robots' controllers run them (RAPID)
+        return jobs, list(trajs0), [_delay(tr, d) for tr, d in
+                                    zip(trajs0, delays, strict=True)], tried
+    raise BoothError(f"none of the {len(tried)} best allocations works (last: "
+                     f"{tried[-1]['rejected']}); move the robots")
+
+
+def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoveragePlan],
+                                                    list[np.ndarray]]:
+    from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.planning.paint.applicator import Applicator
+    from paintcell.planning.surface import parts
+    from paintcell.sim.app.pipeline import settings_from
+
+    res = booth.fast_resolution_m if fast else booth.resolution_m
+    app = Applicator.default() if booth.applicator is None \
+        else Applicator.from_toml(booth.applicator)
+    surfaces, plans, Ts = [], [], []
+    for bp in booth.parts:
+        if bp.part not in parts.PART_NAMES:
+            raise BoothError(f"booth part {bp.part!r} is not a library part "
+                             f"({', '.join(parts.PART_NAMES)})")
+        s = parts.get_part(bp.part, resolution_m=res)
+        kw = {**booth.planner, **bp.planner}
+        plans.append(plan_coverage(s, app,
+                                   settings_from(PlannerSettings, kw, "planner")))
+        surfaces.append(s)
+        Ts.append(bp.placement.matrix)
+    return surfaces, plans, Ts
+
+
+def _load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
+    """The booth's robots; rail robots with their travel shrunk by rail_shrink_m at both ends
+    (for planning the passes' carriage positions, leaving room for conveyor tracking)."""
+    from paintcell.robots import load_robot
+    from paintcell.robots.rail import RailSpec, load_rail_robot
+
+    out = []
+    for r in booth.robots:
+        if r.rail_m is not None or (rail_shrink_m > 0 and r.model.endswith("_rail")):
+            if not r.model.endswith("_rail"):
+                raise BoothError(f"robot {r.name!r} has rail_m but model {r.model!r} has no "
+                                 "rail; use '<arm>_rail'")
+            rng = r.rail_m if r.rail_m is not None else (-2.0, 2.0)
+            lo, hi = rng[0] + rail_shrink_m, rng[1] - rail_shrink_m
+            if lo >= hi:
+                raise BoothError(f"robot {r.name!r}: the conveyor tracking needs "
+                                 f"{2 * rail_shrink_m:.2f} m of its rail; lengthen rail_m or "
+                                 "slow the line")
+            out.append(load_rail_robot(r.model[:-5], T_world_rail=r.base.matrix,
+                                       rail=RailSpec(lower_m=lo, upper_m=hi,
+                                                     home_m=min(max(0.0, lo), hi))))
+        else:
+            out.append(load_robot(r.model, T_world_base=r.base.matrix))
+    return out
+
+
+def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: np.ndarray,
+              T_bp: list[np.ndarray]) -> tuple[list[dict[int, Job]], dict[str, Any]]:
+    if booth.allocation is not None:
+        names = [r.name for r in booth.robots]
+        jobs = {}
+        for rname, (p, a, b) in booth.allocation.items():
+            if rname not in names:
+                raise BoothError(f"allocation names robot {rname!r}; robots are {names}")
+            jobs[names.index(rname)] = Job(int(p), int(a), int(b))
+        return [jobs], {"rule": "fixed in the booth script"}
+    cache: dict[tuple[int, int, int], bool] = {}
+
+    def pass_ok(r: int, p: int, i: int) -> bool:
+        if (r, p, i) not in cache:
+            T = T_wb @ T_bp[p] @ plans[p].tcp_frames(i)
+            cache[(r, p, i)] = pass_feasible(robots[r], T)
+        return cache[(r, p, i)]
+
+    def reachable(r: int, job: Job) -> bool:
+        return all(pass_ok(r, job.part, i) for i in range(job.first, job.end))
+
+    durations = [np.array([ps.duration_s for ps in pl.passes]) for pl in plans]
+    return rank_allocations(len(robots), [len(pl.passes) for pl in plans], durations,
+                            reachable)
+
+
+def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> list[int]:
+    """Start delays [samples] of `paintcell.sim.booth.booth.stagger_starts` (none without a
+    clearance limit)."""
+    if booth.thresholds.min_bell_distance_m is None:
+        return [0] * len(trajs)
+    sub = max(1, int(round(0.02 / trajs[0].dt_s)))    # arm points every 20 ms
+    pts = [arm_points(r, tr.q[::sub]) for r, tr in zip(robots, trajs, strict=True)]
+    return [sub * d for d in stagger_starts(pts, sub * trajs[0].dt_s,
+                                            booth.thresholds.min_bell_distance_m)]
+
+
+def _programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan], jobs: dict[int, Job],
+              T_wb: np.ndarray, T_bp: list[np.ndarray],
+              cache: dict[tuple[int, Job], JointTrajectory]) -> list[JointTrajectory]:
+    """Each robot's static program for its job (cached per robot and job)."""
+    from paintcell.sim.app.pipeline import settings_from
+    from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
+
+    out = []
+    for i, (spec, robot) in enumerate(zip(booth.robots, robots, strict=True)):
+        kw = dict(booth.trajectory)
+        if spec.home is not None:
+            kw["q_home"] = tuple(spec.home)
+        settings = settings_from(TrajectorySettings, kw, "trajectory")
+        job = jobs.get(i)
+        if job is None:
+            raise BoothError(f"robot {spec.name!r} got no job; remove it or give it one in "
+                             "Booth.allocation")
+        if (i, job) not in cache:
+            plan = dataclasses.replace(plans[job.part],
+                                       passes=plans[job.part].passes[job.first:job.end])
+            cache[(i, job)] = build_program(robot, plan, T_wb @ T_bp[job.part], settings)
+        out.append(cache[(i, job)])
+    return out

@@ -1,0 +1,55 @@
+"""The part's geoms in a MuJoCo cell: the exact surface as a visual mesh and thin convex
+collision slabs (MuJoCo collides meshes through their convex hulls, so a curved shell is cut into
+pieces). `paintcell.sim.execution.cell` and `paintcell.sim.booth.booth_cell` add them to their part
+body.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from paintcell.planning.surface.surface import Surface
+
+
+def add_part_geoms(spec: mujoco.MjSpec, part: mujoco.MjsBody, surface: Surface,
+                   collision_piece_m: float, shell_thickness_m: float) -> None:
+    """Add the part's geoms to body `part`: the exact surface as a visual mesh (no contacts) and
+    thin convex collision slabs (`_collision_pieces`, pieces ~collision_piece_m [m] across,
+    shell_thickness_m [m] thick)."""
+    vis = spec.add_mesh(name="part_surface")
+    vis.uservert = np.ascontiguousarray(surface.vertices, float).ravel()
+    vis.userface = np.ascontiguousarray(surface.faces, np.int32).ravel()
+    vis.usernormal = np.ascontiguousarray(surface.normals, float).ravel()
+    vis.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+    part.add_geom(name="part_visual", type=mujoco.mjtGeom.mjGEOM_MESH, meshname="part_surface",
+                  contype=0, conaffinity=0, group=1, density=0.0, rgba=[0.75, 0.77, 0.8, 1.0])
+    for i, cloud in enumerate(_collision_pieces(surface, collision_piece_m, shell_thickness_m)):
+        m = spec.add_mesh(name=f"part_collision_{i}")
+        m.uservert = np.ascontiguousarray(cloud, float).ravel()
+        m.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+        part.add_geom(name=f"part_collision_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
+                      meshname=f"part_collision_{i}", group=3, density=0.0,
+                      rgba=[0.5, 0.5, 0.5, 0.3])
+
+
+def _collision_pieces(surface: Surface, piece_m: float, thickness_m: float) -> list[np.ndarray]:
+    """Vertex clouds (part frame) of thin convex slabs that cover the shell.
+
+    Faces are binned by centroid into cubes of edge `piece_m`; each bin's vertices are offset by
+    ±thickness/2 along their normals; MuJoCo takes the convex hull of each cloud. The hull of a
+    piece deviates from the shell by at most its sagitta, piece²/(8 R) (1.3 mm for 0.1 m on R=1 m).
+    """
+    v, f, nrm = surface.vertices, surface.faces, surface.normals
+    cent = v[f].mean(axis=1)
+    key = np.floor((cent - cent.min(0)) / piece_m).astype(np.int64)
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    order = np.argsort(inv.ravel(), kind="stable")
+    bounds = np.searchsorted(inv.ravel()[order], np.arange(inv.max() + 2))
+    half = 0.5 * thickness_m
+    pieces = []
+    for b in range(len(bounds) - 1):
+        faces_b = f[order[bounds[b]:bounds[b + 1]]]
+        idx = np.unique(faces_b)
+        pieces.append(np.vstack([v[idx] + half * nrm[idx], v[idx] - half * nrm[idx]]))
+    return pieces

@@ -1,0 +1,113 @@
+"""The MuJoCo models an execution runs on: the disturbed plant, its actuators, the controller's
+perturbed copy, and discrete-time inverse dynamics for the feed-forward.
+
+Torques [N·m], gains [N·m/rad] and [N·m·s/rad], joint positions [rad], lengths [m].
+"""
+
+from __future__ import annotations
+
+import copy
+
+import mujoco
+import numpy as np
+
+from paintcell.sim.execution.cell import Cell
+from paintcell.sim.execution.execute_settings import Disturbances, ServoSettings
+
+
+def _disturbed_model(cell: Cell, dist: Disturbances | None) -> tuple[mujoco.MjModel, np.ndarray,
+                                                                       np.ndarray]:
+    """Model copy with the part moved and the TCP site offset; T_world_part actually used."""
+    model = copy.copy(cell.model)
+    T_actual = cell.T_world_part.copy()
+    tcp_offset = np.zeros(3)
+    if dist is not None:
+        T_err, tcp_offset = dist.realize()
+        T_actual = cell.T_world_part @ T_err
+        q = np.zeros(4)
+        mujoco.mju_mat2Quat(q, np.ascontiguousarray(T_actual[:3, :3]).ravel())
+        model.body_pos[cell.part_body_id] = T_actual[:3, 3]
+        model.body_quat[cell.part_body_id] = q
+        R_body_site = np.zeros(9)
+        mujoco.mju_quat2Mat(R_body_site, model.site_quat[cell.tcp_site_id])
+        model.site_pos[cell.tcp_site_id] += R_body_site.reshape(3, 3) @ tcp_offset
+    return model, T_actual, tcp_offset
+
+
+def _set_pd_actuators(model: mujoco.MjModel, cell: Cell, kp: np.ndarray, kd: np.ndarray) -> None:
+    """Actuator force = ctrl − (Kp q + Kd q̇)/g², clamped to ±τ_max/g (g: gear)."""
+    a = cell.actuator_ids
+    g = model.actuator_gear[a, 0]
+    model.actuator_gaintype[a] = mujoco.mjtGain.mjGAIN_FIXED
+    model.actuator_gainprm[a, :] = 0.0
+    model.actuator_gainprm[a, 0] = 1.0
+    model.actuator_biastype[a] = mujoco.mjtBias.mjBIAS_AFFINE
+    model.actuator_biasprm[a, :] = 0.0
+    model.actuator_biasprm[a, 1] = -kp / g**2
+    model.actuator_biasprm[a, 2] = -kd / g**2
+    model.actuator_ctrllimited[a] = 0
+    model.actuator_forcelimited[a] = 1
+    model.actuator_forcerange[a, 0] = -cell.tau_max / np.abs(g)
+    model.actuator_forcerange[a, 1] = cell.tau_max / np.abs(g)
+
+
+def _set_torque_actuators(model: mujoco.MjModel, cell: Cell) -> None:
+    """Actuator force = ctrl (the whole servo law computed per step), clamped to ±τ_max/g."""
+    _set_pd_actuators(model, cell, np.zeros(cell.nq), np.zeros(cell.nq))
+
+
+def _coulomb_friction(cell: Cell, servo: ServoSettings) -> np.ndarray:
+    """(n,) joint Coulomb friction of the plant [N·m]."""
+    return servo.coulomb_friction * np.asarray(cell.tau_max, float)
+
+
+def _controller_model(model: mujoco.MjModel, cell: Cell, servo: ServoSettings) -> mujoco.MjModel:
+    """The controller's idea of the plant `model`: link masses and inertias scaled by seeded
+    factors in [1 − model_error, 1 + model_error], the tool body by (1 − payload_error)."""
+    m = copy.copy(model)
+    tool = int(model.site_bodyid[cell.tcp_site_id])
+    links = [int(b) for b in np.sort(cell.robot_body_ids) if model.body_mass[b] > 0 and b != tool]
+    rng = np.random.default_rng(servo.seed)
+    scale = 1.0 + servo.model_error * rng.uniform(-1.0, 1.0, size=len(links))
+    for b, f in zip(links, scale, strict=True):
+        m.body_mass[b] *= f
+        m.body_inertia[b] *= f
+    m.body_mass[tool] *= 1.0 - servo.payload_error
+    m.body_inertia[tool] *= 1.0 - servo.payload_error
+    return m
+
+
+def inverse_dynamics(model: mujoco.MjModel, cell: Cell, q: np.ndarray, qd: np.ndarray,
+                     qdd: np.ndarray) -> np.ndarray:
+    """(K, n) joint torques [N·m] that make the model follow (q, q̇, q̈) (K, n) exactly.
+
+    Discrete-time inverse dynamics (`mjENBL_INVDISCRETE`, so it matches the implicitfast step,
+    actuator damping included) with contacts and joint limits off (the reference's own needs).
+    """
+    m = copy.copy(model)
+    # No constraints, no collision detection, no sensors: only the arm's own dynamics.
+    m.opt.disableflags |= (mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+                           | mujoco.mjtDisableBit.mjDSBL_CONTACT
+                           | mujoco.mjtDisableBit.mjDSBL_SENSOR)
+    m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_INVDISCRETE
+    d = mujoco.MjData(m)
+    qa, da = cell.qpos_adr, cell.dof_adr
+    out = np.empty_like(q)
+    inv = mujoco.mj_inverse
+    qpos, qvel, qacc, qfrc = d.qpos, d.qvel, d.qacc, d.qfrc_inverse
+    for k in range(len(q)):
+        qpos[qa] = q[k]
+        qvel[da] = qd[k]
+        qacc[da] = qdd[k]
+        inv(m, d)
+        out[k] = qfrc[da]
+    return out
+
+
+def _joint_range(model: mujoco.MjModel, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
+    """(q_lower, q_upper) (n,) [rad] of the robot joints; nan where a joint is unlimited."""
+    j = model.dof_jntid[cell.dof_adr]
+    limited = model.jnt_limited[j].astype(bool)
+    lo = np.where(limited, model.jnt_range[j, 0], np.nan)
+    hi = np.where(limited, model.jnt_range[j, 1], np.nan)
+    return lo, hi

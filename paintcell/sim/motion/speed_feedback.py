@@ -1,0 +1,191 @@
+"""Robot-aware speeds: feed the time law's joint-limit slowdowns back into the speed QP.
+
+The planner (`paintcell.planning.coverage.coverage`) optimizes each pass's TCP speeds for the film,
+knowing nothing of
+the robot. Along the IK path, joint velocity and acceleration limits can make TOPP-RA slower than
+planned; the film then differs from the plan (the "time-law share" of the loss). The loop the
+paper leaves open:
+
+    plan → joint program → where the executed TCP speed falls short of the plan, cap the speed of
+    those samples at what the robot reached (minus a margin) → re-plan the passes' speeds with
+    the caps as per-sample upper bounds of eq. 2 → rebuild the joint program → repeat
+
+The re-plan reproduces the same pass geometry (the planner is deterministic), so the caps of one
+plan fit the next. Caps only shrink from one round to the next.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.planning.coverage.plan import CoveragePlan
+from paintcell.planning.errors import PaintcellError
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.surface.surface import Surface
+
+#: A sample is capped where the robot's TCP speed is below the plan by more than this fraction.
+SLOW_REL = 0.005
+#: Caps sit this fraction below the speed the robot reached there (room for the re-planned
+#: profile's own accelerations).
+CAP_MARGIN = 0.03
+#: The bell's x axis counts as followed when the program holds it within this of the plan [deg].
+SPIN_TOL_DEG = 1.0
+
+
+@dataclass
+class FeedbackResult:
+    """Outcome of the robot-aware loop.
+
+    plan / trajectory: the final plan and its joint program.
+    rounds: per round, {"capped_samples", "max_deficit_pct", "cycle_s"} of the program that was
+        measured (round 0 = the robot-free plan).
+    caps_m_s: the final caps {pass side: (M,) [m/s]} in each pass's generation direction.
+    """
+
+    plan: CoveragePlan
+    trajectory: Any
+    rounds: list[dict[str, Any]] = field(default_factory=list)
+    caps_m_s: dict[int, np.ndarray] = field(default_factory=dict)
+
+
+def achieved_speeds(plan: CoveragePlan, traj: Any) -> list[np.ndarray]:
+    """Per pass, the TCP speed the joint program reaches at each plan sample [m/s] ((M,) each).
+
+    traj: `paintcell.sim.motion.joint_trajectory.JointTrajectory` of the plan (s_pass_m along the
+    plan samples'
+    arc length). The speed is ds/dt of the program's samples, interpolated at the plan samples.
+    """
+    out = []
+    for i, p in enumerate(plan.passes):
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                                 axis=1))])
+        idx = np.flatnonzero(traj.pass_index == i)
+        if len(idx) < 3:
+            out.append(np.asarray(p.speeds_m_s, float).copy())
+            continue
+        s = traj.s_pass_m[idx]
+        v = np.gradient(s, traj.t_s[idx])
+        order = np.argsort(s, kind="stable")
+        out.append(np.interp(s_plan, s[order], v[order]))
+    return out
+
+
+def speed_caps(plan: CoveragePlan, traj: Any, previous: dict[int, np.ndarray] | None = None,
+               slow_rel: float = SLOW_REL, margin: float = CAP_MARGIN
+               ) -> tuple[dict[int, np.ndarray], int, float]:
+    """Caps {side: (M,) [m/s]} where the program is slower than the plan, in generation direction.
+
+    Returns (caps, number of newly capped samples, largest speed deficit [%]).
+    """
+    caps = {k: v.copy() for k, v in (previous or {}).items()}
+    n_new, worst = 0, 0.0
+    for i, (p, v_act) in enumerate(zip(plan.passes, achieved_speeds(plan, traj), strict=True)):
+        v_plan = np.asarray(p.speeds_m_s, float)
+        deficit = 1.0 - v_act / v_plan
+        worst = max(worst, float(100 * deficit.max()))
+        slow = deficit > slow_rel
+        if not slow.any():
+            continue
+        # widen by one sample each side: the limit acts over the interval, not at the point
+        slow = slow | np.r_[slow[1:], False] | np.r_[False, slow[:-1]]
+        cap = np.where(slow, v_act * (1.0 - margin), np.inf)
+        if i % 2 == 1:                      # plan.passes[i] runs reversed (boustrophedon)
+            cap = cap[::-1]
+        old = caps.get(p.side, np.full(len(cap), np.inf))
+        new = np.minimum(old, cap)
+        n_new += int(np.sum(new < old))
+        caps[p.side] = new
+    return caps, n_new, worst
+
+
+def tool_axes(plan: CoveragePlan, traj: Any, T_world_part: np.ndarray) -> dict[int, np.ndarray]:
+    """Per pass, the bell x axis the joint program holds at each plan sample, in the part frame
+    and the pass's generation direction ({side: (M, 3)}): what a robot that frees the bell's spin
+    about its axis really does (the plan's film assumed x = travel)."""
+    R = np.asarray(T_world_part, float)[:3, :3]
+    out = {}
+    for i, p in enumerate(plan.passes):
+        idx = np.flatnonzero(traj.pass_index == i)
+        if len(idx) < 3:
+            continue
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                                 axis=1))])
+        s = traj.s_pass_m[idx]
+        order = np.argsort(s, kind="stable")
+        x_part = traj.tcp_rot_world[idx][:, :, 0] @ R          # world → part frame (Rᵀ x)
+        x = np.stack([np.interp(s_plan, s[order], x_part[order, k]) for k in range(3)], axis=1)
+        x /= np.linalg.norm(x, axis=1, keepdims=True)
+        # the pattern is symmetric under x → −x (f is even in x and y): keep the sign nearest
+        # the plan's travel axis, so the IK is not asked to turn the bell half a turn
+        x *= np.where(np.einsum("ij,ij->i", x, p.travel_dirs) < 0, -1.0, 1.0)[:, None]
+        out[p.side] = -x[::-1] if i % 2 == 1 else x       # generation direction
+    return out
+
+
+def robot_aware_plan(surface: Surface, app: Applicator, settings: PlannerSettings,
+                     plan: CoveragePlan, traj: Any, build: Any, rounds: int = 3,
+                     T_world_part: np.ndarray | None = None) -> FeedbackResult:
+    """Re-plan the speeds under the robot's reachable speeds until no new slowdown appears.
+
+    surface, app, settings: what `plan` was planned with; traj: its joint program;
+    build: callable plan → joint program (`paintcell.sim.motion.trajectory.build_program` bound to
+    the robot and
+    placement); rounds: re-plans at most; T_world_part: the part placement — when given, the bell
+    x axes the program holds are fed back too (`tool_axes`), so the plan's film model uses the
+    orientation the robot really holds about the spray axis.
+    Returns the final plan and program; a round whose program is slower than the first by more
+    than 5 % ends the loop with the previous round's plan.
+    """
+    res = FeedbackResult(plan, traj)
+    cycle0 = float(traj.t_s[-1])
+    caps: dict[int, np.ndarray] = {}
+    tool_x: dict[int, np.ndarray] = {}
+    for _ in range(rounds):
+        caps, n_new, worst = speed_caps(res.plan, res.trajectory, caps)
+        turn = 0.0
+        if T_world_part is not None:
+            new_x = tool_axes(res.plan, res.trajectory, T_world_part)
+            for i, p in enumerate(res.plan.passes):
+                if p.side in new_x:
+                    x_plan = p.travel_dirs[::-1] * -1 if i % 2 == 1 else p.travel_dirs
+                    cosang = np.clip(np.einsum("ij,ij->i", x_plan, new_x[p.side]), -1, 1)
+                    turn = max(turn, float(np.degrees(np.arccos(cosang)).max()))
+            tool_x = new_x
+        res.rounds.append({"capped_samples": float(n_new), "max_deficit_pct": worst,
+                           "cycle_s": float(res.trajectory.t_s[-1]), "max_spin_deg": turn})
+        if n_new == 0 and turn < SPIN_TOL_DEG:
+            break
+        finite = {k: np.where(np.isfinite(v), v, settings.v_max_m_s) for k, v in caps.items()}
+        got = None
+        # with the bell's spin fed back first; if that program fails or runs > 5 % longer (the
+        # IK seeds follow the new target orientation to another branch), with the caps alone
+        for use_spin in ([True, False] if tool_x else [False]):
+            new_plan = plan_coverage(surface, app, settings, speed_caps_m_s=finite,
+                                     tool_x=tool_x if use_spin else None)
+            try:
+                new_traj = build(new_plan)
+            except PaintcellError as e:      # the re-plan's program failed: try without spin
+                res.rounds.append({"failed": str(e), "spin": use_spin})
+                if use_spin:
+                    tool_x, T_world_part = {}, None
+                continue
+            if float(new_traj.t_s[-1]) <= 1.05 * cycle0:
+                got = (new_plan, new_traj)
+                break
+            res.rounds.append({"rejected_cycle_s": float(new_traj.t_s[-1]), "spin": use_spin})
+            if use_spin:
+                tool_x = {}
+                T_world_part = None              # the robot cannot hold the plan's spin: stop
+        if got is None:
+            break
+        new_plan, new_traj = got
+        res.plan, res.trajectory, res.caps_m_s = new_plan, new_traj, finite
+    else:
+        _, _, worst = speed_caps(res.plan, res.trajectory, caps)
+        res.rounds.append({"capped_samples": 0.0, "max_deficit_pct": worst,
+                           "cycle_s": float(res.trajectory.t_s[-1])})
+    return res

@@ -1,0 +1,1 @@
+"""Robustness sweeps over real tolerances on Dask."""
