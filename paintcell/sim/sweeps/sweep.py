@@ -236,11 +236,17 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
                        summary, len(todo), time.perf_counter() - t_start, prepare_s)
 
 
+#: samples sent again after the scheduler forgot them (their worker died with their inputs).
+MAX_RESUBMITS = 8
+
+
 def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
               todo: list[int], design: np.ndarray, seeds: np.ndarray,
               store: Callable[[dict[str, Any]], None], workers: int,
               scheduler: str | None) -> dict[str, Any]:
     """Nominal first, then every sample in `todo`, streamed to `store` as they complete."""
+    from concurrent.futures import CancelledError
+
     from distributed import Client, LocalCluster, as_completed
 
     cluster = None
@@ -267,11 +273,29 @@ def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
             nominal = client.submit(run, pf, -1, None, 0, pure=False,
                                     retries=3).result()
             atomic_write_text(nominal_file, json.dumps(nominal, indent=1))
-        futs = [client.submit(run, pf, i, design[i], int(seeds[i]), pure=False,
-                              retries=3, key=f"paintcell-sample-{payload.digest}-{i}")
-                for i in todo]
-        for fut in as_completed(futs):
-            store(fut.result())
+        def submit(i: int, attempt: int, data: Any) -> Any:
+            return client.submit(run, data, i, design[i], int(seeds[i]), pure=False, retries=3,
+                                 key=f"paintcell-sample-{payload.digest}-{i}-{attempt}")
+
+        futs = [submit(i, 0, pf) for i in todo]
+        index = {f.key: i for f, i in zip(futs, todo, strict=True)}
+        resubmitted = 0
+        done = as_completed(futs)
+        for fut in done:
+            try:
+                rec = fut.result()
+            except CancelledError:
+                # The scheduler forgot the task (a worker died holding its inputs while the
+                # cluster was busy): send the payload again and run the sample anew.
+                if resubmitted >= MAX_RESUBMITS:
+                    raise
+                resubmitted += 1
+                [pf] = client.scatter([payload], broadcast=True, hash=False)
+                new = submit(index[fut.key], resubmitted, pf)
+                index[new.key] = index[fut.key]
+                done.add(new)
+                continue
+            store(rec)
             fut.release()
     finally:
         client.close()
