@@ -183,9 +183,9 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
             t_plan, areas, app.emitted_flow_m3_s * float(gun_plan.dwell_s.sum())),
         "executed_transfer_efficiency_pct": 100.0 * transfer_efficiency(
             t_exec, areas, app.emitted_flow_m3_s * float(gun_exec.dwell_s.sum())),
-        "max_joint_range_utilization": float(np.nanmax(q_use)) if len(q_use) else float("nan"),
-        "max_torque_utilization": float(np.nanmax(tau_use)) if len(tau_use) else float("nan"),
-        "max_torque_saturation_pct": (float(np.nanmax(tau_sat)) if len(tau_sat)
+        "max_joint_range_utilization": _max_or_nan(q_use),
+        "max_torque_utilization": _max_or_nan(tau_use),
+        "max_torque_saturation_pct": (_max_or_nan(tau_sat) if len(tau_sat)
                                       else float("nan")),
         "torque_source": "applied" if trace.tau_demand is None else "demanded",
         "reachability_pct": reach_pct,
@@ -212,3 +212,11 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         torque_utilization=tuple(float(x) for x in tau_use),
         planned_thickness_m=t_plan, executed_thickness_m=t_exec, trajectory_thickness_m=t_traj,
         torque_saturation_pct=tuple(float(x) for x in tau_sat))
+
+
+def _max_or_nan(x: np.ndarray) -> float:
+    """np.nanmax without its All-NaN warning: NaN when every entry is NaN (a kinematic run has
+    no torques)."""
+    x = np.asarray(x, float)
+    known = x[~np.isnan(x)]
+    return float(known.max()) if known.size else float("nan")
