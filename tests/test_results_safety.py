@@ -375,7 +375,7 @@ def test_check_survives_exits_exceptions_crashes_and_memory_hogs(
     (d / "a_exit.py").write_text("import sys\nsys.exit(0)\n")
     (d / "b_memory.py").write_text(head.format(n="b") + "raise MemoryError('planted')\n")
     (d / "c_killed.py").write_text("import os, signal\nos.kill(os.getpid(), signal.SIGKILL)\n")
-    bell = (ROOT / "planning" / "data" / "default_bell.toml").read_text()
+    bell = (ROOT / "paintcell" / "planning" / "paint" / "data" / "default_bell.toml").read_text()
     bell = bell.replace("sigma_x_m = 0.05", "sigma_x_m = 50.0").replace(
         "sigma_y_m = 0.06", "sigma_y_m = 50.0")
     (d / "huge_bell.toml.txt").write_text(bell)
