@@ -1,8 +1,8 @@
 """`JointTrajectory`: one continuous robot program sampled at the control rate.
 
-Produced by `paintcell.sim.motion.trajectory` (TOPP-RA paint passes + ruckig moves between them) and
-consumed by
-`paintcell.sim.execution.execute` (MuJoCo) and `sim.export` (RAPID). World frame, SI units.
+Produced by `paintcell.sim.motion.trajectory` (TOPP-RA paint passes + ruckig moves between
+them) and consumed by `paintcell.sim.execution.execute` (MuJoCo) and
+`paintcell.sim.output.export_rapid` (RAPID). World frame, SI units.
 """
 
 from __future__ import annotations
