@@ -40,16 +40,29 @@ def test_no_import_cycles() -> None:
 #: The stages in data-flow order; a module may import its own stage and the ones before it.
 #: booth, sweeps and app sit on top of the chain (they use every stage and each other,
 #: without cycles).
-STAGE_ORDER = ["planning", "robots", "sim.motion", "sim.execution", "sim.validation", "sim.output"]
+STAGE_ORDER = ["planning", "planning.surface", "planning.paint", "planning.coverage", "robots",
+               "sim.motion", "sim.execution", "sim.validation", "sim.output"]
 ON_TOP = ("paintcell.sim.booth", "paintcell.sim.sweeps", "paintcell.sim.app")
 
 
 def _stage(mod: str) -> int | None:
+    """Index in STAGE_ORDER of the longest stage prefix of `mod` (planning's own modules, such as
+    `errors`, are stage 0, shared by every stage after it)."""
     rest = mod.removeprefix("paintcell.")
+    found = None
     for i, s in enumerate(STAGE_ORDER):
         if rest == s or rest.startswith(s + "."):
-            return i
-    return None
+            found = i
+    return found
+
+
+def test_every_module_lives_in_a_stage() -> None:
+    """No module outside the stage folders (a new `paintcell/sim/x.py` would dodge the data-flow
+    check): only the package roots and `paintcell/__main__.py` sit above them."""
+    roots = {"paintcell", "paintcell.__main__", "paintcell.sim"}
+    stray = sorted(m for m in import_graph(PKG)
+                   if m not in roots and _stage(m) is None and not m.startswith(ON_TOP))
+    assert not stray, f"modules outside every stage folder: {stray}"
 
 
 def test_data_flows_one_way_through_the_stages() -> None:
@@ -67,8 +80,10 @@ def test_data_flows_one_way_through_the_stages() -> None:
 
 
 def test_every_stage_has_its_folder_and_every_folder_is_a_stage() -> None:
-    folders = sorted(str(p.parent.relative_to(PKG)) for p in PKG.rglob("__init__.py")
-                     if p.parent != PKG)
+    folders = sorted({str(p.parent.relative_to(PKG)) for p in PKG.rglob("*.py")
+                      if p.parent != PKG and "__pycache__" not in p.parts})
+    for f in folders:   # a folder of modules without __init__.py would be a namespace package
+        assert (PKG / f / "__init__.py").is_file(), f"{f} has modules but no __init__.py"
     for stage in STAGE_FOLDERS:
         assert (PKG / stage / "__init__.py").is_file(), stage
     extra = set(folders) - set(STAGE_FOLDERS) - {"planning", "sim"}
@@ -89,6 +104,11 @@ def test_readme_where_things_live_matches_the_tree() -> None:
             there = {q.name for q in (ROOT / p).glob("*.py") if q.name != "__init__.py"}
             assert listed == there, f"README row {p}: missing {there - listed}, " \
                                     f"not in the tree {listed - there}"
+    # every folder that holds modules (other than __init__/__main__) has its row
+    with_modules = {f"{q.parent.relative_to(ROOT)}/" for q in PKG.rglob("*.py")
+                    if q.stem not in ("__init__", "__main__") and "__pycache__" not in q.parts}
+    missing = with_modules - set(paths)
+    assert not missing, f"README table lacks rows for {sorted(missing)}"
     for stage in STAGE_FOLDERS:
         assert f"paintcell/{stage}/" in paths, f"README table lacks paintcell/{stage}/"
 
@@ -118,9 +138,12 @@ def test_checker_finds_a_lazy_cycle_and_ignores_type_checking(tmp_path: Path) ->
 
 
 def test_stage_of_a_module() -> None:
-    assert _stage("paintcell.planning.surface.surface") == 0
-    assert _stage("paintcell.robots.ik") == 1
-    assert _stage("paintcell.sim.validation.validate") == 4
+    assert _stage("paintcell.planning.errors") == 0
+    assert _stage("paintcell.planning.surface.surface") == 1
+    assert _stage("paintcell.planning.coverage.plan") == 3
+    assert _stage("paintcell.robots.ik") == 4
+    assert _stage("paintcell.sim.validation.validate") == 7
+    assert _stage("paintcell.sim.foo") is None
     assert _stage("paintcell.sim.app.cli") is None
 
 
