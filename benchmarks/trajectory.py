@@ -3,8 +3,7 @@ arm).
 
 The door plan comes from
 `paintcell.planning.coverage.coverage.plan_coverage(paintcell.planning.surface.parts.door(), default
-bell,
-default PlannerSettings())` (its planning time is printed but is not part of the trajectory
+bell, default PlannerSettings())` (its planning time is printed but is not part of the trajectory
 build). The door stands upright 1.55 m in front of the arm's base, centre 1.1 m high, painted
 side toward the robot, passes horizontal (the placement of benchmarks/execution.py). Prints the
 build time split by stage (IK, joint-path splines, TOPP-RA, ruckig, 1 kHz sampling + FK +

@@ -1,6 +1,5 @@
 """The compiled film kernel (paintcell.planning.paint.deposition_jit) against the numpy kernel and
-the literal
-DESIGN.md formula.
+the literal DESIGN.md formula.
 
 - numba vs the numpy kernel (same culling, an independent implementation of the arithmetic) on a
   curved patch with back-facing points and points behind the gun: within 1e-9 of the peak;

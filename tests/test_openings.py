@@ -1,13 +1,11 @@
 """Openings (paintcell.planning.coverage.openings): passes run straight across holes, the brush goes
-off only where
-most of the spray would go through.
+off only where most of the spray would go through.
 
 The part: a 1.0 m × 0.8 m plate (10 mm grid) with a 0.40 m × 0.24 m window and a 0.12 m service
 hole cut out (the grid faces inside them removed). Independent truth for the re-measurement: the
 removed faces themselves (the exact opening area), sampled densely with trimesh, and the
 deposition model's rate matrix (paintcell.planning.paint.deposition.deposition_rate) — not the fill
-fans the
-planner used.
+fans the planner used.
 """
 
 from __future__ import annotations

@@ -1,6 +1,5 @@
 """Placement scored by what the run suffers (paintcell.robots.placement_score), checked against the
-real
-time law: TOPP-RA on the program built at the chosen base
+real time law: TOPP-RA on the program built at the chosen base
 (paintcell.sim.motion.trajectory.build_program), not
 the score's own finite differences.
 """

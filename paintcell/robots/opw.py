@@ -57,8 +57,7 @@ IRB4600_60_205 = OPWParameters(a1=0.175, a2=-0.175, b=0.0, c1=0.495, c2=0.900, c
                                c4=0.135, offsets=(0.0, 0.0, np.pi / 2, 0.0, 0.0, 0.0))
 
 # IRB 5500-class paint arm (paintcell/robots/abb_irb5500/README.md step 1): lengths chosen so that
-# the
-# reach to the wrist centre, a1 + c2 + sqrt(a2² + c3²), is the datasheet's 2.975 m; same joint-3
+# the reach to the wrist centre, a1 + c2 + sqrt(a2² + c3²), is the datasheet's 2.975 m; same joint-3
 # convention as above.
 IRB5500_CLASS = OPWParameters(a1=0.300, a2=-0.150, b=0.0, c1=0.750, c2=1.200, c3=1.467,
                               c4=0.150, offsets=(0.0, 0.0, np.pi / 2, 0.0, 0.0, 0.0))

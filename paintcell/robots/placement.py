@@ -49,9 +49,8 @@ class PlacementReport:
     scores: np.ndarray
     best: int
     reachability: ReachabilityReport
-    #: `paintcell.robots.placement_score.MotionScore` of the refined candidates (index → score),
-    # when the
-    #: search ranked them by motion (score="motion")
+    #: `paintcell.robots.placement_score.MotionScore` of the refined candidates (index →
+    #: score), when the search ranked them by motion (score="motion")
     motion: dict[int, Any] | None = None
 
     @property

@@ -4,8 +4,7 @@
 frame: the carriage slides along its +y, across the arm's forward +x, as on booth rails), a
 `rail_carriage` body with the slide joint `rail`, its own limits, damping, armature and force
 motor, and the arm's MJCF attached on the carriage — and loads it as a `paintcell.robots.Robot` with
-7
-joints (`rail` [m], joint1..joint6). Both engines read that one file, as for the fixed arms.
+7 joints (`rail` [m], joint1..joint6). Both engines read that one file, as for the fixed arms.
 
 IK redundancy (`solve_rail_paths`): the rail stays still during a paint pass and moves between
 passes (during the turn-arounds). Per pass, its position is the minimum of a smooth 1-D cost —
@@ -14,8 +13,7 @@ configuration along the pass, on the best closed-form branch — over the rail p
 whole pass is feasible (inside the limits, off the wrist singularity, with a comfort margin):
 a coarse scan of the rail, then a bounded scalar minimization (Brent) around the best scan
 point. The arm's 6-axis IK (`paintcell.robots.ik.solve_path`: closed form + DLS refinement) then
-runs at
-that rail position, and the 7-axis result is re-measured on the 7-axis model.
+runs at that rail position, and the 7-axis result is re-measured on the 7-axis model.
 """
 
 from __future__ import annotations

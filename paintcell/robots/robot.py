@@ -79,8 +79,7 @@ class Robot:
     """An arm with its tool, placed in the world. SI units; joint arrays are (nq,).
 
     Build with `paintcell.robots.load_robot(name, ...)` or `Robot.from_mjcf(...)`; treat as
-    immutable
-    (`placed(T_world_base)` gives a copy at another base pose).
+    immutable (`placed(T_world_base)` gives a copy at another base pose).
     """
 
     name: str

@@ -18,8 +18,7 @@ surface, the first offset that lies completely outside is kept as a sideways ove
 (`edge_passes`), painted over the virtual extension of the surface. Where the current pass's end
 samples have no offset there (their indexing curves left the surface along the boundary the pass
 ends at, `paintcell.planning.coverage.offset.walk`), the edge pass continues straight along its own
-path as far as
-the current pass reaches, then by the overspray.
+path as far as the current pass reaches, then by the overspray.
 
 The code lives in `coverage_settings` (`PlannerSettings`), `coverage_planner` (pass geometry and
 the width choice), `coverage_timing` (overspray, band, speed QP, execution order) and
@@ -51,8 +50,7 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     """Plan uniform coverage of `surface` with `applicator` (paper Algorithm 1).
 
     surface: a `paintcell.planning.surface.surface.Surface` in its part frame; applicator: the
-    deposition model;
-    settings: `PlannerSettings` (defaults when None);
+    deposition model; settings: `PlannerSettings` (defaults when None);
     speed_caps_m_s: optional per-pass speed upper bounds {side: (M,) [m/s]}, one per TCP sample of
         that pass in its generation direction (`plan.passes[i]` reversed when i is odd): the speed
         QP re-plans under them (robot-aware speeds, `paintcell.sim.motion.speed_feedback`). A

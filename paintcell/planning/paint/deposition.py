@@ -12,8 +12,7 @@ Thickness is Σ_s rate_s · dwell_s.
 
 The entry points are here (`thickness`, `deposition_rate`, its literal reference and the choice
 of kernel); the gun samples and input checks are in `paintcell.planning.paint.deposition_samples`,
-the numpy
-kernel in `paintcell.planning.paint.deposition_kernel`, the compiled one in
+the numpy kernel in `paintcell.planning.paint.deposition_kernel`, the compiled one in
 `paintcell.planning.paint.deposition_jit`.
 """
 

@@ -10,8 +10,7 @@
   normals are re-extrapolated from the interior with the shape operator
   (`extrapolate_boundary_normals`).
 Sign convention as in `paintcell.planning.surface.surface`: k > 0 where the surface bends away from
-the normal.
-Interior principal curvatures are k1,2 = H ± sqrt(max(H² - K, 0)).
+the normal. Interior principal curvatures are k1,2 = H ± sqrt(max(H² - K, 0)).
 Everything is vectorized over faces; per-vertex sums use np.bincount.
 """
 

@@ -5,12 +5,10 @@ Parametric constructors (`plane`, `cylinder`, `extruded`, `bspline_patch`) sampl
 (u, v) grid and compute normals and curvature analytically from the first and second fundamental
 forms. `Surface.from_mesh` reads STL/OBJ/PLY through trimesh, repairs what can be repaired, and
 estimates normals and curvature discretely (`paintcell.planning.surface.curvature`, boundary normals
-extrapolated
-from the interior).
+extrapolated from the interior).
 
 The `Surface` type (with `surface_from_triangles`) is in `paintcell.planning.surface.surface_data`,
-mesh reading in
-`paintcell.planning.surface.surface_mesh_input`; both are re-exported here.
+mesh reading in `paintcell.planning.surface.surface_mesh_input`; both are re-exported here.
 
 Curvature sign (docs/interfaces.md): with the unit normal n pointing to the painted side, a
 principal curvature k is positive when the surface bends away from n — dn = k dr along a principal

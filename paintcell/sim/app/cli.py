@@ -6,8 +6,7 @@ function that runs it) in its own module — `paintcell.sim.app.cli_run` (run, p
 `paintcell.sim.app.cli_results` (validate, export, report), `paintcell.sim.app.part_commands`,
 `paintcell.sim.app.sweep_cli`; shared exit
 codes and helpers are in `paintcell.sim.app.cli_common`. `build_parser` calls them in order, so a
-new
-subcommand is one more function and one more line there. Exit codes are in `EXIT_HELP`.
+new subcommand is one more function and one more line there. Exit codes are in `EXIT_HELP`.
 Errors print one line; `--debug` shows the traceback.
 """
 

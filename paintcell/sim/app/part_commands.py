@@ -4,8 +4,7 @@
   curvature) and a PNG of the regions seen from the painted side.
 - init PART_FILE --out scenarios/NAME.toml: a commented TOML scenario (part, placement in front of
   the robot, robot base from `paintcell.robots.placement.find_base_pose` on a fast plan) that
-  `paintcell
-  run` and `plan` accept as written.
+  `paintcell run` and `plan` accept as written.
 - generate KIND --out FILE: a CAD-like door/hood/fender/roof mesh in mm
 (`paintcell.planning.surface.cad_like`).
 """

@@ -2,8 +2,7 @@
 
 Every stage's output is written into a temporary sibling of the results folder, which replaces the
 results folder only when the run finished (`paintcell.sim.output.results_dir`: ownership marker,
-writer lock,
-atomic swap): a run that fails or is interrupted never leaves a half-written folder.
+writer lock, atomic swap): a run that fails or is interrupted never leaves a half-written folder.
 """
 
 from __future__ import annotations

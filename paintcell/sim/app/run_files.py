@@ -2,8 +2,7 @@
 
 Nothing here imports or runs a file named in the folder: the scenario comes from the data in
 `scenario.json` (`paintcell.sim.app.scenario_data.scenario_from_snapshot`). Every unreadable file is
-named in a
-one-line error with the fix (re-run `paintcell run`).
+named in a one-line error with the fix (re-run `paintcell run`).
 """
 
 from __future__ import annotations

@@ -84,15 +84,13 @@ class Scenario:
         (relative paths are relative to the scenario file; read with every `[part]` setting at
         its default: units auto, largest piece, side auto), or a mesh/CAD part
         (`paintcell.planning.surface.part_spec.MeshPart`, or its TOML `[part]` table as a dict,
-        converted on
-        construction).
+        converted on construction).
     resolution_m: mesh resolution for a full run [m]; fast_resolution_m for `--fast` runs.
     part_placement: where the part frame sits in the world.
     robot: robot name for `paintcell.robots.load_robot`; base: robot base placement in the world.
     applicator: path to an Applicator TOML file, or None for the default bell.
     planner: keyword arguments for `paintcell.planning.coverage.coverage.PlannerSettings` (only what
-    differs).
-    fast_planner: planner overrides applied on top of `planner` for `--fast` runs.
+    differs). fast_planner: planner overrides applied on top of `planner` for `--fast` runs.
     trajectory: keyword arguments for `paintcell.sim.motion.trajectory.TrajectorySettings`.
     servo: keyword arguments for `paintcell.sim.execution.execute.ServoSettings`.
     disturbances: keyword arguments for `paintcell.sim.execution.execute.Disturbances` (seeded part

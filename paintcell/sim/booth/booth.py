@@ -5,8 +5,7 @@ parts and
 where they sit in the body frame, the body's placement at conveyor position 0, the robots (model,
 base — a rail robot's base is its rail frame —, home), the conveyor and the thresholds.
 `paintcell.sim.booth.booth_run.run_booth` runs it end to end; `paintcell check` runs a booth script
-like any
-scenario script (`SCENARIO = Booth(...)`).
+like any scenario script (`SCENARIO = Booth(...)`).
 
 Allocation (`allocate`): the jobs are whole parts or two pieces of a part (its passes split at
 a pass boundary). Every assignment of one job per robot — each part whole or split, one robot

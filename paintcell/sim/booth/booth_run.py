@@ -1,6 +1,5 @@
 """Run a `paintcell.sim.booth.booth.Booth` end to end: plans, allocation, programs, conveyor
-tracking, one MuJoCo
-booth with every robot at once, the film in the body frame, per-robot credit.
+tracking, one MuJoCo booth with every robot at once, the film in the body frame, per-robot credit.
 
 Films (all on the merged body surface, in the body frame; the body's film is the sum of the
 robots' films):

@@ -8,8 +8,7 @@ passes are blended across the body the way `paintcell.planning.coverage.patches`
 between patches
 of one part: a brush-on sample whose paint lands on other parts more than `share` × on its own
 part is switched off (`paintcell.planning.coverage.patches.seam_volumes`, `ownership_brush_off`, on
-the merged body
-surface in the body frame, each part at its own flow), and the share is the one of
+the merged body surface in the body frame, each part at its own flow), and the share is the one of
 `paintcell.planning.coverage.patches.SEAM_SHARES` whose film over the whole body has the smallest
 σ/μ (1.0 when
 nothing is switched off at any share). Only paint switches: the passes' geometry and timing, so

@@ -15,8 +15,7 @@ film in the part frame — is the static program's.
 - The rest (all of d for a fixed base) is solved by IK on the moving target: the closed-form
   ortho-parallel solution of every sample's shifted flange pose, on the branch (and 2π shifts)
   closest to the static program's joint values there (`paintcell.robots.opw`), else damped least
-  squares
-  warm-started from them.
+  squares warm-started from them.
 - Velocities and accelerations: the static program's plus the finite-difference derivatives of
   the correction (the rail's is analytic: + v·(u·a), + 0). At v = 0 the program is unchanged,
   bit for bit.

@@ -30,8 +30,7 @@ joint state
    position, velocity and acceleration are continuous at every junction.
 
 IK: unreachable poses get a best-effort joint path from `paintcell.robots.ik`; such passes are timed
-as
-they are, named in `meta["warnings"]`, and the combined reachability summary is stored in
+as they are, named in `meta["warnings"]`, and the combined reachability summary is stored in
 `meta["reachability"]` for `paintcell.sim.validation.validate`. When no pose is reachable, or a
 later stage fails
 while some poses are unreachable (a move leaving the joint limits, an unreachable via pose), a

@@ -2,8 +2,7 @@
 
 The one-call entry points live here; their parts are modules of their own: the GL backend and
 the errors (`paintcell.sim.output.render_backend`), cameras (`paintcell.sim.output.render_cameras`),
-the film colour map
-(`paintcell.sim.output.render_film`), the compiled scene and its renderer
+the film colour map (`paintcell.sim.output.render_film`), the compiled scene and its renderer
 (`paintcell.sim.output.render_scene`), and image and
 video files with the thickness legend (`paintcell.sim.output.render_images`). Every name is
 importable from here.

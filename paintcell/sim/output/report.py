@@ -1,8 +1,7 @@
 """The run report: one self-contained `report.html` a paint engineer reads first.
 
 `make_figures` (`paintcell.sim.output.report_figures`, called by `paintcell run` with the objects in
-memory)
-writes the renders, the optional execution video and the plots into the results folder.
+memory) writes the renders, the optional execution video and the plots into the results folder.
 `write_report` (also `paintcell report DIR`) needs only files: `metrics.json` (the
 `ValidationReport` dict plus context), `film.npz`, `scenario.json`, `plan.json`,
 `trajectory.npz`, `trace.npz` when present, and embeds the folder's images as base64 data URIs:

@@ -4,8 +4,7 @@
 surface vertex, planned and executed [m], the vertex areas [m²], which vertices are judged (a real
 part's skin; every vertex of a library part) and the spec window: ±`tolerance` around the planned
 area-weighted mean film of the judged area (`paintcell.sim.validation.validate`'s window, the one
-behind
-`executed_within_tolerance_pct`). The report reads it to draw the thickness histogram against
+behind `executed_within_tolerance_pct`). The report reads it to draw the thickness histogram against
 the window and to state the share of area inside it; anyone can recompute that share from the
 arrays alone.
 """

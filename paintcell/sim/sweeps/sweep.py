@@ -3,16 +3,14 @@
 The client plans the scenario once (surface, plan, 1 kHz program, planned and trajectory films),
 sends that payload to every worker once, runs the nominal sample first, then the design's samples
 (`paintcell.sim.sweeps.sweep_spec`). Workers are a `distributed.LocalCluster` of processes by
-default, or an
-existing cluster (`scheduler="tcp://host:8786"`).
+default, or an existing cluster (`scheduler="tcp://host:8786"`).
 
 Results folder (written as samples finish; every file atomically):
 
     sweep.json            the spec, the scenario and the sweep's digest (what a resume checks)
     nominal.json          the nominal run's record
     samples/000042.json   one record a sample (factors, seed, metrics, pass/fail, timings)
-    summary.json          statistics (`paintcell.sim.sweeps.sweep_stats`), rewritten as samples
-    arrive
+    summary.json          statistics (`sweeps.sweep_stats`), rewritten as samples arrive
     report.html, *.png    the sweep report (at the end)
 
 A sweep that stops (killed, interrupted, a lost worker) resumes in the same folder: samples

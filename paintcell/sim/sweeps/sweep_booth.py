@@ -38,8 +38,7 @@ class BoothPayload:
     """What every sample of a booth sweep shares (pickled to each worker once).
 
     programs: `paintcell.sim.booth.booth_programs.BoothPrograms` without robot models; films: plan
-    and trajectory
-    films (R, N) [m] on `programs.body.vertices`.
+    and trajectory films (R, N) [m] on `programs.body.vertices`.
     """
 
     digest: str

@@ -22,7 +22,7 @@ FACTORS: dict[str, tuple[str, str]] = {
                                         "robots still track the nominal speed"),
 }
 #: the factors a booth sweep (`paintcell.sim.sweeps.sweep_booth`) models; the others are
-# single-robot ones.
+#: single-robot ones.
 BOOTH_FACTORS = ("conveyor_speed_error_m_s",)
 #: factors that are lengths/angles in a random direction: the sweep uses |draw|.
 MAGNITUDE_FACTORS = ("part_offset_m", "part_rotation_rad", "tcp_offset_m")
@@ -42,8 +42,8 @@ SAMPLE_METRICS: dict[str, str] = {
     "tracking_error_max_mm": "mm",
 }
 #: the figures a booth sample records beside those (`paintcell.sim.sweeps.sweep_booth`): the
-# conveyor's share of
-#: the loss, the worst part's executed σ/μ (the booth's threshold), the carrier's measured speed.
+#: conveyor's share of the loss, the worst part's executed σ/μ (the booth's threshold), the
+#: carrier's measured speed.
 BOOTH_METRICS: dict[str, str] = {
     "loss_conveyor_pp": "pp",
     "max_part_executed_nsd_pct": "%",

@@ -17,8 +17,8 @@ import numpy as np
 from paintcell.planning.paint.metrics import uniformity
 from paintcell.planning.surface.surface import Surface
 
-#: regions reported apart (paintcell.planning.surface.regions.REGION_NAMES minus the skin and the
-# dropped back side).
+#: regions reported apart (paintcell.planning.surface.regions.REGION_NAMES minus the skin and
+#: the dropped back side).
 REPORTED = ("hem", "edge", "inner")
 
 

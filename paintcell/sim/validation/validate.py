@@ -22,8 +22,7 @@ demanded before the actuator clamp, so it exceeds 1 when a joint saturates), rea
 collisions — each checked against caller thresholds.
 
 The result types and threshold checks (`paintcell.sim.validation.validate_report`), the motion
-metrics
-(`paintcell.sim.validation.validate_motion`) and the binned TCP samples
+metrics (`paintcell.sim.validation.validate_motion`) and the binned TCP samples
 (`paintcell.sim.validation.validate_samples`) are modules of their
 own; every public name is importable from here.
 """
