@@ -83,7 +83,7 @@ def inspect_report(html_path: str | Path, png: str | Path | None = None,
 def run_door(out: Path) -> Path:
     """`paintcell run scenarios/door.toml --fast --out OUT`; return OUT/report.html."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, "-m", "paintcell.sim.app.cli", "run", "scenarios/door.toml",
+    proc = subprocess.run([sys.executable, "-m", "paintcell", "run", "scenarios/door.toml",
                            "--fast", "--out", str(out)], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=1200)
     if proc.returncode not in (0, 1):  # 1: a threshold failed; the report is still written

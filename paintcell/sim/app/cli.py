@@ -139,12 +139,12 @@ def _main(argv: list[str] | None) -> int:
         return EXIT_USAGE
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
-
-
 def run_script(scenario: Any, argv: list[str] | None = None) -> int:
     """Entry point of a scenario script: `paintcell run <the script>` with the script's command-line
     arguments (or `argv`). A script ends with `raise SystemExit(run_script(SCENARIO))`."""
     src = scenario.source or sys.argv[0]
     return main(["run", src, *(sys.argv[1:] if argv is None else argv)])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
