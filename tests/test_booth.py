@@ -243,14 +243,19 @@ def test_booth_report_in_a_browser(roof_booth, tmp_path):
     for k in range(2):
         c = np.array([int(_ZONE_COLOURS[k][i:i + 2], 16) for i in (1, 3, 5)])
         assert (np.abs(rgb.astype(int) - c).max(axis=1) <= 2).sum() > 500, f"robot {k} zone"
-    browser = pytest.importorskip("playwright.sync_api")
-    import shutil
+    import importlib.util
 
-    exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    if exe is None:
-        pytest.skip("no Chromium on this machine (the HTML is checked above without one)")
-    with browser.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=exe, args=["--no-sandbox"])
+    from playwright.sync_api import sync_playwright
+
+    # the browser the door report test and docs/tools/report_screenshot.py use (`.ci/run`
+    # installs Chromium; without one, playwright's own browser is tried and a launch error fails)
+    tool_py = Path(__file__).resolve().parents[1] / "docs" / "tools" / "report_screenshot.py"
+    spec = importlib.util.spec_from_file_location("report_screenshot", tool_py)
+    assert spec is not None and spec.loader is not None
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=tool.find_chromium(), args=["--no-sandbox"])
         try:
             page = b.new_page()
             page.goto((tmp_path / "report.html").as_uri())
