@@ -85,6 +85,10 @@ def find_openings(surface: Surface) -> list[Opening]:
         c = V[lp].mean(axis=0)
         area = 0.5 * float(np.linalg.norm(np.cross(V[lp] - c, V[np.roll(lp, -1)] - c),
                                           axis=1).sum())
+        # a loop of one or two vertices (a slit, or a pinch a scan's repair left) encloses no
+        # area: it is not an opening, and its fan would add a vertex without any face area
+        if len(np.unique(lp)) < 3 or area <= 0.0:
+            continue
         out.append(Opening(lp, per[k], area, c))
     return out
 
