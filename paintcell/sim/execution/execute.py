@@ -13,12 +13,13 @@ whose tool is `payload_error` too light — plus the compensated shares of the v
 robot MJCF with joint Coulomb friction added (`frictionloss`, `coulomb_friction` × τ_max).
 `ServoSettings.ideal()` switches every imperfection off.
 
-The torque of step k needs states up to t_{k−d} only, so the program is rolled out inside MuJoCo
-(`mujoco.rollout`) in exact chunks of d + 1 steps, each chunk's controls computed with one
-matrix product from the states the previous chunks produced. TCP pose, joint torques and
-robot-vs-part/booth and robot-vs-robot (self-collision) contacts come from sensors at every step;
-steps where a contact sensor fires are re-evaluated to name the bodies and the depth. After the
-program the last reference is held for SETTLE_MAX_S in the same loop to measure settling; contacts
+The torque of step k needs states up to t_{k−d} only. The program is stepped with `mj_step` in a
+compiled loop that computes each step's torque from the state measured d steps before
+(`paintcell.sim.execution.execute_compiled`); without it, in exact `mujoco.rollout` chunks of
+d + 1 steps, each chunk's controls from the states the previous chunks produced. TCP pose,
+joint torques and robot-vs-part/booth and robot-vs-robot (self-collision) contacts come from
+sensors at every step; steps where a contact sensor fires are re-evaluated to name the bodies and
+the depth. After the program the last reference is held for SETTLE_MAX_S in the same loop to measure settling; contacts
 during that hold are recorded too (times past the program's end).
 
 The trace keeps both the applied joint torque (`tau`, after the ±τ_max clamp, so never above the
@@ -30,7 +31,8 @@ demanded) are the exact inverse dynamics of the plant.
 
 The settings (`paintcell.sim.execution.execute_settings`), the models the program runs on
 (`paintcell.sim.execution.execute_models`),
-the rollout itself (`paintcell.sim.execution.execute_rollout`) and the naming of contacts
+the rollout itself (`paintcell.sim.execution.execute_rollout`, its compiled loops in
+`paintcell.sim.execution.execute_compiled`) and the naming of contacts
 (`paintcell.sim.execution.execute_contacts`)
 are modules of their own; every public name is importable from here.
 """

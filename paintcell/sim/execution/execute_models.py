@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from paintcell.sim.execution.cell import Cell
+from paintcell.sim.execution.execute_compiled import inverse_dynamics_steps, mujoco_c
 from paintcell.sim.execution.execute_settings import Disturbances, ServoSettings
 
 
@@ -91,6 +92,9 @@ def inverse_dynamics(model: mujoco.MjModel, cell: Cell, q: np.ndarray, qd: np.nd
                            | mujoco.mjtDisableBit.mjDSBL_SENSOR)
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_INVDISCRETE
     d = mujoco.MjData(m)
+    c = mujoco_c()
+    if c is not None:  # the same mj_inverse calls, looped in compiled code
+        return inverse_dynamics_steps(c, m, d, cell.qpos_adr, cell.dof_adr, q, qd, qdd)
     qa, da = cell.qpos_adr, cell.dof_adr
     out = np.empty_like(q)
     inv = mujoco.mj_inverse

@@ -1,5 +1,8 @@
-"""Rolling a program out in MuJoCo: the digital servo in exact chunks of latency + 1 steps, the
-settling hold after it, and the kinematic replay; states and sensors at every 1 ms step.
+"""Rolling a program out in MuJoCo: the digital servo (each step's torque from the state measured
+latency steps before), the settling hold after it, and the kinematic replay; states and sensors at
+every 1 ms step. The steps run in the compiled loops of `paintcell.sim.execution.execute_compiled`
+(MuJoCo's `mj_step`, no Python per step); without them the servo runs as exact `mujoco.rollout`
+chunks of latency + 1 steps and the replay as a Python loop (same results).
 
 Times [s], joint positions [rad], torques [N·m], TCP distances [m].
 """
@@ -13,6 +16,12 @@ import numpy as np
 from mujoco import rollout
 
 from paintcell.sim.execution.cell import Cell
+from paintcell.sim.execution.execute_compiled import (
+    MujocoC,
+    kinematic_steps,
+    mujoco_c,
+    servo_steps,
+)
 
 #: steps per rollout call; the progress callback is called after each (≈ 0.1 s wall).
 CHUNK_STEPS = 10_000
@@ -54,25 +63,67 @@ def _run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.
     d.qpos[cell.qpos_adr] = q_ref[0]
     d.qvel[cell.dof_adr] = qd_ref[0]
     mujoco.mj_forward(model, d)
-    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-    nstate = mujoco.mj_stateSize(model, spec)
     lag = max(latency, 0)
-    # S[lag + k] is the state at t_k; the first lag rows stand for the rest before t0.
-    S = np.empty((lag + N + 1, nstate))
-    mujoco.mj_getState(model, d, S[0], spec)
-    S[:lag + 1] = S[0]
-    sens = np.empty((N, model.nsensordata))
-    ctrl = np.zeros((N, model.nu))
     act = cell.actuator_ids
     # Reference of the same instant as the (delayed) measurement; feed-forward on time.
     q_del = np.vstack([np.tile(q_r[0], (lag, 1)), q_r[:N - lag]])
     qd_del = np.vstack([np.tile(qd_r[0], (lag, 1)), qd_r[:N - lag]])
     base = np.zeros((N, model.nu))
     base[:, act] = (ff + kp * q_del + kd * qd_del) / g
+    sens = np.empty((N, model.nsensordata))
+    ctrl = np.zeros((N, model.nu))
+    c = mujoco_c()
+    if c is not None:
+        q, qd = _servo_compiled(c, model, d, cell, base, kp / g, kd / g, lag, N, K, sens, ctrl,
+                                progress)
+    else:
+        q, qd = _servo_rollout(model, d, cell, base, kp / g, kd / g, lag, N, K, sens, ctrl,
+                               progress)
+    # The servo law's torque before the actuator clamp (ctrl is in actuator units: × gear).
+    tau_demand = ctrl[:K, act] * g
+    warnings = _warnings(d)
+    settle = _settle_time(model, cell, sens[K:], q_ref[-1])
+    return (np.ascontiguousarray(q), np.ascontiguousarray(qd), sens, tau_demand, warnings,
+            settle)
+
+
+def _servo_compiled(c: MujocoC, model: mujoco.MjModel, d: mujoco.MjData, cell: Cell,
+                    base: np.ndarray, kp_g: np.ndarray, kd_g: np.ndarray, lag: int, N: int,
+                    K: int, sens: np.ndarray, ctrl: np.ndarray,
+                    progress: Callable[[float], None] | None) -> tuple[np.ndarray, np.ndarray]:
+    """The servo's N steps in the compiled loop (`execute_compiled.servo_steps`), CHUNK_STEPS
+    a call; (q, q̇) (N, n) at t_0 … t_{N−1}; `sens`, `ctrl` filled."""
+    n = len(cell.qpos_adr)
+    q_meas, qd_meas = np.empty((N + 1, n)), np.empty((N + 1, n))
+    q_meas[0], qd_meas[0] = d.qpos[cell.qpos_adr], d.qvel[cell.dof_adr]
+    for a in range(0, N, CHUNK_STEPS):
+        b = min(a + CHUNK_STEPS, N)
+        servo_steps(c, model, d, cell.qpos_adr, cell.dof_adr, cell.actuator_ids, base, kp_g,
+                    kd_g, lag, a, b, q_meas, qd_meas, sens, ctrl)
+        if progress is not None and b < K:
+            progress(b / K)
+    if progress is not None:
+        progress(1.0)
+    return q_meas[:N], qd_meas[:N]
+
+
+def _servo_rollout(model: mujoco.MjModel, d: mujoco.MjData, cell: Cell, base: np.ndarray,
+                   kp_g: np.ndarray, kd_g: np.ndarray, lag: int, N: int, K: int,
+                   sens: np.ndarray, ctrl: np.ndarray,
+                   progress: Callable[[float], None] | None) -> tuple[np.ndarray, np.ndarray]:
+    """The same N steps through `mujoco.rollout` in exact chunks of lag + 1 steps (each chunk's
+    controls from states the previous chunks produced): the path without the compiled loop."""
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    nstate = mujoco.mj_stateSize(model, spec)
+    # S[lag + k] is the state at t_k; the first lag rows stand for the rest before t0.
+    S = np.empty((lag + N + 1, nstate))
+    mujoco.mj_getState(model, d, S[0], spec)
+    S[:lag + 1] = S[0]
+    act = cell.actuator_ids
     # ctrl[k] = base[k] − S[k] @ W: the measured state of t_{k−lag} times the gains, one product.
     W = np.zeros((nstate, model.nu))
-    W[1 + cell.qpos_adr, act] = kp / g
-    W[1 + model.nq + cell.dof_adr, act] = kd / g
+    W[1 + cell.qpos_adr, act] = kp_g
+    W[1 + model.nq + cell.dof_adr, act] = kd_g
     step = lag + 1
     # Measured joint state columns of the full-physics state (time, qpos, qvel, ...).
     iq = 1 + cell.qpos_adr
@@ -101,14 +152,7 @@ def _run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.
     if progress is not None and reported < 1.0:
         progress(1.0)
     # Sensors of step k are evaluated before it integrates: they belong to the state at t_k.
-    q = S[lag:lag + N, iq]
-    qd = S[lag:lag + N, iv]
-    # The servo law's torque before the actuator clamp (ctrl is in actuator units: × gear).
-    tau_demand = ctrl[:K, act] * g
-    warnings = _warnings(d)
-    settle = _settle_time(model, cell, sens[K:], q_ref[-1])
-    return (np.ascontiguousarray(q), np.ascontiguousarray(qd), sens, tau_demand, warnings,
-            settle)
+    return S[lag:lag + N, iq], S[lag:lag + N, iv]
 
 
 def _settle_time(model: mujoco.MjModel, cell: Cell, sens_hold: np.ndarray,
@@ -134,17 +178,26 @@ def _run_kinematic(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref:
     K, _ = q_ref.shape
     d = mujoco.MjData(model)
     sens = np.empty((K, model.nsensordata))
-    qa, da = cell.qpos_adr, cell.dof_adr
-    qpos, qvel, sdata = d.qpos, d.qvel, d.sensordata
-    fwd_pos, sens_pos = mujoco.mj_fwdPosition, mujoco.mj_sensorPos
-    for k in range(K):
-        qpos[qa] = q_ref[k]
-        qvel[da] = qd_ref[k]
-        fwd_pos(model, d)
-        sens_pos(model, d)
-        sens[k] = sdata
-        if progress is not None and (k + 1) % CHUNK_STEPS == 0:
-            progress((k + 1) / K)
+    c = mujoco_c()
+    if c is not None:
+        q, qd = np.ascontiguousarray(q_ref, float), np.ascontiguousarray(qd_ref, float)
+        for a in range(0, K, CHUNK_STEPS):
+            b = min(a + CHUNK_STEPS, K)
+            kinematic_steps(c, model, d, cell.qpos_adr, cell.dof_adr, q, qd, a, b, sens)
+            if progress is not None and b < K:
+                progress(b / K)
+    else:
+        qa, da = cell.qpos_adr, cell.dof_adr
+        qpos, qvel, sdata = d.qpos, d.qvel, d.sensordata
+        fwd_pos, sens_pos = mujoco.mj_fwdPosition, mujoco.mj_sensorPos
+        for k in range(K):
+            qpos[qa] = q_ref[k]
+            qvel[da] = qd_ref[k]
+            fwd_pos(model, d)
+            sens_pos(model, d)
+            sens[k] = sdata
+            if progress is not None and (k + 1) % CHUNK_STEPS == 0:
+                progress((k + 1) / K)
     if progress is not None:
         progress(1.0)
     return q_ref.copy(), qd_ref.copy(), sens, _warnings(d)

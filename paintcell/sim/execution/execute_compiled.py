@@ -1,0 +1,175 @@
+"""Compiled per-step loops around MuJoCo's own C functions: the inverse-dynamics feed-forward,
+the digital servo's stepping, and the kinematic replay, without a Python statement per 1 ms step.
+
+Each loop is a `numba.njit` function that writes the step's inputs into the `MjData` arrays
+(numpy views of MuJoCo's memory), calls the MuJoCo C function through `ctypes` (`mj_inverse`,
+`mj_step`, `mj_fwdPosition` + `mj_sensorPos`, from the very `libmujoco` the `mujoco` bindings
+loaded) and copies the outputs out. The physics is MuJoCo's, call for call what the Python loops
+did; only the loop and the control law (a few multiply-adds per joint) are compiled. The
+results equal those loops' (tests/test_execute_compiled.py: inverse dynamics and the kinematic
+replay bit for bit, the servo's states to 1e-9 rad: its feedback product is summed in another
+order than the former matrix product).
+
+`mujoco_c()` is None when the shared library cannot be found next to the `mujoco` package or
+numba is missing; the callers then run their Python loops (`PAINTCELL_COMPILED_STEPS=0` forces
+that, for comparisons).
+
+Joint positions [rad], velocities [rad/s], accelerations [rad/s²], torques [N·m].
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import glob
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import mujoco
+import numpy as np
+
+try:  # numba is a dependency (the film kernel); the Python loops stay if it cannot load
+    from numba import njit
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover - exercised only without numba
+    HAVE_NUMBA = False
+
+
+@dataclass(frozen=True)
+class MujocoC:
+    """MuJoCo's C functions `f(const mjModel*, mjData*)` as ctypes objects numba can call."""
+
+    inverse: Any
+    step: Any
+    fwd_position: Any
+    sensor_pos: Any
+
+
+def _library_path() -> str | None:
+    """The libmujoco shared library the `mujoco` package ships (and its bindings loaded)."""
+    here = os.path.dirname(mujoco.__file__)
+    for pattern in ("libmujoco.so*", "libmujoco*.dylib", "mujoco.dll"):
+        found = sorted(glob.glob(os.path.join(here, pattern)))
+        if found:
+            return found[0]
+    return None
+
+
+@functools.lru_cache(maxsize=1)
+def mujoco_c() -> MujocoC | None:
+    """The C functions, or None (no library found, numba missing, or
+    `PAINTCELL_COMPILED_STEPS=0`): callers fall back to their Python loops."""
+    if not HAVE_NUMBA or os.environ.get("PAINTCELL_COMPILED_STEPS", "1") == "0":
+        return None
+    path = _library_path()
+    if path is None:
+        return None
+    try:
+        lib = ctypes.CDLL(path)
+        fns = []
+        for name in ("mj_inverse", "mj_step", "mj_fwdPosition", "mj_sensorPos"):
+            f = getattr(lib, name)
+            f.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+            f.restype = None
+            fns.append(f)
+    except (OSError, AttributeError):  # another build of MuJoCo: the Python loops it is
+        return None
+    return MujocoC(*fns)
+
+
+if HAVE_NUMBA:
+    @njit(cache=True, nogil=True)
+    def _inverse_loop(inv: Any, mptr: int, dptr: int, qpos: np.ndarray, qvel: np.ndarray,
+                      qacc: np.ndarray, qfrc: np.ndarray, qa: np.ndarray, da: np.ndarray,
+                      q: np.ndarray, qd: np.ndarray, qdd: np.ndarray, out: np.ndarray) -> None:
+        n = qa.shape[0]
+        for k in range(q.shape[0]):
+            for j in range(n):
+                qpos[qa[j]] = q[k, j]
+                qvel[da[j]] = qd[k, j]
+                qacc[da[j]] = qdd[k, j]
+            inv(mptr, dptr)
+            for j in range(n):
+                out[k, j] = qfrc[da[j]]
+
+    @njit(cache=True, nogil=True)
+    def _kinematic_loop(fwd: Any, sens: Any, mptr: int, dptr: int, qpos: np.ndarray,
+                        qvel: np.ndarray, sdata: np.ndarray, qa: np.ndarray, da: np.ndarray,
+                        q: np.ndarray, qd: np.ndarray, k0: int, k1: int,
+                        sens_out: np.ndarray) -> None:
+        n = qa.shape[0]
+        for k in range(k0, k1):
+            for j in range(n):
+                qpos[qa[j]] = q[k, j]
+                qvel[da[j]] = qd[k, j]
+            fwd(mptr, dptr)
+            sens(mptr, dptr)
+            sens_out[k, :] = sdata
+
+    @njit(cache=True, nogil=True)
+    def _servo_loop(step: Any, mptr: int, dptr: int, qpos: np.ndarray, qvel: np.ndarray,
+                    ctrl: np.ndarray, sdata: np.ndarray, qa: np.ndarray, da: np.ndarray,
+                    act: np.ndarray, base: np.ndarray, kpg: np.ndarray, kdg: np.ndarray,
+                    lag: int, k0: int, k1: int, q_meas: np.ndarray, qd_meas: np.ndarray,
+                    sens_out: np.ndarray, ctrl_out: np.ndarray) -> None:
+        n = qa.shape[0]
+        for k in range(k0, k1):
+            j = k - lag
+            if j < 0:
+                j = 0  # before t0 the arm rests in its initial state
+            for c in range(ctrl.shape[0]):
+                ctrl_out[k, c] = base[k, c]
+            for i in range(n):
+                ctrl_out[k, act[i]] = base[k, act[i]] - (q_meas[j, i] * kpg[i]
+                                                         + qd_meas[j, i] * kdg[i])
+            ctrl[:] = ctrl_out[k]
+            step(mptr, dptr)
+            sens_out[k, :] = sdata  # sensors of the state at t_k (evaluated before integrating)
+            for i in range(n):
+                q_meas[k + 1, i] = qpos[qa[i]]
+                qd_meas[k + 1, i] = qvel[da[i]]
+
+
+def _idx(a: Any) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(a, np.int64).ravel())
+
+
+def inverse_dynamics_steps(c: MujocoC, model: mujoco.MjModel, data: mujoco.MjData,
+                           qpos_adr: Any, dof_adr: Any, q: np.ndarray, qd: np.ndarray,
+                           qdd: np.ndarray) -> np.ndarray:
+    """(K, n) `qfrc_inverse` [N·m] at the dofs `dof_adr` after `mj_inverse` of each sample
+    (q, q̇, q̈) (K, n) written at `qpos_adr` / `dof_adr` of `data` (other entries as they are)."""
+    out = np.empty((len(q), len(_idx(dof_adr))))
+    _inverse_loop(c.inverse, model._address, data._address, data.qpos, data.qvel, data.qacc,
+                  data.qfrc_inverse, _idx(qpos_adr), _idx(dof_adr),
+                  np.ascontiguousarray(q, float), np.ascontiguousarray(qd, float),
+                  np.ascontiguousarray(qdd, float), out)
+    return out
+
+
+def kinematic_steps(c: MujocoC, model: mujoco.MjModel, data: mujoco.MjData, qpos_adr: Any,
+                    dof_adr: Any, q: np.ndarray, qd: np.ndarray, k0: int, k1: int,
+                    sens_out: np.ndarray) -> None:
+    """Samples k0 ≤ k < k1: set (q, q̇)[k], `mj_fwdPosition` + `mj_sensorPos`, sensordata into
+    `sens_out[k]` ((K, nsensordata), written in place)."""
+    _kinematic_loop(c.fwd_position, c.sensor_pos, model._address, data._address, data.qpos,
+                    data.qvel, data.sensordata, _idx(qpos_adr), _idx(dof_adr), q, qd, int(k0),
+                    int(k1), sens_out)
+
+
+def servo_steps(c: MujocoC, model: mujoco.MjModel, data: mujoco.MjData, qpos_adr: Any,
+                dof_adr: Any, actuator_ids: Any, base: np.ndarray, kp_g: np.ndarray,
+                kd_g: np.ndarray, lag: int, k0: int, k1: int, q_meas: np.ndarray,
+                qd_meas: np.ndarray, sens_out: np.ndarray, ctrl_out: np.ndarray) -> None:
+    """Steps k0 ≤ k < k1 of the digital servo (`paintcell.sim.execution.execute_rollout`):
+    ctrl[k] = base[k] − (Kp/g · q + Kd/g · q̇) measured at t_{max(k − lag, 0)}, on the robot's
+    actuators (base[k] alone on the others), then `mj_step`.
+
+    base, ctrl_out: (N, nu) [actuator units]; kp_g, kd_g: (n,) gains ÷ gear; q_meas, qd_meas:
+    (N + 1, n), row 0 the initial state, rows k + 1 written here (the state after step k);
+    sens_out: (N, nsensordata), the sensors of the state at t_k. All written in place."""
+    _servo_loop(c.step, model._address, data._address, data.qpos, data.qvel, data.ctrl,
+                data.sensordata, _idx(qpos_adr), _idx(dof_adr), _idx(actuator_ids), base,
+                np.ascontiguousarray(kp_g, float), np.ascontiguousarray(kd_g, float), int(lag),
+                int(k0), int(k1), q_meas, qd_meas, sens_out, ctrl_out)

@@ -1,0 +1,110 @@
+"""paintcell.sim.execution.execute_compiled: the compiled per-step loops give what the per-sample
+Python computations gave, on the real two-pass program of tests/test_execute.py (3.7 s at 1 kHz).
+
+- Inverse dynamics (the servo's feed-forward, and the kinematic replay's torque): equal bit for bit
+  to a per-sample `mujoco.mj_inverse` loop written here.
+- Kinematic replay: sensors (TCP pose, contacts) bit for bit equal to the Python loop.
+- Servo: states, applied and demanded torques, torque utilization (max |τ_demand| / τ_max, what
+  `validate` reports) and the contacts of a collision equal to the former `mujoco.rollout` path
+  (`PAINTCELL_COMPILED_STEPS=0`) within 1e-9 rad / 1e-9 of τ_max: the compiled feedback sums
+  Kp·q + Kd·q̇ in another order than that path's matrix product.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import mujoco
+import numpy as np
+import pytest
+
+from paintcell.sim.execution import execute_compiled
+from paintcell.sim.execution.execute import ServoSettings, execute
+from paintcell.sim.execution.execute_models import (
+    _controller_model,
+    _set_torque_actuators,
+    inverse_dynamics,
+)
+from paintcell.sim.execution.trace import ExecutedTrace
+from tests.test_execute import make_case, make_cell
+
+pytestmark = pytest.mark.skipif(execute_compiled.mujoco_c() is None,
+                                reason="libmujoco not found next to the mujoco package")
+
+
+def _python_inverse(model: mujoco.MjModel, cell: object, q: np.ndarray, qd: np.ndarray,
+                    qdd: np.ndarray) -> np.ndarray:
+    """The per-sample computation the compiled loop replaces (as `inverse_dynamics` set it up)."""
+    m = copy.copy(model)
+    m.opt.disableflags |= (mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
+                           | mujoco.mjtDisableBit.mjDSBL_CONTACT
+                           | mujoco.mjtDisableBit.mjDSBL_SENSOR)
+    m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_INVDISCRETE
+    d = mujoco.MjData(m)
+    out = np.empty_like(q)
+    for k in range(len(q)):
+        d.qpos[cell.qpos_adr] = q[k]  # type: ignore[attr-defined]
+        d.qvel[cell.dof_adr] = qd[k]  # type: ignore[attr-defined]
+        d.qacc[cell.dof_adr] = qdd[k]  # type: ignore[attr-defined]
+        mujoco.mj_inverse(m, d)
+        out[k] = d.qfrc_inverse[cell.dof_adr]  # type: ignore[attr-defined]
+    return out
+
+
+def _without_compiled(monkeypatch: pytest.MonkeyPatch, fn: object) -> ExecutedTrace:
+    monkeypatch.setenv("PAINTCELL_COMPILED_STEPS", "0")
+    execute_compiled.mujoco_c.cache_clear()
+    try:
+        assert execute_compiled.mujoco_c() is None
+        return fn()  # type: ignore[operator,no-any-return]
+    finally:
+        monkeypatch.delenv("PAINTCELL_COMPILED_STEPS")
+        execute_compiled.mujoco_c.cache_clear()
+
+
+def test_inverse_dynamics_equals_the_per_sample_mj_inverse_loop() -> None:
+    case, cell = make_case(), make_cell()
+    traj = case.traj
+    model = copy.copy(cell.model)
+    _set_torque_actuators(model, cell)
+    ctrl_model = _controller_model(model, cell, ServoSettings())
+    got = inverse_dynamics(ctrl_model, cell, traj.q, traj.qd, traj.qdd)
+    ref = _python_inverse(ctrl_model, cell, traj.q, traj.qd, traj.qdd)
+    assert np.abs(ref).max() > 1.0  # real torques (gravity alone is tens of N·m)
+    np.testing.assert_array_equal(got, ref)
+
+
+def test_kinematic_replay_equals_the_python_loop(monkeypatch: pytest.MonkeyPatch) -> None:
+    case, cell = make_case(), make_cell()
+    new = execute(cell, case.traj, mode="kinematic")
+    old = _without_compiled(monkeypatch, lambda: execute(cell, case.traj, mode="kinematic"))
+    for f in ("q", "qd", "tau", "tau_demand", "tcp_pos_world", "tcp_rot_world"):
+        np.testing.assert_array_equal(getattr(new, f), getattr(old, f), err_msg=f)
+
+
+@pytest.mark.parametrize("part_shift_m", [0.0, 0.3])
+def test_servo_equals_the_rollout_path(monkeypatch: pytest.MonkeyPatch,
+                                       part_shift_m: float) -> None:
+    """Nominal program, and the part pushed 0.3 m into the bell's path (a collision that pushes
+    the arm back: contacts feed the dynamics)."""
+    case, cell = make_case(part_shift_m), make_cell(part_shift_m)
+    new = execute(cell, case.traj)
+    old = _without_compiled(monkeypatch, lambda: execute(cell, case.traj))
+    tau_max = cell.tau_max
+    assert new.tau_demand is not None and old.tau_demand is not None
+    assert np.abs(new.q - old.q).max() <= 1e-9
+    assert np.abs(new.qd - old.qd).max() <= 1e-7
+    assert np.all(np.abs(new.tau_demand - old.tau_demand) <= 1e-9 * tau_max)
+    assert np.all(np.abs(new.tau - old.tau) <= 1e-9 * tau_max)
+    assert np.abs(new.tcp_pos_world - old.tcp_pos_world).max() <= 1e-9
+    use_new = np.max(np.abs(new.tau_demand) / tau_max)
+    use_old = np.max(np.abs(old.tau_demand) / tau_max)
+    assert use_new == pytest.approx(use_old, abs=1e-9)
+    assert use_new > 0.01
+    assert new.meta["settle_time_s"] == old.meta["settle_time_s"]
+    assert new.meta["mujoco_warnings"] == old.meta["mujoco_warnings"]
+    assert [(c.body1, c.body2, round(c.time_s, 6)) for c in new.contacts] == \
+        [(c.body1, c.body2, round(c.time_s, 6)) for c in old.contacts]
+    assert (len(new.contacts) > 0) == (part_shift_m > 0)
+    for a, b in zip(new.contacts, old.contacts, strict=True):
+        assert a.depth_m == pytest.approx(b.depth_m, abs=1e-9)
