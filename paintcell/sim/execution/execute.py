@@ -19,8 +19,8 @@ compiled loop that computes each step's torque from the state measured d steps b
 d + 1 steps, each chunk's controls from the states the previous chunks produced. TCP pose,
 joint torques and robot-vs-part/booth and robot-vs-robot (self-collision) contacts come from
 sensors at every step; steps where a contact sensor fires are re-evaluated to name the bodies and
-the depth. After the program the last reference is held for SETTLE_MAX_S in the same loop to measure settling; contacts
-during that hold are recorded too (times past the program's end).
+the depth. After the program the last reference is held for SETTLE_MAX_S in the same loop to
+measure settling; contacts during that hold are recorded too (times past the program's end).
 
 The trace keeps both the applied joint torque (`tau`, after the ±τ_max clamp, so never above the
 limit) and the torque the servo law demanded before the clamp (`tau_demand`): |τ_demand| / τ_max
