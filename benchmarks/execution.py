@@ -1,114 +1,229 @@
-"""Benchmark of MuJoCo execution and validation on the door program.
+"""Benchmark of MuJoCo execution and validation on the door program: compiled loops vs Python.
 
 Builds the door scenario's plan and 1 kHz joint program (`scenarios/door.toml` through
-`paintcell.sim.app.pipeline`: the ABB-style arm, the door upright in front of it), then times, best
-of `--repeat`:
-building the cell, servo execution (split into the inverse-dynamics feed-forward and the rollout),
-kinematic replay, and the validate step (three thickness maps: plan, trajectory, executed; the
-trajectory map alone is timed too). Real-time factor = simulated time ÷ wall time. Prints the
-door's σ/μ of plan, trajectory and execution, the loss split into its time-law and servo shares,
-and the torque utilization (demanded torque ÷ τ_max) with the share of saturated steps.
+`paintcell.sim.app.pipeline`: the ABB-style arm, the door upright in front of it), then times, in
+one process, each step twice: with the compiled per-step loops
+(`paintcell.sim.execution.execute_compiled`, the default) and with the Python loops they replace
+(`PAINTCELL_COMPILED_STEPS=0`: the per-sample `mj_inverse` loop, `mujoco.rollout` chunks of
+latency + 1 steps, the per-sample replay loop) — the baseline. Timed, best of `--repeat`, wall
+and CPU (`time.process_time`: other jobs share this machine, whose load is printed): the servo
+execution with its inverse-dynamics feed-forward, the feed-forward alone, the kinematic replay,
+validate (three thickness maps), and a sweep sample (feed-forward cached, planned and trajectory
+films reused). Real-time factor = simulated time ÷ time; the issue's target is execute +
+validate ≥ 50× on the door.
 
-    .venv/bin/python benchmarks/execution.py [--fast] [--repeat 3]
+Warm: the best of the repeats in this process. Cold: a fresh Python process that imports
+paintcell, builds the cell and runs one execute + validate (numba loads its cached kernels, the
+first MjData is made); run with `--cold 0` to skip it.
+
+Then the door's figures: σ/μ of plan, trajectory and execution, the loss split into its time-law
+and servo shares, and the torque utilization (demanded torque ÷ τ_max) with the share of
+saturated steps.
+
+    .venv/bin/python benchmarks/execution.py [--fast] [--repeat 3] [--cold 1]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import pickle
+import subprocess
+import sys
+import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from paintcell.planning.paint.deposition import thickness
 from paintcell.sim.app.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
 from paintcell.sim.app.scenario_files import load_scenario
+from paintcell.sim.execution import execute_compiled
 from paintcell.sim.execution.cell import build_cell
 from paintcell.sim.execution.execute import ServoSettings, execute
-from paintcell.sim.execution.execute_models import _set_torque_actuators, inverse_dynamics
-from paintcell.sim.validation.validate import trajectory_gun_samples, validate
+from paintcell.sim.execution.execute_models import (
+    _controller_model,
+    _set_torque_actuators,
+    inverse_dynamics,
+)
+from paintcell.sim.validation.validate import validate
 
 DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
+PATHS = ("python loops (before)", "compiled loops")
 
 
-def best_of(n: int, fn: Callable[[], Any]) -> tuple[float, Any]:
-    """(best wall time [s], last result) of `n` calls."""
-    best, out = float("inf"), None
+@contextmanager
+def loops(compiled: bool) -> Iterator[None]:
+    """Run the block with the compiled per-step loops or with the Python ones."""
+    os.environ["PAINTCELL_COMPILED_STEPS"] = "1" if compiled else "0"
+    execute_compiled.mujoco_c.cache_clear()
+    try:
+        yield
+    finally:
+        os.environ.pop("PAINTCELL_COMPILED_STEPS", None)
+        execute_compiled.mujoco_c.cache_clear()
+
+
+def best_of(n: int, fn: Callable[[], Any]) -> tuple[float, float, Any]:
+    """(best wall time [s], CPU time of that call [s], last result) of `n` calls."""
+    best, cpu, out = float("inf"), 0.0, None
     for _ in range(n):
-        t0 = time.perf_counter()
+        c0, t0 = time.process_time(), time.perf_counter()
         out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+        t, c = time.perf_counter() - t0, time.process_time() - c0
+        if t < best:
+            best, cpu = t, c
+    return best, cpu, out
+
+
+def once(fn: Callable[..., Any], *args: Any, **kw: Any) -> tuple[float, float, Any]:
+    """(wall time [s], CPU time [s], result) of fn(*args, **kw)."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    out = fn(*args, **kw)
+    return time.perf_counter() - t0, time.process_time() - c0, out
+
+
+def rtf(sim_s: float, wall: float, cpu: float) -> str:
+    return f"real-time factor {sim_s / wall:.1f} x wall, {sim_s / cpu:.1f} x per CPU-second"
+
+
+def cold_child(path: str) -> None:
+    """In a fresh process: the first execute + validate (printed as JSON)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    with open(path, "rb") as f:
+        d = pickle.load(f)
+    robot = load_robot_for(d["scn"])
+    cell = build_cell(robot, d["surface"], d["T"])
+    t1, c1 = time.perf_counter(), time.process_time()
+    trace = execute(cell, d["traj"], mode="servo")
+    t2, c2 = time.perf_counter(), time.process_time()
+    validate(d["plan"], d["surface"], d["traj"], trace, d["T"])
+    t3, c3 = time.perf_counter(), time.process_time()
+    print(json.dumps({"setup": [t1 - t0, c1 - c0], "execute": [t2 - t1, c2 - c1],
+                      "validate": [t3 - t2, c3 - c2]}))
+
+
+def cold(blob: str, compiled: bool) -> dict[str, list[float]]:
+    env = dict(os.environ, PAINTCELL_COMPILED_STEPS="1" if compiled else "0")
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parent.parent)
+    out = subprocess.run([sys.executable, __file__, "--cold-child", blob], env=env, check=True,
+                         capture_output=True, text=True).stdout
+    return json.loads(out.strip().splitlines()[-1])  # type: ignore[no-any-return]
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--fast", action="store_true", help="the scenario's coarse CI settings")
     ap.add_argument("--repeat", type=int, default=3, help="timed repetitions (best is shown)")
+    ap.add_argument("--cold", type=int, default=1,
+                    help="fresh processes per path for the cold figure (0: skip)")
+    ap.add_argument("--cold-child", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.cold_child:
+        cold_child(args.cold_child)
+        return
 
     scn = load_scenario(DOOR_SCENARIO)
     surface = load_surface(scn, args.fast)
     plan = make_plan(scn, surface, args.fast)
     robot = load_robot_for(scn)
     traj = make_trajectory(scn, robot, plan)
-    T_world_part = scn.part_placement.matrix
+    T = scn.part_placement.matrix
     sim_s = len(traj.t_s) * traj.dt_s
-    print(f"door program: {len(plan.passes)} passes, {len(traj.t_s)} steps, "
-          f"{sim_s:.2f} s simulated, {len(surface.vertices)} surface vertices")
-
-    t_cell, cell = best_of(args.repeat, lambda: build_cell(robot, surface, T_world_part))
+    print(f"door program ({'fast' if args.fast else 'full'} resolution): {len(plan.passes)} "
+          f"passes, {len(traj.t_s)} steps, {sim_s:.2f} s simulated, {len(surface.vertices)} "
+          "surface vertices")
+    print(f"load average before (1 min, shared machine): {os.getloadavg()[0]:.2f} on "
+          f"{os.cpu_count()} cores")
+    t_cell, _, cell = best_of(args.repeat, lambda: build_cell(robot, surface, T))
     print(f"build_cell: {1e3 * t_cell:.1f} ms")
-
-    t_servo, trace = best_of(args.repeat, lambda: execute(cell, traj, mode="servo"))
-    print(f"execute servo (PD + ID feed-forward, logging, contacts): {t_servo:.3f} s wall, "
-          f"real-time factor {sim_s / t_servo:.1f} x")
     model = cell.model.__copy__()
     _set_torque_actuators(model, cell)
-    t_id, _ = best_of(args.repeat, lambda: inverse_dynamics(model, cell, traj.q, traj.qd,
-                                                              traj.qdd))
-    print(f"  of which inverse-dynamics feed-forward: {t_id:.3f} s "
-          f"({1e6 * t_id / len(traj.t_s):.2f} µs/step)")
-    print(f"  of which rollout + logging: {t_servo - t_id:.3f} s "
-          f"({1e6 * (t_servo - t_id) / len(traj.t_s):.2f} µs/step, "
-          f"real-time factor {sim_s / (t_servo - t_id):.1f} x)")
+    ctrl_model = _controller_model(model, cell, ServoSettings())
 
-    t_kin, kin = best_of(args.repeat, lambda: execute(cell, traj, mode="kinematic"))
-    print(f"execute kinematic replay: {t_kin:.3f} s wall, real-time factor {sim_s / t_kin:.1f} x")
+    for compiled in (False, True):
+        with loops(compiled):
+            execute(cell, traj)  # numba cache loaded (or compiled), first MjData made
+    # Both paths interleaved, round after round, so that the load of the other jobs falls on
+    # both alike; each figure is the least wall time and the least CPU time over the rounds.
+    times: dict[str, dict[str, list[tuple[float, float]]]] = {n: {} for n in PATHS}
+    trace = kin = None
+    caches: dict[str, dict[Any, np.ndarray]] = {n: {} for n in PATHS}
+    films = None
+    for _ in range(args.repeat):
+        for name, compiled in zip(PATHS, (False, True), strict=True):
+            r = times[name]
+            with loops(compiled):
+                w, c, trace = once(execute, cell, traj, mode="servo")
+                r.setdefault("servo", []).append((w, c))
+                w, c, _ = once(inverse_dynamics, ctrl_model, cell, traj.q, traj.qd,
+                                    traj.qdd)
+                r.setdefault("id", []).append((w, c))
+                w, c, kin = once(execute, cell, traj, mode="kinematic")
+                r.setdefault("kin", []).append((w, c))
+                w, c, rep = once(validate, plan, surface, traj, trace, T)
+                r.setdefault("val", []).append((w, c))
+                if films is None:
+                    films = (rep.planned_thickness_m, rep.trajectory_thickness_m)
+                cache = caches[name]
+                if not cache:
+                    execute(cell, traj, cache=cache)
+                w, c, trace_c = once(execute, cell, traj, cache=cache)
+                r.setdefault("servo_cached", []).append((w, c))
+                w, c, _ = once(validate, plan, surface, traj, trace_c, T, films=films)
+                r.setdefault("val_films", []).append((w, c))
+    rows = {n: {k: (min(x[0] for x in v), min(x[1] for x in v)) for k, v in times[n].items()}
+            for n in PATHS}
+    for name in PATHS:
+        r = rows[name]
+        print(f"--- {name} (warm: least wall and least CPU time of {args.repeat} rounds, after "
+              "a first call)")
+        print(f"execute servo (feed-forward, PD, logging, contacts): {r['servo'][0]:.3f} s wall, "
+              f"{r['servo'][1]:.3f} s CPU, {rtf(sim_s, *r['servo'])}")
+        print(f"  inverse-dynamics feed-forward alone: {r['id'][0]:.3f} s wall, {r['id'][1]:.3f} "
+              f"s CPU ({1e6 * r['id'][1] / len(traj.t_s):.2f} µs CPU per sample)")
+        print(f"execute kinematic replay: {r['kin'][0]:.3f} s wall, {r['kin'][1]:.3f} s CPU, "
+              f"{rtf(sim_s, *r['kin'])}")
+        print(f"validate (three thickness maps + metrics): {r['val'][0]:.3f} s wall, "
+              f"{r['val'][1]:.3f} s CPU")
+        ev = (r["servo"][0] + r["val"][0], r["servo"][1] + r["val"][1])
+        print(f"execute + validate: {ev[0]:.3f} s wall, {ev[1]:.3f} s CPU, {rtf(sim_s, *ev)} "
+              "(target >= 50 x)")
+        sw = (r["servo_cached"][0] + r["val_films"][0], r["servo_cached"][1] + r["val_films"][1])
+        print(f"sweep sample (feed-forward cached, planned/trajectory films reused): "
+              f"{sw[0]:.3f} s wall, {sw[1]:.3f} s CPU, {rtf(sim_s, *sw)}")
+    a, b = rows[PATHS[0]], rows[PATHS[1]]
+    for key, label in (("servo", "execute servo"), ("id", "inverse dynamics"),
+                       ("kin", "kinematic replay")):
+        print(f"speed-up compiled / python loops, {label}: {a[key][0] / b[key][0]:.2f} x wall, "
+              f"{a[key][1] / b[key][1]:.2f} x CPU")
+    ev_a = a["servo"][1] + a["val"][1]
+    ev_b = b["servo"][1] + b["val"][1]
+    print(f"speed-up compiled / python loops, execute + validate: {ev_a / ev_b:.2f} x CPU")
 
-    t_val, rep = best_of(args.repeat,
-                         lambda: validate(plan, surface, traj, trace, T_world_part))
-    print(f"validate (three thickness maps + metrics): {t_val:.3f} s wall, "
-          f"real-time factor {sim_s / t_val:.1f} x")
-    T_part_world = np.linalg.inv(T_world_part)
-    t_map, _ = best_of(args.repeat, lambda: thickness(
-        plan.applicator, trajectory_gun_samples(traj, T_part_world), surface.vertices,
-        surface.normals))
-    print(f"  of which the trajectory thickness map: {t_map:.3f} s")
-    print(f"execute + validate: real-time factor {sim_s / (t_servo + t_val):.1f} x")
-    # A sweep sample: the feed-forward kept from the first run (no disturbance changes it) and
-    # the planned and trajectory films reused (neither depends on the execution).
-    cache: dict = {}
-    execute(cell, traj, mode="servo", cache=cache)
-    films = (rep.planned_thickness_m, rep.trajectory_thickness_m)
-    t_exec_c, trace_c = best_of(args.repeat, lambda: execute(cell, traj, mode="servo",
-                                                             cache=cache))
-    t_val_c, _ = best_of(args.repeat, lambda: validate(plan, surface, traj, trace_c,
-                                                       T_world_part, films=films))
-    c0 = time.process_time()
-    execute(cell, traj, mode="servo", cache=cache)
-    validate(plan, surface, traj, trace_c, T_world_part, films=films)
-    cpu = time.process_time() - c0
-    print(f"sweep sample (feed-forward cached, planned/trajectory films reused): execute "
-          f"{t_exec_c:.3f} s + validate {t_val_c:.3f} s wall, real-time factor "
-          f"{sim_s / (t_exec_c + t_val_c):.1f} x (per CPU-second {sim_s / cpu:.1f} x; target >= "
-          "50 x)")
-    print(f"load average (1 min, shared machine): {os.getloadavg()[0]:.2f} on "
-          f"{os.cpu_count()} cores")
-    km = validate(plan, surface, traj, kin, T_world_part).metrics
+    if args.cold > 0:
+        with tempfile.TemporaryDirectory() as tmp:
+            blob = str(Path(tmp) / "door.pkl")
+            with open(blob, "wb") as f:
+                pickle.dump({"scn": scn, "surface": surface, "plan": plan, "traj": traj,
+                             "T": T}, f)
+            for name, compiled in zip(PATHS, (False, True), strict=True):
+                runs = [cold(blob, compiled) for _ in range(args.cold)]
+                best = min(runs, key=lambda x: x["execute"][0] + x["validate"][0])
+                w = best["execute"][0] + best["validate"][0]
+                c = best["execute"][1] + best["validate"][1]
+                print(f"cold ({name}, first call in a fresh process, best of {args.cold}): "
+                      f"execute {best['execute'][0]:.3f} s wall / {best['execute'][1]:.3f} s CPU "
+                      f"+ validate {best['validate'][0]:.3f} s / {best['validate'][1]:.3f} s, "
+                      f"{rtf(sim_s, w, c)}")
+    print(f"load average after (1 min): {os.getloadavg()[0]:.2f}")
+
+    assert trace is not None and kin is not None
+    km = validate(plan, surface, traj, kin, T).metrics
     print(f"door kinematic replay: loss {km['loss_pp']:.4f} pp = time law "
           f"{km['loss_time_law_pp']:.4f} pp (plan sampling, TOPP-RA, bell spin) + servo "
           f"{km['loss_servo_pp']:.2e} pp (none: the replay is the trajectory)")
@@ -117,7 +232,7 @@ def main() -> None:
                      ("servo ideal", execute(cell, traj, servo=ServoSettings.ideal())),
                      ("servo gain_scale 0.1", execute(cell, traj,
                                                       servo=ServoSettings(gain_scale=0.1)))):
-        m = validate(plan, surface, traj, tr, T_world_part).metrics
+        m = validate(plan, surface, traj, tr, T).metrics
         print(f"door {name}: planned σ/μ {m['planned_nsd_pct']:.3f} %, trajectory "
               f"{m['trajectory_nsd_pct']:.3f} %, executed {m['executed_nsd_pct']:.3f} %, loss "
               f"{m['loss_pp']:.4f} pp = time law {m['loss_time_law_pp']:.4f} + servo "
@@ -127,6 +242,7 @@ def main() -> None:
               f"(all) max {m['tracking_error_max_all_mm']:.3f} mm, settle "
               f"{m['settle_time_s']:.3f} s, collisions {m['n_collisions']}, MuJoCo warnings "
               f"{tr.meta['mujoco_warnings'] or 'none'}")
+
 
 if __name__ == "__main__":
     main()
