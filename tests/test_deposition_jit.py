@@ -5,7 +5,7 @@ the literal DESIGN.md formula.
   curved patch with back-facing points and points behind the gun: within 1e-9 of the peak;
 - numba vs `deposition_rate_reference` (ω, q and cosines written out, every pair) where no pair
   is culled: within 1e-9 of the peak;
-- the branch-free exponential against math.exp;
+- the branch-free 2^y against numpy's exp2;
 - the result does not depend on the thread count (bit for bit);
 - the GPU kernel agrees with the CPU one — only where a CUDA GPU is present (none on the 2-core
   development machine: that test skips there).
@@ -81,12 +81,16 @@ def test_numba_agrees_with_the_literal_formula_where_nothing_is_culled() -> None
     assert np.max(np.abs(got - dense)) <= 1e-9 * dense.max()
 
 
-def test_branch_free_exp_matches_math_exp() -> None:
-    xs = np.concatenate([-np.linspace(0.0, 700.0, 20001), -np.geomspace(1e-12, 700, 500)])
-    got = np.array([jit._exp_neg(float(v)) for v in xs])
-    want = np.exp(xs)
+def test_branch_free_exp2_matches_numpy() -> None:
+    """2^y of the kernel (the film's e^x computed as 2^(x·log2 e)) against numpy's exp2 over
+    the whole clamped range, and the clamp at e^−700 as the numpy kernel's."""
+    lo = -jit.EXP_FLOOR * jit.LOG2E
+    ys = np.concatenate([np.linspace(lo, 0.0, 20001), -np.geomspace(1e-12, -lo, 500),
+                         np.linspace(-3.0, 0.0, 20001)])
+    got = np.array([jit._exp2_neg(float(v)) for v in ys])
+    want = np.exp2(ys)
     assert np.max(np.abs(got / want - 1.0)) < 1e-14
-    assert jit._exp_neg(-1e4) == pytest.approx(math.exp(-jit.EXP_FLOOR), rel=1e-12)
+    assert jit._exp2_neg(-1e4) == pytest.approx(math.exp(-jit.EXP_FLOOR), rel=1e-12)
 
 
 def test_thread_count_does_not_change_the_film() -> None:
