@@ -12,9 +12,9 @@ the chunk. Per evaluated pair
 
 exponents clamped at −700 as in the numpy kernel. The CPU inner loop has no branches (a
 vectorizing 2^y of < 1e-14 relative error, the exponents scaled by log2 e once per call), so
-the result agrees with the numpy kernel to round-off (tests: 1e-12 relative per point on a flat plate, 1e-9 of the peak on curved parts);
-the sum over samples runs in sample order for every point, so it does not depend on the number
-of threads.
+the result agrees with the numpy kernel to round-off (tests: 1e-12 relative per point on a flat
+plate, 1e-9 of the peak on curved parts); the sum over samples runs in sample order for every
+point, so it does not depend on the number of threads.
 
 CPU: `numba.njit(parallel=True)`, one block of points a task (threads from `numba`'s pool:
 `NUMBA_NUM_THREADS` or the `threads` argument). GPU: a `numba.cuda` kernel, one point a thread,
