@@ -4,7 +4,8 @@ Prints, one figure a line, in one run: problem size; the pairs the kernels evalu
 the compiled numba kernel (2 threads and 1), today's numpy kernel, and a plain chunked numpy
 evaluation of all pairs (the simplified formula, and the literal `deposition_rate_reference`):
 time, evaluated pairs per second (wall and per CPU-second: other jobs share this machine, and
-the load average is printed), speed-ups, and the agreement relative to the peak film.
+the load average is printed), the thread count and what the threads' CPU time says 2 idle cores
+would give, speed-ups, and the agreement relative to the peak film.
 
     .venv/bin/python benchmarks/deposition.py [--threads 2] [--repeat 3] [--plain-fraction 0.25]
 """
@@ -16,6 +17,7 @@ import os
 import time
 from collections.abc import Callable
 
+import numba
 import numpy as np
 
 from paintcell.planning.paint.applicator import Applicator
@@ -148,6 +150,15 @@ def main() -> None:
         print(f"{name}: {t * 1e3:.1f} ms wall (best of {args.repeat}), {c * 1e3:.1f} ms CPU")
         print(f"{name} evaluated throughput: {n_eval / t / 1e6:.0f} M pairs/s wall, "
               f"{n_eval / c / 1e6:.0f} M pairs per CPU-second")
+    c2, c1 = rows[0][2], rows[1][2]
+    print(f"numba threads: {args.threads} asked, {int(numba.config.NUMBA_NUM_THREADS)} in the "
+          f"pool, {os.cpu_count()} CPUs")
+    print(f"CPU time of the {args.threads}-thread run / 1-thread run: {c2 / c1:.2f} (1.00: the "
+          "extra threads add no work; above: parallel overhead)")
+    print(f"estimate for {args.threads} idle cores: {args.threads} x the {args.threads}-thread "
+          f"run's pairs per CPU-second = {args.threads * n_eval / c2 / 1e6:.0f} M evaluated "
+          "pairs/s (target >= 300 M on 2 cores; the wall figure above is that only on an idle "
+          "machine)")
     ref = rows[2][3]
     for name, _, _, out in rows[:2]:
         print(f"max |{name} - numpy kernel| / max thickness: "
