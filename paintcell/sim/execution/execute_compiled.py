@@ -29,11 +29,13 @@ from typing import Any
 import mujoco
 import numpy as np
 
-try:  # numba is a dependency (the film kernel); the Python loops stay if it cannot load
+# The film kernel's module first: it sets numba's CPU features before anything compiles, so
+# every numba function of the process is compiled (and cached) for one target, whichever stage
+# runs first (two targets would mean two compilations of these loops in a fresh checkout).
+from paintcell.planning.paint.deposition_jit import HAVE_NUMBA
+
+if HAVE_NUMBA:
     from numba import njit
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover - exercised only without numba
-    HAVE_NUMBA = False
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ same seed gives the same records with any number of workers.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import time
 from collections.abc import Callable
@@ -33,6 +34,8 @@ import numpy as np
 from paintcell.planning.atomic_io import atomic_write_text
 from paintcell.sim.sweeps.sweep_spec import SweepError, SweepSpec
 from paintcell.sim.sweeps.sweep_worker import SweepPayload, run_sample
+
+_log = logging.getLogger(__name__)
 
 #: summary.json is rewritten at most this often while samples stream in [s].
 SUMMARY_EVERY_S = 2.0
@@ -288,6 +291,9 @@ def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
                 if resubmitted >= MAX_RESUBMITS:
                     raise
                 resubmitted += 1
+                _log.warning("sample %d: the Dask scheduler lost its inputs (a worker died "
+                             "holding them); sent again (%d of at most %d)", index[fut.key],
+                             resubmitted, MAX_RESUBMITS)
                 [pf] = client.scatter([payload], broadcast=True, hash=False)
                 new = submit(index[fut.key], resubmitted, pf)
                 index[new.key] = index[fut.key]
