@@ -1,4 +1,5 @@
-"""Booth sweeps over the conveyor's speed error (`paintcell.sim.sweeps.sweep_booth`).
+"""Booth sweeps over the conveyor's speed error and the body's placement on the skid
+(`paintcell.sim.sweeps.sweep_booth`).
 
 The slow test sends a small sweep of the two-robot roof booth through a real Dask cluster
 (a `dask scheduler` and two `dask worker` processes on 127.0.0.1, started by the fixture of
@@ -8,6 +9,8 @@ The slow test sends a small sweep of the two-robot roof booth through a real Das
   (v + δv)·(t − t_ref) along the line (kinematic execution: the TCP is the reference);
 - the nominal sample has no conveyor loss, and a larger speed error loses more uniformity;
 - a sample run in this process equals the cluster's record (timings and worker excluded).
+A placement error on the skid (`part_offset_m`, in this process): the executed film equals the
+film of the reference TCPs moved the other way against the nominal body.
 """
 
 from __future__ import annotations
@@ -108,3 +111,47 @@ def test_conveyor_speed_sweep_on_a_loopback_cluster(
     nsd = body_uniformity(film, body.vertex_areas)
     assert abs(nsd - rec["metrics"]["executed_nsd_pct"]) < 1e-9 * nsd
     assert abs(1e6 * film.min() - rec["metrics"]["executed_min_um"]) < 1e-9 * 1e6 * film.max()
+
+
+@pytest.mark.slow
+def test_part_offset_on_the_skid_moves_the_body_the_films_see() -> None:
+    """`part_offset_m` on a booth (kinematic execution, in this process): the executed film is
+    the film of the reference TCPs moved by −o against the nominal body — a body moved by o
+    seen from the TCPs, a different path than the sample's (which moves the body), with o the
+    sample's seeded direction (the single-robot sweep's convention: the first normal draw of
+    the sample's seed, normalized, in the part frame) times |x|. The servo film is the
+    nominal body's (the TCPs did not change), so the loss it counts as the body's misplacement
+    (executed − servo) is exactly the executed film's change."""
+    from paintcell.planning.paint.deposition import thickness
+    from paintcell.sim.booth.booth_film import body_uniformity, gun_in_body
+    from paintcell.sim.sweeps.sweep_booth import prepare_booth_payload, run_booth_sample
+
+    names = ("part_offset_m",)
+    payload = prepare_booth_payload(ROOF_BOOTH, names, "part-offset-test", True, "kinematic")
+    nominal = run_booth_sample(payload, -1, None, 0)
+    x, seed = -0.02, 11    # a 20 mm placement error (the sign of a draw does not matter)
+    rec = run_booth_sample(payload, 0, np.array([x]), seed)
+    assert "error" not in rec and rec["factors"] == {"part_offset_m": x}
+    d = np.random.default_rng(seed).normal(size=3)
+    T0 = ROOF_BOOTH.body_placement.matrix
+    o = T0[:3, :3] @ (abs(x) * d / np.linalg.norm(d))            # world offset of the body
+    progs = payload.programs
+    t = progs.trajs[0].t_s
+    carrier = ROOF_BOOTH.conveyor.position_m(t, progs.t_ref_s)
+    body = progs.body
+    film = np.zeros(len(body.vertices))
+    for i, tr in enumerate(progs.trajs):
+        app = progs.plans[progs.jobs[i].part].applicator   # robot i's part, at its own flow
+        film += thickness(app, gun_in_body(t, tr.tcp_pos_world - o, tr.tcp_rot_world,
+                                           tr.paint_on, T0, carrier, ROOF_BOOTH.conveyor.unit),
+                          body.vertices, body.normals)
+    nsd = body_uniformity(film, body.vertex_areas)
+    m, m0 = rec["metrics"], nominal["metrics"]
+    assert abs(nsd - m["executed_nsd_pct"]) < 1e-9 * nsd
+    assert abs(1e6 * film.min() - m["executed_min_um"]) < 1e-9 * 1e6 * film.max()
+    # the TCPs are the reference's: the servo film is the nominal run's executed one (no
+    # offset, the line at its speed: no conveyor loss there), so the loss is the move's
+    assert abs(m0["loss_conveyor_pp"]) < 1e-9
+    assert m["loss_conveyor_pp"] == pytest.approx(
+        m["executed_nsd_pct"] - m0["executed_nsd_pct"], abs=1e-9)
+    assert abs(m["loss_conveyor_pp"]) > 1e-3

@@ -88,16 +88,17 @@ def prepare_payload(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> Any:
 
 def check_factors_fit(scn: Any, spec: SweepSpec) -> None:
     """One-line SweepError when a factor does not apply to this kind of scenario (a booth
-    varies the line speed; the single-robot cell has no line)."""
+    varies the line speed and the body's placement on the skid; the single-robot cell has no
+    line)."""
     from paintcell.sim.booth.booth import Booth
-    from paintcell.sim.sweeps.sweep_names import BOOTH_FACTORS
+    from paintcell.sim.sweeps.sweep_names import BOOTH_ONLY_FACTORS
 
     if isinstance(scn, Booth):
         from paintcell.sim.sweeps.sweep_booth import check_booth_factors
 
         check_booth_factors(spec.names)
         return
-    booth_only = [n for n in spec.names if n in BOOTH_FACTORS]
+    booth_only = [n for n in spec.names if n in BOOTH_ONLY_FACTORS]
     if booth_only:
         raise SweepError(f"factor(s) {booth_only} need a conveyor: the single-robot cell has no "
                          "conveyor; sweep a booth scenario (e.g. scenarios/booth.toml)")

@@ -1,4 +1,5 @@
-"""One sample of a booth sweep: the conveyor running off its nominal speed.
+"""One sample of a booth sweep: the conveyor running off its nominal speed, the body off its
+nominal place on the skid.
 
 The robots' programs follow the conveyor at its nominal speed v
 (`paintcell.sim.booth.conveyor.track_program`:
@@ -8,10 +9,15 @@ v + δv (`conveyor_speed_error_m_s`): the carrier in the MuJoCo booth
 slide) is commanded along v + δv, so the body drifts from where the programs expect it by
 δv · (t − t_ref) — behind or ahead of the bells — the collisions see it, and the executed film
 (the executed TCP against where the carrier really was) counts it as conveyor loss.
+`part_offset_m`: the body sits |x| off its nominal place on the skid, in the sample's seeded
+random direction (the single-robot sweep's placement error): the MuJoCo part body is moved by it
+(collisions), and the executed film takes the TCP against the moved body; `loss_conveyor_pp`
+(executed − servo) is then the loss of the body being elsewhere than the programs expect, line
+drift and placement together.
 
 The client builds the booth's programs once (`paintcell.sim.booth.booth_programs.booth_programs`)
 and sends them
-with the plan and trajectory films (which the line speed does not change) to every worker once. A
+with the plan and trajectory films (which neither error changes) to every worker once. A
 worker loads the robots and compiles the booth cell on its first sample and keeps them.
 """
 
@@ -143,6 +149,19 @@ def carrier_program(bcell: Any, progs: Any, speed_m_s: float) -> Any:
     return prog
 
 
+def placement(factors: dict[str, float], seed: int) -> Any:
+    """The body's placement error on the skid as `Disturbances` (None without
+    `part_offset_m`): a translation of |part_offset_m| [m] in the sample's seeded random
+    direction of the part frame (`Disturbances.realize`, as the single-robot sweep). `execute`
+    moves the part body of the booth cell by it (the carrier's joint and its line direction
+    unchanged), so the collisions see the body where it really is."""
+    from paintcell.sim.execution.execute_settings import Disturbances
+
+    if "part_offset_m" not in factors:
+        return None
+    return Disturbances(part_offset_m=abs(float(factors["part_offset_m"])), seed=int(seed))
+
+
 def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | None,
                      seed: int) -> dict[str, Any]:
     """Execute and evaluate one booth sample; a JSON-safe record like `run_sample`'s (index −1:
@@ -165,7 +184,7 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
         t1 = time.perf_counter()
         trace = execute(bcell.cell, carrier_program(bcell, progs, speed),
                         mode=payload.mode,  # type: ignore[arg-type]
-                        servo=ctx.servo)
+                        servo=ctx.servo, disturbances=placement(factors, seed))
         t2 = time.perf_counter()
         pos, rot = robot_tcp(bcell, trace.q)
         traces = _robot_traces(bcell, trace, progs.trajs, pos, rot)
@@ -203,9 +222,9 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
 def _films(booth: Any, bcell: Any, payload: BoothPayload, trace: Any, traces: list[Any],
            gun_in_body: Any) -> dict[str, np.ndarray]:
     """Per robot and kind: the payload's plan and trajectory films, and this sample's servo
-    (executed TCP against the nominal body position) and executed (against the carrier's real
-    position) films (R, N) [m] — `paintcell.sim.booth.booth_film.robot_films` without the two reused
-    kinds."""
+    (executed TCP against the nominal body position) and executed (against the body's real
+    position: the carrier's, and the placement on the skid) films (R, N) [m] —
+    `paintcell.sim.booth.booth_film.robot_films` without the two reused kinds."""
     from paintcell.planning.paint.deposition import thickness
 
     progs = payload.programs
@@ -213,12 +232,13 @@ def _films(booth: Any, bcell: Any, payload: BoothPayload, trace: Any, traces: li
     t, unit = trace.t_s, booth.conveyor.unit
     nominal = booth.conveyor.position_m(t, progs.t_ref_s)
     actual = trace.q[:, bcell.carrier_column]
+    # where the body really sat on the skid (the placement error `execute` applied)
+    T_actual = np.asarray(trace.meta.get("T_world_part_actual", bcell.T_world_part), float)
     out = {"plan": payload.films[0], "trajectory": payload.films[1],
            "servo": np.zeros_like(payload.films[0]), "executed": np.zeros_like(payload.films[0])}
     for i, (tr, ex) in enumerate(zip(progs.trajs, traces, strict=True)):
         app = progs.plans[progs.jobs[i].part].applicator   # the part's own flow
-        for key, x in (("servo", nominal), ("executed", actual)):
-            g = gun_in_body(t, ex.tcp_pos_world, ex.tcp_rot_world, tr.paint_on,
-                            bcell.T_world_part, x, unit)
+        for key, T, x in (("servo", bcell.T_world_part, nominal), ("executed", T_actual, actual)):
+            g = gun_in_body(t, ex.tcp_pos_world, ex.tcp_rot_world, tr.paint_on, T, x, unit)
             out[key][i] = thickness(app, g, pts, nrm)
     return out

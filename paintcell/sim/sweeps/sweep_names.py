@@ -8,7 +8,7 @@ from typing import Any
 #: name → (unit, meaning). The sweep sets these `Disturbances` fields per sample.
 FACTORS: dict[str, tuple[str, str]] = {
     "part_offset_m": ("m", "part placement error on the skid: a translation of |x| in a seeded "
-                           "random direction"),
+                           "random direction (a booth: the whole body on its skid)"),
     "part_rotation_rad": ("rad", "part placement error: a rotation of |x| about a seeded random "
                                  "axis through the part origin"),
     "tcp_offset_m": ("m", "TCP calibration error: the spray point |x| off in a seeded random "
@@ -23,7 +23,9 @@ FACTORS: dict[str, tuple[str, str]] = {
 }
 #: the factors a booth sweep (`paintcell.sim.sweeps.sweep_booth`) models; the others are
 #: single-robot ones.
-BOOTH_FACTORS = ("conveyor_speed_error_m_s",)
+BOOTH_FACTORS = ("conveyor_speed_error_m_s", "part_offset_m")
+#: the booth factors the single-robot cell has no meaning for (it has no conveyor).
+BOOTH_ONLY_FACTORS = ("conveyor_speed_error_m_s",)
 #: factors that are lengths/angles in a random direction: the sweep uses |draw|.
 MAGNITUDE_FACTORS = ("part_offset_m", "part_rotation_rad", "tcp_offset_m")
 #: tolerances a paint shop asks about that this cell does not model (named in the error).
