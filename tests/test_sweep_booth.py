@@ -15,8 +15,10 @@ film of the reference TCPs moved the other way against the nominal body.
 
 from __future__ import annotations
 
+import dataclasses
 import subprocess
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -29,6 +31,17 @@ from tests.test_booth import ROOF_BOOTH
 from tests.test_sweep_dask import cluster  # noqa: F401 - the loopback cluster fixture
 
 SPEC = SweepSpec.from_strings(["conveyor_speed_error_m_s=uniform(-0.01, 0.01)"], 2, seed=3)
+
+
+@pytest.fixture(scope="module")
+def roof_payload() -> Any:
+    """The roof booth's programs and reference films for SPEC, kinematic (built once: ~5 s)."""
+    from paintcell.sim.sweeps.sweep import spec_digest
+    from paintcell.sim.sweeps.sweep_booth import prepare_booth_payload
+
+    return prepare_booth_payload(ROOF_BOOTH, SPEC.names,
+                                 spec_digest(ROOF_BOOTH, SPEC, True, "kinematic"), True,
+                                 "kinematic")
 
 
 def test_factors_that_do_not_fit_the_scenario_are_refused(tmp_path: Path) -> None:
@@ -65,11 +78,11 @@ def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_conveyor_speed_sweep_on_a_loopback_cluster(
-        tmp_path: Path, cluster: tuple[str, list[subprocess.Popen[bytes]]]) -> None:  # noqa: F811
+        tmp_path: Path, cluster: tuple[str, list[subprocess.Popen[bytes]]],  # noqa: F811
+        roof_payload: Any) -> None:
     from paintcell.planning.paint.deposition import thickness
     from paintcell.sim.booth.booth_film import body_uniformity, gun_in_body
-    from paintcell.sim.sweeps.sweep import spec_digest
-    from paintcell.sim.sweeps.sweep_booth import prepare_booth_payload, run_booth_sample
+    from paintcell.sim.sweeps.sweep_booth import run_booth_sample
 
     address, _ = cluster
     res = run_sweep(ROOF_BOOTH, SPEC, tmp_path / "remote", fast=True, mode="kinematic",
@@ -91,9 +104,7 @@ def test_conveyor_speed_sweep_on_a_loopback_cluster(
     assert ordered[0] > 0.01 and ordered == sorted(ordered)
 
     # the largest error again, in this process: same record; its film against the analytic body
-    payload = prepare_booth_payload(ROOF_BOOTH, SPEC.names,
-                                    spec_digest(ROOF_BOOTH, SPEC, True, "kinematic"), True,
-                                    "kinematic")
+    payload = roof_payload
     i = int(np.argmax(np.abs(dv[1:])))
     rec = res.samples[i]
     local = run_booth_sample(payload, rec["index"], SPEC.design()[rec["index"]],
@@ -114,7 +125,7 @@ def test_conveyor_speed_sweep_on_a_loopback_cluster(
 
 
 @pytest.mark.slow
-def test_part_offset_on_the_skid_moves_the_body_the_films_see() -> None:
+def test_part_offset_on_the_skid_moves_the_body_the_films_see(roof_payload: Any) -> None:
     """`part_offset_m` on a booth (kinematic execution, in this process): the executed film is
     the film of the reference TCPs moved by −o against the nominal body — a body moved by o
     seen from the TCPs, a different path than the sample's (which moves the body), with o the
@@ -124,10 +135,11 @@ def test_part_offset_on_the_skid_moves_the_body_the_films_see() -> None:
     (executed − servo) is exactly the executed film's change."""
     from paintcell.planning.paint.deposition import thickness
     from paintcell.sim.booth.booth_film import body_uniformity, gun_in_body
-    from paintcell.sim.sweeps.sweep_booth import prepare_booth_payload, run_booth_sample
+    from paintcell.sim.sweeps.sweep_booth import run_booth_sample
 
-    names = ("part_offset_m",)
-    payload = prepare_booth_payload(ROOF_BOOTH, names, "part-offset-test", True, "kinematic")
+    # the same programs and reference films (no factor changes them), another factor
+    payload = dataclasses.replace(roof_payload, names=("part_offset_m",),
+                                  digest="part-offset-test")
     nominal = run_booth_sample(payload, -1, None, 0)
     x, seed = -0.02, 11    # a 20 mm placement error (the sign of a draw does not matter)
     rec = run_booth_sample(payload, 0, np.array([x]), seed)
