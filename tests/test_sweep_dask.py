@@ -83,7 +83,13 @@ def _loopback_cluster(tmp_path: Path, n_workers: int
             c.wait_for_workers(n_workers, timeout=90)
         yield address, workers, log
     finally:
-        for p in reversed(procs + workers):
+        # SIGKILL the workers: on SIGTERM a dask worker retires gracefully, handing the data it
+        # holds (a booth sweep's payload) to the others first — up to the 15 s timeout each
+        # under load, for nothing at the end of a test
+        for p in workers:
+            if p.poll() is None:
+                p.kill()
+        for p in procs:
             if p.poll() is None:
                 p.terminate()
         for p in procs + workers:
