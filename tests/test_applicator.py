@@ -12,6 +12,7 @@ from scipy import integrate
 
 from paintcell.planning.errors import ApplicatorError
 from paintcell.planning.paint.applicator import FOOTPRINT_REL, Applicator
+from paintcell.planning.paint.deposition import deposition_rate_reference
 
 from .helpers import DEPOSITION_EXACT_RTOL
 
@@ -122,11 +123,12 @@ def test_default_bell_matches_its_documented_properties() -> None:
     app = Applicator.default()
     assert app.name == "default_bell"
     assert 0.2 <= app.standoff_m <= 0.3
-    y = np.linspace(-0.5, 0.5, 2001)
+    y = np.linspace(-0.6, 0.6, 2401)
     x = np.linspace(-0.6, 0.6, 2401)
     prof = np.trapezoid(app.flux(x[None, :], y[:, None]), x, axis=1)
     wide = y[prof > 0.02 * prof.max()]
-    assert 0.5 <= wide.max() - wide.min() <= 0.7          # stripe 0.5-0.7 m wide at 2 % of peak
+    assert 0.7 <= wide.max() - wide.min() <= 0.8          # stripe 0.7-0.8 m wide at 2 % of peak
+    assert app.footprint_radius_m == pytest.approx(0.46, abs=0.001)
     flow = np.trapezoid(prof, y)
     assert flow == pytest.approx(app.emitted_flow_m3_s, rel=1e-4)
     # 0.5 m/s passes 0.32 m apart build 20 µm (mean film = flow / (v · w))
@@ -134,11 +136,38 @@ def test_default_bell_matches_its_documented_properties() -> None:
 
     def nsd(w: float) -> float:
         q = (np.arange(400) + 0.5) / 400 * w
-        k = np.arange(-4, 5)
+        k = np.arange(-5, 6)
         film = np.interp(q[None, :] - k[:, None] * w, y, prof, left=0, right=0).sum(axis=0)
         return float(film.std() / film.mean())
 
-    assert nsd(0.30) < 0.005                               # the sweet spot, σ/μ < 0.5 %
-    assert max(nsd(w) for w in np.arange(0.26, 0.336, 0.005)) <= 0.0264
-    assert nsd(0.35) == pytest.approx(0.0397, abs=0.001)
-    assert nsd(0.36) > 0.05
+    assert nsd(0.35) < 0.012                               # the sweet spot, σ/μ < 1.2 %
+    assert max(nsd(w) for w in np.arange(0.33, 0.3701, 0.005)) <= 0.0264
+    assert nsd(0.39) == pytest.approx(0.0427, abs=0.001)
+    assert nsd(0.40) > 0.05
+
+
+def test_default_bell_keeps_a_sweet_spot_on_a_convex_cylinder() -> None:
+    """The reason for the bell's shape (its TOML): parallel passes along a 1 m-radius cylinder
+    still meet σ/μ < 1 % at 330 mm and ≤ 2.8 % over 300-350 mm (the previous default: 7.25 % at
+    300 mm). Film by the deposition model written literally from DESIGN.md
+    (`deposition_rate_reference`) integrated along the pass by the trapezoid rule, summed over
+    equally spaced passes in arc length (the cylinder is symmetric about its axis)."""
+    app = Applicator.default()
+    r_m, h = 1.0, app.standoff_m
+    x = np.linspace(-0.6, 0.6, 241)                        # gun travel along the axis [m]
+    s = np.linspace(-0.7, 0.7, 1401)                       # arc length across the axis [m]
+    pts = np.stack([np.zeros_like(s), r_m * np.sin(s / r_m), r_m * np.cos(s / r_m)], axis=1)
+    gun = np.stack([x, np.zeros_like(x), np.full_like(x, r_m + h)], axis=1)
+    rate = deposition_rate_reference(app, gun, np.tile([0.0, 0.0, -1.0], (len(x), 1)),
+                                     np.tile([1.0, 0.0, 0.0], (len(x), 1)), pts, pts / r_m)
+    prof = np.trapezoid(rate, x, axis=0)
+
+    def nsd(w: float) -> float:
+        q = (np.arange(400) + 0.5) / 400 * w
+        k = np.arange(-5, 6)
+        film = np.interp(q[None, :] - k[:, None] * w, s, prof, left=0, right=0).sum(axis=0)
+        return float(film.std() / film.mean())
+
+    assert nsd(0.33) < 0.01
+    assert max(nsd(w) for w in np.arange(0.30, 0.3501, 0.01)) <= 0.028
+    assert nsd(0.36) > 0.035                               # a sweet spot, not a plateau

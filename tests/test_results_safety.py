@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -376,8 +377,11 @@ def test_check_survives_exits_exceptions_crashes_and_memory_hogs(
     (d / "b_memory.py").write_text(head.format(n="b") + "raise MemoryError('planted')\n")
     (d / "c_killed.py").write_text("import os, signal\nos.kill(os.getpid(), signal.SIGKILL)\n")
     bell = (ROOT / "paintcell" / "planning" / "paint" / "data" / "default_bell.toml").read_text()
-    bell = bell.replace("sigma_x_m = 0.05", "sigma_x_m = 50.0").replace(
-        "sigma_y_m = 0.06", "sigma_y_m = 50.0")
+    # whatever the shipped values (a plain text replace of them silently stopped matching when
+    # the default bell changed, and d_huge ran the ordinary bell)
+    bell = re.sub(r"^sigma_x_m = .*$", "sigma_x_m = 50.0", bell, flags=re.M)
+    bell = re.sub(r"^sigma_y_m = .*$", "sigma_y_m = 50.0", bell, flags=re.M)
+    assert bell.count("= 50.0") == 2
     (d / "huge_bell.toml.txt").write_text(bell)
     _scenario(d, name="d_huge", extra_top='applicator = "huge_bell.toml.txt"')
     _scenario(d, name="e_tight", nsd=0.01)  # σ/μ ≤ 0.01 %: no real coat passes

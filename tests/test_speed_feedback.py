@@ -12,7 +12,13 @@ import numpy as np
 from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
 from paintcell.planning.paint.applicator import Applicator
 from paintcell.planning.surface import parts
-from paintcell.sim.motion.speed_feedback import SLOW_REL, achieved_speeds, speed_caps
+from paintcell.sim.motion.speed_feedback import (
+    SLOW_REL,
+    achieved_speeds,
+    speed_caps,
+    tool_axes,
+    with_targets,
+)
 
 APP = Applicator.default()
 ST = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=8, film_guard=False)
@@ -77,3 +83,39 @@ def test_caps_follow_the_slowdown_in_generation_direction_and_the_replan_obeys_t
         assert "do not fit" in str(e)
     else:
         raise AssertionError("caps of another plan were accepted")
+
+
+def test_fed_back_bell_axes_follow_a_spin_past_90_degrees_without_a_half_turn() -> None:
+    # a free-spin program that turns the bell steadily to 150° off the travel along every pass
+    # (the roof's robot turns it to ~90-146°): the fed-back x axes are the program's own, sign
+    # and all — a sample-wise "nearest the travel" sign flips them by 180° at 90°
+    s = parts.panel(0.04)
+    plan = plan_coverage(s, APP, ST)
+    prog = _program(plan, {})
+    rot = np.empty((len(prog.t_s), 3, 3))
+    want = {}
+    for i, p in enumerate(plan.passes):
+        idx = np.flatnonzero(prog.pass_index == i)
+        frac = prog.s_pass_m[idx] / prog.s_pass_m[idx].max()
+        th = np.radians(150.0) * frac
+        z = p.spray_axes[0]
+        t0 = p.travel_dirs[0]
+        x = np.cos(th)[:, None] * t0 + np.sin(th)[:, None] * np.cross(z, t0)
+        rot[idx] = np.stack([x, np.cross(z, x), np.broadcast_to(z, x.shape)], axis=2)
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                                 axis=1))])
+        th_p = np.radians(150.0) * s_plan / s_plan[-1]
+        want[i] = np.cos(th_p)[:, None] * t0 + np.sin(th_p)[:, None] * np.cross(z, t0)
+    prog.tcp_rot_world = rot
+    got = tool_axes(plan, prog, np.eye(4))
+    for i, p in enumerate(plan.passes):
+        x = got[p.side][::-1] * -1 if i % 2 == 1 else got[p.side]     # execution order
+        assert np.all(np.einsum("ij,ij->i", x[1:], x[:-1]) > 0.9)      # no half turn
+        np.testing.assert_allclose(x, want[i], atol=2e-3)
+    # the spin-fed plan keeps its own x axes for the film; its program gets the first targets
+    again = plan_coverage(s, APP, ST, tool_x=got)
+    motion = with_targets(again, plan)
+    for a, m, p in zip(again.passes, motion.passes, plan.passes, strict=True):
+        np.testing.assert_array_equal(m.travel_dirs, p.travel_dirs)
+        np.testing.assert_array_equal(m.speeds_m_s, a.speeds_m_s)
+        np.testing.assert_array_equal(m.positions, a.positions)

@@ -36,6 +36,7 @@ from paintcell.planning.coverage.coverage_family import PLANAR_CURVATURE_1_M, pl
 from paintcell.planning.coverage.coverage_settings import PlannerSettings
 from paintcell.planning.coverage.patches import plan_patches
 from paintcell.planning.coverage.plan import CoveragePlan
+from paintcell.planning.coverage.smoothing import FOOTPRINT_FRACTION
 from paintcell.planning.errors import PlanError
 from paintcell.planning.paint.applicator import Applicator
 from paintcell.planning.surface.surface import Surface
@@ -64,6 +65,9 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     paint_on flags, index widths, the start-curve rule and the settings (with a `report` entry:
     per-pass width choice, markers, speed-QP status). The plan holds no wall-clock timing, so
     the same input gives a byte-identical saved plan (the pipeline records stage times).
+    With `smoothing_m = "auto"`, a plan that fails because the bell axis cannot follow the
+    surface within `max_axis_turn_rad_m` is planned again on the surface smoothed at 2×, then
+    4× the auto scale (the report's `auto_smoothing` says so; the settings record the scale).
     Raises PlanError when an offset self-intersects or the loop does not terminate.
     """
     if not isinstance(surface, Surface):
@@ -77,6 +81,39 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         raise PlanError(f"plan_coverage settings must be PlannerSettings or None, got "
                         f"{type(settings).__name__}; use PlannerSettings.from_dict for a dict")
     st = PlannerSettings() if settings is None else settings
+    try:
+        return _plan(surface, applicator, st, speed_caps_m_s, tool_x)
+    except PlanError as e:
+        if st.smoothing_m != "auto" or not str(e).startswith(AXIS_TURN_ERROR):
+            raise
+        first = e
+    # "auto" smoothing (a quarter of the footprint radius) left a feature the bell axis cannot
+    # follow within max_axis_turn_rad_m: plan on the surface smoothed at twice, then four times
+    # that scale (half and all of the footprint radius — still the spray's own scale)
+    base = FOOTPRINT_FRACTION * applicator.footprint_radius_m
+    for k in AUTO_SMOOTHING_RETRIES:
+        try:
+            plan = _plan(surface, applicator, replace(st, smoothing_m=k * base), speed_caps_m_s,
+                         tool_x)
+        except PlanError as e:
+            if not str(e).startswith(AXIS_TURN_ERROR):
+                raise
+            continue
+        plan.settings["report"]["auto_smoothing"] = (
+            f"smoothing_m 'auto' ({base:.3f} m): {first}; planned at {k:g} × that scale")
+        return plan
+    raise first
+
+
+#: What `paintcell.planning.coverage.smoothing.limit_turn_rate` says when the bound cannot hold.
+AXIS_TURN_ERROR = "the bell axis turns"
+#: Multiples of the "auto" smoothing scale tried, in turn, when the bell axis cannot follow it.
+AUTO_SMOOTHING_RETRIES = (2.0, 4.0)
+
+
+def _plan(surface: Surface, applicator: Applicator, st: PlannerSettings,
+          speed_caps_m_s: dict[int, np.ndarray] | None,
+          tool_x: dict[int, np.ndarray] | None) -> CoveragePlan:
     if st.patches:
         return plan_patches(surface, applicator, replace(st, patches=False))
     return plan_family(surface, applicator, st, speed_caps_m_s, tool_x)

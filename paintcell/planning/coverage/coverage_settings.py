@@ -56,7 +56,8 @@ class PlannerSettings:
     max_passes: refuse to plan more passes than this (a guard against a runaway offset loop).
     smoothing_m: pass geometry, tool axis and standoff come from the surface smoothed at this
         scale [m] ("auto": a quarter of the footprint radius, applied only where the surface has
-        finer features; None: the raw surface); the film stays on the real mesh
+        finer features, and 2× / 4× that where the bell axis cannot follow the surface within
+        max_axis_turn_rad_m; None: the raw surface); the film stays on the real mesh
         (`paintcell.planning.coverage.smoothing`).
     geodesic_fallback: where an offset walked along indexing curves self-intersects, take the
         level set of the heat-method geodesic distance from the pass instead

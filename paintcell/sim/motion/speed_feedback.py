@@ -119,11 +119,32 @@ def tool_axes(plan: CoveragePlan, traj: Any, T_world_part: np.ndarray) -> dict[i
         x_part = traj.tcp_rot_world[idx][:, :, 0] @ R          # world → part frame (Rᵀ x)
         x = np.stack([np.interp(s_plan, s[order], x_part[order, k]) for k in range(3)], axis=1)
         x /= np.linalg.norm(x, axis=1, keepdims=True)
-        # the pattern is symmetric under x → −x (f is even in x and y): keep the sign nearest
-        # the plan's travel axis, so the IK is not asked to turn the bell half a turn
-        x *= np.where(np.einsum("ij,ij->i", x, p.travel_dirs) < 0, -1.0, 1.0)[:, None]
+        # the pattern is symmetric under x → −x (f is even in x and y): the first sample takes
+        # the sign nearest the plan's travel axis and every later one the sign continuous with
+        # its predecessor, so the IK is never asked to turn the bell half a turn (a sample-wise
+        # choice flips where the free spin passes 90° off the travel)
+        x[0] *= -1.0 if float(x[0] @ p.travel_dirs[0]) < 0 else 1.0
+        step = np.where(np.einsum("ij,ij->i", x[1:], x[:-1]) < 0, -1.0, 1.0)
+        x[1:] *= np.cumprod(step)[:, None]        # x[0] is already turned: steps chain from it
         out[p.side] = -x[::-1] if i % 2 == 1 else x       # generation direction
     return out
+
+
+def with_targets(plan: CoveragePlan, targets: CoveragePlan) -> CoveragePlan:
+    """`plan` with the travel directions (TCP x axes, the robot's orientation targets) of
+    `targets`, a plan of the same passes (same sides and sample counts; otherwise `plan` as it
+    is): the program of a spin-fed re-plan is built from the targets the robot's spin came from,
+    while the plan's own travel directions stay the film model's (`tool_x`)."""
+    from dataclasses import replace
+
+    same = len(plan.passes) == len(targets.passes) and all(
+        a.side == b.side and len(a.travel_dirs) == len(b.travel_dirs)
+        for a, b in zip(plan.passes, targets.passes, strict=True))
+    if not same:
+        return plan
+    passes = tuple(replace(a, travel_dirs=b.travel_dirs)
+                   for a, b in zip(plan.passes, targets.passes, strict=True))
+    return replace(plan, passes=passes)
 
 
 def robot_aware_plan(surface: Surface, app: Applicator, settings: PlannerSettings,
@@ -167,7 +188,10 @@ def robot_aware_plan(surface: Surface, app: Applicator, settings: PlannerSetting
             new_plan = plan_coverage(surface, app, settings, speed_caps_m_s=finite,
                                      tool_x=tool_x if use_spin else None)
             try:
-                new_traj = build(new_plan)
+                # the robot keeps the orientation targets of the first program (the free-spin
+                # IK found the spin the film now assumes from them); targets equal to that spin
+                # send the IK's seeds to other branches
+                new_traj = build(with_targets(new_plan, plan) if use_spin else new_plan)
             except PaintcellError as e:      # the re-plan's program failed: try without spin
                 res.rounds.append({"failed": str(e), "spin": use_spin})
                 if use_spin:
