@@ -12,14 +12,16 @@ the mean squared distance of the arm's main axes (J1-J3, scaled by their ranges)
 configuration along the pass, on the best closed-form branch — over the rail positions where the
 whole pass is feasible (inside the limits, off the wrist singularity, with a comfort margin):
 a coarse scan of the rail, then a bounded scalar minimization (Brent) around the best scan
-point. The arm's 6-axis IK (`paintcell.robots.ik.solve_path`: closed form + DLS refinement) then
+point (an optional penalty — e.g. the arm's clearance to the parts around it,
+`paintcell.sim.booth.booth_clearance` — is added where the plain cost could still lose to it).
+The arm's 6-axis IK (`paintcell.robots.ik.solve_path`: closed form + DLS refinement) then
 runs at that rail position, and the 7-axis result is re-measured on the 7-axis model.
 """
 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,6 +38,8 @@ from paintcell.robots.robot import Robot, write_generated_mjcf
 #: worst-case margin [rad] to joint limits / wrist singularity below which a rail position costs
 #: more (a pass at the edge of the arm's range leaves the moves between passes no room).
 COMFORT_MARGIN_RAD = 0.5
+#: an extra cost of a rail position: penalty(s_m, Q (M, 6) arm joints [rad]) -> float.
+RailPenalty = Callable[[float, np.ndarray], float]
 #: names in the generated MJCF.
 RAIL_JOINT = "rail"
 RAIL_BASE_BODY = "rail_base"
@@ -192,6 +196,14 @@ def placed_rail(robot: Robot) -> RailAxis:
 
 def rail_cost(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.ndarray,
               settings: Any, jump_scale: float = 1.0) -> tuple[float, bool]:
+    """(cost, feasible) of `rail_branch` (its docstring), without the branch."""
+    cost, ok, _ = rail_branch(robot, T_world_tcp, s_m, q_pref, settings, jump_scale)
+    return cost, ok
+
+
+def rail_branch(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.ndarray,
+                settings: Any, jump_scale: float = 1.0
+                ) -> tuple[float, bool, np.ndarray | None]:
     """(cost, feasible) of holding the carriage at s_m [m] for the pass T_world_tcp (M, 4, 4).
 
     cost: mean over the pass of Σ_{J1..J3} ((q − q_pref) / range)², plus ((m0 − margin)/m0)² when
@@ -199,7 +211,8 @@ def rail_cost(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.ndar
     COMFORT_MARGIN_RAD, on the best closed-form branch (feasible branches with the IK settings'
     comfort margin first, then feasible ones); infeasible rail
     positions cost 1e3 + the number of poses outside the limits. jump_scale: the pass was
-    subsampled by this factor (the joint-jump threshold grows by it).
+    subsampled by this factor (the joint-jump threshold grows by it). The third value is that
+    branch's arm joints (M, 6) [rad] along the pass (None where no branch is feasible).
     """
     from paintcell.robots.ik import branch_feasibility, opw_branches
 
@@ -216,38 +229,59 @@ def rail_cost(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.ndar
     comfy = st.feasible & (st.margin >= settings.comfort_margin_rad)
     ok = comfy if comfy.any() else st.feasible
     if ok.any():
-        return float(np.min(np.where(ok, cost, np.inf))), True
-    return 1e3 + float(len(T_world_tcp) - st.n_ok.max()), False
+        b = int(np.argmin(np.where(ok, cost, np.inf)))
+        return float(cost[b]), True, Q[b]
+    return 1e3 + float(len(T_world_tcp) - st.n_ok.max()), False, None
 
 
 def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray,
-                       settings: Any, n_scan: int = 41, n_sub: int = 40) -> tuple[float, bool]:
+                       settings: Any, n_scan: int = 41, n_sub: int = 40,
+                       penalty: RailPenalty | None = None) -> tuple[float, bool]:
     """Rail position [m] for one pass (see the module doc) and whether the pass is feasible
-    there. The pass is subsampled to `n_sub` poses for the search."""
+    there. The pass is subsampled to `n_sub` poses for the search. penalty(s_m, Q): an extra
+    cost of the feasible branch Q (M, 6) [rad] at carriage position s_m [m] (e.g. how close the
+    arm comes to things around it: `paintcell.sim.booth.booth_clearance`)."""
     spec = placed_rail(robot).spec
     keep = np.unique(np.linspace(0, len(T_world_tcp) - 1, n_sub).astype(int))
     sub = T_world_tcp[keep]
     js = max(1.0, (len(T_world_tcp) - 1) / max(len(keep) - 1, 1))
 
-    def cost(s: float) -> tuple[float, bool]:
-        return rail_cost(robot, sub, s, q_pref, settings, jump_scale=js)
+    def base(s: float) -> tuple[float, bool, np.ndarray | None]:
+        return rail_branch(robot, sub, s, q_pref, settings, jump_scale=js)
+
+    def total(s: float, c: float, ok: bool, Q: np.ndarray | None) -> float:
+        return c + float(penalty(float(s), Q)) if ok and penalty is not None \
+            and Q is not None else c
 
     grid = np.linspace(spec.lower_m, spec.upper_m, n_scan)
-    costs = np.array([cost(s)[0] for s in grid])
-    k = int(np.argmin(costs))
+    scan = [base(s) for s in grid]
+    costs = np.array([c for c, _, _ in scan])
+    # The penalty (≥ 0) is evaluated in order of the plain cost until no unevaluated grid point
+    # can win: the same grid minimum as evaluating it everywhere, usually in one or two calls.
+    totals = np.full(n_scan, np.inf)
+    for i in np.argsort(costs, kind="stable"):
+        if costs[i] >= totals.min():
+            break
+        totals[i] = total(float(grid[i]), *scan[i])
+    k = int(np.argmin(totals))
     h = grid[1] - grid[0]
     lo, hi = max(spec.lower_m, grid[k] - h), min(spec.upper_m, grid[k] + h)
-    res = minimize_scalar(lambda s: cost(s)[0], bounds=(lo, hi), method="bounded",
+    res = minimize_scalar(lambda s: base(s)[0], bounds=(lo, hi), method="bounded",
                           options={"xatol": 1e-4})
-    s = float(res.x) if res.fun <= costs[k] else float(grid[k])
-    return s, cost(s)[1]
+    # the refinement of the plain cost, kept where its total is no worse than the grid's
+    s = float(res.x)
+    if not total(s, *base(s)) <= totals[k]:
+        s = float(grid[k])
+    return s, base(s)[1]
 
 
 def solve_rail_paths(robot: Robot, paths: Sequence[npt.ArrayLike],
                      q_seed: npt.ArrayLike | None = None, free_spin: bool = False,
-                     settings: Any = None, q_pref: npt.ArrayLike | None = None) -> list[Any]:
+                     settings: Any = None, q_pref: npt.ArrayLike | None = None,
+                     penalty: RailPenalty | None = None) -> list[Any]:
     """`paintcell.robots.paths.solve_paths` for a rail robot: per pass, the rail position of
-    `best_rail_position`, then the arm's IK there (seeded with the previous pass's end).
+    `best_rail_position` (with its `penalty`, if any), then the arm's IK there (seeded with the
+    previous pass's end).
 
     q_seed: (7,) [m, rad...]; q_pref: (6,) preferred arm configuration [rad] (default: the
     arm's home). Returns `IKPathResult`s with q (M, 7) re-measured on the 7-axis model.
@@ -262,7 +296,7 @@ def solve_rail_paths(robot: Robot, paths: Sequence[npt.ArrayLike],
     out = []
     for T in paths:
         T = np.asarray(T, float)
-        s_m, _ = best_rail_position(robot, T, pref, s)
+        s_m, _ = best_rail_position(robot, T, pref, s, penalty=penalty)
         res = solve_path(ax.arm_at(s_m), T, q_seed=seed, free_spin=free_spin, settings=s)
         q = np.column_stack([np.full(len(T), s_m), res.q])
         report = ReachabilityReport.measure(robot, q, T, free_spin=free_spin,
