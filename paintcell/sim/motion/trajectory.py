@@ -201,11 +201,21 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
     def at_rest(q: np.ndarray) -> tuple[np.ndarray, ...]:
         return (q, zero, zero)
 
+    def vias(q: np.ndarray, clearance_m: float) -> list[tuple[np.ndarray, ...]]:
+        """The backed-off via of q (none at 0 clearance) and, with `fold_moves`, before it (seen
+        from home) the same via with the shoulder and elbow at home's values."""
+        out = [] if clearance_m == 0 else [at_rest(_backed_off(robot, q, clearance_m))]
+        wi = getattr(robot, "wrist_joint_index", None)
+        if settings.fold_moves and wi is not None and wi >= 3:
+            f = np.array(out[0][0] if out else q, float)
+            f[wi - 3:wi - 1] = q_home[wi - 3:wi - 1]
+            out.insert(0, at_rest(f))
+        return out
+
     home = (q_home, zero, zero)
     first_start, _ = ends(laws[0])
-    add_moves(APPROACH, [home, first_start] if settings.approach_clearance_m == 0 else
-              [home, at_rest(_backed_off(robot, first_start[0], settings.approach_clearance_m)),
-               first_start])
+    add_moves(APPROACH, [home, *vias(first_start[0], settings.approach_clearance_m),
+                         first_start])
     turnarounds: list[dict[str, Any]] = []
     for i, law in enumerate(laws):
         segments.append(_Segment(PAINT, law.duration_s, pass_index=i, law=law))
@@ -221,9 +231,7 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
                                 f"{1e3 * record['dip_m']:.0f} mm closer to the part than the "
                                 "pass ends (IK changes branch between passes?); check collisions")
         else:
-            add_moves(RETRACT, [end, home] if settings.retract_clearance_m == 0 else
-                      [end, at_rest(_backed_off(robot, end[0], settings.retract_clearance_m)),
-                       home])
+            add_moves(RETRACT, [end, *vias(end[0], settings.retract_clearance_m)[::-1], home])
     timing["ruckig"] = time.perf_counter() - t0
 
     # --- 4. sampling on one clock -----------------------------------------------------------

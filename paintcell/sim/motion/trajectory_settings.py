@@ -60,6 +60,11 @@ class TrajectorySettings:
     """Back-off of the via pose before the first pass, along −z of the tool [m] (0: none)."""
     retract_clearance_m: float = 0.10
     """Back-off of the via pose after the last pass, along −z of the tool [m] (0: none)."""
+    fold_moves: bool = False
+    """Approach and retract also pass through a folded via: the backed-off via with the shoulder
+    and elbow (J2, J3) at home's values, so the arm pulls back toward its base before it turns
+    its wrist and base (used by the booth next to other parts,
+    `paintcell.sim.booth.booth_clearance`)."""
     turnaround_max_dip_m: float = 0.05
     """Largest approach of the TCP toward the part during a turn-around, beyond the deeper of the
     two pass ends, along the spray axis [m] (20 % of the default bell's 250 mm standoff); picks
