@@ -20,9 +20,14 @@ per job — is enumerated (≤ a few hundred for four robots) and the one chosen
    order and direction at the same time, so the two bells stay a piece's width apart; robots on
    neighbouring parts can still meet at the seam, so the programs are then staggered
    (`stagger_starts`): robot by robot, the smallest start delay (a hold at home, in steps of
-   STAGGER_STEP_S) that keeps its bell, wrist and elbow `min_bell_distance_m` from every earlier
-   robot's at every instant (checked every 20 ms). The smallest bell-to-bell distance of the
-   executed programs is checked against the same limit, and MuJoCo counts robot–robot contacts.
+   STAGGER_STEP_S) that keeps its bell, wrist, elbow, shoulder and base `min_bell_distance_m` from
+   every earlier robot's at every instant (checked every 20 ms). (Neighbouring parts whose
+   passes run in step, `BodyPart.reverse`, need no delay.) The smallest bell-to-bell distance
+   of the executed programs is checked against the same limit, and MuJoCo counts robot–robot
+   contacts;
+4. every program keeps `Booth.body_clearance_m` from the whole body, every part of it, not
+   only its own (`paintcell.sim.booth.booth_clearance`); a program that cannot is rejected with
+   its allocation.
 """
 
 from __future__ import annotations
@@ -75,11 +80,14 @@ class BoothRobot:
 
 @dataclass(frozen=True)
 class BodyPart:
-    """A library part of the body and its placement in the body frame (x along the car)."""
+    """A library part of the body and its placement in the body frame (x along the car).
+    reverse: run the part's passes in the reverse order and direction (the same film), e.g. so
+    two robots on neighbouring parts sweep in step instead of meeting at the seam."""
 
     part: str
     placement: Placement
     planner: dict[str, Any] = field(default_factory=dict)
+    reverse: bool = False
 
 
 @dataclass(frozen=True)
@@ -132,6 +140,10 @@ class Booth:
     build."""
     film_target_um: float | None = None
     """The common film build [µm] (None: the body's area-weighted planned mean)."""
+    body_clearance_m: float | None = 0.01
+    """Every robot's program keeps this far [m] from the whole body, every part of it
+    (`paintcell.sim.booth.booth_clearance`: rail positions chosen clear of the body, backed-off
+    moves, else the allocation is rejected); None: not checked before execution."""
     blend_seams: bool = True
     """Switch off the samples that paint other parts more than their own
     (`paintcell.sim.booth.booth_seams`)."""
@@ -283,16 +295,17 @@ def stagger_starts(paths: list[np.ndarray], dt_s: float, min_distance_m: float) 
 
 
 def arm_points(robot: Any, q: np.ndarray) -> np.ndarray:
-    """(K, 3, 3) world positions [m] of the bell (TCP), the wrist centre (joint5) and the elbow
-    (joint3) of `robot` at joint values q (K, n)."""
+    """(K, 5, 3) world positions [m] of the bell (TCP), the wrist centre (joint5), the elbow
+    (joint3), the shoulder (joint2) and the base (joint1: a raised robot's foot, which the arms
+    below it can reach) of `robot` at joint values q (K, n)."""
     import pinocchio as pin
 
     m, d = robot.pin_model, robot.pin_model.createData()
-    ids = [m.getJointId("joint5"), m.getJointId("joint3")]
-    out = np.empty((len(q), 3, 3))
+    ids = [m.getJointId(f"joint{j}") for j in (5, 3, 2, 1)]
+    out = np.empty((len(q), 1 + len(ids), 3))
     for k, qk in enumerate(q):
         pin.forwardKinematics(m, d, qk)
         out[k, 0] = pin.updateFramePlacement(m, d, robot.tcp_frame_id).translation
-        out[k, 1] = d.oMi[ids[0]].translation
-        out[k, 2] = d.oMi[ids[1]].translation
+        for j, jid in enumerate(ids):
+            out[k, 1 + j] = d.oMi[jid].translation
     return out

@@ -80,3 +80,17 @@ def common_film_build(surfaces: list[Surface], plans: list[CoveragePlan], names:
                  "rule": ("film_target_um of the booth" if target_um is not None else
                           "the body's area-weighted planned mean (paint on the body unchanged)"),
                  "parts": rec}
+
+
+def reversed_plan(plan: CoveragePlan) -> CoveragePlan:
+    """The plan with its passes in the reverse order, each run backwards: the same samples,
+    spray axes, speeds and dwell, so the same film (the bell's footprint is symmetric under a
+    reversal of travel); times re-counted from each pass's new start."""
+    out = []
+    for p in plan.passes[::-1]:
+        out.append(dataclasses.replace(
+            p, positions=p.positions[::-1].copy(), spray_axes=p.spray_axes[::-1].copy(),
+            travel_dirs=-p.travel_dirs[::-1], speeds_m_s=p.speeds_m_s[::-1].copy(),
+            times_s=p.times_s[-1] - p.times_s[::-1], on_part=p.on_part[::-1].copy(),
+            paint_on=p.paint_on[::-1].copy()))
+    return dataclasses.replace(plan, passes=tuple(out))

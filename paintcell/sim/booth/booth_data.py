@@ -19,6 +19,8 @@ with one line naming the file, the table and the valid keys. A TOML file is a bo
 `[[robots]]` tables. `common_film_build` (default true) and `film_target_um` (default: the body's
 area-weighted planned mean) set one film build over the parts (`paintcell.sim.booth.booth_build`);
 `blend_seams` (default true) blends the seams between parts (`paintcell.sim.booth.booth_seams`).
+`body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
+the whole body (`paintcell.sim.booth.booth_clearance`).
 """
 
 from __future__ import annotations
@@ -35,8 +37,9 @@ from paintcell.sim.booth.conveyor import Conveyor
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
-        "common_film_build", "film_target_um", "blend_seams", "sweep", "applicator")
-_PART = ("part", "xyz_m", "rpy_rad", "planner")
+        "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
+        "applicator")
+_PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
 
@@ -72,7 +75,8 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
         if "part" not in p:
             raise BoothDataError(f"{where} [[parts]] #{i}: give `part` (a library part name)")
         pl = _placement({k: p[k] for k in _PLACEMENT if k in p}, f"{where} [[parts]] #{i}")
-        parts.append(BodyPart(str(p["part"]), pl, dict(p.get("planner", {}))))
+        parts.append(BodyPart(str(p["part"]), pl, dict(p.get("planner", {})),
+                              _bool(p.get("reverse", False), f"{where} [[parts]] #{i} reverse")))
     robots = []
     for i, r in enumerate(d.get("robots", [])):
         r = _check_keys(r, _ROBOT, f"{where} [[robots]] #{i}")
@@ -127,6 +131,8 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             common_film_build=_bool(d.get("common_film_build", True),
                                     f"{where} common_film_build"),
             blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
+            body_clearance_m=_clearance(d.get("body_clearance_m", 0.01),
+                                        f"{where} body_clearance_m"),
             film_target_um=(None if d.get("film_target_um") is None
                             else _positive(d["film_target_um"], f"{where} film_target_um")),
             source=source, sweep=dict(sweep), applicator=app)
@@ -143,6 +149,15 @@ def _bool(v: Any, where: str) -> bool:
 def _positive(v: Any, where: str) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0:
         raise BoothDataError(f"{where} must be a number > 0 [µm], got {v!r}")
+    return float(v)
+
+
+def _clearance(v: Any, where: str) -> float | None:
+    if v is False:
+        return None
+    if isinstance(v, bool) or not isinstance(v, int | float) or not v >= 0:
+        raise BoothDataError(f"{where} must be a distance ≥ 0 [m] or false (no check), "
+                             f"got {v!r}")
     return float(v)
 
 

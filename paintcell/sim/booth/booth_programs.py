@@ -125,6 +125,14 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
                                         [f"{i}:{p.part}" for i, p in enumerate(booth.parts)])
     T_wb = booth.body_placement.matrix
     robots = _load_robots(booth)
+    # Every robot's arm measured against the whole body, every part of it
+    # (`paintcell.sim.booth.booth_clearance`).
+    probes = None
+    if booth.body_clearance_m is not None:
+        from paintcell.sim.booth.booth_clearance import BodyProbe
+
+        part_of = np.concatenate([np.full(len(x.vertices), i) for i, x in enumerate(surfaces)])
+        probes = [BodyProbe(r, body, T_wb, part_of) for r in robots]
     timings["plan"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -135,7 +143,7 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
     shrink = 0.5 * booth.conveyor.speed_m_s * record.get("estimated_cycle_s", 0.0) * 1.25
     for attempt in range(2):
         jobs, static, trajs0, tried = _choose(booth, robots, plans, ranked, T_wb, T_body_parts,
-                                              shrink)
+                                              shrink, probes)
         K = max(len(tr.t_s) for tr in trajs0)
         dt = trajs0[0].dt_s
         t_ref = 0.5 * (K - 1) * dt
@@ -152,6 +160,8 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
     record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
     record["start_delays_s"] = [float(tr.meta.get("start_delay_s", 0.0)) for tr in trajs0]
     record["rail_tracking_margin_m"] = shrink
+    record["body_clearance"] = {booth.robots[r].name: tr.meta.get("body_clearance")
+                                for r, tr in enumerate(static)}
     timings["trajectory"] = time.perf_counter() - t0
     return BoothPrograms(surfaces, body, plans, T_body_parts, jobs, record, static, trajs, t_ref,
                          robots, timings, build, seams)
@@ -159,16 +169,18 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
 
 def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
             ranked: list[dict[int, Job]], T_wb: np.ndarray, T_bp: list[np.ndarray],
-            shrink_m: float) -> tuple[dict[int, Job], list[JointTrajectory],
-                                      list[JointTrajectory], list[dict[str, Any]]]:
+            shrink_m: float, probes: list[Any] | None = None
+            ) -> tuple[dict[int, Job], list[JointTrajectory], list[JointTrajectory],
+                       list[dict[str, Any]]]:
     """The first workable allocation of `ranked` (rails shrunk by shrink_m at both ends for the
-    passes): its jobs, static programs, staggered programs and the rejected ones."""
+    passes): its jobs, static programs, staggered programs and the rejected ones. probes: per
+    robot, its `paintcell.sim.booth.booth_clearance.BodyProbe` (None: no body clearance)."""
     planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
-    cache: dict[tuple[int, Job], JointTrajectory] = {}
+    cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
     tried = []
     for jobs in ranked[:MAX_ALLOCATIONS_TRIED]:
         try:
-            trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_bp, cache)
+            trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes)
             delays = _stagger(booth, robots, trajs0)
         except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
             tried.append({"jobs": {booth.robots[r].name: [j.part, j.first, j.end]
@@ -198,8 +210,12 @@ def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoverageP
                              f"({', '.join(parts.PART_NAMES)})")
         s = parts.get_part(bp.part, resolution_m=res)
         kw = {**booth.planner, **bp.planner}
-        plans.append(plan_coverage(s, app,
-                                   settings_from(PlannerSettings, kw, "planner")))
+        plan = plan_coverage(s, app, settings_from(PlannerSettings, kw, "planner"))
+        if bp.reverse:
+            from paintcell.sim.booth.booth_build import reversed_plan
+
+            plan = reversed_plan(plan)
+        plans.append(plan)
         surfaces.append(s)
         Ts.append(bp.placement.matrix)
     return surfaces, plans, Ts
@@ -270,10 +286,12 @@ def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> l
 
 def _programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan], jobs: dict[int, Job],
               T_wb: np.ndarray, T_bp: list[np.ndarray],
-              cache: dict[tuple[int, Job], JointTrajectory]) -> list[JointTrajectory]:
-    """Each robot's static program for its job (cached per robot and job)."""
+              cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
+              probes: list[Any] | None = None) -> list[JointTrajectory]:
+    """Each robot's static program for its job (cached per robot and job, failures too), kept
+    `Booth.body_clearance_m` from the whole body (`paintcell.sim.booth.booth_clearance`)."""
     from paintcell.sim.app.pipeline import settings_from
-    from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
+    from paintcell.sim.motion.trajectory import TrajectorySettings
 
     out = []
     for i, (spec, robot) in enumerate(zip(booth.robots, robots, strict=True)):
@@ -288,6 +306,71 @@ def _programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan], jobs: 
         if (i, job) not in cache:
             plan = dataclasses.replace(plans[job.part],
                                        passes=plans[job.part].passes[job.first:job.end])
-            cache[(i, job)] = build_program(robot, plan, T_wb @ T_bp[job.part], settings)
-        out.append(cache[(i, job)])
+            try:
+                cache[(i, job)] = _clear_program(booth, spec.name, robot, plan,
+                                                 T_wb @ T_bp[job.part], settings,
+                                                 None if probes is None else probes[i])
+            except PaintcellError as exc:
+                cache[(i, job)] = exc
+        got = cache[(i, job)]
+        if isinstance(got, PaintcellError):
+            raise got
+        out.append(got)
     return out
+
+
+def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
+                   T_world_part: np.ndarray, settings: Any, probe: Any) -> JointTrajectory:
+    """The robot's program; with a probe (`booth_clearance.BodyProbe`), its rail positions
+    keep the arm clear of the whole body, and a program that still comes closer than
+    `Booth.body_clearance_m` is built again — approach and retract folded
+    (`TrajectorySettings.fold_moves`), its home on the passes' wrist branch
+    (`booth_clearance.wrist_flipped_home`), farther back-offs (`booth_clearance.clear_settings`)
+    — until one keeps clear, else refused with the closest call named. The tries are in
+    `meta["body_clearance"]`."""
+    from paintcell.sim.motion.trajectory import build_program
+
+    if probe is None:
+        return build_program(robot, plan, T_world_part, settings)
+    from paintcell.sim.booth import booth_clearance as bc
+
+    ik = None
+    q_home = np.asarray(robot.q_home if settings.q_home is None else settings.q_home, float)
+    if getattr(robot, "rail", None) is not None:
+        from paintcell.robots.rail import solve_rail_paths
+
+        ik = solve_rail_paths(robot, [T_world_part @ plan.tcp_frames(k)
+                                      for k in range(len(plan.passes))],
+                              q_seed=q_home, free_spin=settings.ik_free_spin,
+                              penalty=probe.rail_penalty(bc.PLACEMENT_MARGIN_M,
+                                                         bc.PLACEMENT_WEIGHT))
+    assert booth.body_clearance_m is not None    # a probe only with a clearance to keep
+    margin = float(booth.body_clearance_m)
+    homes = [q_home]
+    if ik is not None:   # the same home pose on the passes' wrist branch: no flip on the way
+        flipped = bc.wrist_flipped_home(robot, q_home, ik[0].q[0])
+        homes += [] if flipped is None else [flipped]
+    # The ladder: as set; approach and retract folded; + home on the passes' wrist branch;
+    # + farther back-offs.
+    last = len(homes) - 1
+    ladder = [(1.0, False, 0), (1.0, True, 0)] + [(1.0, True, 1)] * last \
+        + [(f, True, last) for f in bc.CLEAR_FACTORS]
+    tries = []
+    for factor, fold, k in ladder:
+        st = settings if factor == 1.0 else bc.clear_settings(settings, factor)
+        st = dataclasses.replace(st, q_home=tuple(homes[k]), fold_moves=fold)
+        traj = build_program(robot, plan, T_world_part, st, ik_results=ik)
+        c = probe.clearance(traj.q, traj.t_s, margin)
+        tries.append({"backoff_factor": factor, "fold_moves": fold,
+                      "home_wrist_flipped": k == 1, **c.to_dict()})
+        if c.clear:
+            traj.meta["body_clearance"] = {"margin_m": margin, "tries": tries}
+            return traj
+    best = max(tries, key=lambda t: t["min_distance_m"])       # the closest call, said
+    c = bc.Clearance(best["min_distance_m"], best["n_close"], best["first_t_s"],
+                     tuple(best["bodies"]), tuple(best["parts"]))
+    parts = ", ".join(booth.parts[p].part for p in c.parts)
+    near = "touch" if c.min_distance_m <= 0 else f"come within {c.min_distance_m * 1e3:.0f} mm of"
+    raise BoothError(f"robot {name!r}'s {', '.join(c.bodies[:2])} {near} the body ({parts}) "
+                     f"at t = {c.first_t_s:.2f} s of its program, even with folded moves and "
+                     f"{bc.CLEAR_FACTORS[-1]:g}x back-offs")
