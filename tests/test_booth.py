@@ -7,6 +7,7 @@ allocation and staggering against brute force, RAPID modules per robot.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 import re
@@ -199,8 +200,10 @@ def test_booth_toml_is_read_and_checked(tmp_path):
     b = load_scenario("scenarios/booth.toml")
     assert isinstance(b, Booth) and [r.name for r in b.robots] == ["side_a", "side_b", "roof_l",
                                                                    "roof_r"]
-    assert all(r.model == "irb5500_rail" and r.rail_m == (-1.2, 1.2) for r in b.robots)
+    assert all(r.model == "irb5500_rail" for r in b.robots)
+    assert [r.rail_m for r in b.robots] == [(-1.5, 1.5)] * 2 + [(-1.2, 1.2)] * 2
     assert b.conveyor.speed_m_s == 0.05 and [p.part for p in b.parts] == ["fender", "door", "roof"]
+    assert [p.reverse for p in b.parts] == [False, True, False] and b.body_clearance_m == 0.01
     bad = tmp_path / "bad.toml"
     bad.write_text('name = "b"\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\nspeed = 1\n')
     with pytest.raises(BoothDataError, match=r"unknown key\(s\) \['speed'\]; valid:"):
@@ -270,3 +273,34 @@ def test_booth_report_in_a_browser(roof_booth, tmp_path):
     for n in ("roof_l", "roof_r"):
         assert text.count(n) >= 2      # robots table and allocation
     assert "assignments enumerated" in text and "Film build" in text
+
+
+def test_programs_are_chosen_again_with_the_rail_the_tracking_needs():
+    """The retry of `booth_programs`: the rail positions of the passes are planned first on the
+    rail less the conveyor tracking's travel over the *estimated* cycle — none for a fixed
+    allocation — and when tracking the real cycle drives a carriage off its rail, the programs
+    are planned again on the rail shrunk by the real cycle's travel. Forced for real: roof_r's
+    rail ends at −0.3 m, just past where one of its passes sits best (−0.33 m on its ±1.2 m rail;
+    the line would carry it to −0.39 m); without the retry this raises ConveyorError.
+    Checked: a margin was used (the first plan had none), every paint sample of roof_r's own
+    program stays that margin inside its rail, every pose is reachable, and the tracked programs
+    re-measured stay inside every joint's limits, the rail's included."""
+    from paintcell.sim.booth.booth_programs import booth_programs
+
+    lo, hi = -0.3, 2.0
+    roof_r = BoothRobot("roof_r", "irb5500_rail", Placement((0.0, -2.2, 2.6), (0, 0, math.pi / 2)),
+                        (0.5 * (lo + hi),) + HOME[1:], rail_m=(lo, hi))
+    booth = dataclasses.replace(ROOF_BOOTH, robots=(ROOF_BOOTH.robots[0], roof_r),
+                                conveyor=Conveyor(speed_m_s=0.03),
+                                allocation={"roof_r": (0, 0, 3), "roof_l": (0, 3, 5)})
+    progs = booth_programs(booth, fast=True)
+    margin = progs.record["rail_tracking_margin_m"]
+    assert margin > 0.1                       # planned again: the fixed allocation started at 0
+    static = progs.static[1]
+    paint = static.paint_on
+    assert static.q[paint, 0].min() >= lo + margin - 1e-9
+    assert static.q[paint, 0].max() <= hi - margin + 1e-9
+    for robot, st, tr in zip(progs.robots, progs.static, progs.trajs, strict=True):
+        assert st.meta["reachability"]["n_reachable"] == st.meta["reachability"]["n_poses"]
+        assert np.all(tr.q >= robot.q_lower - 1e-9) and np.all(tr.q <= robot.q_upper + 1e-9)
+    assert progs.trajs[1].q[:, 0].min() >= lo - 1e-9
