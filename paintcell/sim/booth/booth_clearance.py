@@ -90,7 +90,9 @@ class BodyProbe:
 
         self.bcell = build_booth_cell([robot], body, T_world_body, conveyor=None, booth=False)
         m = self.bcell.cell.model
-        self._part_geoms = np.flatnonzero(m.geom_bodyid == self.bcell.cell.part_body_id)
+        # the body's collision slabs (not its visual mesh, whose convex hull spans all parts)
+        self._part_geoms = np.flatnonzero((m.geom_bodyid == self.bcell.cell.part_body_id)
+                                          & ((m.geom_contype | m.geom_conaffinity) != 0))
         robot = np.zeros(m.nbody, bool)
         robot[self.bcell.body_ids[0]] = True
         self._robot_geoms = np.flatnonzero(robot[m.geom_bodyid]
@@ -105,6 +107,9 @@ class BodyProbe:
         _, nearest = cKDTree(body.vertices).query(centres)
         self._geom_part = np.full(m.ngeom, -1)
         self._geom_part[self._part_geoms] = np.asarray(part_of_vertex)[nearest]
+        # The body is static: its slabs' centres in a k-d tree find the few near each robot geom.
+        self._part_tree = cKDTree(self._data.geom_xpos[self._part_geoms])
+        self._part_rbound = m.geom_rbound[self._part_geoms]
 
     def _close(self, q: np.ndarray, margin_m: float
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -117,7 +122,7 @@ class BodyProbe:
         mujoco.mj_kinematics(m, d)
         rg, pg = self._robot_geoms, self._part_geoms
         gap = (np.linalg.norm(d.geom_xpos[rg][:, None] - d.geom_xpos[pg][None], axis=2)
-               - m.geom_rbound[rg][:, None] - m.geom_rbound[pg][None])
+               - m.geom_rbound[rg][:, None] - self._part_rbound[None])
         ii, jj = np.nonzero(gap < margin_m)
         dist = np.array([mujoco.mj_geomDistance(m, d, int(rg[i]), int(pg[j]), margin_m, None)
                          for i, j in zip(ii.tolist(), jj.tolist(), strict=True)])
@@ -125,11 +130,26 @@ class BodyProbe:
         return (dist[hit], m.geom_bodyid[rg[ii[hit]]],
                 self._geom_part[pg[jj[hit]]])
 
+    def _maybe_close(self, q: np.ndarray, margin_m: float) -> np.ndarray:
+        """(K,) whether some robot geom of the joint samples q (K, n) may come within margin_m
+        of the body: its bounding sphere within the margin of the nearest slab centre's sphere
+        of the largest slab (a lower bound of the distance; False: certainly farther)."""
+        m, d = self.bcell.cell.model, self._data
+        rg = self._robot_geoms
+        pos = np.empty((len(q), len(rg), 3))
+        for k, qk in enumerate(q):
+            d.qpos[self._adr] = qk
+            mujoco.mj_kinematics(m, d)
+            pos[k] = d.geom_xpos[rg]
+        nearest, _ = self._part_tree.query(pos.reshape(-1, 3))
+        low = nearest.reshape(len(q), len(rg)) - m.geom_rbound[rg] - self._part_rbound.max()
+        return np.asarray((low < margin_m).any(axis=1))
+
     def distance(self, q: np.ndarray, margin_m: float) -> float:
         """Smallest robot–body distance [m] over the joint samples q (K, n) (margin_m when
         nothing comes closer; negative: penetration)."""
         best = margin_m
-        for qk in q:
+        for qk in q[self._maybe_close(q, margin_m)]:
             dist = self._close(qk, margin_m)[0]
             if len(dist):
                 best = min(best, float(dist.min()))
@@ -153,6 +173,7 @@ class BodyProbe:
         step = max(1, int(round(SWEEP_DT_S / max(float(t_s[1] - t_s[0]), 1e-9)))) \
             if len(t_s) > 1 else 1
         idx = np.unique(np.r_[np.arange(0, len(q), step), len(q) - 1])
+        idx = idx[self._maybe_close(q[idx], margin_m)]
         best, n_close, first = margin_m, 0, None
         close_bodies: dict[str, float] = {}
         parts: set[int] = set()
