@@ -85,7 +85,7 @@ def test_reversed_part_paints_the_same_film():
     """Reversed order and direction: the first sample is the old last one, every pass keeps its
     length and duration, and the film of the reversed plan is the film of the plan (the same
     samples; the bell's footprint is symmetric under reversed travel) to round-off."""
-    s = parts.get_part("fender", resolution_m=0.05)
+    s = parts.get_part("hood", resolution_m=0.06)
     plan = plan_coverage(s, Applicator.default(),
                          PlannerSettings(optimize_speed=False, film_guard=False))
     rev = reversed_plan(plan)
