@@ -60,15 +60,23 @@ def _library_path() -> str | None:
 
 @functools.lru_cache(maxsize=1)
 def mujoco_c() -> MujocoC | None:
-    """The C functions, or None (no library found, numba missing, or
-    `PAINTCELL_COMPILED_STEPS=0`): callers fall back to their Python loops."""
+    """The C functions, or None (no library found, not the bindings' MuJoCo version, numba
+    missing, or `PAINTCELL_COMPILED_STEPS=0`): callers fall back to their Python loops."""
     if not HAVE_NUMBA or os.environ.get("PAINTCELL_COMPILED_STEPS", "1") == "0":
         return None
     path = _library_path()
     if path is None:
         return None
+    if not (hasattr(mujoco.MjModel, "_address") and hasattr(mujoco.MjData, "_address")):
+        return None  # bindings that no longer expose the struct addresses: the Python loops
     try:
         lib = ctypes.CDLL(path)
+        # a library of another version than the bindings' would read their structs with another
+        # layout: only the very build they loaded is used
+        lib.mj_versionString.restype = ctypes.c_char_p
+        lib.mj_versionString.argtypes = []
+        if lib.mj_versionString().decode() != mujoco.mj_versionString():
+            return None
         fns = []
         for name in ("mj_inverse", "mj_step", "mj_fwdPosition", "mj_sensorPos"):
             f = getattr(lib, name)
