@@ -121,3 +121,41 @@ def test_servo_equals_the_rollout_path(monkeypatch: pytest.MonkeyPatch,
     assert (len(new.contacts) > 0) == (part_shift_m > 0)
     for a, b in zip(new.contacts, old.contacts, strict=True):
         assert a.depth_m == pytest.approx(b.depth_m, abs=1e-9)
+
+
+_OVERFLOW = r'''
+import sys
+import mujoco
+import numpy as np
+from paintcell.sim.execution.execute_compiled import inverse_dynamics_steps, mujoco_c
+
+spheres = "".join(f'<geom type="sphere" size="0.05" pos="{0.01 * i} 0 0"/>' for i in range(40))
+boxes = spheres.replace('type="sphere" size="0.05"', 'type="box" size="0.05 0.05 0.05"')
+xml = ('<mujoco><size memory="60K"/><worldbody>' + boxes + '<body><joint type="slide"/>'
+       + spheres + '</body></worldbody></mujoco>')
+m = mujoco.MjModel.from_xml_string(xml)
+d = mujoco.MjData(m)
+q = np.zeros((3, 1))
+inverse_dynamics_steps(mujoco_c(), m, d, [0], [0], q, q, q)
+print("returned")
+'''
+
+
+def test_a_mujoco_fatal_error_in_a_compiled_loop_is_one_paintcell_line_and_exit_2(
+        tmp_path: os.PathLike) -> None:
+    """40 overlapping sphere/box pairs need more than the 60 KB arena: MuJoCo's narrow phase hits
+    its fatal 'stack overflow' inside the compiled loop. Without the hook MuJoCo's default handler
+    prints ERROR on stdout, writes MUJOCO_LOG.TXT into the working folder and exits 1 — the CLI's
+    code for "a threshold was not met"."""
+    import subprocess
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([os.getcwd(), *sys.path]))
+    r = subprocess.run([sys.executable, "-c", _OVERFLOW], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == execute_compiled.FATAL_EXIT_CODE == 2, (r.returncode, r.stderr)
+    assert "returned" not in r.stdout and "ERROR" not in r.stdout
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(
+        "paintcell: internal error: MuJoCo stopped the simulation: mj_stackAlloc"), r.stderr
+    assert "increase <size memory" in lines[0]  # MuJoCo's own fix for the user stays in the line
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()  # type: ignore[operator]

@@ -19,10 +19,14 @@ Joint positions [rad], velocities [rad/s], accelerations [rad/s²], torques [N·
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import glob
 import os
+import sys
+import threading
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,6 +50,7 @@ class MujocoC:
     step: Any
     fwd_position: Any
     sensor_pos: Any
+    error_hook: Any = None  # ctypes c_void_p of libmujoco's `mju_user_error`, or None
 
 
 def _library_path() -> str | None:
@@ -83,9 +88,56 @@ def mujoco_c() -> MujocoC | None:
             f.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
             f.restype = None
             fns.append(f)
-    except (OSError, AttributeError):  # another build of MuJoCo: the Python loops it is
+        hook = ctypes.c_void_p.in_dll(lib, "mju_user_error")
+    except (OSError, AttributeError, ValueError):  # another build: the Python loops it is
         return None
-    return MujocoC(*fns)
+    return MujocoC(*fns, error_hook=hook)
+
+
+# Exit code of a MuJoCo fatal error inside a compiled loop: the CLI's code for an internal error
+# (paintcell.sim.app.cli_common.EXIT_USAGE; not imported: the app stage sits above this one).
+FATAL_EXIT_CODE = 2
+
+
+def _on_mujoco_error(msg: bytes) -> None:
+    # MuJoCo's error handler must not return (the engine's state is undefined after it), and a
+    # Python exception cannot unwind through the compiled loop: one paintcell line, then exit.
+    # The results folder is safe: a run builds in a hidden temporary folder that the next writer
+    # removes (paintcell.sim.output.results_dir), and the lock is released with the process.
+    text = " ".join(msg.decode(errors="replace").split()) if msg else "unknown error"
+    sys.stderr.write(f"paintcell: internal error: MuJoCo stopped the simulation: {text} "
+                     "(rerun with PAINTCELL_COMPILED_STEPS=0 --debug for a Python traceback)\n")
+    sys.stderr.flush()
+    os._exit(FATAL_EXIT_CODE)
+
+
+_ERROR_CB = ctypes.CFUNCTYPE(None, ctypes.c_char_p)(_on_mujoco_error)
+_hook_lock = threading.Lock()
+_hook_users = 0
+
+
+@contextlib.contextmanager
+def _fatal_errors_exit(c: MujocoC) -> Iterator[None]:
+    """While a compiled loop runs, MuJoCo's fatal errors (e.g. its arena full of contacts) end
+    the process with one paintcell line and exit code 2, instead of MuJoCo's default handler's
+    `ERROR:` on stdout, a MUJOCO_LOG.TXT in the working folder and exit code 1 (which the CLI
+    documents as "a threshold was not met"). Outside the loops the bindings' own handling (a
+    `mujoco.FatalError`) is left as it is."""
+    global _hook_users
+    if c.error_hook is None:
+        yield
+        return
+    with _hook_lock:
+        if _hook_users == 0:
+            c.error_hook.value = ctypes.cast(_ERROR_CB, ctypes.c_void_p).value
+        _hook_users += 1
+    try:
+        yield
+    finally:
+        with _hook_lock:
+            _hook_users -= 1
+            if _hook_users == 0:
+                c.error_hook.value = None
 
 
 if HAVE_NUMBA:
@@ -151,10 +203,11 @@ def inverse_dynamics_steps(c: MujocoC, model: mujoco.MjModel, data: mujoco.MjDat
     """(K, n) `qfrc_inverse` [N·m] at the dofs `dof_adr` after `mj_inverse` of each sample
     (q, q̇, q̈) (K, n) written at `qpos_adr` / `dof_adr` of `data` (other entries as they are)."""
     out = np.empty((len(q), len(_idx(dof_adr))))
-    _inverse_loop(c.inverse, model._address, data._address, data.qpos, data.qvel, data.qacc,
-                  data.qfrc_inverse, _idx(qpos_adr), _idx(dof_adr),
-                  np.ascontiguousarray(q, float), np.ascontiguousarray(qd, float),
-                  np.ascontiguousarray(qdd, float), out)
+    with _fatal_errors_exit(c):
+        _inverse_loop(c.inverse, model._address, data._address, data.qpos, data.qvel, data.qacc,
+                      data.qfrc_inverse, _idx(qpos_adr), _idx(dof_adr),
+                      np.ascontiguousarray(q, float), np.ascontiguousarray(qd, float),
+                      np.ascontiguousarray(qdd, float), out)
     return out
 
 
@@ -163,9 +216,10 @@ def kinematic_steps(c: MujocoC, model: mujoco.MjModel, data: mujoco.MjData, qpos
                     sens_out: np.ndarray) -> None:
     """Samples k0 ≤ k < k1: set (q, q̇)[k], `mj_fwdPosition` + `mj_sensorPos`, sensordata into
     `sens_out[k]` ((K, nsensordata), written in place)."""
-    _kinematic_loop(c.fwd_position, c.sensor_pos, model._address, data._address, data.qpos,
-                    data.qvel, data.sensordata, _idx(qpos_adr), _idx(dof_adr), q, qd, int(k0),
-                    int(k1), sens_out)
+    with _fatal_errors_exit(c):
+        _kinematic_loop(c.fwd_position, c.sensor_pos, model._address, data._address, data.qpos,
+                        data.qvel, data.sensordata, _idx(qpos_adr), _idx(dof_adr), q, qd, int(k0),
+                        int(k1), sens_out)
 
 
 def servo_steps(c: MujocoC, model: mujoco.MjModel, data: mujoco.MjData, qpos_adr: Any,
@@ -179,7 +233,8 @@ def servo_steps(c: MujocoC, model: mujoco.MjModel, data: mujoco.MjData, qpos_adr
     base, ctrl_out: (N, nu) [actuator units]; kp_g, kd_g: (n,) gains ÷ gear; q_meas, qd_meas:
     (N + 1, n), row 0 the initial state, rows k + 1 written here (the state after step k);
     sens_out: (N, nsensordata), the sensors of the state at t_k. All written in place."""
-    _servo_loop(c.step, model._address, data._address, data.qpos, data.qvel, data.ctrl,
-                data.sensordata, _idx(qpos_adr), _idx(dof_adr), _idx(actuator_ids), base,
-                np.ascontiguousarray(kp_g, float), np.ascontiguousarray(kd_g, float), int(lag),
-                int(k0), int(k1), q_meas, qd_meas, sens_out, ctrl_out)
+    with _fatal_errors_exit(c):
+        _servo_loop(c.step, model._address, data._address, data.qpos, data.qvel, data.ctrl,
+                    data.sensordata, _idx(qpos_adr), _idx(dof_adr), _idx(actuator_ids), base,
+                    np.ascontiguousarray(kp_g, float), np.ascontiguousarray(kd_g, float), int(lag),
+                    int(k0), int(k1), q_meas, qd_meas, sens_out, ctrl_out)
