@@ -101,6 +101,8 @@ class Cell:
     tau_max: (n,) actuator torque limits [N·m] (the robot's `tau_max`).
     tcp_site_id, tcp_site_name: the TCP site (spray point; z = spray axis, x = travel).
     robot_body_ids: (B,) ids of every robot body; part_body_id, booth_body_id; names likewise.
+    part_collision_body_id: the body holding the part's collision slabs: the part body, or the
+        world body (0) when the part stands still (`build_cell(part_slabs_on_world=True)`).
     part_visual_geom_id: the mesh geom that shows the painted surface (vertex order of `surface`).
     sensor slices: tcp_pos / tcp_quat / actuator forces / contact (found, dist) per partner:
         part, booth (empty slice without a booth) and the robot itself (self-collision).
@@ -123,6 +125,7 @@ class Cell:
     robot_body_names: tuple[str, ...]
     part_body_id: int
     part_body_name: str
+    part_collision_body_id: int
     booth_body_id: int
     booth_body_name: str
     part_visual_geom_id: int
@@ -167,7 +170,8 @@ def _camera_quat(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
 
 def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, booth: bool = True,
                cameras: Sequence[CameraSpec] = (),
-               collision_piece_m: float = 0.1, shell_thickness_m: float = 0.002) -> Cell:
+               collision_piece_m: float = 0.1, shell_thickness_m: float = 0.002,
+               part_slabs_on_world: bool = True) -> Cell:
     """Assemble and compile the paint cell.
 
     robot: a `paintcell.robots.Robot` (`RobotLike`: name, mjcf_path, T_world_base, tcp_site_name,
@@ -179,6 +183,9 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         `paintcell.sim.output.render.part_cameras`, free cameras that need nothing in the model).
     collision_piece_m, shell_thickness_m: size of the convex collision slabs and their thickness
         [m] (see `paintcell.sim.execution.cell_part._collision_pieces`).
+    part_slabs_on_world: carry the collision slabs on MuJoCo's world body (the part stands still:
+        the same contacts for a third less collision time, `cell_part`); False keeps them on the
+        part body (the former model, for comparisons).
     Raises CellError when the robot MJCF lacks a named joint, site or body, or the poses are bad.
     """
     if not isinstance(surface, Surface):
@@ -227,7 +234,11 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     # --- part: visual mesh (exact surface) + thin convex collision slabs ---------------------
     part = spec.worldbody.add_body(name=PART_BODY, pos=T_world_part[:3, 3],
                                    quat=quat_wxyz_from_matrix(T_world_part[:3, :3]))
-    add_part_geoms(spec, part, surface, collision_piece_m, shell_thickness_m)
+    if part_slabs_on_world:
+        add_part_geoms(spec, part, surface, collision_piece_m, shell_thickness_m,
+                       collision_body=spec.worldbody, T_body_part=T_world_part)
+    else:
+        add_part_geoms(spec, part, surface, collision_piece_m, shell_thickness_m)
 
     # --- booth --------------------------------------------------------------------------------
     if booth:
@@ -282,7 +293,8 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     for jn in joint_names:
         spec.add_sensor(name=f"tau_{jn}", type=mujoco.mjtSensor.mjSENS_JOINTACTFRC,
                         objtype=mujoco.mjtObj.mjOBJ_JOINT, objname=ROBOT_PREFIX + jn)
-    add_contact_sensors(spec, base_name, booth)
+    add_contact_sensors(spec, base_name, booth,
+                        part_body="world" if part_slabs_on_world else PART_BODY)
 
     try:
         model = spec.compile()
@@ -337,6 +349,8 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
         robot_body_ids=np.asarray(robot_bodies, np.int64),
         robot_body_names=tuple(model.body(b).name for b in robot_bodies),
         part_body_id=oid(mujoco.mjtObj.mjOBJ_BODY, PART_BODY), part_body_name=PART_BODY,
+        part_collision_body_id=int(model.geom_bodyid[oid(mujoco.mjtObj.mjOBJ_GEOM,
+                                                          "part_collision_0")]),
         booth_body_id=oid(mujoco.mjtObj.mjOBJ_BODY, BOOTH_BODY) if booth else -1,
         booth_body_name=BOOTH_BODY if booth else "",
         part_visual_geom_id=oid(mujoco.mjtObj.mjOBJ_GEOM, "part_visual"),

@@ -2,6 +2,13 @@
 collision slabs (MuJoCo collides meshes through their convex hulls, so a curved shell is cut into
 pieces). `paintcell.sim.execution.cell` and `paintcell.sim.booth.booth_cell` add them to their part
 body.
+
+A part that stands still (the single-robot cell) may carry its slabs on MuJoCo's world body
+instead (`collision_body` = the world body, `T_body_part` its placement): MuJoCo's broadphase
+then skips them (every step it bounds each geom of every other collidable body, 88 slabs on the
+door: a third of the collision time) and reaches them through the world body's bounding-volume
+tree instead. The slabs, and so the contacts, are the same; `move_part_collision` moves them with
+the part when an execution displaces it.
 """
 
 from __future__ import annotations
@@ -10,13 +17,22 @@ import mujoco
 import numpy as np
 
 from paintcell.planning.surface.surface import Surface
+from paintcell.planning.transforms import quat_wxyz_from_matrix
 
 
 def add_part_geoms(spec: mujoco.MjSpec, part: mujoco.MjsBody, surface: Surface,
-                   collision_piece_m: float, shell_thickness_m: float) -> None:
+                   collision_piece_m: float, shell_thickness_m: float,
+                   collision_body: mujoco.MjsBody | None = None,
+                   T_body_part: np.ndarray | None = None) -> None:
     """Add the part's geoms to body `part`: the exact surface as a visual mesh (no contacts) and
     thin convex collision slabs (`_collision_pieces`, pieces ~collision_piece_m [m] across,
-    shell_thickness_m [m] thick)."""
+    shell_thickness_m [m] thick), on `collision_body` (default `part`) at the (4, 4) pose
+    `T_body_part` of the part frame in that body (default identity)."""
+    body = part if collision_body is None else collision_body
+    pose: dict[str, np.ndarray] = {}
+    if T_body_part is not None:
+        pose = {"pos": np.asarray(T_body_part[:3, 3], float),
+                "quat": quat_wxyz_from_matrix(np.asarray(T_body_part[:3, :3], float))}
     vis = spec.add_mesh(name="part_surface")
     vis.uservert = np.ascontiguousarray(surface.vertices, float).ravel()
     vis.userface = np.ascontiguousarray(surface.faces, np.int32).ravel()
@@ -28,9 +44,32 @@ def add_part_geoms(spec: mujoco.MjSpec, part: mujoco.MjsBody, surface: Surface,
         m = spec.add_mesh(name=f"part_collision_{i}")
         m.uservert = np.ascontiguousarray(cloud, float).ravel()
         m.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
-        part.add_geom(name=f"part_collision_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
+        body.add_geom(name=f"part_collision_{i}", type=mujoco.mjtGeom.mjGEOM_MESH,
                       meshname=f"part_collision_{i}", group=3, density=0.0,
-                      rgba=[0.5, 0.5, 0.5, 0.3])
+                      rgba=[0.5, 0.5, 0.5, 0.3], **pose)
+
+
+def move_part_collision(model: mujoco.MjModel, body_id: int, T_move: np.ndarray) -> None:
+    """Move every geom of `body_id` (the world body holding the part's slabs) by the world-frame
+    rigid motion T_move (4, 4), in place, with that body's bounding-volume tree: each node's box
+    becomes the axis-aligned box of the moved box (it may grow under a rotation, never shrink
+    below what it holds, so MuJoCo's midphase still reaches every slab; the slabs' own boxes are
+    in their geom frames and move with them)."""
+    R, t = T_move[:3, :3], T_move[:3, 3]
+    a, n = int(model.body_geomadr[body_id]), int(model.body_geomnum[body_id])
+    g = slice(a, a + n)
+    model.geom_pos[g] = model.geom_pos[g] @ R.T + t
+    qm = np.zeros(4)
+    mujoco.mju_mat2Quat(qm, np.ascontiguousarray(R).ravel())
+    for i in range(a, a + n):
+        out = np.zeros(4)
+        mujoco.mju_mulQuat(out, qm, model.geom_quat[i])
+        model.geom_quat[i] = out
+    b, nb = int(model.body_bvhadr[body_id]), int(model.body_bvhnum[body_id])
+    if b >= 0 and nb > 0:
+        box = model.bvh_aabb[b:b + nb]
+        box[:, :3] = box[:, :3] @ R.T + t
+        box[:, 3:] = box[:, 3:] @ np.abs(R).T
 
 
 def _collision_pieces(surface: Surface, piece_m: float, thickness_m: float) -> list[np.ndarray]:

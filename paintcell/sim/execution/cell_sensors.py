@@ -17,9 +17,11 @@ _CONTACT_REDUCE_MINDIST = 1
 SELF_CONTACT_SENSOR = "contact_self"
 
 
-def add_contact_sensors(spec: mujoco.MjSpec, subtree_body: str, booth: bool) -> None:
+def add_contact_sensors(spec: mujoco.MjSpec, subtree_body: str, booth: bool,
+                        part_body: str = PART_BODY) -> None:
     """Contact sensors of the robot subtree rooted at `subtree_body` (MuJoCo body name): one per
-    partner (the part, and the booth floor when `booth`) and one for self-contact.
+    partner (the part — `part_body`, the body holding its collision slabs — and the booth floor
+    when `booth`) and one for self-contact.
 
     Self-collision: the subtree against the same subtree matches the contacts whose two geoms
     both belong to it (MuJoCo 4.0 contact-sensor matching: each side's criterion must hold for one
@@ -27,10 +29,10 @@ def add_contact_sensors(spec: mujoco.MjSpec, subtree_body: str, booth: bool) -> 
     welded) and excluded pairs never count. In a booth the subtree holds every robot, so
     robot-robot contacts are self-contacts.
     """
-    for partner in [PART_BODY] + ([BOOTH_BODY] if booth else []):
+    for partner, body in [(PART_BODY, part_body)] + ([(BOOTH_BODY, BOOTH_BODY)] if booth else []):
         spec.add_sensor(name=f"contact_{partner}", type=mujoco.mjtSensor.mjSENS_CONTACT,
                         objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=subtree_body,
-                        reftype=mujoco.mjtObj.mjOBJ_BODY, refname=partner,
+                        reftype=mujoco.mjtObj.mjOBJ_BODY, refname=body,
                         intprm=[_CONTACT_DATA_FOUND_DIST, _CONTACT_REDUCE_MINDIST, 1])
     spec.add_sensor(name=SELF_CONTACT_SENSOR, type=mujoco.mjtSensor.mjSENS_CONTACT,
                     objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=subtree_body,

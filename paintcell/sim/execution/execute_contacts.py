@@ -30,7 +30,7 @@ def _contacts(model: mujoco.MjModel, cell: Cell, q: np.ndarray, sens: np.ndarray
     d = mujoco.MjData(model)
     robot = np.zeros(model.nbody, bool)
     robot[cell.robot_body_ids] = True
-    partners = np.array([cell.part_body_id, cell.booth_body_id])
+    partners = np.array([cell.part_collision_body_id, cell.booth_body_id])
     out: list[Contact] = []
     for k in steps:
         d.qpos[cell.qpos_adr] = q[k]
@@ -50,6 +50,8 @@ def _contacts(model: mujoco.MjModel, cell: Cell, q: np.ndarray, sens: np.ndarray
         for (b1, b2), dep in zip(bodies[keep].tolist(), depth[keep].tolist(), strict=True):
             deepest[(b1, b2)] = max(deepest.get((b1, b2), 0.0), dep)
         for (b1, b2), depth in deepest.items():
+            name2 = cell.part_body_name if b2 == cell.part_collision_body_id else \
+                model.body(b2).name  # the slabs may sit on the world body: they are the part
             out.append(Contact(time_s=float(t_s[k]), body1=model.body(b1).name,
-                               body2=model.body(b2).name, depth_m=depth))
+                               body2=name2, depth_m=depth))
     return tuple(out)

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 
 from paintcell.sim.execution.cell import Cell
+from paintcell.sim.execution.cell_part import move_part_collision
 from paintcell.sim.execution.execute_compiled import inverse_dynamics_steps, mujoco_c
 from paintcell.sim.execution.execute_settings import Disturbances, ServoSettings
 
@@ -29,6 +30,9 @@ def _disturbed_model(cell: Cell, dist: Disturbances | None) -> tuple[mujoco.MjMo
         mujoco.mju_mat2Quat(q, np.ascontiguousarray(T_actual[:3, :3]).ravel())
         model.body_pos[cell.part_body_id] = T_actual[:3, 3]
         model.body_quat[cell.part_body_id] = q
+        if cell.part_collision_body_id != cell.part_body_id:  # the slabs sit on the world body
+            move_part_collision(model, cell.part_collision_body_id,
+                                T_actual @ np.linalg.inv(cell.T_world_part))
         R_body_site = np.zeros(9)
         mujoco.mju_quat2Mat(R_body_site, model.site_quat[cell.tcp_site_id])
         model.site_pos[cell.tcp_site_id] += R_body_site.reshape(3, 3) @ tcp_offset
