@@ -2,10 +2,13 @@
 
 Builds the door scenario's plan and 1 kHz joint program (`scenarios/door.toml` through
 `paintcell.sim.app.pipeline`: the ABB-style arm, the door upright in front of it), then times, in
-one process, each step twice: with the compiled per-step loops
-(`paintcell.sim.execution.execute_compiled`, the default) and with the Python loops they replace
-(`PAINTCELL_COMPILED_STEPS=0`: the per-sample `mj_inverse` loop, `mujoco.rollout` chunks of
-latency + 1 steps, the per-sample replay loop) — the baseline. Timed, best of `--repeat`, wall
+one process, each step three ways: with the Python loops (`PAINTCELL_COMPILED_STEPS=0`: the
+per-sample `mj_inverse` loop, `mujoco.rollout` chunks of latency + 1 steps, the per-sample replay
+loop) on the cell with the part's collision slabs on the part body — the baseline; with the
+compiled per-step loops (`paintcell.sim.execution.execute_compiled`, the default) on that cell;
+and with the compiled loops on the default cell, the slabs on MuJoCo's world body
+(`build_cell(part_slabs_on_world=True)`: the broadphase no longer bounds them every step).
+Timed, best of `--repeat`, wall
 and CPU (`time.process_time`: other jobs share this machine, whose load is printed): the servo
 execution with its inverse-dynamics feed-forward, the feed-forward alone, the kinematic replay,
 validate (three thickness maps), and a sweep sample (feed-forward cached, planned and trajectory
@@ -53,7 +56,10 @@ from paintcell.sim.execution.execute_models import (
 from paintcell.sim.validation.validate import validate
 
 DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
-PATHS = ("python loops (before)", "compiled loops")
+#: (name, compiled loops?, part's collision slabs on the world body?), the first the baseline.
+PATHS = (("python loops, slabs on the part body (before session 3)", False, False),
+         ("compiled loops, slabs on the part body (before)", True, False),
+         ("compiled loops, slabs on the world body (now)", True, True))
 
 
 @contextmanager
@@ -97,7 +103,8 @@ def cold_child(path: str) -> None:
     with open(path, "rb") as f:
         d = pickle.load(f)
     robot = load_robot_for(d["scn"])
-    cell = build_cell(robot, d["surface"], d["T"])
+    cell = build_cell(robot, d["surface"], d["T"],
+                      part_slabs_on_world=os.environ.get("BENCH_SLABS_ON_WORLD") == "1")
     t1, c1 = time.perf_counter(), time.process_time()
     trace = execute(cell, d["traj"], mode="servo")
     t2, c2 = time.perf_counter(), time.process_time()
@@ -107,8 +114,9 @@ def cold_child(path: str) -> None:
                       "validate": [t3 - t2, c3 - c2]}))
 
 
-def cold(blob: str, compiled: bool) -> dict[str, list[float]]:
-    env = dict(os.environ, PAINTCELL_COMPILED_STEPS="1" if compiled else "0")
+def cold(blob: str, compiled: bool, on_world: bool) -> dict[str, list[float]]:
+    env = dict(os.environ, PAINTCELL_COMPILED_STEPS="1" if compiled else "0",
+               BENCH_SLABS_ON_WORLD="1" if on_world else "0")
     env["PYTHONPATH"] = str(Path(__file__).resolve().parent.parent)
     out = subprocess.run([sys.executable, __file__, "--cold-child", blob], env=env, check=True,
                          capture_output=True, text=True).stdout
@@ -141,22 +149,25 @@ def main() -> None:
           f"{os.cpu_count()} cores")
     t_cell, _, cell = best_of(args.repeat, lambda: build_cell(robot, surface, T))
     print(f"build_cell: {1e3 * t_cell:.1f} ms")
+    cells = {False: build_cell(robot, surface, T, part_slabs_on_world=False), True: cell}
     model = cell.model.__copy__()
     _set_torque_actuators(model, cell)
     ctrl_model = _controller_model(model, cell, ServoSettings())
 
-    for compiled in (False, True):
+    for _, compiled, on_world in PATHS:
         with loops(compiled):
-            execute(cell, traj)  # numba cache loaded (or compiled), first MjData made
-    # Both paths interleaved, round after round, so that the load of the other jobs falls on
+            execute(cells[on_world], traj)  # numba cache loaded (or compiled), first MjData made
+    # The paths interleaved, round after round, so that the load of the other jobs falls on
     # both alike; each figure is the least wall time and the least CPU time over the rounds.
-    times: dict[str, dict[str, list[tuple[float, float]]]] = {n: {} for n in PATHS}
+    names = [p[0] for p in PATHS]
+    times: dict[str, dict[str, list[tuple[float, float]]]] = {n: {} for n in names}
     trace = kin = None
-    caches: dict[str, dict[Any, np.ndarray]] = {n: {} for n in PATHS}
+    caches: dict[str, dict[Any, np.ndarray]] = {n: {} for n in names}
     films = None
     for _ in range(args.repeat):
-        for name, compiled in zip(PATHS, (False, True), strict=True):
+        for name, compiled, on_world in PATHS:
             r = times[name]
+            cell = cells[on_world]
             with loops(compiled):
                 w, c, trace = once(execute, cell, traj, mode="servo")
                 r.setdefault("servo", []).append((w, c))
@@ -177,8 +188,8 @@ def main() -> None:
                 w, c, _ = once(validate, plan, surface, traj, trace_c, T, films=films)
                 r.setdefault("val_films", []).append((w, c))
     rows = {n: {k: (min(x[0] for x in v), min(x[1] for x in v)) for k, v in times[n].items()}
-            for n in PATHS}
-    for name in PATHS:
+            for n in names}
+    for name in names:
         r = rows[name]
         print(f"--- {name} (warm: least wall and least CPU time of {args.repeat} rounds, after "
               "a first call)")
@@ -196,14 +207,17 @@ def main() -> None:
         sw = (r["servo_cached"][0] + r["val_films"][0], r["servo_cached"][1] + r["val_films"][1])
         print(f"sweep sample (feed-forward cached, planned/trajectory films reused): "
               f"{sw[0]:.3f} s wall, {sw[1]:.3f} s CPU, {rtf(sim_s, *sw)}")
-    a, b = rows[PATHS[0]], rows[PATHS[1]]
-    for key, label in (("servo", "execute servo"), ("id", "inverse dynamics"),
-                       ("kin", "kinematic replay")):
-        print(f"speed-up compiled / python loops, {label}: {a[key][0] / b[key][0]:.2f} x wall, "
-              f"{a[key][1] / b[key][1]:.2f} x CPU")
-    ev_a = a["servo"][1] + a["val"][1]
-    ev_b = b["servo"][1] + b["val"][1]
-    print(f"speed-up compiled / python loops, execute + validate: {ev_a / ev_b:.2f} x CPU")
+    for i, j in ((0, 2), (1, 2)):
+        a, b = rows[names[i]], rows[names[j]]
+        label = f"'{names[j]}' over '{names[i]}'"
+        for key, what in (("servo", "execute servo"), ("id", "inverse dynamics"),
+                          ("kin", "kinematic replay")):
+            print(f"speed-up {label}, {what}: {a[key][0] / b[key][0]:.2f} x wall, "
+                  f"{a[key][1] / b[key][1]:.2f} x CPU")
+        ev_a, ev_b = (r["servo"][1] + r["val"][1] for r in (a, b))
+        wv_a, wv_b = (r["servo"][0] + r["val"][0] for r in (a, b))
+        print(f"speed-up {label}, execute + validate: {wv_a / wv_b:.2f} x wall, "
+              f"{ev_a / ev_b:.2f} x CPU")
 
     if args.cold > 0:
         with tempfile.TemporaryDirectory() as tmp:
@@ -211,8 +225,8 @@ def main() -> None:
             with open(blob, "wb") as f:
                 pickle.dump({"scn": scn, "surface": surface, "plan": plan, "traj": traj,
                              "T": T}, f)
-            for name, compiled in zip(PATHS, (False, True), strict=True):
-                runs = [cold(blob, compiled) for _ in range(args.cold)]
+            for name, compiled, on_world in PATHS:
+                runs = [cold(blob, compiled, on_world) for _ in range(args.cold)]
                 best = min(runs, key=lambda x: x["execute"][0] + x["validate"][0])
                 w = best["execute"][0] + best["validate"][0]
                 c = best["execute"][1] + best["validate"][1]

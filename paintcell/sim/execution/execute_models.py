@@ -95,6 +95,12 @@ def inverse_dynamics(model: mujoco.MjModel, cell: Cell, q: np.ndarray, qd: np.nd
                            | mujoco.mjtDisableBit.mjDSBL_CONTACT
                            | mujoco.mjtDisableBit.mjDSBL_SENSOR)
     m.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_INVDISCRETE
+    if m.ntendon == 0:
+        # Nothing here reads a geom's pose (no collisions, no sensors, no tendon wrapping around
+        # geoms): with no geoms listed per body, MuJoCo's kinematics skips the 89 part geoms' and
+        # the links' pose updates every sample (1-1.5 µs of ~5); the torques are bit for bit the
+        # same (tests/test_execute_compiled.py compares them with the full model's).
+        m.body_geomnum[:] = 0
     d = mujoco.MjData(m)
     c = mujoco_c()
     if c is not None:  # the same mj_inverse calls, looped in compiled code
