@@ -190,21 +190,23 @@ def main() -> None:
     rows = {n: {k: (min(x[0] for x in v), min(x[1] for x in v)) for k, v in times[n].items()}
             for n in names}
     for name in names:
-        r = rows[name]
+        row = rows[name]
         print(f"--- {name} (warm: least wall and least CPU time of {args.repeat} rounds, after "
               "a first call)")
-        print(f"execute servo (feed-forward, PD, logging, contacts): {r['servo'][0]:.3f} s wall, "
-              f"{r['servo'][1]:.3f} s CPU, {rtf(sim_s, *r['servo'])}")
-        print(f"  inverse-dynamics feed-forward alone: {r['id'][0]:.3f} s wall, {r['id'][1]:.3f} "
-              f"s CPU ({1e6 * r['id'][1] / len(traj.t_s):.2f} µs CPU per sample)")
-        print(f"execute kinematic replay: {r['kin'][0]:.3f} s wall, {r['kin'][1]:.3f} s CPU, "
-              f"{rtf(sim_s, *r['kin'])}")
-        print(f"validate (three thickness maps + metrics): {r['val'][0]:.3f} s wall, "
-              f"{r['val'][1]:.3f} s CPU")
-        ev = (r["servo"][0] + r["val"][0], r["servo"][1] + r["val"][1])
+        print(f"execute servo (feed-forward, PD, logging, contacts): {row['servo'][0]:.3f} s wall, "
+              f"{row['servo'][1]:.3f} s CPU, {rtf(sim_s, *row['servo'])}")
+        print(f"  inverse-dynamics feed-forward alone: {row['id'][0]:.3f} s wall, "
+              f"{row['id'][1]:.3f} s CPU ({1e6 * row['id'][1] / len(traj.t_s):.2f} µs CPU per "
+              "sample)")
+        print(f"execute kinematic replay: {row['kin'][0]:.3f} s wall, {row['kin'][1]:.3f} s CPU, "
+              f"{rtf(sim_s, *row['kin'])}")
+        print(f"validate (three thickness maps + metrics): {row['val'][0]:.3f} s wall, "
+              f"{row['val'][1]:.3f} s CPU")
+        ev = (row["servo"][0] + row["val"][0], row["servo"][1] + row["val"][1])
         print(f"execute + validate: {ev[0]:.3f} s wall, {ev[1]:.3f} s CPU, {rtf(sim_s, *ev)} "
               "(target >= 50 x)")
-        sw = (r["servo_cached"][0] + r["val_films"][0], r["servo_cached"][1] + r["val_films"][1])
+        sw = (row["servo_cached"][0] + row["val_films"][0],
+              row["servo_cached"][1] + row["val_films"][1])
         print(f"sweep sample (feed-forward cached, planned/trajectory films reused): "
               f"{sw[0]:.3f} s wall, {sw[1]:.3f} s CPU, {rtf(sim_s, *sw)}")
     for i, j in ((0, 2), (1, 2)):
@@ -214,8 +216,8 @@ def main() -> None:
                           ("kin", "kinematic replay")):
             print(f"speed-up {label}, {what}: {a[key][0] / b[key][0]:.2f} x wall, "
                   f"{a[key][1] / b[key][1]:.2f} x CPU")
-        ev_a, ev_b = (r["servo"][1] + r["val"][1] for r in (a, b))
-        wv_a, wv_b = (r["servo"][0] + r["val"][0] for r in (a, b))
+        ev_a, ev_b = (x["servo"][1] + x["val"][1] for x in (a, b))
+        wv_a, wv_b = (x["servo"][0] + x["val"][0] for x in (a, b))
         print(f"speed-up {label}, execute + validate: {wv_a / wv_b:.2f} x wall, "
               f"{ev_a / ev_b:.2f} x CPU")
 
