@@ -174,12 +174,8 @@ class Disturbances:
     flow_scale: float = 1.0
     flow_drift: float = 0.0
     seed: int = 0
-    gain_inertia: str = "diagonal"
 
     def __post_init__(self) -> None:
-        if self.gain_inertia not in ("diagonal", "effective"):
-            raise ExecutionError(f"servo gain_inertia = {self.gain_inertia!r}: use 'diagonal' "
-                                 "or 'effective'")
         for name in ("part_offset_m", "part_rotation_rad", "tcp_offset_m", "gain_scale"):
             v = getattr(self, name)
             if (isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating)
