@@ -355,8 +355,15 @@ def test_two_concurrent_runs_one_is_refused_nothing_lost(good: Path, tmp_path: P
     scn = str(good / "fz.toml")
     a = _start("run", scn, "--fast", "--out", "res", "--no-report", "--mode", "kinematic",
                cwd=tmp_path)
-    _wait_for(lambda: (tmp_path / ".res.lock").exists())
-    b = _cli("run", scn, "--fast", "--out", "res", "--no-report", cwd=tmp_path)
+    # Once `a` holds the lock (its temporary folder exists), it is frozen with SIGSTOP while `b`
+    # tries: a fast run would otherwise finish before `b` has imported, and `b` would then
+    # rightly replace the folder (the test raced the run's speed).
+    _wait_for(lambda: any(".res.tmp-" in n for n in _hidden(tmp_path)))
+    os.kill(a.pid, signal.SIGSTOP)
+    try:
+        b = _cli("run", scn, "--fast", "--out", "res", "--no-report", cwd=tmp_path)
+    finally:
+        os.kill(a.pid, signal.SIGCONT)
     assert b.returncode == EXIT_USAGE and b.stderr.count("\n") == 1
     assert f"is being written by paintcell run (pid {a.pid}" in b.stderr, b.stderr
     _, err = a.communicate(timeout=300)
