@@ -10,6 +10,7 @@ fans the planner used.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from pathlib import Path
 
@@ -187,3 +188,37 @@ def test_refined_speeds_make_up_the_film_the_brush_off_leaves_off_a_rim() -> Non
         assert np.array_equal(p.paint_on, q.paint_on)
         assert p.speeds_m_s.min() >= st.v_min_m_s - 1e-12
         assert p.speeds_m_s.max() <= st.v_max_m_s + 1e-12
+
+
+@pytest.mark.slow
+def test_refined_speeds_keep_under_the_robots_caps() -> None:
+    """Robot caps (a robot-aware re-plan's per-sample speed limits) bind on one pass: the refined
+    speeds stay under them everywhere, and the film — re-measured with the dense deposition model
+    — is no less even than the capped timing the robot would otherwise paint."""
+    from dataclasses import replace
+
+    from paintcell.planning.coverage.film_refine import refine_speeds
+    from paintcell.planning.coverage.plan import times_from_speeds
+
+    part, _, plan = _case()
+    passes = list(plan.passes)
+    caps: list[np.ndarray | None] = [None] * len(passes)
+    k = len(passes) // 2
+    caps[k] = np.full(len(passes[k].speeds_m_s), 0.8 * float(passes[k].speeds_m_s.min()))
+    st = PlannerSettings()
+    interior = np.ones(len(part.vertices), bool)
+    out, info = refine_speeds(plan.applicator, part, passes, st.v_min_m_s, st.v_max_m_s,
+                              interior, caps)
+    assert info["applied"]
+    assert np.all(out[k].speeds_m_s <= caps[k] + 1e-12)
+    capped = [replace(p, speeds_m_s=np.minimum(p.speeds_m_s, c),
+                      times_s=times_from_speeds(p.positions, np.minimum(p.speeds_m_s, c)))
+              if c is not None else p for p, c in zip(passes, caps, strict=True)]
+    a = part.vertex_areas
+
+    def nsd(pp: list) -> float:
+        f = _film_dense(dataclasses.replace(plan, passes=tuple(pp)), part.vertices)
+        mu = np.average(f, weights=a)
+        return float(np.sqrt(np.average((f - mu) ** 2, weights=a)) / mu)
+
+    assert nsd(out) < nsd(capped)
