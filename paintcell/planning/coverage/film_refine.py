@@ -134,6 +134,10 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
         bc = b.tocsc()
         for j in range(k):
             rows = bc.indices[bc.indptr[j]:bc.indptr[j + 1]]
+            if len(rows) == 0:          # a knot between two far-apart samples: it carries none
+                lo.append(1.0 - 1e-6)
+                hi.append(1.0 + 1e-6)
+                continue
             lo.append(float(s_lo[rows].max()))
             hi.append(float(max(s_hi[rows].min(), lo[-1] + 1e-6)))
     lo_a, hi_a = np.asarray(lo), np.asarray(hi)
