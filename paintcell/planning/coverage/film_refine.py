@@ -159,8 +159,10 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
     A_ls = np.vstack(blocks)
     rhs = np.concatenate([rw * mu, np.zeros(len(A_ls) - len(V) - n_k),
                           np.sqrt(KEEP_WEIGHT) * np.ones(n_k)])
-    # a few hundred knots: the dense bounded-variable solver is exact and fast enough
-    res = lsq_linear(A_ls, rhs, bounds=(lo_a, hi_a), method="bvls")
+    # ‖A s − b‖² = ‖R s − Qᵀ b‖² + const (A = QR): the bounded-variable solver runs on the
+    # K × K triangle instead of the (N + K) × K system (a few hundred knots: exact and fast)
+    Q_, R_ = np.linalg.qr(A_ls)
+    res = lsq_linear(R_, Q_.T @ rhs, bounds=(lo_a, hi_a), method="bvls")
     s = np.clip(res.x, lo_a, hi_a)
     out, dt = [], 0.0
     col = 0
