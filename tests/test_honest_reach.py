@@ -136,3 +136,59 @@ def test_wrist_flip_on_a_rail_robot_is_the_arms_j5() -> None:
     elbow_side = rail_traj(4)
     h4 = honest_reachability(plan, elbow_side, _replay(elbow_side), reach)
     assert h4 is not None and h4["n_config_flips"] == 0
+
+
+def test_configuration_signs_tell_the_eight_closed_form_branches_apart() -> None:
+    """The 8 closed-form solutions of one flange pose (opw.inverse: shoulder t1 / t1 + π,
+    elbow ±φ, wrist ±t5) are 8 configurations: their (shoulder, elbow, wrist) signs are 8
+    distinct triples, and each solution's forward kinematics gives back the pose."""
+    from paintcell.robots.opw import IRB4600_60_205, configuration_signs, forward, inverse
+
+    p = IRB4600_60_205
+    rng = np.random.default_rng(3)
+    n_checked = 0
+    for q in rng.uniform(-1.2, 1.2, size=(12, 6)):
+        T = forward(p, q)[0]
+        Q, ok = inverse(p, T)
+        if not ok[0].all():
+            continue
+        assert np.allclose(forward(p, Q[0]), T, atol=1e-9)
+        sg = configuration_signs(p, Q[0])
+        assert np.all(sg != 0)
+        assert len({tuple(r) for r in sg}) == 8
+        n_checked += 1
+    assert n_checked >= 6
+
+
+def test_an_elbow_flip_mid_pass_is_not_100_percent() -> None:
+    """A real flip: along pass 1 the elbow joint sweeps through the arm's stretched pose (J3 from
+    0.3 rad on one side of it to 0.3 rad on the other, the other joints as programmed).
+    Re-measured with Pinocchio's joint frames: the wrist centre (J5's origin) changes the side of
+    the upper arm's line (J2 → J3) it lies on, about J2's axis — and honest reachability counts
+    an elbow flip (and no shoulder flip) and is below 100 %; the unmodified program has none."""
+    import pinocchio as pin
+
+    from paintcell.robots.opw import IRB4600_60_205 as P
+
+    robot = _robot()
+    plan, traj = _program(False)
+    h0 = honest_reachability(plan, traj, _replay(traj), traj.meta["reachability"])
+    assert h0 is not None and h0["n_elbow_flips"] == 0 and h0["n_shoulder_flips"] == 0
+    sel = np.flatnonzero((traj.segment == PAINT) & (traj.pass_index == 1))
+    q3_stretched = (-np.arctan2(P.a2, P.c3) - P.offsets[2]) / P.signs[2]
+    q = traj.q.copy()
+    q[sel, 2] = q3_stretched + np.linspace(0.3, -0.3, len(sel))
+    assert np.all(q[sel, 2] > robot.q_lower[2]) and np.all(q[sel, 2] < robot.q_upper[2])
+    flipped = dataclasses.replace(traj, q=q)
+    pm, pd = robot.pin_model, robot.pin_model.createData()
+    side = []
+    for j in sel[::25]:
+        pin.forwardKinematics(pm, pd, q[j])
+        j2, j3, wc = (pd.oMi[i].translation for i in (2, 3, 5))
+        axis = pd.oMi[2].rotation[:, 1]              # J2 turns about its local y
+        side.append(np.sign(np.cross(j3 - j2, wc - j2) @ axis))
+    assert side[0] == -side[-1] != 0                 # the wrist centre crossed the upper arm's line
+    h = honest_reachability(plan, flipped, _replay(flipped), traj.meta["reachability"])
+    assert h is not None and h["n_elbow_flips"] == 1 and h["n_shoulder_flips"] == 0
+    assert h["n_config_flips"] >= 1 and h["reachability_pct"] < 100.0
+    assert "elbow" in h["verdict"]

@@ -10,6 +10,7 @@ fans the planner used.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from pathlib import Path
 
@@ -135,3 +136,89 @@ def test_a_scan_with_slits_and_pinches_gets_only_real_openings() -> None:
         assert 0.5 * np.linalg.norm(np.cross(a, b), axis=1).sum() > 0
     filled = filled_surface(skin, ops)
     assert len(filled.vertices) == len(V) + len(ops)
+
+
+def _film_dense(plan: CoveragePlan, pts: np.ndarray) -> np.ndarray:
+    """Film [m] on flat points from the dense rate matrix and each brush-on sample's dwell (half
+    of each adjacent time step), pass by pass — not the planner's knots nor the culled kernel."""
+    nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    film = np.zeros(len(pts))
+    for p in plan.passes:
+        dt = np.diff(p.times_s)
+        dwell = np.concatenate([[0.0], dt]) / 2 + np.concatenate([dt, [0.0]]) / 2
+        on = p.paint_on
+        rate = deposition_rate(plan.applicator, p.positions[on], p.spray_axes[on],
+                               p.travel_dirs[on], pts, nrm)
+        film += dwell[on] @ rate
+    return film
+
+
+@pytest.mark.slow
+def test_refined_speeds_make_up_the_film_the_brush_off_leaves_off_a_rim() -> None:
+    """With the brush off over the window, its rim gets only part of the paint the footprint
+    would have laid there. The film refinement (film_refine) re-times the passes: re-measured on
+    the plate with the dense deposition model, the film σ/μ falls well below the unrefined
+    plan's, the rim band is no longer thin, the pass geometry and brush flags are unchanged and
+    every speed stays within [v_min, v_max]."""
+    part, gone, plan = _case()
+    plain = plan_coverage(part, plan.applicator, PlannerSettings(
+        orientation=0.0, first_side="right", film_refine=False))
+    assert plan.settings["report"]["film_refine"]["applied"]
+    pts, a = part.vertices, part.vertex_areas
+
+    def nsd(f: np.ndarray, m: np.ndarray) -> float:
+        mu = np.average(f[m], weights=a[m])
+        return 100 * float(np.sqrt(np.average((f[m] - mu) ** 2, weights=a[m])) / mu)
+
+    x0, x1, y0, y1 = WINDOW
+    dx = np.maximum(np.maximum(x0 - pts[:, 0], pts[:, 0] - x1), 0.0)
+    dy = np.maximum(np.maximum(y0 - pts[:, 1], pts[:, 1] - y1), 0.0)
+    rim = np.hypot(dx, dy) < 0.05                     # a 5 cm band round the window
+    every = np.ones(len(pts), bool)
+    f_plain, f_ref = _film_dense(plain, pts), _film_dense(plan, pts)
+    assert nsd(f_ref, every) < 0.9 * nsd(f_plain, every)
+
+    def rim_deficit(f: np.ndarray) -> float:
+        return 1.0 - np.average(f[rim], weights=a[rim]) / np.average(f, weights=a)
+
+    assert abs(rim_deficit(f_ref)) < 0.6 * abs(rim_deficit(f_plain))   # 5.0 % → 2.7 % thin
+    st = PlannerSettings()
+    for p, q in zip(plan.passes, plain.passes, strict=True):
+        assert np.array_equal(p.positions, q.positions)
+        assert np.array_equal(p.paint_on, q.paint_on)
+        assert p.speeds_m_s.min() >= st.v_min_m_s - 1e-12
+        assert p.speeds_m_s.max() <= st.v_max_m_s + 1e-12
+
+
+@pytest.mark.slow
+def test_refined_speeds_keep_under_the_robots_caps() -> None:
+    """Robot caps (a robot-aware re-plan's per-sample speed limits) bind on one pass: the refined
+    speeds stay under them everywhere, and the film — re-measured with the dense deposition model
+    — is no less even than the capped timing the robot would otherwise paint."""
+    from dataclasses import replace
+
+    from paintcell.planning.coverage.film_refine import refine_speeds
+    from paintcell.planning.coverage.plan import times_from_speeds
+
+    part, _, plan = _case()
+    passes = list(plan.passes)
+    caps: list[np.ndarray | None] = [None] * len(passes)
+    k = len(passes) // 2
+    caps[k] = np.full(len(passes[k].speeds_m_s), 0.8 * float(passes[k].speeds_m_s.min()))
+    st = PlannerSettings()
+    interior = np.ones(len(part.vertices), bool)
+    out, info = refine_speeds(plan.applicator, part, passes, st.v_min_m_s, st.v_max_m_s,
+                              interior, caps)
+    assert info["applied"]
+    assert np.all(out[k].speeds_m_s <= caps[k] + 1e-12)
+    capped = [replace(p, speeds_m_s=np.minimum(p.speeds_m_s, c),
+                      times_s=times_from_speeds(p.positions, np.minimum(p.speeds_m_s, c)))
+              if c is not None else p for p, c in zip(passes, caps, strict=True)]
+    a = part.vertex_areas
+
+    def nsd(pp: list) -> float:
+        f = _film_dense(dataclasses.replace(plan, passes=tuple(pp)), part.vertices)
+        mu = np.average(f, weights=a)
+        return float(np.sqrt(np.average((f - mu) ** 2, weights=a)) / mu)
+
+    assert nsd(out) < nsd(capped)

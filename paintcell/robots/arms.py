@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy.typing as npt
 
 from paintcell.robots.errors import RobotError
-from paintcell.robots.opw import IRB4600_60_205, IRB5500_CLASS
+from paintcell.robots.opw import IRB4600_60_205, IRB5500_CLASS, OPWParameters
 from paintcell.robots.robot import (
     ABB_PAINT_A_MAX,
     ABB_PAINT_MJCF,
@@ -19,7 +19,7 @@ from paintcell.robots.robot import (
 )
 from paintcell.robots.ur10 import load_ur10
 
-__all__ = ["ARM_NAMES", "load_arm"]
+__all__ = ["ARM_NAMES", "arm_opw", "load_arm"]
 
 #: The ABB-style arms built from a shipped MJCF: name → (MJCF, joint speed limits [rad/s],
 #: joint acceleration limits [rad/s²], closed-form IK parameters).
@@ -29,6 +29,13 @@ _MJCF_ARMS = {
 }
 #: Arms with a base of their own (each may also stand on a rail: `paintcell.robots.catalog`).
 ARM_NAMES = (*_MJCF_ARMS, "ur10")
+
+
+def arm_opw(name: str) -> OPWParameters | None:
+    """Closed-form (OPW) parameters of the arm of robot `name` ("<arm>" or "<arm>_rail"); None
+    for an arm without them (the UR10) or an unknown name."""
+    arm = name[:-5] if name.endswith("_rail") else name
+    return _MJCF_ARMS[arm][3] if arm in _MJCF_ARMS else None
 
 
 def load_arm(name: str, T_world_base: npt.ArrayLike | None = None,

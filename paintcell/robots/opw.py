@@ -100,6 +100,27 @@ def forward(p: OPWParameters, Q: npt.ArrayLike) -> np.ndarray:
     return T
 
 
+def configuration_signs(p: OPWParameters, Q: npt.ArrayLike) -> np.ndarray:
+    """(K, 3) configuration of robot joint angles Q (K, 6) [rad]: the signs (+1, −1; 0 exactly on
+    the singularity) of
+    - shoulder: the wrist centre's distance in front of the J1 axis, measured in the arm's own
+      plane (a1 + c2 sin t2 + a2 cos(t2 + t3) + c3 sin(t2 + t3); 0: the wrist centre on the J1
+      axis, the shoulder singularity);
+    - elbow: sin φ, φ = t3 + atan2(a2, c3) the elbow angle `inverse` branches on (0: the arm
+      stretched, the elbow singularity);
+    - wrist: sin t5 (0: J4 and J6 aligned, the wrist singularity).
+    A sign change between two poses of a path means the arm went through that singularity: a
+    configuration flip, which `inverse` lists as another branch."""
+    Q = np.atleast_2d(np.asarray(Q, float))
+    if Q.shape[-1] != 6:
+        raise RobotError(f"OPW configuration needs (K, 6) joint angles, got {Q.shape}")
+    t = Q * np.asarray(p.signs) + np.asarray(p.offsets)
+    t23 = t[:, 1] + t[:, 2]
+    front = p.a1 + p.c2 * np.sin(t[:, 1]) + p.a2 * np.cos(t23) + p.c3 * np.sin(t23)
+    elbow = np.sin(t[:, 2] + np.arctan2(p.a2, p.c3))
+    return np.sign(np.column_stack([front, elbow, np.sin(t[:, 4])])).astype(int)
+
+
 def inverse(p: OPWParameters, T_base_flange: npt.ArrayLike,
             tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
     """All 8 closed-form solutions for flange poses T_base_flange (M, 4, 4) [m].

@@ -12,6 +12,7 @@ import numpy as np
 from paintcell.planning.coverage.coverage_planner import _mirror, _PassGeom, _Planner
 from paintcell.planning.coverage.coverage_settings import PlannerSettings
 from paintcell.planning.coverage.coverage_timing import _time_pass, _time_passes
+from paintcell.planning.coverage.film_refine import refine_speeds
 from paintcell.planning.coverage.index_width import planar_index_width
 from paintcell.planning.coverage.offset import arc_length, check_offset_order, walk
 from paintcell.planning.coverage.openings import (
@@ -103,7 +104,11 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
     guard: dict[str, Any] = {}
     if st.optimize_speed and st.film_guard:
         plan_passes, guard = _film_guard(pl, real_surface, plan_passes)
+    refine: dict[str, Any] = {}
+    if st.optimize_speed and st.film_refine:
+        plan_passes, refine = _refine(pl, real_surface, plan_passes)
     report = {
+        "film_refine": refine,
         "film_guard": guard,
         "start_rule": sc.rule,
         "first_side": ("left" if reversed_start else "right") + f" ({st.first_side})",
@@ -233,6 +238,26 @@ def _blend(passes: list[PassPlan], alpha: float, base: list[np.ndarray]) -> list
                             nsd_constant_pct=p.nsd_constant_pct,
                             nsd_optimized_pct=p.nsd_optimized_pct))
     return out
+
+
+def _refine(pl: _Planner, surface: Surface, passes: list[PassPlan]
+            ) -> tuple[list[PassPlan], dict[str, Any]]:
+    """`film_refine.refine_speeds` on the plan, within the robot's speed caps."""
+    from paintcell.planning.paint.metrics import boundary_band_mask, boundary_vertices
+
+    st = pl.st
+    interior = boundary_band_mask(surface.vertices,
+                                  surface.vertices[boundary_vertices(surface.faces)],
+                                  st.film_guard_band_m)
+    if not interior.any():
+        interior = np.ones(len(surface.vertices), bool)
+    caps = []
+    for order, p in enumerate(passes):
+        cap = pl.speed_caps.get(p.side)
+        caps.append(None if cap is None else (cap[::-1] if order % 2 == 1 else cap))
+    out, info = refine_speeds(pl.app, surface, passes, st.v_min_m_s, st.v_max_m_s, interior,
+                              caps)
+    return out, _jsonable(info)
 
 
 def _film_guard(pl: _Planner, surface: Surface, passes: list[PassPlan]

@@ -50,6 +50,11 @@ class PlannerSettings:
         itself, whole part and interior (farther than film_guard_band_m [m] from the boundary):
         speeds v_nom + α (v_QP − v_nom), α ∈ {1, ¾, ½, ¼, 0}: the best whole-part film among
         the blends no worse than constant speed on both.
+    film_refine: after the film guard, re-time all passes together by a bounded least-squares fit
+        of the simulated film on the real part to its mean (slowness knots along each pass,
+        speeds within [v_min, v_max] and the robot's caps), kept only where it lowers σ/μ on the
+        whole part and its interior (`paintcell.planning.coverage.film_refine`): it makes up
+        the paint an opening's brush-off leaves off its rim, and stripes between passes.
     first_side: "right" (offset to the right of the start curve first, Algorithm 1 as written),
         "left" (the start curve reversed), or "best" (run both, keep the plan with the smaller
         largest predicted optimization-profile σ/μ; the semi-global search depends on the order).
@@ -102,6 +107,7 @@ class PlannerSettings:
     edge_passes: bool = True
     film_guard: bool = True
     film_guard_band_m: float = 0.1
+    film_refine: bool = True
     first_side: str = "best"
     max_passes: int = 200
     smoothing_m: float | str | None = "auto"
@@ -154,7 +160,7 @@ class PlannerSettings:
             raise PlanError(f"PlannerSettings.max_opening_fraction = "
                             f"{self.max_opening_fraction!r} must be in (0, 1]")
         for name in ("optimize_speed", "edge_passes", "geodesic_fallback",
-                     "plan_across_openings", "patches", "film_guard"):
+                     "plan_across_openings", "patches", "film_guard", "film_refine"):
             if not isinstance(getattr(self, name), bool):
                 raise PlanError(f"PlannerSettings.{name} = {getattr(self, name)!r} must be "
                                 "True or False")

@@ -9,7 +9,9 @@ collisions. Here a pose is *reached* only when all of these hold:
 - no joint jump into it from the previous pose of its pass (the IK report's `joint_jump_rad`
   above its threshold: the arm cannot follow the path between the two poses);
 - no configuration flip into it: the wrist joint's sin changes sign between the previous pose and
-  this one along the executed joint path (the wrist went through its singularity mid-pass);
+  this one along the executed joint path (the wrist went through its singularity mid-pass), or,
+  on an arm with closed-form kinematics (`paintcell.robots.opw.configuration_signs`), the elbow
+  (the arm through its stretched pose) or the shoulder (the wrist centre across the J1 axis);
 - no contact: the executed trace touched nothing (part, booth, itself) while painting it — a
   contact during a move between passes counts against the last pose before it and the first pose
   after it (the move that links them is not executable);
@@ -31,6 +33,8 @@ from typing import Any
 import numpy as np
 
 from paintcell.planning.coverage.plan import CoveragePlan
+from paintcell.robots.arms import arm_opw
+from paintcell.robots.opw import configuration_signs
 from paintcell.robots.rail import RAIL_JOINT
 from paintcell.sim.execution.trace import ExecutedTrace
 from paintcell.sim.motion.joint_trajectory import PAINT, JointTrajectory
@@ -108,6 +112,9 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
     # speed actually commanded by the time law vs the plan's, on paint samples
     v_act = np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1)
     v_plan = np.asarray(traj.v_tcp_planned, float)
+    opw = arm_opw(traj.robot_name)
+    arm0 = 1 if traj.joint_names and traj.joint_names[0] == RAIL_JOINT else 0
+    n_kind = [0, 0, 0]                # poses after a shoulder, elbow, wrist flip
     for i, s in enumerate(s_poses):
         sel = np.flatnonzero(paint & (pidx == i))
         if len(sel) == 0:
@@ -126,6 +133,13 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
             sg = np.sign(np.sin(traj.q[sel, wi]))
             change = np.flatnonzero(sg[1:] * sg[:-1] < 0) + 1
             flip[offsets[i] + np.unique(k[change])] = True
+            n_kind[2] += len(np.unique(k[change]))
+        if opw is not None and traj.q.shape[1] >= arm0 + 6:
+            sg = configuration_signs(opw, traj.q[sel, arm0:arm0 + 6])
+            for c in (0, 1):              # shoulder, elbow
+                change = np.flatnonzero(sg[1:, c] * sg[:-1, c] < 0) + 1
+                flip[offsets[i] + np.unique(k[change])] = True
+                n_kind[c] += len(np.unique(k[change]))
 
     # contacts: during a pass the pose painted then; during a move the poses it links
     t = np.asarray(traj.t_s)
@@ -163,11 +177,16 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
               "n_contact_poses": int(np.count_nonzero(contact)),
               "n_slowed_poses": int(np.count_nonzero(slow))}
     words = {"n_unreachable": "unreachable", "n_joint_jumps": "after a joint jump",
-             "n_config_flips": "after a wrist flip", "n_contact_poses": "in contact",
+             "n_config_flips": "after a configuration flip", "n_contact_poses": "in contact",
              "n_slowed_poses": f"slowed > {100 * st.slowdown_fraction:.0f} %"}
     why = ", ".join(f"{v} {words[k]}" for k, v in causes.items() if v)
+    kinds = [f"{v} {w}" for v, w in zip(n_kind, ("shoulder", "elbow", "wrist"), strict=True)
+             if v]
+    if kinds:
+        why = why.replace("configuration flip", "configuration flip [" + ", ".join(kinds) + "]")
     verdict = (f"{pct:.2f} % of {n} poses painted as planned"
                + (f" ({why})" if why else ""))
     return {"reachability_pct": pct, "ik_reachability_pct": ik_pct, "n_poses": n,
-            "n_lost": n_lost, **causes, "slowdown_fraction": st.slowdown_fraction,
-            "per_pose": have_poses, "verdict": verdict}
+            "n_lost": n_lost, **causes, "n_shoulder_flips": n_kind[0],
+            "n_elbow_flips": n_kind[1], "n_wrist_flips": n_kind[2],
+            "slowdown_fraction": st.slowdown_fraction, "per_pose": have_poses, "verdict": verdict}
