@@ -91,7 +91,8 @@ def mujoco_c() -> MujocoC | None:
         hook = ctypes.c_void_p.in_dll(lib, "mju_user_error")
     except (OSError, AttributeError, ValueError):  # another build: the Python loops it is
         return None
-    return MujocoC(*fns, error_hook=hook)
+    inverse, step, fwd_position, sensor_pos = fns
+    return MujocoC(inverse, step, fwd_position, sensor_pos, error_hook=hook)
 
 
 # Exit code of a MuJoCo fatal error inside a compiled loop: the CLI's code for an internal error
