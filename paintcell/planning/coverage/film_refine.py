@@ -49,6 +49,11 @@ SMOOTH_WEIGHT = 3e-3
 KEEP_WEIGHT = 3e-4
 #: gun samples per deposition-rate block (memory: block × vertices floats).
 _BLOCK = 64
+#: most (vertex, knot) entries of the fitted film matrix: the fit holds ~3 such float64 arrays
+#: (the matrix, the stacked system, its QR factor), so 2e7 entries is ~0.5 GB at the peak. A
+#: larger part is fitted on an evenly strided subset of its vertices (area weights scaled to the
+#: part's); the result is still judged on the film of every vertex.
+MAX_FIT_ENTRIES = 20_000_000
 
 
 def _knot_basis(arc_m: np.ndarray, spacing_m: float) -> tuple[sp.csr_matrix, int]:
@@ -141,10 +146,12 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
             lo.append(float(s_lo[rows].max()))
             hi.append(float(max(s_hi[rows].min(), lo[-1] + 1e-6)))
     lo_a, hi_a = np.asarray(lo), np.asarray(hi)
-    M = _film_matrix(app, passes, basis, V, N)
-    n_k = M.shape[1]
-    info["knots"] = int(n_k)
-    rw = np.sqrt(a / a.sum()) / mu
+    n_k = sum(b.shape[1] for b in basis)
+    stride = max(1, int(np.ceil(len(V) * n_k / MAX_FIT_ENTRIES)))
+    fit = np.arange(0, len(V), stride)
+    M = _film_matrix(app, passes, basis, V[fit], N[fit])
+    info.update(knots=int(n_k), fit_vertices=int(len(fit)))
+    rw = np.sqrt(a[fit] / a[fit].sum()) / mu
     blocks = [M * rw[:, None]]
     col = 0
     for b in basis:
@@ -157,7 +164,7 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
         col += k
     blocks.append(np.sqrt(KEEP_WEIGHT) * np.eye(n_k))
     A_ls = np.vstack(blocks)
-    rhs = np.concatenate([rw * mu, np.zeros(len(A_ls) - len(V) - n_k),
+    rhs = np.concatenate([rw * mu, np.zeros(len(A_ls) - len(fit) - n_k),
                           np.sqrt(KEEP_WEIGHT) * np.ones(n_k)])
     # ‖A s − b‖² = ‖R s − Qᵀ b‖² + const (A = QR): the bounded-variable solver runs on the
     # K × K triangle instead of the (N + K) × K system (a few hundred knots: exact and fast)
