@@ -117,3 +117,33 @@ def test_smooth_along_keeps_a_steady_axis_and_damps_a_wiggle() -> None:
     out = smooth_along(foot, wig, 0.04)
     ang = np.degrees(np.arccos(np.clip(-out[:, 2], -1, 1)))
     assert ang[5:-5].max() < 0.05          # interior: the Gaussian cancels the alternation
+
+
+@pytest.mark.slow
+def test_auto_smoothing_plans_again_at_a_larger_scale_when_the_axis_cannot_follow() -> None:
+    """A 60° valley sampled every 3 mm: at the "auto" scale (a quarter of the footprint radius)
+    the bell axis would turn 5.3 rad/m, above the 4 rad/m bound, and at twice that scale still
+    4.04; the planner plans again at 2× then 4× and says so. Re-measured here on the plan's own
+    samples (angle between consecutive spray axes over the path length between them), every pass
+    turns under the bound; the same scale given as a number is not retried."""
+    from paintcell.planning.coverage.coverage import AUTO_SMOOTHING_RETRIES
+    from paintcell.planning.coverage.smoothing import FOOTPRINT_FRACTION
+
+    app = Applicator.default()
+    sheet = creased_sheet(fold_deg=60.0)
+    st = PlannerSettings(orientation=0.0, first_side="right", sample_spacing_m=0.003,
+                         max_axis_turn_rad_m=BOUND_RAD_M)
+    plan = plan_coverage(sheet, app, st)
+    base = FOOTPRINT_FRACTION * app.footprint_radius_m
+    said = plan.settings["report"]["auto_smoothing"]
+    assert said.startswith(f"smoothing_m 'auto' ({base:.3f} m): {AXIS_TURN_ERROR}")
+    assert said.endswith(f"planned at {AUTO_SMOOTHING_RETRIES[-1]:g} × that scale")
+    assert plan.settings["smoothing_m"] == pytest.approx(AUTO_SMOOTHING_RETRIES[-1] * base)
+    for p in plan.passes:
+        ds = np.linalg.norm(np.diff(p.positions, axis=0), axis=1)
+        cos = np.clip(np.einsum("ij,ij->i", p.spray_axes[1:], p.spray_axes[:-1]), -1.0, 1.0)
+        assert np.max(np.arccos(cos) / ds) <= BOUND_RAD_M * (1 + 1e-6)
+    with pytest.raises(PlanError, match=AXIS_TURN_ERROR):
+        plan_coverage(sheet, app, PlannerSettings(orientation=0.0, first_side="right",
+                                                  sample_spacing_m=0.003, smoothing_m=base,
+                                                  max_axis_turn_rad_m=BOUND_RAD_M))
