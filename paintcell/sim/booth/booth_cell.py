@@ -35,13 +35,13 @@ from paintcell.sim.execution.cell import (
     _COLLISION_BIT,
     BOOTH_BODY,
     PART_BODY,
-    TIMESTEP_S,
     Cell,
     CellError,
     RobotLike,
     _index_cell,
     add_contact_sensors,
     add_part_geoms,
+    new_cell_spec,
 )
 
 #: the static body that holds every robot (its subtree is "the robots" for the contact sensors).
@@ -121,13 +121,7 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
         raise CellError("surface must be a Surface (paintcell.planning.surface.surface) in its "
                         "part frame")
     T_wp = check_pose(T_world_part, "T_world_part", error=CellError)
-    spec = mujoco.MjSpec()
-    spec.modelname = f"paintcell_booth_{surface.name}"
-    spec.compiler.degree = False
-    spec.option.timestep = TIMESTEP_S
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.visual.global_.offwidth = 1280
-    spec.visual.global_.offheight = 960
+    spec = new_cell_spec(f"paintcell_booth_{surface.name}")
     bases = np.array([check_pose(r.T_world_base, f"robot {i} T_world_base", error=CellError)
                       [:3, 3] for i, r in enumerate(robots)])
     spec.stat.center = 0.5 * (T_wp[:3, 3] + bases.mean(axis=0))

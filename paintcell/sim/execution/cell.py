@@ -152,6 +152,19 @@ class Cell:
         return mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_BODY, int(body_id)) or ""
 
 
+def new_cell_spec(model_name: str) -> mujoco.MjSpec:
+    """An empty MuJoCo spec with the cells' common settings: angles in radians, the 1 ms step
+    (TIMESTEP_S), the implicit-fast integrator and a 1280 × 960 offscreen buffer."""
+    spec = mujoco.MjSpec()
+    spec.modelname = model_name
+    spec.compiler.degree = False
+    spec.option.timestep = TIMESTEP_S
+    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    spec.visual.global_.offwidth = 1280
+    spec.visual.global_.offheight = 960
+    return spec
+
+
 def _camera_quat(pos: np.ndarray, target: np.ndarray) -> np.ndarray:
     """MuJoCo camera looks along its -z with +y up: build that frame from a look-at."""
     z = pos - target
@@ -199,13 +212,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     if collision_piece_m <= 0 or shell_thickness_m <= 0:
         raise CellError("collision_piece_m and shell_thickness_m must be > 0 [m]")
 
-    spec = mujoco.MjSpec()
-    spec.modelname = f"paintcell_{robot.name}_{surface.name}"
-    spec.compiler.degree = False
-    spec.option.timestep = TIMESTEP_S
-    spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    spec.visual.global_.offwidth = 1280
-    spec.visual.global_.offheight = 960
+    spec = new_cell_spec(f"paintcell_{robot.name}_{surface.name}")
     spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
     spec.visual.headlight.diffuse = [0.5, 0.5, 0.5]
     spec.stat.center = 0.5 * (T_world_part[:3, 3] + T_world_base[:3, 3])
