@@ -159,3 +159,44 @@ def test_a_mujoco_fatal_error_in_a_compiled_loop_is_one_paintcell_line_and_exit_
         "paintcell: internal error: MuJoCo stopped the simulation: mj_stackAlloc"), r.stderr
     assert "increase <size memory" in lines[0]  # MuJoCo's own fix for the user stays in the line
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()  # type: ignore[operator]
+
+
+def test_the_fallback_to_the_python_loops_says_why_once(
+        monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture,
+        tmp_path: os.PathLike) -> None:
+    """A libmujoco that cannot be loaded (here a file that is no shared library), or none found:
+    the Python loops run and one warning names why, once a process; a forced fallback
+    (PAINTCELL_COMPILED_STEPS=0) is not a warning."""
+    import logging
+
+    fake = os.path.join(tmp_path, "libmujoco.so.9")
+    with open(fake, "w") as f:
+        f.write("not a library")
+    monkeypatch.setattr(execute_compiled, "_told", set())
+    caplog.set_level(logging.INFO, logger=execute_compiled.__name__)
+
+    def warnings() -> list[str]:
+        return [r.getMessage() for r in caplog.records if r.levelno >= logging.WARNING]
+
+    try:
+        monkeypatch.setattr(execute_compiled, "_library_path", lambda: fake)
+        for _ in range(3):
+            execute_compiled.mujoco_c.cache_clear()
+            assert execute_compiled.mujoco_c() is None
+        assert len(warnings()) == 1
+        assert warnings()[0].startswith("paintcell: warning: the compiled MuJoCo step loops are "
+                                        f"not used ({fake} cannot be used: ")
+        monkeypatch.setattr(execute_compiled, "_library_path", lambda: None)
+        execute_compiled.mujoco_c.cache_clear()
+        assert execute_compiled.mujoco_c() is None
+        assert len(warnings()) == 2 and "no libmujoco shared library next to the mujoco " \
+            "package in " + os.path.dirname(mujoco.__file__) in warnings()[1]
+        monkeypatch.setenv("PAINTCELL_COMPILED_STEPS", "0")
+        execute_compiled.mujoco_c.cache_clear()
+        assert execute_compiled.mujoco_c() is None
+        assert len(warnings()) == 2
+        assert "PAINTCELL_COMPILED_STEPS=0" in caplog.records[-1].getMessage()
+    finally:
+        monkeypatch.undo()
+        execute_compiled.mujoco_c.cache_clear()
+    assert execute_compiled.mujoco_c() is not None  # the real library again

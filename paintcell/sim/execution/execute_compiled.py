@@ -12,7 +12,7 @@ order than the former matrix product).
 
 `mujoco_c()` is None when the shared library cannot be found next to the `mujoco` package or
 numba is missing; the callers then run their Python loops (`PAINTCELL_COMPILED_STEPS=0` forces
-that, for comparisons).
+that, for comparisons), and one warning line a process names why.
 
 Joint positions [rad], velocities [rad/s], accelerations [rad/s²], torques [N·m].
 """
@@ -23,6 +23,7 @@ import contextlib
 import ctypes
 import functools
 import glob
+import logging
 import os
 import sys
 import threading
@@ -40,6 +41,8 @@ from paintcell.planning.paint.deposition_jit import HAVE_NUMBA
 
 if HAVE_NUMBA:
     from numba import njit
+
+_log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -66,22 +69,53 @@ def _library_path() -> str | None:
 @functools.lru_cache(maxsize=1)
 def mujoco_c() -> MujocoC | None:
     """The C functions, or None (no library found, not the bindings' MuJoCo version, numba
-    missing, or `PAINTCELL_COMPILED_STEPS=0`): callers fall back to their Python loops."""
-    if not HAVE_NUMBA or os.environ.get("PAINTCELL_COMPILED_STEPS", "1") == "0":
+    missing, or `PAINTCELL_COMPILED_STEPS=0`): callers fall back to their Python loops. The
+    fallback says why, once a process (a `logging` warning of this module; at INFO level when
+    `PAINTCELL_COMPILED_STEPS=0` asked for it)."""
+    if os.environ.get("PAINTCELL_COMPILED_STEPS", "1") == "0":
+        _say_fallback("PAINTCELL_COMPILED_STEPS=0 is set", logging.INFO)
         return None
+    c, why = _load_mujoco_c()
+    if c is None:
+        _say_fallback(why, logging.WARNING)
+    return c
+
+
+#: reasons already told this process (`mujoco_c`'s cache is cleared by benchmarks and tests).
+_told: set[str] = set()
+
+
+def _say_fallback(why: str, level: int) -> None:
+    if why in _told:
+        return
+    _told.add(why)
+    _log.log(level, "paintcell: warning: the compiled MuJoCo step loops are not used (%s); "
+             "execution runs them as Python loops: the same physics, ~1.3x slower, results "
+             "equal to ~1e-15 rad", why)
+
+
+def _load_mujoco_c() -> tuple[MujocoC | None, str]:
+    """(the C functions, "") or (None, why they cannot be used)."""
+    if not HAVE_NUMBA:
+        return None, "numba is not installed"
     path = _library_path()
     if path is None:
-        return None
+        return None, (f"no libmujoco shared library next to the mujoco package in "
+                      f"{os.path.dirname(mujoco.__file__)}")
     if not (hasattr(mujoco.MjModel, "_address") and hasattr(mujoco.MjData, "_address")):
-        return None  # bindings that no longer expose the struct addresses: the Python loops
+        # bindings that no longer expose the struct addresses: the Python loops
+        return None, (f"the mujoco {mujoco.__version__} bindings do not expose the MjModel/"
+                      "MjData addresses")
     try:
         lib = ctypes.CDLL(path)
         # a library of another version than the bindings' would read their structs with another
         # layout: only the very build they loaded is used
         lib.mj_versionString.restype = ctypes.c_char_p
         lib.mj_versionString.argtypes = []
-        if lib.mj_versionString().decode() != mujoco.mj_versionString():
-            return None
+        found = lib.mj_versionString().decode()
+        if found != mujoco.mj_versionString():
+            return None, (f"{path} is MuJoCo {found}, the bindings are "
+                          f"{mujoco.mj_versionString()}")
         fns = []
         for name in ("mj_inverse", "mj_step", "mj_fwdPosition", "mj_sensorPos"):
             f = getattr(lib, name)
@@ -89,10 +123,10 @@ def mujoco_c() -> MujocoC | None:
             f.restype = None
             fns.append(f)
         hook = ctypes.c_void_p.in_dll(lib, "mju_user_error")
-    except (OSError, AttributeError, ValueError):  # another build: the Python loops it is
-        return None
+    except (OSError, AttributeError, ValueError) as exc:  # another build: the Python loops
+        return None, f"{path} cannot be used: {' '.join(str(exc).split())}"
     inverse, step, fwd_position, sensor_pos = fns
-    return MujocoC(inverse, step, fwd_position, sensor_pos, error_hook=hook)
+    return MujocoC(inverse, step, fwd_position, sensor_pos, error_hook=hook), ""
 
 
 # Exit code of a MuJoCo fatal error inside a compiled loop: the CLI's code for an internal error
