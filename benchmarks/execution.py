@@ -11,9 +11,15 @@ and with the compiled loops on the default cell, the slabs on MuJoCo's world bod
 Timed, best of `--repeat`, wall
 and CPU (`time.process_time`: other jobs share this machine, whose load is printed): the servo
 execution with its inverse-dynamics feed-forward, the feed-forward alone, the kinematic replay,
-validate (three thickness maps), and a sweep sample (feed-forward cached, planned and trajectory
-films reused). Real-time factor = simulated time ÷ time; the issue's target is execute +
-validate ≥ 50× on the door.
+validate (three thickness maps), execute + validate one after the other and as `paintcell run`
+does them (the planned and time-law films, which do not depend on the execution, computed on a
+second thread while MuJoCo steps on one core: `validate.start_program_films`; every film is still
+inside the timed span), and a sweep sample (feed-forward cached, planned and trajectory films
+reused). On the compiled paths a program's inverse-dynamics feed-forward runs in two halves on two
+threads (`execute_models._inverse_compiled`). Real-time factor = simulated time ÷ time; the
+issue's target is execute + validate ≥ 50× on the door. Wall time is what a user waits; CPU time
+(both threads counted) is what a busy machine pays: on 2 cores shared with other jobs the threads
+gain little wall time.
 
 Warm: the best of the repeats in this process. Cold: a fresh Python process that imports
 paintcell, builds the cell and runs one execute + validate (numba loads its cached kernels, the
@@ -53,7 +59,7 @@ from paintcell.sim.execution.execute_models import (
     _set_torque_actuators,
     inverse_dynamics,
 )
-from paintcell.sim.validation.validate import validate
+from paintcell.sim.validation.validate import start_program_films, validate
 
 DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
 #: (name, compiled loops?, part's collision slabs on the world body?), the first the baseline.
@@ -91,6 +97,14 @@ def once(fn: Callable[..., Any], *args: Any, **kw: Any) -> tuple[float, float, A
     c0, t0 = time.process_time(), time.perf_counter()
     out = fn(*args, **kw)
     return time.perf_counter() - t0, time.process_time() - c0, out
+
+
+def pipelined(cell: Any, plan: Any, surface: Any, traj: Any, T: np.ndarray) -> Any:
+    """Execute + validate as `paintcell.sim.app.pipeline` runs them: the films that do not depend
+    on the execution (planned, time-law) start on a background thread before `execute`."""
+    films = start_program_films(plan, surface, traj, T)
+    trace = execute(cell, traj, mode="servo")
+    return validate(plan, surface, traj, trace, T, films=films.result())
 
 
 def rtf(sim_s: float, wall: float, cpu: float) -> str:
@@ -178,6 +192,8 @@ def main() -> None:
                 r.setdefault("kin", []).append((w, c))
                 w, c, rep = once(validate, plan, surface, traj, trace, T)
                 r.setdefault("val", []).append((w, c))
+                w, c, _ = once(pipelined, cell, plan, surface, traj, T)
+                r.setdefault("pipelined", []).append((w, c))
                 if films is None:
                     films = (rep.planned_thickness_m, rep.trajectory_thickness_m)
                 cache = caches[name]
@@ -203,8 +219,12 @@ def main() -> None:
         print(f"validate (three thickness maps + metrics): {row['val'][0]:.3f} s wall, "
               f"{row['val'][1]:.3f} s CPU")
         ev = (row["servo"][0] + row["val"][0], row["servo"][1] + row["val"][1])
-        print(f"execute + validate: {ev[0]:.3f} s wall, {ev[1]:.3f} s CPU, {rtf(sim_s, *ev)} "
-              "(target >= 50 x)")
+        print(f"execute, then validate (one after the other, as before): {ev[0]:.3f} s wall, "
+              f"{ev[1]:.3f} s CPU, {rtf(sim_s, *ev)}")
+        print(f"execute + validate as `paintcell run` does them (the planned and time-law films "
+              f"on a second thread while MuJoCo runs; all three films inside the timed span): "
+              f"{row['pipelined'][0]:.3f} s wall, {row['pipelined'][1]:.3f} s CPU, "
+              f"{rtf(sim_s, *row['pipelined'])} (target >= 50 x)")
         sw = (row["servo_cached"][0] + row["val_films"][0],
               row["servo_cached"][1] + row["val_films"][1])
         print(f"sweep sample (feed-forward cached, planned/trajectory films reused): "
@@ -218,8 +238,10 @@ def main() -> None:
                   f"{a[key][1] / b[key][1]:.2f} x CPU")
         ev_a, ev_b = (x["servo"][1] + x["val"][1] for x in (a, b))
         wv_a, wv_b = (x["servo"][0] + x["val"][0] for x in (a, b))
-        print(f"speed-up {label}, execute + validate: {wv_a / wv_b:.2f} x wall, "
-              f"{ev_a / ev_b:.2f} x CPU")
+        print(f"speed-up {label}, execute then validate: {wv_a / wv_b:.2f} x wall, "
+              f"{ev_a / ev_b:.2f} x CPU; as `paintcell run` does them: "
+              f"{a['pipelined'][0] / b['pipelined'][0]:.2f} x wall, "
+              f"{a['pipelined'][1] / b['pipelined'][1]:.2f} x CPU")
 
     if args.cold > 0:
         with tempfile.TemporaryDirectory() as tmp:

@@ -22,6 +22,7 @@ from paintcell.sim.validation.validate import (
     ValidationReport,
     collision_events,
     executed_gun_samples,
+    start_program_films,
     validate,
 )
 from tests.helpers import (
@@ -117,6 +118,26 @@ def _retimed_plan(plan: CoveragePlan, factor: float) -> CoveragePlan:
         passes.append(dataclasses.replace(p, speeds_m_s=v,
                                           times_s=times_from_speeds(p.positions, v)))
     return dataclasses.replace(plan, passes=tuple(passes))
+
+
+def test_program_films_on_a_background_thread_are_validates_own() -> None:
+    """The planned and time-law films `paintcell run` computes while MuJoCo runs (a second
+    thread, one kernel thread) are validate's own films bit for bit, and the report it makes with
+    them is the same; the planned film is the deposition sum of the plan's samples (the numpy
+    reference kernel, to round-off)."""
+    c = make_case()
+    films = start_program_films(c.plan, c.surface, c.traj, c.T_world_part).result(timeout=300)
+    own = report("servo")
+    np.testing.assert_array_equal(films[0], own.planned_thickness_m)
+    np.testing.assert_array_equal(films[1], own.trajectory_thickness_m)
+    given = validate(c.plan, c.surface, c.traj, run("servo"), c.T_world_part,
+                     Thresholds(max_executed_nsd_pct=50.0), films=films)
+    assert json.dumps(given.metrics, sort_keys=True) == json.dumps(own.metrics, sort_keys=True)
+    np.testing.assert_array_equal(given.executed_thickness_m, own.executed_thickness_m)
+    ref = thickness(c.plan.applicator, c.plan.gun_samples(), c.surface.vertices,
+                    c.surface.normals, backend="numpy")
+    assert ref.max() > 0
+    np.testing.assert_allclose(films[0], ref, rtol=0, atol=1e-9 * ref.max())
 
 
 def test_loss_splits_into_time_law_and_servo() -> None:

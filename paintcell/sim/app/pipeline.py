@@ -214,7 +214,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
          bar: tqdm, timings: dict[str, float], video: bool = False) -> RunResult:
     from paintcell.sim.execution.cell import build_cell
     from paintcell.sim.execution.execute import execute
-    from paintcell.sim.validation.validate import validate
+    from paintcell.sim.validation.validate import start_program_films, validate
 
     def stage(name: str) -> None:
         raise_if_interrupted()
@@ -245,7 +245,15 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
 
         t0 = time.perf_counter()
         stage("execute")
+        from paintcell.sim.app.budget import check_validation_budget
+
+        # the validation's film maps are refused before any of them starts
+        check_validation_budget(len(surface.vertices), int((traj.t_s[-1] - traj.t_s[0]) / 0.005),
+                                "fast_resolution_m" if fast else "resolution_m")
         T_world_part = scn.part_placement.matrix
+        # The planned and time-law films do not depend on the execution: computed meanwhile, on
+        # the core MuJoCo's single-threaded stepping leaves idle.
+        films = start_program_films(plan, surface, traj, T_world_part)
         cell = build_cell(robot, surface, T_world_part)
         trace = execute(cell, traj, mode=mode, servo=_servo(scn),
                         disturbances=_disturbances(scn))
@@ -254,12 +262,8 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
 
         t0 = time.perf_counter()
         stage("validate")
-        from paintcell.sim.app.budget import check_validation_budget
-
-        check_validation_budget(len(surface.vertices), int((trace.t_s[-1] - trace.t_s[0]) / 0.005),
-                                "fast_resolution_m" if fast else "resolution_m")
         rep = validate(plan, surface, traj, trace, T_world_part, scn.thresholds,
-                       reachability=traj.meta.get("reachability"))
+                       reachability=traj.meta.get("reachability"), films=films.result())
         done("validate", t0)
 
         result = RunResult(scn, None, surface, plan, traj, trace, rep, timings, fast, mode)

@@ -7,14 +7,20 @@ Torques [N·m], gains [N·m/rad] and [N·m·s/rad], joint positions [rad], lengt
 from __future__ import annotations
 
 import copy
+import functools
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import mujoco
 import numpy as np
 
 from paintcell.sim.execution.cell import Cell
 from paintcell.sim.execution.cell_part import move_part_collision
-from paintcell.sim.execution.execute_compiled import inverse_dynamics_steps, mujoco_c
+from paintcell.sim.execution.execute_compiled import MujocoC, inverse_dynamics_steps, mujoco_c
 from paintcell.sim.execution.execute_settings import Disturbances, ServoSettings
+
+#: programs at least this long (samples) get their feed-forward on two threads.
+SPLIT_MIN_SAMPLES = 2000
 
 
 def _disturbed_model(cell: Cell, dist: Disturbances | None) -> tuple[mujoco.MjModel, np.ndarray,
@@ -101,10 +107,10 @@ def inverse_dynamics(model: mujoco.MjModel, cell: Cell, q: np.ndarray, qd: np.nd
         # the links' pose updates every sample (1-1.5 µs of ~5); the torques are bit for bit the
         # same (tests/test_execute_compiled.py compares them with the full model's).
         m.body_geomnum[:] = 0
-    d = mujoco.MjData(m)
     c = mujoco_c()
     if c is not None:  # the same mj_inverse calls, looped in compiled code
-        return inverse_dynamics_steps(c, m, d, cell.qpos_adr, cell.dof_adr, q, qd, qdd)
+        return _inverse_compiled(c, m, cell, q, qd, qdd)
+    d = mujoco.MjData(m)
     qa, da = cell.qpos_adr, cell.dof_adr
     out = np.empty_like(q)
     inv = mujoco.mj_inverse
@@ -116,6 +122,37 @@ def inverse_dynamics(model: mujoco.MjModel, cell: Cell, q: np.ndarray, qd: np.nd
         inv(m, d)
         out[k] = qfrc[da]
     return out
+
+
+def _inverse_compiled(c: MujocoC, m: mujoco.MjModel, cell: Cell, q: np.ndarray,
+                      qd: np.ndarray, qdd: np.ndarray) -> np.ndarray:
+    """`inverse_dynamics`'s samples in the compiled loop; a long program in two halves on two
+    threads, each with its own MjData (the loop releases the GIL). With constraints and contacts
+    off a sample's torque depends only on its own (q, q̇, q̈), so the halves give the very torques
+    of one pass (tests/test_execute_compiled.py compares them bit for bit with a per-sample
+    loop); the second core is otherwise idle while the servo waits for its feed-forward."""
+    k = len(q)
+    halves = [(0, k)] if k < SPLIT_MIN_SAMPLES or _cores() < 2 else [(0, k // 2), (k // 2, k)]
+
+    def run(a: int, b: int) -> np.ndarray:
+        return inverse_dynamics_steps(c, m, mujoco.MjData(m), cell.qpos_adr, cell.dof_adr,
+                                      q[a:b], qd[a:b], qdd[a:b])
+
+    if len(halves) == 1:
+        return run(0, k)
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        second = pool.submit(run, *halves[1])
+        first = run(*halves[0])
+        return np.concatenate([first, second.result()])
+
+
+@functools.lru_cache(maxsize=1)
+def _cores() -> int:
+    """CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
 
 
 def _joint_range(model: mujoco.MjModel, cell: Cell) -> tuple[np.ndarray, np.ndarray]:

@@ -29,6 +29,8 @@ own; every public name is importable from here.
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import Future
 from typing import Any
 
 import numpy as np
@@ -55,7 +57,8 @@ from paintcell.sim.validation.validate_samples import executed_gun_samples, traj
 
 __all__ = [
     "Check", "Thresholds", "ValidationError", "ValidationReport", "collision_events",
-    "executed_gun_samples", "tracking_errors", "trajectory_gun_samples", "validate",
+    "executed_gun_samples", "program_films", "start_program_films", "tracking_errors",
+    "trajectory_gun_samples", "validate",
 ]
 
 
@@ -119,10 +122,7 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
             raise ValidationError(f"films must be two ({len(pts)},) arrays, one value a surface "
                                   "vertex; pass the films of this plan and surface")
     else:
-        t_plan = thickness(app, gun_plan, pts, nrm)
-        # The program as built: its own TCP samples where the part was planned to be.
-        t_traj = thickness(app, trajectory_gun_samples(traj, inverse_pose(T_world_part),
-                                                       exec_sample_s), pts, nrm)
+        t_plan, t_traj = program_films(plan, surface, traj, T_world_part, exec_sample_s)
     judged = surface.judged_vertex_mask()  # a real part: its skin by default; else every vertex
     u_plan = uniformity(t_plan, areas, mask=judged, tolerance=thresholds.tolerance)
     u_exec = uniformity(t_exec, areas, mask=judged, target_m=u_plan.mean_m,
@@ -211,6 +211,44 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
         torque_utilization=tuple(float(x) for x in tau_use),
         planned_thickness_m=t_plan, executed_thickness_m=t_exec, trajectory_thickness_m=t_traj,
         torque_saturation_pct=tuple(float(x) for x in tau_sat))
+
+
+def program_films(plan: CoveragePlan, surface: Surface, traj: JointTrajectory,
+                  T_world_part: npt.ArrayLike, exec_sample_s: float | None = 0.005,
+                  threads: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """(planned, trajectory) films (N,) [m] on `surface.vertices`: the plan's ideal TCP samples at
+    planned timing, and the program as built (its own paint-on TCP samples, binned by
+    `exec_sample_s` [s], where the part was planned to be, `T_world_part` (4, 4) [m]). Neither
+    depends on how the program was executed: `validate(..., films=...)` takes them.
+    threads: the film kernel's threads (the films do not depend on it)."""
+    app, pts, nrm = plan.applicator, surface.vertices, surface.normals
+    t_plan = thickness(app, plan.gun_samples(), pts, nrm, threads=threads)
+    gun = trajectory_gun_samples(traj, inverse_pose(np.asarray(T_world_part, float)),
+                                 exec_sample_s)
+    return t_plan, thickness(app, gun, pts, nrm, threads=threads)
+
+
+def start_program_films(plan: CoveragePlan, surface: Surface, traj: JointTrajectory,
+                        T_world_part: npt.ArrayLike, exec_sample_s: float | None = 0.005
+                        ) -> Future[tuple[np.ndarray, np.ndarray]]:
+    """`program_films` on a background thread, one kernel thread: started before `execute`, the
+    films are computed on the core MuJoCo leaves idle (its step loops release the GIL, so does
+    the film kernel). Pass `.result()` to `validate(films=...)`: the same films as validate
+    computes itself, bit for bit (the kernel's sum does not depend on its thread count).
+    A daemon thread: an interrupted run exits without waiting for it."""
+    fut: Future[tuple[np.ndarray, np.ndarray]] = Future()
+
+    def work() -> None:
+        if not fut.set_running_or_notify_cancel():
+            return
+        try:
+            fut.set_result(program_films(plan, surface, traj, T_world_part, exec_sample_s,
+                                         threads=1))
+        except BaseException as exc:  # raised again by fut.result() in the caller's thread
+            fut.set_exception(exc)
+
+    threading.Thread(target=work, name="paintcell-films", daemon=True).start()
+    return fut
 
 
 def _max_or_nan(x: np.ndarray) -> float:
