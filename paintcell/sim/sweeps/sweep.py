@@ -70,20 +70,15 @@ def prepare_payload(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> Any:
 
         return prepare_booth_payload(scn, spec.names, spec_digest(scn, spec, fast, mode), fast,
                                      mode)
-    from paintcell.planning.paint.deposition import thickness
-    from paintcell.planning.transforms import inverse_pose
     from paintcell.sim.app.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
-    from paintcell.sim.validation.validate_samples import trajectory_gun_samples
+    from paintcell.sim.validation.validate import program_films
 
     surface = load_surface(scn, fast)
     plan = make_plan(scn, surface, fast)
     traj = make_trajectory(scn, load_robot_for(scn), plan)
-    pts, nrm = surface.vertices, surface.normals
-    t_plan = thickness(plan.applicator, plan.gun_samples(), pts, nrm)
-    T = scn.part_placement.matrix
-    t_traj = thickness(plan.applicator, trajectory_gun_samples(traj, inverse_pose(T)), pts, nrm)
+    films = program_films(plan, surface, traj, scn.part_placement.matrix)
     return SweepPayload(spec_digest(scn, spec, fast, mode), scn, fast, mode, surface, plan,
-                        traj, (t_plan, t_traj), spec.names)
+                        traj, films, spec.names)
 
 
 def check_factors_fit(scn: Any, spec: SweepSpec) -> None:
