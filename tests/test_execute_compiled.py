@@ -20,7 +20,7 @@ import mujoco
 import numpy as np
 import pytest
 
-from paintcell.sim.execution import execute_compiled
+from paintcell.sim.execution import execute_compiled, execute_models
 from paintcell.sim.execution.execute import ServoSettings, execute
 from paintcell.sim.execution.execute_models import (
     _controller_model,
@@ -75,12 +75,17 @@ def _without_compiled(monkeypatch: pytest.MonkeyPatch, fn: object) -> ExecutedTr
         execute_compiled.mujoco_c.cache_clear()
 
 
-def test_inverse_dynamics_equals_the_per_sample_mj_inverse_loop() -> None:
+def test_inverse_dynamics_equals_the_per_sample_mj_inverse_loop(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     case, cell = make_case(), make_cell()
     traj = case.traj
     model = copy.copy(cell.model)
     _set_torque_actuators(model, cell)
     ctrl_model = _controller_model(model, cell, ServoSettings())
+    # long enough for the two-thread split (execute_models._inverse_compiled), which runs on
+    # any machine with two cores
+    assert len(traj.q) >= execute_models.SPLIT_MIN_SAMPLES
+    monkeypatch.setattr(execute_models, "_cores", lambda: 2)
     got = inverse_dynamics(ctrl_model, cell, traj.q, traj.qd, traj.qdd)
     ref = _python_inverse(ctrl_model, cell, traj.q, traj.qd, traj.qdd)
     assert np.abs(ref).max() > 1.0  # real torques (gravity alone is tens of N·m)
