@@ -28,6 +28,7 @@ from paintcell.sim.booth.booth import (
     Job,
     allocate,
     estimate_s,
+    pair_offsets_ok,
     stagger_starts,
 )
 from paintcell.sim.booth.booth_film import gun_in_body, plan_gun_in_body
@@ -107,6 +108,28 @@ def test_booth_checks_and_credit(roof_booth):
     assert abs(m["loss_conveyor_pp"]) < 1e-9
 
 
+def test_allocation_taken_by_its_real_cycle(roof_booth):
+    """Of the ranked allocations built and staggered, the one with the shortest real cycle was
+    taken; that cycle, re-measured on the programs (each robot's start delay + its own static
+    program on the booth clock), is the executed one."""
+    a = roof_booth.report.metrics["allocation"]
+    built = [t for t in a["tried"] if "real_cycle_s" in t]
+    assert built and len(a["tried"]) >= 2
+    chosen = min(built, key=lambda t: (t["real_cycle_s"], t["rank"]))
+    names = [r.name for r in ROOF_BOOTH.robots]
+    assert a["chosen"] == chosen["jobs"]
+    jobs = {names[r]: [j.part, j.first, j.end] for r, j in roof_booth.jobs.items()}
+    assert jobs == chosen["jobs"]
+    dt = roof_booth.static_trajectories[0].dt_s
+    assert all(abs(tr.meta.get("start_delay_s", 0.0) - d) < 1e-9
+               for tr, d in zip(roof_booth.trajectories, chosen["start_delays_s"], strict=True))
+    real = max(d + st.t_s[-1] - st.t_s[0] for d, st in
+               zip(chosen["start_delays_s"], roof_booth.static_trajectories, strict=True))
+    assert real == pytest.approx(chosen["real_cycle_s"], abs=1e-9)
+    assert roof_booth.report.metrics["executed_cycle_time_s"] == pytest.approx(
+        real, abs=dt + 1e-9)
+
+
 def test_rapid_modules_are_synchronised_and_conveyor_coordinated(roof_booth):
     robots = _load_robots(ROOF_BOOTH)
     mods = booth_rapid_modules(roof_booth, robots)
@@ -169,6 +192,16 @@ def test_allocation_fails_clearly_when_nothing_reaches():
         allocate(2, [2], [np.ones(2)], lambda r, j: False)
 
 
+def _clearance(paths: list[np.ndarray], delays: list[int]) -> float:
+    """Smallest distance between two robots' arm points, each robot held at its first pose
+    until its delay and at its last after its end (re-measured on one clock)."""
+    K = max(len(p) + d for p, d in zip(paths, delays, strict=True))
+    idx = np.arange(K)
+    pos = [p[np.clip(idx - d, 0, len(p) - 1)] for p, d in zip(paths, delays, strict=True)]
+    return min(float(np.linalg.norm(pos[i][:, :, None] - pos[j][:, None], axis=3).min())
+               for i in range(len(pos)) for j in range(i))
+
+
 def test_stagger_keeps_the_clearance_and_is_minimal():
     dt = 0.02
     t = np.arange(0, 6, dt)
@@ -176,19 +209,58 @@ def test_stagger_keeps_the_clearance_and_is_minimal():
     # b crosses a's line at x = 3 m at the moment a gets there: only a delay separates them.
     b = np.stack([np.column_stack([np.full_like(t, 3.0), 3.0 - t, np.zeros_like(t)])], axis=1)
     delays = stagger_starts([a, b], dt, 1.0)
-    assert delays[0] == 0
-    d = delays[1]
-
-    def clearance(e: int) -> float:
-        K = max(len(a), len(b) + e)
-        idx = np.arange(K)
-        pa = a[np.clip(idx, 0, len(a) - 1)]
-        pb = b[np.clip(idx - e, 0, len(b) - 1)]
-        return float(np.linalg.norm(pa - pb, axis=2).min())
-
-    assert clearance(d) >= 1.0
+    assert min(delays) == 0
+    assert _clearance([a, b], delays) >= 1.0
     step = int(round(STAGGER_STEP_S / dt))
-    assert d == 0 or clearance(d - step) < 1.0
+    # minimal: no smaller delay of the delayed robot keeps them apart
+    k = int(np.argmax(delays))
+    shorter = list(delays)
+    shorter[k] -= step
+    assert _clearance([a, b], shorter) < 1.0
+
+
+def test_stagger_ends_the_booth_soonest_brute_force():
+    """The delays minimise the cycle (max of delay + program) against every combination of
+    delays on the STAGGER_STEP_S grid up to 2 s, re-measured on one clock. Robot b starts just
+    ahead of a on a parallel line and waits before it runs off, so a must wait ≥ 0.45 s more than
+    b (x gap ≥ 0.4 m): a robot-by-robot choice in which the first robot never waits finds no
+    delay for b at all. Robot c is far off."""
+    dt = 0.05
+    t = np.arange(0, 4, dt)
+    z = np.zeros_like(t)
+    a = np.column_stack([t, z, z])[:, None]                     # (80, 1, 3): 4 s along x
+    # b starts 0.45 m ahead of a on a line 0.3 m off, waits 0.5 s, then runs away at 1.2 m/s
+    b = np.column_stack([0.45 + 1.2 * np.maximum(t - 0.5, 0.0), z + 0.3, z])[:, None]
+    c = np.column_stack([t[:40], z[:40] + 5.0, z[:40]])[:, None]   # 2 s, 5 m away
+    paths = [a, b, c]
+    delays = stagger_starts(paths, dt, 0.5)
+    step = int(round(STAGGER_STEP_S / dt))
+    lens = [len(p) for p in paths]
+
+    def cycle(d: tuple[int, ...]) -> int:
+        return max(n + e for n, e in zip(lens, d, strict=True))
+
+    grid = range(0, int(round(2.0 / dt)) + 1, step)
+    feasible = [d for d in itertools.product(grid, repeat=3) if _clearance(paths, list(d)) >= 0.5]
+    best = min(cycle(d) for d in feasible)
+    assert _clearance(paths, delays) >= 0.5
+    # a's wait rounded up to the grid (0.5 s) is the least any cycle can add
+    assert cycle(tuple(delays)) == best == len(a) + 2 * step
+    assert delays == [2 * step, 0, 0]
+    with pytest.raises(BoothError, match="robot 1's arm"):
+        stagger_starts([a, a[:1] + [0.2, 0.3, 0.0]], dt, 0.5)     # b parked 0.36 m off
+
+
+def test_pair_offsets_match_the_clock_replay():
+    """`pair_offsets_ok` (close sample pairs mapped to offsets, holds included) against replaying
+    both arms on one clock at every offset, on random walks that meet now and then."""
+    rng = np.random.default_rng(7)
+    p = np.cumsum(rng.normal(0, 0.05, (60, 3, 3)), axis=0)
+    q = np.cumsum(rng.normal(0, 0.05, (45, 3, 3)), axis=0) + [0.5, 0.0, 0.0]
+    offsets = np.arange(-70, 71)
+    got = pair_offsets_ok(p, q, offsets, 0.25)
+    want = [_clearance([p, q], [max(o, 0), max(-o, 0)]) >= 0.25 for o in offsets]
+    assert got.tolist() == want and 0 < got.sum() < len(offsets)
 
 
 def test_booth_toml_is_read_and_checked(tmp_path):

@@ -22,6 +22,7 @@ from paintcell.sim.booth.booth import (
     BoothError,
     Job,
     arm_points,
+    estimate_s,
     pass_feasible,
     rank_allocations,
     stagger_starts,
@@ -156,7 +157,8 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
             if attempt == 1 or need <= shrink:
                 raise
             shrink = need
-    record["rejected"] = tried
+    record["tried"] = tried
+    record["rejected"] = [t for t in tried if "rejected" in t]
     record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
     record["start_delays_s"] = [float(tr.meta.get("start_delay_s", 0.0)) for tr in trajs0]
     record["rail_tracking_margin_m"] = shrink
@@ -172,25 +174,57 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
             shrink_m: float, probes: list[Any] | None = None
             ) -> tuple[dict[int, Job], list[JointTrajectory], list[JointTrajectory],
                        list[dict[str, Any]]]:
-    """The first workable allocation of `ranked` (rails shrunk by shrink_m at both ends for the
-    passes): its jobs, static programs, staggered programs and the rejected ones. probes: per
-    robot, its `paintcell.sim.booth.booth_clearance.BodyProbe` (None: no body clearance)."""
+    """The allocation of `ranked[:MAX_ALLOCATIONS_TRIED]` with the shortest REAL cycle (rails
+    shrunk by shrink_m at both ends for the passes): its jobs, static programs, staggered
+    programs and the record of every one tried.
+
+    The ranking's cycle is an estimate (paint time + fixed turn-around and approach times, no
+    start delays); the real one is the staggered programs' clock — max over the robots of start
+    delay + own program — which a robot held back for a neighbour's retract can make much longer
+    than estimated. So every candidate of the ranking whose programs can be built and staggered
+    is built (programs are cached per robot and job) and the shortest real cycle is taken (ties:
+    the better ranked). A candidate whose longest program — as built when the cache holds it,
+    else its estimate — is already no shorter than the best real cycle is not built. probes: per robot, its `paintcell.sim.booth.booth_clearance.BodyProbe`
+    (None: no body clearance)."""
     planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
-    tried = []
-    for jobs in ranked[:MAX_ALLOCATIONS_TRIED]:
+    tried: list[dict[str, Any]] = []
+    best: tuple[int, dict[int, Job], list[JointTrajectory], list[int]] | None = None
+    for rank, jobs in enumerate(ranked[:MAX_ALLOCATIONS_TRIED]):
+        names = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
+        if best is not None:
+            # its longest program — as built if it was, else estimated — against the best
+            # real cycle: no start delay can make it shorter
+            dt = best[2][0].dt_s
+            longest = max((len(got.t_s) - 1) * dt
+                          if isinstance(got := cache.get((r, j)), JointTrajectory)
+                          else estimate_s(np.array([ps.duration_s for ps in
+                                                    plans[j.part].passes[j.first:j.end]]))
+                          for r, j in jobs.items())
+            if longest >= (best[0] - 1) * dt:
+                tried.append({"rank": rank + 1, "jobs": names,
+                              "skipped": f"its longest program ({longest:.2f} s, built or "
+                                         "estimated) is no shorter than the best real cycle"})
+                continue
         try:
             trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes)
             delays = _stagger(booth, robots, trajs0)
         except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
-            tried.append({"jobs": {booth.robots[r].name: [j.part, j.first, j.end]
-                                   for r, j in jobs.items()}, "rejected": str(exc)})
+            tried.append({"rank": rank + 1, "jobs": names, "rejected": str(exc)})
             continue
-        # static: the programs as the robots' controllers run them (RAPID)
-        return jobs, list(trajs0), [_delay(tr, d) for tr, d in
-                                    zip(trajs0, delays, strict=True)], tried
-    raise BoothError(f"none of the {len(tried)} best allocations works (last: "
-                     f"{tried[-1]['rejected']}); move the robots")
+        K = max(len(tr.t_s) + d for tr, d in zip(trajs0, delays, strict=True))
+        dt = trajs0[0].dt_s
+        tried.append({"rank": rank + 1, "jobs": names, "real_cycle_s": (K - 1) * dt,
+                      "start_delays_s": [d * dt for d in delays],
+                      "programs_s": [float(tr.duration_s) for tr in trajs0]})
+        if best is None or K < best[0]:
+            best = (K, jobs, list(trajs0), delays)
+    if best is None:
+        raise BoothError(f"none of the {len(tried)} best allocations works (last: "
+                         f"{tried[-1]['rejected']}); move the robots")
+    _, jobs, trajs0, delays = best
+    # static: the programs as the robots' controllers run them (RAPID)
+    return jobs, trajs0, [_delay(tr, d) for tr, d in zip(trajs0, delays, strict=True)], tried
 
 
 def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoveragePlan],

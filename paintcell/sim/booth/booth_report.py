@@ -172,14 +172,26 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
                             [[k + 1, _jobs_text(c["jobs"], names, parts, c.get("estimated_s")),
                               max(c["estimated_programs_s"])]
                              for k, c in enumerate(a.get("best_ranked", []))]))
-    for rej in a.get("rejected", []):
-        alloc.append(f"<p>Rejected: {html.escape(_jobs_text(rej['jobs'], names, parts))} — "
-                     f"{html.escape(rej['rejected'])}</p>")
+    if "tried" in a:
+        alloc.append("<p>The estimate knows nothing of the start delays that keep the arms "
+                     "apart, so the best ranked were built, staggered and timed; the shortest "
+                     "real cycle (start delay + own program, the longest robot) was taken:</p>")
+        alloc.append(_table(["rank", "jobs", "start delays [s]", "real cycle [s]"],
+                            [[t["rank"], _jobs_text(t["jobs"], names, parts),
+                              (", ".join(f"{d:.2f}" for d in t["start_delays_s"])
+                               if "start_delays_s" in t else
+                               t.get("rejected", t.get("skipped", ""))),
+                              t.get("real_cycle_s")]
+                             for t in a["tried"]]))
+    else:
+        for rej in a.get("rejected", []):
+            alloc.append(f"<p>Rejected: {html.escape(_jobs_text(rej['jobs'], names, parts))} — "
+                         f"{html.escape(rej['rejected'])}</p>")
     if "chosen" in a:
         alloc.append(f"<p id='chosen'>Chosen: "
                      f"{html.escape(_jobs_text(a['chosen'], names, parts))}; start delays "
                      f"{', '.join(f'{d:.2f}' for d in a.get('start_delays_s', []))} s (each "
-                     "robot the smallest that keeps its arm clear of the earlier ones).</p>")
+                     "the shortest cycle that keeps every two arms apart).</p>")
     s.append("<h2>How the work was shared</h2>" + "".join(alloc))
     fb = m.get("film_build", {})
     s.append("<h2>Film build</h2>"
