@@ -82,12 +82,14 @@ def test_booth_toml_film_build_keys(tmp_path):
 
     head = 'name = "b"\n{}\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\n'
     f = tmp_path / "b.toml"
-    f.write_text(head.format("film_target_um = 28.5\ncommon_film_build = false"))
+    f.write_text(head.format("film_target_um = 28.5\ncommon_film_build = false\n"
+                             "film_refine_pace = true"))
     b = load_scenario(f)
-    assert b.film_target_um == 28.5 and b.common_film_build is False
+    assert b.film_target_um == 28.5 and b.common_film_build is False and b.film_refine_pace
     assert load_scenario("scenarios/booth.toml").common_film_build is True
     for bad, msg in (("film_target_um = -1", "film_target_um must be a number > 0"),
-                     ('common_film_build = "yes"', "common_film_build must be true or false")):
+                     ('common_film_build = "yes"', "common_film_build must be true or false"),
+                     ("film_refine_pace = 1", "film_refine_pace must be true or false")):
         f.write_text(head.format(bad))
         with pytest.raises(BoothDataError, match=msg):
             load_scenario(f)
@@ -155,3 +157,33 @@ def test_seams_between_adjacent_parts_are_blended():
     new, rec = blend_part_seams(body, plans, Ts, counts, ["a", "b"])
     assert sum(rec["samples_switched_off"].values()) == 0
     assert all(n is p for n, p in zip(new, plans, strict=True))
+
+
+def test_booth_refinement_evens_the_film_and_keeps_every_pass_duration():
+    """`booth_refine.refine_parts` on the door planned without refinement: the film re-measured on
+    the part is more even than the plan's, every pass's duration (re-measured from its times)
+    stays within 0.5 % of the plan's, while the free refinement (no duration term) moves some
+    pass by more — the term is what holds the pace."""
+    from paintcell.planning.coverage.film_refine import refine_speeds
+    from paintcell.planning.paint.metrics import boundary_band_mask, boundary_vertices
+    from paintcell.sim.booth.booth_refine import refine_parts
+
+    s = parts.get_part("door", resolution_m=0.05)           # coarse: the test's time
+    st = PlannerSettings(film_refine=False)
+    plan = plan_coverage(s, Applicator.default(), st)
+    (out,), rec = refine_parts([s], [plan], [st], ["door"])
+    assert rec["parts"]["door"]["applied"]
+    a = s.vertex_areas
+    assert _nsd(_film(out, s), a) < 0.95 * _nsd(_film(plan, s), a)
+
+    def durations(pp):
+        return np.array([p.times_s[-1] - p.times_s[0] for p in pp])
+
+    held = durations(out.passes) / durations(plan.passes) - 1.0
+    assert np.abs(held).max() < 0.005
+    interior = boundary_band_mask(s.vertices, s.vertices[boundary_vertices(s.faces)],
+                                  st.film_guard_band_m)
+    free, info = refine_speeds(plan.applicator, s, list(plan.passes), st.v_min_m_s,
+                               st.v_max_m_s, interior)
+    assert info["applied"]
+    assert np.abs(durations(free) / durations(plan.passes) - 1.0).max() > 2 * np.abs(held).max()

@@ -95,14 +95,18 @@ def _second_diff(k: int) -> sp.csr_matrix:
 
 def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
                   v_min_m_s: float, v_max_m_s: float, interior: np.ndarray,
-                  caps_m_s: list[np.ndarray | None] | None = None
+                  caps_m_s: list[np.ndarray | None] | None = None,
+                  pass_time_weight: float = 0.0
                   ) -> tuple[list[PassPlan], dict[str, Any]]:
     """Passes re-timed so the simulated film on `surface` is as even as the bounds allow.
 
     app: the deposition model; surface: the real part (film judged on every vertex, area
     weighted); passes: the plan's passes in execution order; v_min_m_s / v_max_m_s: speed
     bounds [m/s]; interior: (N,) bool, the vertices away from the boundary (the result must not
-    be worse there either); caps_m_s: per pass (M,) robot speed caps [m/s] or None.
+    be worse there either); caps_m_s: per pass (M,) robot speed caps [m/s] or None;
+    pass_time_weight: weight of each pass's duration staying as planned (relative squared
+    change, added to the fit; 0: free) — a booth whose robots sweep in step keeps its pace
+    (`paintcell.sim.booth.booth_refine`).
     Returns the passes (unchanged when refining does not lower σ/μ on both the whole part and
     the interior) and an info dict (σ/μ before/after [%], cycle change [s], knots).
     """
@@ -163,9 +167,18 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
             blocks.append(rows)
         col += k
     blocks.append(np.sqrt(KEEP_WEIGHT) * np.eye(n_k))
+    tail = [np.sqrt(KEEP_WEIGHT) * np.ones(n_k)]
+    if pass_time_weight > 0:          # a pass's new duration is Σ dwell · slowness
+        rows, col = np.zeros((len(passes), n_k)), 0
+        for i, (p, b) in enumerate(zip(passes, basis, strict=True)):
+            rows[i, col:col + b.shape[1]] = (p.dwell_s() @ b) / max(p.times_s[-1] - p.times_s[0],
+                                                                    1e-12)
+            col += b.shape[1]
+        blocks.append(np.sqrt(pass_time_weight) * rows)
+        tail.append(np.sqrt(pass_time_weight) * np.ones(len(passes)))
     A_ls = np.vstack(blocks)
-    rhs = np.concatenate([rw * mu, np.zeros(len(A_ls) - len(fit) - n_k),
-                          np.sqrt(KEEP_WEIGHT) * np.ones(n_k)])
+    n_tail = sum(len(t) for t in tail)
+    rhs = np.concatenate([rw * mu, np.zeros(len(A_ls) - len(fit) - n_tail), *tail])
     # ‖A s − b‖² = ‖R s − Qᵀ b‖² + const (A = QR): the bounded-variable solver runs on the
     # K × K triangle instead of the (N + K) × K system (a few hundred knots: exact and fast)
     Q_, R_ = np.linalg.qr(A_ls)

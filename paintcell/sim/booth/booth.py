@@ -148,6 +148,10 @@ class Booth:
     """Every robot's program keeps this far [m] from the whole body, every part of it
     (`paintcell.sim.booth.booth_clearance`: rail positions chosen clear of the body, backed-off
     moves, else the allocation is rejected); None: not checked before execution."""
+    film_refine_pace: bool = False
+    """Plan the parts without the planner's film refinement and refine each afterwards with
+    every pass's duration held, so robots sweeping in step keep their pace
+    (`paintcell.sim.booth.booth_refine`)."""
     blend_seams: bool = True
     """Switch off the samples that paint other parts more than their own
     (`paintcell.sim.booth.booth_seams`)."""

@@ -19,7 +19,8 @@ with one line naming the file, the table and the valid keys. A TOML file is a bo
 `[[robots]]` tables. `common_film_build` (default true) and `film_target_um` (default: the body's
 area-weighted planned mean) set one film build over the parts (`paintcell.sim.booth.booth_build`);
 `blend_seams` (default true) blends the seams between parts (`paintcell.sim.booth.booth_seams`).
-`body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
+`film_refine_pace` (default false) refines each part's film with every pass's duration held
+(`paintcell.sim.booth.booth_refine`). `body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
 the whole body (`paintcell.sim.booth.booth_clearance`).
 """
 
@@ -38,7 +39,7 @@ from paintcell.sim.booth.conveyor import Conveyor
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
         "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
-        "applicator")
+        "applicator", "film_refine_pace")
 _PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -131,6 +132,8 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             common_film_build=_bool(d.get("common_film_build", True),
                                     f"{where} common_film_build"),
             blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
+            film_refine_pace=_bool(d.get("film_refine_pace", False),
+                                   f"{where} film_refine_pace"),
             body_clearance_m=_clearance(d.get("body_clearance_m", 0.01),
                                         f"{where} body_clearance_m"),
             film_target_um=(None if d.get("film_target_um") is None

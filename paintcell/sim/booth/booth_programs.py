@@ -109,6 +109,16 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     surfaces, plans, T_body_parts = _plan_parts(booth, fast)
+    refine: dict[str, Any] = {"rule": "off"}
+    if booth.film_refine_pace:
+        from paintcell.planning.coverage.coverage import PlannerSettings
+        from paintcell.sim.app.pipeline import settings_from
+        from paintcell.sim.booth.booth_refine import refine_parts
+
+        plans, refine = refine_parts(
+            surfaces, plans, [settings_from(PlannerSettings, {**booth.planner, **bp.planner},
+                                            "planner") for bp in booth.parts],
+            [f"{i}:{p.part}" for i, p in enumerate(booth.parts)])
     build: dict[str, Any] = {"rule": "off: each part at the default bell flow"}
     if booth.common_film_build:
         from paintcell.sim.booth.booth_build import common_film_build
@@ -162,6 +172,7 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
     record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
     record["start_delays_s"] = [float(tr.meta.get("start_delay_s", 0.0)) for tr in trajs0]
     record["rail_tracking_margin_m"] = shrink
+    record["film_refine"] = refine
     record["body_clearance"] = {booth.robots[r].name: tr.meta.get("body_clearance")
                                 for r, tr in enumerate(static)}
     timings["trajectory"] = time.perf_counter() - t0
@@ -244,6 +255,8 @@ def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoverageP
                              f"({', '.join(parts.PART_NAMES)})")
         s = parts.get_part(bp.part, resolution_m=res)
         kw = {**booth.planner, **bp.planner}
+        if booth.film_refine_pace:      # refined later with the pace held (booth_refine)
+            kw["film_refine"] = False
         plan = plan_coverage(s, app, settings_from(PlannerSettings, kw, "planner"))
         if bp.reverse:
             from paintcell.sim.booth.booth_build import reversed_plan
