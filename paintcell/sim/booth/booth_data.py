@@ -20,8 +20,8 @@ with one line naming the file, the table and the valid keys. A TOML file is a bo
 area-weighted planned mean) set one film build over the parts (`paintcell.sim.booth.booth_build`);
 `blend_seams` (default true) blends the seams between parts (`paintcell.sim.booth.booth_seams`).
 `film_refine_pace` (default false) refines each part's film with every pass's duration held
-(`paintcell.sim.booth.booth_refine`). `body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
-the whole body (`paintcell.sim.booth.booth_clearance`).
+(`paintcell.sim.booth.booth_refine`). `body_clearance_m` (default 0.01 m; false: no check)
+keeps every robot's program that far from the whole body (`paintcell.sim.booth.booth_clearance`).
 """
 
 from __future__ import annotations

@@ -28,46 +28,12 @@ from paintcell.sim.booth.booth import (
     stagger_starts,
 )
 from paintcell.sim.booth.booth_film import merge_surfaces
+from paintcell.sim.booth.booth_hold import delayed, held_to
 from paintcell.sim.booth.conveyor import ConveyorError, track_program
-from paintcell.sim.motion.joint_trajectory import RETRACT, JointTrajectory
+from paintcell.sim.motion.joint_trajectory import JointTrajectory
 
 #: allocations tried, best first, before giving up (their programs are cached per robot and job).
 MAX_ALLOCATIONS_TRIED = 8
-
-
-def _pad(traj: JointTrajectory, K: int) -> JointTrajectory:
-    """`traj` held at its last sample (at rest, brush off) up to K samples."""
-    n = K - len(traj.t_s)
-    if n <= 0:
-        return traj
-    dt = traj.dt_s
-    a = {name: getattr(traj, name) for name in JointTrajectory._ARRAYS}
-    ext = {"t_s": traj.t_s[-1] + dt * np.arange(1, n + 1),
-           "qd": np.zeros((n, a["qd"].shape[1])), "qdd": np.zeros((n, a["qdd"].shape[1])),
-           "v_tcp_planned": np.zeros(n), "paint_on": np.zeros(n, bool),
-           "pass_index": np.full(n, -1), "segment": np.full(n, RETRACT),
-           "s_pass_m": np.full(n, np.nan)}
-    out = {k: np.concatenate([v, ext[k] if k in ext else np.repeat(v[-1:], n, axis=0)])
-           for k, v in a.items()}
-    return JointTrajectory(**out, robot_name=traj.robot_name, joint_names=traj.joint_names,
-                           slowdowns=traj.slowdowns, pass_summary=traj.pass_summary,
-                           meta=dict(traj.meta))
-
-
-def _delay(traj: JointTrajectory, n: int) -> JointTrajectory:
-    """`traj` preceded by n samples holding its first one (at rest at home, brush off)."""
-    if n <= 0:
-        return traj
-    a = {name: getattr(traj, name) for name in JointTrajectory._ARRAYS}
-    head = {"qd": np.zeros((n, a["qd"].shape[1])), "qdd": np.zeros((n, a["qdd"].shape[1])),
-            "v_tcp_planned": np.zeros(n), "paint_on": np.zeros(n, bool),
-            "pass_index": np.full(n, -1), "s_pass_m": np.full(n, np.nan)}
-    out = {k: np.concatenate([head[k] if k in head else np.repeat(v[:1], n, axis=0), v])
-           for k, v in a.items() if k != "t_s"}
-    out["t_s"] = traj.t_s[0] + traj.dt_s * np.arange(len(traj.t_s) + n)
-    return JointTrajectory(**out, robot_name=traj.robot_name, joint_names=traj.joint_names,
-                           slowdowns=traj.slowdowns, pass_summary=traj.pass_summary,
-                           meta={**traj.meta, "start_delay_s": n * traj.dt_s})
 
 
 @dataclass
@@ -159,7 +125,7 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
         dt = trajs0[0].dt_s
         t_ref = 0.5 * (K - 1) * dt
         try:
-            trajs = [track_program(r, _pad(tr, K), booth.conveyor, t_ref)
+            trajs = [track_program(r, held_to(tr, K), booth.conveyor, t_ref)
                      for r, tr in zip(robots, trajs0, strict=True)]
             break
         except ConveyorError:
@@ -195,8 +161,8 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     than estimated. So every candidate of the ranking whose programs can be built and staggered
     is built (programs are cached per robot and job) and the shortest real cycle is taken (ties:
     the better ranked). A candidate whose longest program — as built when the cache holds it,
-    else its estimate — is already no shorter than the best real cycle is not built. probes: per robot, its `paintcell.sim.booth.booth_clearance.BodyProbe`
-    (None: no body clearance)."""
+    else its estimate — is already no shorter than the best real cycle is not built. probes:
+    per robot, its `paintcell.sim.booth.booth_clearance.BodyProbe` (None: no body clearance)."""
     planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
     tried: list[dict[str, Any]] = []
@@ -231,11 +197,12 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
         if best is None or K < best[0]:
             best = (K, jobs, list(trajs0), delays)
     if best is None:
-        raise BoothError(f"none of the {len(tried)} best allocations works (last: "
-                         f"{tried[-1]['rejected']}); move the robots")
+        why = "; ".join(f"#{t['rank']}: {t['rejected'].split('; ')[0]}" for t in tried)
+        raise BoothError(f"none of the {len(tried)} best allocations works ({why}); move the "
+                         "robots")
     _, jobs, trajs0, delays = best
     # static: the programs as the robots' controllers run them (RAPID)
-    return jobs, trajs0, [_delay(tr, d) for tr, d in zip(trajs0, delays, strict=True)], tried
+    return jobs, trajs0, [delayed(tr, d) for tr, d in zip(trajs0, delays, strict=True)], tried
 
 
 def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoveragePlan],
