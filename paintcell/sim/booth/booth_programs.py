@@ -8,6 +8,7 @@ execute them).
 from __future__ import annotations
 
 import dataclasses
+import re
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -294,8 +295,13 @@ def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> l
         return [0] * len(trajs)
     sub = max(1, int(round(0.02 / trajs[0].dt_s)))    # arm points every 20 ms
     pts = [arm_points(r, tr.q[::sub]) for r, tr in zip(robots, trajs, strict=True)]
-    return [sub * d for d in stagger_starts(pts, sub * trajs[0].dt_s,
-                                            booth.thresholds.min_bell_distance_m)]
+    try:
+        delays = stagger_starts(pts, sub * trajs[0].dt_s, booth.thresholds.min_bell_distance_m)
+    except BoothError as exc:          # name the robot, not its index
+        msg = re.sub(r"robot (\d+)'s", lambda m: f"robot {booth.robots[int(m[1])].name!r}'s",
+                     str(exc), count=1)
+        raise BoothError(msg) from exc
+    return [sub * d for d in delays]
 
 
 def _programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan], jobs: dict[int, Job],
