@@ -5,7 +5,8 @@ the literal DESIGN.md formula.
   curved patch with back-facing points and points behind the gun: within 1e-9 of the peak;
 - numba vs `deposition_rate_reference` (ω, q and cosines written out, every pair) where no pair
   is culled: within 1e-9 of the peak;
-- the branch-free 2^y against numpy's exp2;
+- the branch-free 2^y against numpy's exp2; zero amplitudes, a last group of fewer than four
+  samples, and the count of evaluated pairs against the numpy kernel's culling;
 - the result does not depend on the thread count (bit for bit);
 - the GPU kernel agrees with the CPU one — only where a CUDA GPU is present (none on the 2-core
   development machine: that test skips there).
@@ -18,6 +19,7 @@ import math
 import numpy as np
 import pytest
 
+from paintcell.planning.paint import deposition_cpu as cpu
 from paintcell.planning.paint import deposition_jit as jit
 from paintcell.planning.paint.applicator import Applicator
 from paintcell.planning.paint.deposition import (
@@ -82,15 +84,59 @@ def test_numba_agrees_with_the_literal_formula_where_nothing_is_culled() -> None
 
 
 def test_branch_free_exp2_matches_numpy() -> None:
-    """2^y of the kernel (the film's e^x computed as 2^(x·log2 e)) against numpy's exp2 over
-    the whole clamped range, and the clamp at e^−700 as the numpy kernel's."""
-    lo = -jit.EXP_FLOOR * jit.LOG2E
-    ys = np.concatenate([np.linspace(lo, 0.0, 20001), -np.geomspace(1e-12, -lo, 500),
-                         np.linspace(-3.0, 0.0, 20001)])
-    got = np.array([jit._exp2_neg(float(v)) for v in ys])
+    """2^y of the CPU kernel (the film's e^x computed as 2^(x·log2 e), four values at a time)
+    against numpy's exp2 over the whole clamped range; the clamp at e^−700 as the numpy
+    kernel's, and exactly 0 at the zero-amplitude clamp."""
+    lo = cpu.Y_FLOOR
+    ys = np.concatenate([np.linspace(lo, 0.0, 20001), -np.geomspace(1e-12, -lo, 499),
+                         np.linspace(-3.0, 0.0, 20000)])
+    assert len(ys) % 4 == 0
+    got = np.array([cpu.exp2_x4(*(float(v) for v in q), lo) for q in ys.reshape(-1, 4)]).ravel()
     want = np.exp2(ys)
     assert np.max(np.abs(got / want - 1.0)) < 1e-14
-    assert jit._exp2_neg(-1e4) == pytest.approx(math.exp(-jit.EXP_FLOOR), rel=1e-12)
+    assert cpu.exp2_x4(-1e4, -2e3, -1e3, lo, lo) == pytest.approx(
+        (math.exp(-jit.EXP_FLOOR),) * 4, rel=1e-12)
+    assert cpu.exp2_x4(-math.inf, -1e4, -1023.5, -1023.0, cpu.Y_ZERO) == (0.0,) * 4
+
+
+def test_zero_amplitudes_and_a_partial_last_group_of_samples() -> None:
+    """A bell without its central Gaussian (A0 = 0) and with one ring off: the compiled kernel's
+    terms of zero amplitude are exactly 0 (not the e^−700 floor); a program of 4k + 1, + 2, + 3
+    samples (the kernel takes four at a time, padding the last group with zero dwell): same film
+    as the numpy kernel, and the pairs it reports evaluated are the culling's (padding not
+    counted), checked against the numpy kernel's candidate blocks."""
+    from paintcell.planning.paint.deposition_kernel import (
+        BLOCK_POINTS,
+        CHUNK_SAMPLES,
+        _candidate_blocks,
+        _make_blocks,
+    )
+    from paintcell.planning.paint.deposition_samples import _tool_axes
+
+    base = Applicator.default()
+    app = Applicator(base.standoff_m, 0.0, base.sigma_x_m, base.sigma_y_m,
+                     np.array([base.ring_amplitudes_m_s[0], 0.0]), base.ring_radii_m,
+                     base.ring_sigmas_m)
+    p, n = _patch(40)
+    full = _program()
+    tan_cone = app.footprint_radius_m / app.standoff_m
+    for extra in (1, 2, 3):
+        k = 4 * 37 + extra
+        gun = GunSamples(full.positions[:k], full.spray_axes[:k], full.travel_dirs[:k],
+                         full.dwell_s[:k])
+        ref = thickness(app, gun, p, n, backend="numpy")
+        got = thickness(app, gun, p, n, backend="numba")
+        assert ref.max() > 0
+        assert np.max(np.abs(got - ref)) <= 1e-9 * ref.max()
+        x_hat, y_hat, a = _tool_axes(gun.spray_axes, gun.travel_dirs)
+        _, evaluated = jit.film_cpu(p, n, gun.positions, x_hat, y_hat, a, gun.dwell_s,
+                                    CHUNK_SAMPLES, tan_cone, jit.params(app))
+        blocks = _make_blocks(p, n, BLOCK_POINTS)
+        sizes = np.minimum(len(p) - np.arange(len(blocks.radii)) * BLOCK_POINTS, BLOCK_POINTS)
+        want = sum(int(sizes[_candidate_blocks(blocks, gun.positions[c:c + CHUNK_SAMPLES],
+                                               a[c:c + CHUNK_SAMPLES], tan_cone)].sum())
+                   * len(gun.positions[c:c + CHUNK_SAMPLES]) for c in range(0, k, CHUNK_SAMPLES))
+        assert evaluated == want
 
 
 def test_thread_count_does_not_change_the_film() -> None:

@@ -169,9 +169,14 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
     g = gun.positions[keep]
     x_hat, y_hat, a = _tool_axes(gun.spray_axes[keep], gun.travel_dirs[keep])
     coef_all = gun.dwell_s[keep] / app.standoff_m
-    blocks = _make_blocks(p, n, BLOCK_POINTS)
     tan_cone = app.footprint_radius_m / app.standoff_m
     kind = _pick_backend(backend, occluder, app)
+    if kind == "numba":  # builds its own blocks (the same ones)
+        from paintcell.planning.paint import deposition_jit as jit
+
+        return jit.film_cpu(p, n, g, x_hat, y_hat, a, gun.dwell_s[keep], CHUNK_SAMPLES, tan_cone,
+                            jit.params(app), threads)[0]
+    blocks = _make_blocks(p, n, BLOCK_POINTS)
     if kind != "numpy":
         out[blocks.order] = _thickness_jit(kind, app, blocks, p, n, g, x_hat, y_hat, a,
                                            gun.dwell_s[keep], tan_cone, threads)[0]
@@ -255,7 +260,7 @@ def _pick_backend(backend: str, occluder: Any, app: Applicator) -> str:
 def _thickness_jit(kind: str, app: Applicator, blocks: _Blocks, p: np.ndarray, n: np.ndarray,
                    g: np.ndarray, x_hat: np.ndarray, y_hat: np.ndarray, a: np.ndarray,
                    dwell: np.ndarray, tan_cone: float, threads: int) -> tuple[np.ndarray, int]:
-    """(film (N,) in Z-order [m], pairs evaluated) by the compiled kernel `kind`."""
+    """(film (N,) in Z-order [m], pairs evaluated) by the GPU kernel."""
     from paintcell.planning.paint import deposition_jit as jit
 
     ps = np.ascontiguousarray(p[blocks.order])
@@ -265,14 +270,11 @@ def _thickness_jit(kind: str, app: Applicator, blocks: _Blocks, p: np.ndarray, n
     prm = jit.params(app)
     args = (np.ascontiguousarray(g), np.ascontiguousarray(x_hat), np.ascontiguousarray(y_hat),
             np.ascontiguousarray(a))
-    if kind == "gpu":
-        cand = jit.candidates_cpu(blocks.centers, blocks.radii, args[0], args[3], CHUNK_SAMPLES,
-                                  tan_cone)
-        film = jit.film_gpu(ps, ns, starts, cand, *args, coef, CHUNK_SAMPLES, prm)
-        evaluated = int((cand * np.diff(starts)[None, :]).sum()) * CHUNK_SAMPLES
-        return film, evaluated
-    return jit.film_cpu(ps, ns, starts, blocks.centers, blocks.radii, *args, coef,
-                        CHUNK_SAMPLES, tan_cone, prm, threads)
+    cand = jit.candidates_cpu(blocks.centers, blocks.radii, args[0], args[3], CHUNK_SAMPLES,
+                              tan_cone)
+    film = jit.film_gpu(ps, ns, starts, cand, *args, coef, CHUNK_SAMPLES, prm)
+    evaluated = int((cand * np.diff(starts)[None, :]).sum()) * CHUNK_SAMPLES
+    return film, evaluated
 
 
 def _reached(m: np.ndarray, tan_cone: float) -> np.ndarray:
