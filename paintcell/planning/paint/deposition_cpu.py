@@ -168,26 +168,28 @@ def _film(pts: np.ndarray, counts: np.ndarray, centers: np.ndarray, radii: np.nd
                     x2, y2, z2, w2 = _project(pi, r2)
                     x3, y3, z3, w3 = _project(pi, r3)
                     z0, z1, z2, z3 = (_inv(z0, dz_min), _inv(z1, dz_min), _inv(z2, dz_min),
-                                      _inv(z3, dz_min))
-                    x0, x1, x2, x3 = x0 * z0, x1 * z1, x2 * z2, x3 * z3      # u
-                    y0, y1, y2, y3 = y0 * z0, y1 * z1, y2 * z2, y3 * z3      # v
-                    x0, x1, x2, x3 = x0 * x0, x1 * x1, x2 * x2, x3 * x3      # u²
-                    y0, y1, y2, y3 = y0 * y0, y1 * y1, y2 * y2, y3 * y3      # v²
-                    w0, w1, w2, w3 = (w0 * (z0 * z0 * z0), w1 * (z1 * z1 * z1),
-                                      w2 * (z2 * z2 * z2), w3 * (z3 * z3 * z3))
-                    g0, g1, g2, g3 = exp2_x4((l0 - x0 * cx2) - y0 * cy2, (l0 - x1 * cx2) - y1 * cy2,
-                                             (l0 - x2 * cx2) - y2 * cy2, (l0 - x3 * cx2) - y3 * cy2,
-                                             lo0)
-                    z0, z1, z2, z3 = (math.sqrt(x0 + y0), math.sqrt(x1 + y1),   # r
+                                      _inv(z3, dz_min))                      # 1/dz
+                    x0, x1, x2, x3 = x0 * x0, x1 * x1, x2 * x2, x3 * x3      # X²
+                    y0, y1, y2, y3 = y0 * y0, y1 * y1, y2 * y2, y3 * y3      # Y²
+                    # √(X² + Y²) runs beside the division; r = √(X² + Y²)/dz = √(u² + v²)
+                    q0, q1, q2, q3 = (math.sqrt(x0 + y0), math.sqrt(x1 + y1),
                                       math.sqrt(x2 + y2), math.sqrt(x3 + y3))
+                    x0, x1, x2, x3 = (x0 * cx2 + y0 * cy2, x1 * cx2 + y1 * cy2,
+                                      x2 * cx2 + y2 * cy2, x3 * cx2 + y3 * cy2)
+                    y0, y1, y2, y3 = z0 * z0, z1 * z1, z2 * z2, z3 * z3      # 1/dz²
+                    w0, w1, w2, w3 = (w0 * (y0 * z0), w1 * (y1 * z1), w2 * (y2 * z2),
+                                      w3 * (y3 * z3))
+                    g0, g1, g2, g3 = exp2_x4(l0 - x0 * y0, l0 - x1 * y1, l0 - x2 * y2,
+                                             l0 - x3 * y3, lo0)
+                    z0, z1, z2, z3 = q0 * z0, q1 * z1, q2 * z2, q3 * z3      # r
                     x0, x1, x2, x3 = z0 * rc1 - rm1, z1 * rc1 - rm1, z2 * rc1 - rm1, z3 * rc1 - rm1
                     h0, h1, h2, h3 = exp2_x4(l1 - x0 * x0, l1 - x1 * x1, l1 - x2 * x2, l1 - x3 * x3,
                                              lo1)
                     x0, x1, x2, x3 = z0 * rc2 - rm2, z1 * rc2 - rm2, z2 * rc2 - rm2, z3 * rc2 - rm2
                     e0, e1, e2, e3 = exp2_x4(l2 - x0 * x0, l2 - x1 * x1, l2 - x2 * x2, l2 - x3 * x3,
                                              lo2)
-                    acc[i] = ((((acc[i] + w0 * (g0 + h0 + e0)) + w1 * (g1 + h1 + e1))
-                               + w2 * (g2 + h2 + e2)) + w3 * (g3 + h3 + e3))
+                    acc[i] += ((w0 * (g0 + h0 + e0) + w1 * (g1 + h1 + e1))
+                               + (w2 * (g2 + h2 + e2) + w3 * (g3 + h3 + e3)))
         out[i0:i0 + BLOCK] = acc
         evaluated[b] = count
 
