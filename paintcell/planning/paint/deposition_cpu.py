@@ -13,8 +13,10 @@ the amplitudes folded into the exponents as the numpy kernel folds them (exp(ln 
 at e^−700; a zero amplitude gives exactly 0). The inner loop runs over the 64 points of a block
 (LLVM vectorizes it, 8 pairs a 512-bit register) for four samples at once, the four written out
 statement by statement so that their independent chains (a division, a square root and three
-2^y each) overlap instead of waiting on each other: 1.4× the pairs per CPU-second of one sample
-at a time (benchmarks/deposition.py). The sum per point stays in sample order, so the film does
+2^y each) overlap instead of waiting on each other (the loop of one sample at a time was
+latency-bound: ~11 cycles a pair against a ~5-cycle port bound, llvm-mca); with √(X² + Y²)
+started beside the division, 1.35-1.4× the previous kernel's pairs per CPU-second
+(benchmarks/deposition.py). The sum per point stays in sample order, so the film does
 not depend on the thread count (one block of points a task, `numba.prange`).
 """
 
