@@ -39,16 +39,15 @@ _RINGS = ("h0, h1, h2, h3 = exp2_x4(l1 - x0 * x0, l1 - x1 * x1, l1 - x2 * x2, l1
           "                                             lo1)")
 _RINGS2 = ("e0, e1, e2, e3 = exp2_x4(l2 - x0 * x0, l2 - x1 * x1, l2 - x2 * x2, l2 - x3 * x3,\n"
            "                                             lo2)")
-_CORE = ("g0, g1, g2, g3 = exp2_x4((l0 - x0 * cx2) - y0 * cy2, (l0 - x1 * cx2) - y1 * cy2,\n"
-         "                                             (l0 - x2 * cx2) - y2 * cy2, "
-         "(l0 - x3 * cx2) - y3 * cy2,\n"
-         "                                             lo0)")
+_CORE = ("g0, g1, g2, g3 = exp2_x4(l0 - x0 * y0, l0 - x1 * y1, l0 - x2 * y2,\n"
+         "                                             l0 - x3 * y3, lo0)")
 _NO_RINGS = [(_RINGS, "h0, h1, h2, h3 = l1 - x0 * x0, l1 - x1 * x1, l1 - x2 * x2, l1 - x3 * x3"),
              (_RINGS2, "e0, e1, e2, e3 = l2 - x0 * x0, l2 - x1 * x1, l2 - x2 * x2, l2 - x3 * x3")]
 VARIANTS: dict[str, list[tuple[str, str]]] = {
     "shipped": [],
     "profile: 1 exp (rings off)": _NO_RINGS,
-    "profile: 0 exp": _NO_RINGS + [(_CORE, "g0, g1, g2, g3 = x0, x1, x2, x3")],
+    "profile: 0 exp": _NO_RINGS + [(_CORE, "g0, g1, g2, g3 = l0 - x0 * y0, l0 - x1 * y1, "
+                                            "l0 - x2 * y2, l0 - x3 * y3")],
 }
 
 
