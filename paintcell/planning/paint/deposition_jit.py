@@ -68,12 +68,16 @@ def film_cpu(p: np.ndarray, n: np.ndarray, g: np.ndarray, xh: np.ndarray, yh: np
     `MAX_RINGS` rings)."""
     if (len(prm) - 4) // 3 > MAX_RINGS:
         raise ValueError(f"the compiled kernel takes at most {MAX_RINGS} rings")
+    if len(p) == 0 or len(g) == 0:
+        return np.zeros(len(p)), 0
     old = numba.get_num_threads()
     if threads is not None:
         most = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
         numba.set_num_threads(max(1, min(int(threads), most)))
     try:
-        order, pts, counts, centers, radii = cpu.blocks(p, n)
+        # C-contiguous float64 (one compiled specialization whatever the caller passes)
+        order, pts, counts, centers, radii = cpu.blocks(np.ascontiguousarray(p, float),
+                                                        np.ascontiguousarray(n, float))
         rows = cpu.sample_rows(g, xh, yh, a, dwell, float(prm[0]))
         # dynamic scheduling: blocks under the program cost far more than blocks outside it
         with numba.parallel_chunksize(1):
