@@ -15,3 +15,9 @@ class ApplicatorError(PaintcellError):
 
 class PlanError(PaintcellError):
     """A coverage plan cannot be built, loaded, or is inconsistent."""
+
+
+class AxisTurnError(PlanError):
+    """The bell axis cannot follow the surface along a pass within `max_axis_turn_rad_m` (a
+    crease or fold tighter than the smoothing scale). `plan_coverage` with `smoothing_m = "auto"`
+    plans again at larger smoothing scales when it meets this error."""

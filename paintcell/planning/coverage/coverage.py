@@ -31,13 +31,14 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+from tqdm import tqdm
 
 from paintcell.planning.coverage.coverage_family import PLANAR_CURVATURE_1_M, plan_family
 from paintcell.planning.coverage.coverage_settings import PlannerSettings
 from paintcell.planning.coverage.patches import plan_patches
 from paintcell.planning.coverage.plan import CoveragePlan
 from paintcell.planning.coverage.smoothing import FOOTPRINT_FRACTION
-from paintcell.planning.errors import PlanError
+from paintcell.planning.errors import AxisTurnError, PlanError
 from paintcell.planning.paint.applicator import Applicator
 from paintcell.planning.surface.surface import Surface
 
@@ -67,8 +68,10 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     the same input gives a byte-identical saved plan (the pipeline records stage times).
     With `smoothing_m = "auto"`, a plan that fails because the bell axis cannot follow the
     surface within `max_axis_turn_rad_m` is planned again on the surface smoothed at 2×, then
-    4× the auto scale (the report's `auto_smoothing` says so; the settings record the scale).
-    Raises PlanError when an offset self-intersects or the loop does not terminate.
+    4× the auto scale (the report's `auto_smoothing` says so; the settings record the scale; a
+    progress bar on a terminal shows the retries).
+    Raises PlanError when an offset self-intersects or the loop does not terminate, and its
+    subclass AxisTurnError when the bell axis cannot follow the surface (at every scale tried).
     """
     if not isinstance(surface, Surface):
         raise PlanError(f"plan_coverage needs a paintcell.planning.surface.surface.Surface, got "
@@ -83,31 +86,35 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     st = PlannerSettings() if settings is None else settings
     try:
         return _plan(surface, applicator, st, speed_caps_m_s, tool_x)
-    except PlanError as e:
-        if st.smoothing_m != "auto" or not str(e).startswith(AXIS_TURN_ERROR):
+    except AxisTurnError as e:
+        if st.smoothing_m != "auto":
             raise
         first = e
     # "auto" smoothing (a quarter of the footprint radius) left a feature the bell axis cannot
     # follow within max_axis_turn_rad_m: plan on the surface smoothed at twice, then four times
-    # that scale (half and all of the footprint radius — still the spray's own scale)
+    # that scale (half and all of the footprint radius — still the spray's own scale). Each
+    # plan can take minutes on a large part: a bar (on a terminal only) says which scale runs.
     base = FOOTPRINT_FRACTION * applicator.footprint_radius_m
-    for k in AUTO_SMOOTHING_RETRIES:
-        try:
-            plan = _plan(surface, applicator, replace(st, smoothing_m=k * base), speed_caps_m_s,
-                         tool_x)
-        except PlanError as e:
-            if not str(e).startswith(AXIS_TURN_ERROR):
-                raise
-            continue
-        plan.settings["report"]["auto_smoothing"] = (
-            f"smoothing_m 'auto' ({base:.3f} m): {first}; planned at {k:g} × that scale")
-        return plan
+    bar = tqdm(AUTO_SMOOTHING_RETRIES, desc="auto smoothing: bell axis too fast, planning again",
+               unit="plan", leave=False, disable=None)
+    try:
+        for k in bar:
+            bar.set_postfix_str(f"smoothing {k:g}× = {k * base:.3f} m")
+            try:
+                plan = _plan(surface, applicator, replace(st, smoothing_m=k * base),
+                             speed_caps_m_s, tool_x)
+            except AxisTurnError:
+                continue
+            plan.settings["report"]["auto_smoothing"] = (
+                f"smoothing_m 'auto' ({base:.3f} m): {first}; planned at {k:g} × that scale")
+            return plan
+    finally:
+        bar.close()
     raise first
 
 
-#: What `paintcell.planning.coverage.smoothing.limit_turn_rate` says when the bound cannot hold.
-AXIS_TURN_ERROR = "the bell axis turns"
-#: Multiples of the "auto" smoothing scale tried, in turn, when the bell axis cannot follow it.
+#: Multiples of the "auto" smoothing scale tried, in turn, when the bell axis cannot follow it
+#: (`paintcell.planning.errors.AxisTurnError`).
 AUTO_SMOOTHING_RETRIES = (2.0, 4.0)
 
 

@@ -28,7 +28,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from paintcell.planning.errors import PlanError
+from paintcell.planning.errors import AxisTurnError, PlanError
 from paintcell.planning.surface.curvature import _corner_geometry, boundary_vertex_mask
 from paintcell.planning.surface.surface import Surface, surface_from_triangles
 
@@ -125,8 +125,8 @@ def limit_turn_rate(foot: np.ndarray, axes: np.ndarray, max_rate_rad_m: float,
     """Unit spray axes (M, 3) along a pass whose turning rate per metre of TCP travel stays
     ≤ `max_rate_rad_m` [rad/m]; the TCP is at `foot − standoff_m · axis` (foot (M, 3) [m]).
     Rounds of a [¼, ½, ¼] diffusion (ends held by reflection) of the axes that still turn too
-    fast, until none does; axes already within the bound are returned unchanged. Raises PlanError
-    if the bound cannot be met (e.g. a U-turn)."""
+    fast, until none does; axes already within the bound are returned unchanged. Raises
+    AxisTurnError (a PlanError) if the bound cannot be met (e.g. a U-turn)."""
     a = np.array(axes, float)
     if len(a) < 3 or not np.isfinite(max_rate_rad_m):
         return a
@@ -145,6 +145,6 @@ def limit_turn_rate(foot: np.ndarray, axes: np.ndarray, max_rate_rad_m: float,
         blur = 0.25 * pad[:-2] + 0.5 * pad[1:-1] + 0.25 * pad[2:]
         a[bad] = blur[bad] / np.linalg.norm(blur[bad], axis=1, keepdims=True)
     worst = turn_rate_rad_m(foot - standoff_m * a, a).max()
-    raise PlanError(f"the bell axis turns {worst:.2f} rad/m along a pass, above "
+    raise AxisTurnError(f"the bell axis turns {worst:.2f} rad/m along a pass, above "
                     f"max_axis_turn_rad_m = {max_rate_rad_m:g}; raise the bound or smooth the "
                     "surface more (smoothing_m)")
