@@ -14,16 +14,19 @@
 joint state
    (q, q̇, q̈) of their neighbours: approach home → first pass, a turn-around between passes, and
    retract last pass → home. Approach and retract go through a via pose backed off from the pass
-   end along the spray axis (−z of the tool) by a clearance, at rest. A turn-around is the
-   fastest of three candidates whose TCP stays within `turnaround_max_dip_m` (50 mm) of the
-   deeper pass end's standoff, measured along the spray axis on the sampled move: a direct
-   joint-space move; a move through the midpoint of the two ends backed off by
-   `turnaround_clearance_m` (150 mm), passed without stopping; or a stop at a backed-off via
-   pose behind each end with the reconfiguration between them (1/2, 1/4 of the clearance where
-   the joint limits forbid). If none qualifies, the one with the least dip is used and a
-   warning is recorded. Each decision is in `meta["turnarounds"]`, the worst dip in
-   `meta["turnaround_max_dip_m"]` (door benchmark: direct moves would dip 70-88 mm; the
-   program uses the midpoint via, 19 mm, +1.2 s of cycle time). A joint-space reconfiguration
+   end along the spray axis (−z of the tool) by a clearance, passed moving where that is faster
+   and brings the TCP no closer to the part than a stop there (`moving_vias`), else at rest.
+   A turn-around is the fastest of three kinds whose TCP stays within `turnaround_max_dip_m`
+   (50 mm) of the deeper pass end's standoff, measured along the spray axis on the sampled
+   move: a direct joint-space move; a move through the midpoint of the two ends backed off by
+   up to `turnaround_clearance_m` (150 mm), passed without stopping (several back-offs and via
+   speeds tried, the fastest within the limit kept); or a stop at a backed-off via pose behind
+   each end with the reconfiguration between them (1/2, 1/4 of the clearance where the joint
+   limits forbid). If none qualifies, the one with the least dip is used and a warning is
+   recorded. Each decision is in `meta["turnarounds"]`, the worst dip in
+   `meta["turnaround_max_dip_m"]` (door, check --fast: direct moves would dip 75-147 mm; the
+   midpoint vias keep it ≤ 50 mm at 1.0 s per turn-around, 5.0 s of the 27 s cycle; with only
+   the 150 mm via at the direct move's speed it was 5.9 s). A joint-space reconfiguration
    between IK branches can sweep the arm across the part; `paintcell.sim.execution.execute` checks
    collisions.
 4. Sampling at the control rate on one global clock; each segment is evaluated analytically, so
@@ -74,7 +77,12 @@ from paintcell.sim.motion.time_law import JointPath, PassTimeLaw, parameterize_p
 from paintcell.sim.motion.trajectory_paths import _ik_paths, _refined_path
 from paintcell.sim.motion.trajectory_sampling import _sample, _Segment
 from paintcell.sim.motion.trajectory_settings import RobotLike, TrajectorySettings
-from paintcell.sim.motion.trajectory_turnaround import _backed_off, _turnaround, _turnaround_dip
+from paintcell.sim.motion.trajectory_turnaround import (
+    _backed_off,
+    _through_via,
+    _turnaround,
+    _turnaround_dip,
+)
 
 __all__ = ["RobotLike", "TrajectorySettings", "build_program"]
 
@@ -214,8 +222,24 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
 
     home = (q_home, zero, zero)
     first_start, _ = ends(laws[0])
-    add_moves(APPROACH, [home, *vias(first_start[0], settings.approach_clearance_m),
-                         first_start])
+    via_records: dict[str, Any] = {}
+
+    def approach_or_retract(kind: int, a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...],
+                            q_pass: np.ndarray, clearance_m: float, T_pass: np.ndarray) -> None:
+        """home → via(s) → pass start, or pass end → via(s) → home; a single via (no fold) is
+        passed moving where `_through_via` finds that faster and no closer to the part."""
+        vs = vias(q_pass, clearance_m)
+        if kind == RETRACT:
+            vs = vs[::-1]
+        if settings.moving_vias and len(vs) == 1:
+            moves, record = _through_via(robot, move, a, vs[0][0], b, T_pass, settings, dt)
+            segments.extend(_Segment(kind, m.duration_s, move=m) for m in moves)
+            via_records["approach" if kind == APPROACH else "retract"] = record
+        else:
+            add_moves(kind, [a, *vs, b])
+
+    approach_or_retract(APPROACH, home, first_start, first_start[0],
+                        settings.approach_clearance_m, T_world_tcp[0][0])
     turnarounds: list[dict[str, Any]] = []
     for i, law in enumerate(laws):
         segments.append(_Segment(PAINT, law.duration_s, pass_index=i, law=law))
@@ -231,7 +255,8 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
                                 f"{1e3 * record['dip_m']:.0f} mm closer to the part than the "
                                 "pass ends (IK changes branch between passes?); check collisions")
         else:
-            add_moves(RETRACT, [end, *vias(end[0], settings.retract_clearance_m)[::-1], home])
+            approach_or_retract(RETRACT, end, home, end[0], settings.retract_clearance_m,
+                                T_world_tcp[i][-1])
     timing["ruckig"] = time.perf_counter() - t0
 
     # --- 4. sampling on one clock -----------------------------------------------------------
@@ -252,6 +277,7 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
         "max_path_deviation_m": float(max(deviations)),
         "turnaround_max_dip_m": dip,
         "turnarounds": turnarounds,
+        "approach_retract": via_records,
         "cycle_time_s": traj.duration_s,
         "paint_time_s": traj.paint_time_s,
         "planned_paint_time_s": plan.paint_time_s,

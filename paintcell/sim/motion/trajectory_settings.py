@@ -60,6 +60,11 @@ class TrajectorySettings:
     """Back-off of the via pose before the first pass, along −z of the tool [m] (0: none)."""
     retract_clearance_m: float = 0.10
     """Back-off of the via pose after the last pass, along −z of the tool [m] (0: none)."""
+    moving_vias: bool = True
+    """Approach and retract pass their backed-off via without stopping where that is faster and
+    brings the TCP no closer to the part (along the pass end's spray axis) than stopping there
+    does, plus `turnaround_max_dip_m` (`paintcell.sim.motion.trajectory_turnaround._through_via`;
+    False: stop at the via, as before; with `fold_moves` the vias are always stops)."""
     fold_moves: bool = False
     """Approach and retract also pass through a folded via: the backed-off via with the shoulder
     and elbow (J2, J3) at home's values, so the arm pulls back toward its base before it turns
