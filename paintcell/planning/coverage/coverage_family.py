@@ -291,7 +291,7 @@ def _film_guard(pl: _Planner, surface: Surface, passes: list[PassPlan]
         return whole, inner
 
     const = nsd(0.0)
-    tried = {a: nsd(a) for a in (1.0, 0.75, 0.5, 0.25)}
+    tried = {a: nsd(a) for a in (1.0, 0.75, 0.5, 0.25, 0.125)}
     tried[0.0] = const
     # the blend with the best whole-part film among those no worse than constant speed on the
     # interior and the whole part (α = 0, constant speed, always qualifies)
