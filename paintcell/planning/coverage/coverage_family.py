@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from paintcell.planning.coverage.back_fill import back_fill
 from paintcell.planning.coverage.coverage_planner import _mirror, _PassGeom, _Planner
 from paintcell.planning.coverage.coverage_settings import PlannerSettings
 from paintcell.planning.coverage.coverage_timing import _time_pass, _time_passes
@@ -183,9 +184,12 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                     # samples at the ends of the current pass whose indexing curves left the
                     # surface along the boundary it ends at have no offset: the edge pass goes
                     # on straight there (as its overspray does), as far as the current pass did
+                    # (its on-part stretch: an off-part end of it is already a sideways pass)
                     i_ok = np.flatnonzero(ok)
+                    i_on = np.flatnonzero(cur.on_part)
                     s_cur = arc_length(cur.foot)
-                    edge.extra_m = (float(s_cur[i_ok[0]]), float(s_cur[-1] - s_cur[i_ok[-1]]))
+                    edge.extra_m = (max(0.0, float(s_cur[i_ok[0]] - s_cur[i_on[0]])),
+                                    max(0.0, float(s_cur[i_on[-1]] - s_cur[i_ok[-1]])))
                     edge.info = dict(info, edge=True)
                     # its band lies on the part, between it and the previous pass
                     edge.source = (curves, sign * w0)
@@ -195,6 +199,12 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
             foot, normals, on_part = pl.build_pass(pts, nrm, inside)
             new = _PassGeom(foot, normals, on_part, side, w0)
             new.info = info
+            if st.edge_passes and back_fill(pl, cur, new, sign, w0, pl.last_extension_m) \
+                    and cur is start and sign < 0 and 1 in passes:
+                # the start curve grew after the right sweep was offset from it: what it gained
+                # on the part gets its neighbour on the right too (pass +1, or its edge pass)
+                first = passes[1]
+                back_fill(pl, first, start, -1, first.width_m, tuple(start.info["back_fill_m"]))
             _time_pass(pl, new, w0)                 # Algorithm 1: optimize the new pass's speed
             passes[side] = new
             widths_this_side.append(w0)

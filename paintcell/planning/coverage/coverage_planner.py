@@ -59,6 +59,29 @@ def _mirror(c: IndexingCurve | None) -> IndexingCurve | None:
     return None if c is None else c.reversed()
 
 
+def _length_to(piece: np.ndarray, start: np.ndarray) -> float:
+    """Arc length [m] of the polyline from `start` (3,) through the points of `piece` (K, 3)."""
+    return float(arc_length(np.vstack([start[None], piece]))[-1]) if len(piece) else 0.0
+
+
+def outside_span(foot: np.ndarray, inside: np.ndarray, max_gap_m: float) -> tuple[int, int]:
+    """Index range [lo, hi] of an offset (S, 3) kept as a pass: its first..last inside sample,
+    widened over the finite points just beyond them (outside the part, on the virtual extension)
+    as long as consecutive finite points lie within `max_gap_m` [m] of each other (an offset
+    with undefined points between is cut there). (0, -1) when nothing is inside."""
+    ok = np.all(np.isfinite(foot), axis=1)
+    idx = np.flatnonzero(inside & ok)
+    if len(idx) == 0:
+        return 0, -1
+    fin = np.flatnonzero(ok)
+    gap = np.linalg.norm(np.diff(foot[fin], axis=0), axis=1) > max_gap_m
+    run = np.concatenate([[0], np.cumsum(gap)])           # run label of each finite point
+    i_first, i_last = np.searchsorted(fin, idx[0]), np.searchsorted(fin, idx[-1])
+    lo = int(fin[np.flatnonzero(run == run[i_first])[0]])
+    hi = int(fin[np.flatnonzero(run == run[i_last])[-1]])
+    return lo, hi
+
+
 class _Planner:
     """Algorithm 1 state for one surface (mesh connectivity, cross-profile cache)."""
 
@@ -139,17 +162,35 @@ class _Planner:
     def build_pass(self, foot: np.ndarray, normals: np.ndarray, inside: np.ndarray,
                    extend: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Trim to the first..last inside sample, extend both ends within the surface, resample
-        at the sample spacing. Returns foot (M, 3), normals (M, 3), on_part (M,)."""
+        at the sample spacing. Returns foot (M, 3), normals (M, 3), on_part (M,).
+
+        Where the offset leaves the part beyond its first (last) inside sample but still has
+        points there (the part's boundary runs obliquely between this pass and the one it was
+        offset from), those outside points are kept as the pass's head (tail): the strip
+        between the boundary and the previous pass gets its second pass over the virtual
+        extension, as an edge pass gives it where a whole offset leaves. Such an end is not
+        extended within the surface. `self.last_extension_m` records the (head, tail) arc
+        length [m] added by the extension within the surface."""
+        self.last_extension_m = (0.0, 0.0)
+        if extend:
+            lo, hi = outside_span(foot, inside, 3.0 * self.st.sample_spacing_m)
         ok = np.all(np.isfinite(foot), axis=1)
-        foot, normals, inside = foot[ok], normals[ok], inside[ok]
-        idx = np.flatnonzero(inside)
+        idx = np.flatnonzero(inside & ok)
         if extend and len(idx):
-            foot = foot[idx[0]:idx[-1] + 1]
-            normals = normals[idx[0]:idx[-1] + 1]
-            inside = inside[idx[0]:idx[-1] + 1]
+            keep = ok.copy()
+            keep[:lo] = False
+            keep[hi + 1:] = False
+            out_head, out_tail = lo < idx[0], hi > idx[-1]
+            foot, normals, inside = foot[keep], normals[keep], inside[keep]
+        else:
+            foot, normals, inside = foot[ok], normals[ok], inside[ok]
+            out_head = out_tail = False
         if extend and len(foot) >= 2:
-            tail_p, tail_n = self.extend_in_surface(foot, normals)
-            head_p, head_n = self.extend_in_surface(foot[::-1], normals[::-1])
+            tail_p, tail_n = (np.zeros((0, 3)), np.zeros((0, 3))) if out_tail else \
+                self.extend_in_surface(foot, normals)
+            head_p, head_n = (np.zeros((0, 3)), np.zeros((0, 3))) if out_head else \
+                self.extend_in_surface(foot[::-1], normals[::-1])
+            self.last_extension_m = (_length_to(head_p, foot[0]), _length_to(tail_p, foot[-1]))
             foot = np.concatenate([head_p[::-1], foot, tail_p])
             normals = np.concatenate([head_n[::-1], normals, tail_n])
             inside = np.concatenate([np.ones(len(head_p), bool), inside,

@@ -66,9 +66,12 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
         return
     st, app = pl.st, pl.app
     h = app.standoff_m
+    # a pass whose end already runs off the part (an offset kept beyond the boundary) needs
+    # only what is left of the overspray after that stretch
+    off = (0.0, 0.0) if p.edge else _off_part_ends_m(p.foot, p.on_part)
     foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
-                                             (st.overspray_m + p.extra_m[0],
-                                              st.overspray_m + p.extra_m[1]),
+                                             (max(0.0, st.overspray_m - off[0]) + p.extra_m[0],
+                                              max(0.0, st.overspray_m - off[1]) + p.extra_m[1]),
                                              st.sample_spacing_m, h)
     axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
                            st.max_axis_turn_rad_m, h)
@@ -116,6 +119,16 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
             speeds = np.minimum(speeds, cap)
     p.timing = dict(pos=pos, axes=axes, travel=travel, on_part=on_part, speeds=speeds,
                     nsd_c=nsd_c, nsd_o=nsd_o)
+
+
+def _off_part_ends_m(foot: np.ndarray, on_part: np.ndarray) -> tuple[float, float]:
+    """Arc length [m] of the off-part stretch at the head and at the tail of a pass (0, 0 for
+    a pass whose ends lie on the part; the whole length for one with no sample on it)."""
+    s = arc_length(foot)
+    idx = np.flatnonzero(on_part)
+    if len(idx) == 0:
+        return float(s[-1]), float(s[-1])
+    return float(s[idx[0]]), float(s[-1] - s[idx[-1]])
 
 
 def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
