@@ -3,8 +3,8 @@
 - inspect PART_FILE: what the import finds (units and why, size, pieces, openings, hems, repairs,
   curvature) and a PNG of the regions seen from the painted side.
 - init PART_FILE --out scenarios/NAME.toml: a commented TOML scenario (part, placement in front of
-  the robot, robot base from `paintcell.robots.placement.find_base_pose` on a fast plan) that
-  `paintcell run` and `plan` accept as written.
+  the robot, the first robot model whose base reaches the fast plan, `init_cell.choose_cell`)
+  that `paintcell run` and `plan` accept as written; none reaches it: a one-line refusal.
 - generate KIND --out FILE: a CAD-like door/hood/fender/roof mesh in mm
 (`paintcell.planning.surface.cad_like`).
 """
@@ -42,12 +42,17 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
     i.set_defaults(func=_cmd_inspect)
     n = add_parser("init", help="write a ready scenario for a part file",
                    description="Write a commented TOML scenario for a part file: units, pieces, "
-                   "side, placement in front of the robot and a robot base found by "
-                   "paintcell.robots.placement.find_base_pose on a fast plan. `paintcell run` and "
-                   "`paintcell plan` accept it as written.")
+                   "side, placement in front of the robot, and the first robot model whose base "
+                   "(paintcell.robots.placement.find_base_pose) or rail reaches every pose of a "
+                   "fast plan. `paintcell run` and `paintcell plan` accept it as written; when "
+                   "no robot reaches the part, init says so in one line and writes nothing.")
     _part_options(n)
     n.add_argument("--out", type=Path, required=True, help="scenario file to write (.toml)")
-    n.add_argument("--robot", default="abb_paint", help="robot name (abb_paint, ur10)")
+    n.add_argument("--robot", default="auto",
+                   help="robot name (abb_paint, irb5500, ur10, abb_paint_rail, irb5500_rail), or "
+                   "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
+                   "of the part's fast plan (init says which and why; it refuses in one line "
+                   "when none does)")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
     n.set_defaults(func=_cmd_init)
     g = add_parser("generate", help="write a CAD-like car-part mesh (mm)",
@@ -221,8 +226,7 @@ def _placement(surf: Any) -> np.ndarray:
 def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.planning.atomic_io import atomic_write_text
     from paintcell.planning.surface.part_import import import_part
-    from paintcell.robots import load_robot
-    from paintcell.robots.placement import find_base_pose
+    from paintcell.sim.app.init_cell import AUTO_ROBOTS, choose_cell
     from paintcell.sim.app.pipeline import make_plan
     from paintcell.sim.app.scenario import Placement, Scenario
 
@@ -237,7 +241,8 @@ def _cmd_init(args: argparse.Namespace) -> int:
     pl = Placement(tuple(float(x) for x in T[:3, 3]), _rpy(T[:3, :3]))  # type: ignore[arg-type]
     plan, planner, tried = None, {}, []
     for planner in _PLANNER_TRIES:
-        scn = Scenario(name=name, part=spec_rel, part_placement=pl, robot=args.robot,
+        scn = Scenario(name=name, part=spec_rel, part_placement=pl,
+                       robot="abb_paint" if args.robot == "auto" else args.robot,
                        planner=dict(planner))
         try:
             plan = make_plan(scn, surf, fast=True)
@@ -255,17 +260,20 @@ def _cmd_init(args: argparse.Namespace) -> int:
         T[2, 3] += lift
         pl = Placement(tuple(float(x) for x in T[:3, 3]), pl.rpy_rad)  # type: ignore[arg-type]
         paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
-    # scored by what the run suffers: the plan's speeds, clearance from the part and the floor
+    # scored by what the run suffers: the plan's speeds, clearance from the part and the floor;
+    # the first robot model that reaches every pose (`init_cell.AUTO_ROBOTS` with --robot auto)
     part_world = surf.vertices @ pl.matrix[:3, :3].T + pl.matrix[:3, 3]
-    T_base, prep = find_base_pose(load_robot(args.robot), paths,
-                                  speeds_m_s=[p.speeds_m_s for p in plan.passes],
-                                  part_points_world=part_world, floor_z_m=0.0)
+    robots = AUTO_ROBOTS if args.robot == "auto" else (args.robot,)
+    cell = choose_cell(robots, paths, [p.speeds_m_s for p in plan.passes], part_world,
+                       str(spec.file), floor_z_m=0.0)
+    T_base = cell.T_base
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
-    text = _scenario_toml(name, args.robot, spec_rel, rep, pl, base, prep.verdict,
-                          len(plan.passes), planner, tried)
+    text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
+                          f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried)
     atomic_write_text(out, text)
     print(_describe(rep, surf))
-    print(f"placement: {prep.verdict}")
+    print(f"cell: {cell.why}")
+    print(f"placement: {cell.verdict}")
     print(f"scenario written: {out}")
     return 0
 
@@ -300,7 +308,7 @@ def _scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, bas
         "# the planner's defaults plan this part\n"
     return f"""# Written by `paintcell init {rep.spec.file}`: every choice below is editable.
 name = {_v(name)}
-robot = {_v(robot)}
+robot = {_v(robot)}               # see [base] for why this robot
 resolution_m = 0.01            # remesh edge length of a full run [m]
 fast_resolution_m = 0.025      # remesh edge length of a --fast run [m]
 

@@ -1,0 +1,121 @@
+"""`paintcell init`'s robot choice: the first robot model, in `AUTO_ROBOTS` order, whose base (or
+rail) reaches every pose of the part's fast plan as `init` placed it; or a one-line refusal that
+says what each reached and what the user can change (lengths in m).
+
+A floor-standing arm is placed by `paintcell.robots.placement.find_base_pose` (the motion-scored
+grid of 765 bases). A rail robot is placed on a small grid of rail frames running along the part
+(world y, the part's longest extent as `init` presents it), the arm facing it (+x): each frame is
+scored by `paintcell.robots.rail.best_rail_position` on every pass (closed-form IK, one carriage
+position per pass), the cheapest frame where every pass is feasible is checked on the full
+passes with `solve_rail_paths`. Clearance of a rail cell is left to the run's collision check.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from paintcell.planning.errors import PaintcellError
+
+__all__ = ["AUTO_ROBOTS", "CellChoice", "choose_cell"]
+
+#: Robots `init --robot auto` tries in turn: the IRB 4600-class floor arm (2.05 m reach), the
+#: IRB 5500-class paint robot (2.975 m) on a floor base, the same arm on a rail.
+AUTO_ROBOTS = ("abb_paint", "irb5500", "irb5500_rail")
+#: Rail frames tried: distance of the rail behind the part's nearest pose [m] and height [m].
+RAIL_DISTANCES_M = (0.8, 1.1, 1.4, 1.7, 2.0)
+RAIL_HEIGHTS_M = (0.0, 0.5, 1.0)
+#: Carriage positions scanned per pass while ranking rail frames (the check uses the default).
+RAIL_SCAN = 21
+
+
+@dataclass(frozen=True, eq=False)
+class CellChoice:
+    """robot: the chosen name; T_base: (4, 4) its base (the rail frame for a rail robot);
+    verdict: the placement's one line; why: one line naming what was tried before it."""
+
+    robot: str
+    T_base: np.ndarray
+    verdict: str
+    why: str
+
+
+def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
+                speeds_m_s: Sequence[np.ndarray], part_points_world: np.ndarray,
+                part_label: str, floor_z_m: float = 0.0) -> CellChoice:
+    """The first of `robots` that reaches every pose of `paths` ((M, 4, 4) T_world_tcp each).
+
+    speeds_m_s: (M,) planned TCP speeds per path [m/s]; part_points_world: (K, 3) [m] (the motion
+    score's clearance); part_label: the part file, for the refusal. Raises PaintcellError (one
+    line: what each robot reached and what to change) when none does.
+    """
+    from paintcell.robots import load_robot
+    from paintcell.robots.placement import find_base_pose
+
+    tried: list[str] = []
+    for name in robots:
+        robot = load_robot(name)
+        if name.endswith("_rail"):
+            T, ok, verdict = _place_rail(robot, paths)
+        else:
+            T, rep = find_base_pose(robot, paths, speeds_m_s=list(speeds_m_s),
+                                    part_points_world=part_points_world, floor_z_m=floor_z_m)
+            ok, verdict = rep.feasible, rep.verdict
+        if ok:
+            why = f"robot {name}" + (f", because {'; '.join(tried)}" if tried else
+                                     f": the first of {', '.join(robots)} to reach every pose")
+            return CellChoice(name, T, verdict, why)
+        tried.append(f"{name} reaches no base ({_short(verdict)})")
+    more = "" if len(robots) > 1 else ", or `--robot auto` to try every robot model"
+    raise PaintcellError(
+        f"no robot reaches every pose of {part_label} as init places it: {'; '.join(tried)}; "
+        f"paint it in pieces (`--pieces 0` …) or patches, or write the cell by hand (robot, "
+        f"[base], [part_placement]) in a scenario{more}")
+
+
+def _short(verdict: str) -> str:
+    """The reachability half of a placement verdict ("…; irb5500: 46/237 poses out of reach")."""
+    tail = verdict.rsplit("; ", 1)[-1]
+    head = verdict.split(";", 1)[0].replace("NO fully reachable base: ", "")
+    return f"{head}; {tail}" if tail != head else head
+
+
+def _place_rail(robot: object, paths: Sequence[np.ndarray]) -> tuple[np.ndarray, bool, str]:
+    """(T_world_rail (4, 4), every pose reached, one line) for a rail robot (module doc)."""
+    from paintcell.robots.ik import IKSettings, combined_report
+    from paintcell.robots.rail import best_rail_position, placed_rail, rail_cost, solve_rail_paths
+
+    st = IKSettings()
+    xyz = np.concatenate([np.asarray(p)[:, :3, 3] for p in paths])
+    y0 = float(0.5 * (xyz[:, 1].min() + xyz[:, 1].max()))
+    best: tuple[float, np.ndarray] | None = None
+    n_ok = 0
+    for d in RAIL_DISTANCES_M:
+        for z in RAIL_HEIGHTS_M:
+            T = np.eye(4)
+            T[:3, 3] = [float(xyz[:, 0].min()) - d, y0, z]
+            placed = robot.placed(T)                          # type: ignore[attr-defined]
+            pref = placed_rail(placed).arm.q_home
+            cost, feasible = 0.0, True
+            for p in paths:
+                s_m, ok = best_rail_position(placed, np.asarray(p), pref, st, n_scan=RAIL_SCAN)
+                if not ok:
+                    feasible = False
+                    break
+                cost += rail_cost(placed, np.asarray(p), s_m, pref, st)[0]
+            if feasible:
+                n_ok += 1
+                if best is None or cost < best[0]:
+                    best = (cost, T)
+    n = len(RAIL_DISTANCES_M) * len(RAIL_HEIGHTS_M)
+    if best is None:
+        return np.eye(4), False, f"0/{n} rail frames feasible"
+    T = best[1]
+    rep = combined_report(solve_rail_paths(robot.placed(T), paths))  # type: ignore[attr-defined]
+    p = T[:3, 3]
+    verdict = (f"{'rail found' if rep.all_reachable else 'NO fully reachable rail'}: {n_ok}/{n} "
+               f"rail frames feasible; chosen rail at x {p[0]:.2f} m, height {p[2]:.2f} m; "
+               f"{rep.verdict}")
+    return T, bool(rep.all_reachable), verdict

@@ -1,0 +1,52 @@
+"""`paintcell init`'s robot choice (`paintcell.sim.app.init_cell`): a pass no floor-standing
+base reaches gets the next robot model that does — its joints re-measured by forward
+kinematics — and a part no robot reaches is refused in one line with a fix."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from paintcell.planning.errors import PaintcellError
+from paintcell.robots import load_robot
+from paintcell.robots.rail import solve_rail_paths
+from paintcell.sim.app.init_cell import AUTO_ROBOTS, choose_cell
+
+
+def _vertical_pass(z0_m: float, z1_m: float, y_m: float, n: int = 30) -> np.ndarray:
+    """(n, 4, 4) T_world_tcp: a pass straight up at x = 1.2 m, the spray axis along +x."""
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, 0], T[:, :3, 1], T[:, :3, 2] = [0, 0, 1], [0, -1, 0], [1, 0, 0]
+    T[:, 0, 3], T[:, 1, 3], T[:, 2, 3] = 1.2, y_m, np.linspace(z0_m, z1_m, n)
+    return T
+
+
+PART = np.array([[1.4, 0.0, 1.0]])
+
+
+def test_a_pass_no_floor_base_reaches_gets_the_next_robot_that_does() -> None:
+    # 2.4 m tall: beyond the IRB 4600-class arm's 2.05 m reach from any base of the grid
+    paths = [_vertical_pass(0.6, 3.0, y) for y in (-0.2, 0.2)]
+    cell = choose_cell(AUTO_ROBOTS, paths, [np.full(30, 0.5)] * 2, PART, "part.stl")
+    assert cell.robot != "abb_paint"
+    assert "abb_paint reaches no base" in cell.why and "\n" not in cell.why
+    # independent truth: the chosen cell's joints put the TCP on every pose (FK round trip)
+    robot = load_robot(cell.robot).placed(cell.T_base)
+    if cell.robot.endswith("_rail"):
+        qs = [r.q for r in solve_rail_paths(robot, paths)]
+    else:
+        from paintcell.robots.paths import solve_paths
+        qs = [r.q for r in solve_paths(robot, paths)]
+    for q, T in zip(qs, paths, strict=True):
+        fk = robot.fk_many(q)
+        assert np.max(np.linalg.norm(fk[:, :3, 3] - T[:, :3, 3], axis=1)) < 1e-4
+        assert np.min(np.einsum("ij,ij->i", fk[:, :3, 2], T[:, :3, 2])) > np.cos(1e-3)
+
+
+def test_a_part_no_robot_reaches_is_refused_in_one_line() -> None:
+    paths = [_vertical_pass(0.3, 7.0, 0.0)]          # 6.7 m tall
+    with pytest.raises(PaintcellError) as e:
+        choose_cell(("abb_paint",), paths, [np.full(30, 0.5)], PART, "tower.stl")
+    msg = str(e.value)
+    assert "\n" not in msg and "tower.stl" in msg and "abb_paint reaches no base" in msg
+    assert "--robot auto" in msg and "[base]" in msg
