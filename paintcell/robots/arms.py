@@ -3,10 +3,19 @@ those)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
+
+import numpy as np
 import numpy.typing as npt
 
 from paintcell.robots.errors import RobotError
-from paintcell.robots.opw import IRB4600_60_205, IRB5500_CLASS, OPWParameters
+from paintcell.robots.opw import (
+    IRB4600_60_205,
+    IRB5500_CLASS,
+    OPWParameters,
+    configuration_signs,
+)
 from paintcell.robots.robot import (
     ABB_PAINT_A_MAX,
     ABB_PAINT_MJCF,
@@ -18,8 +27,9 @@ from paintcell.robots.robot import (
     with_tcp_offset,
 )
 from paintcell.robots.ur10 import load_ur10
+from paintcell.robots.ur_kinematics import ur_configuration_signs
 
-__all__ = ["ARM_NAMES", "arm_opw", "load_arm"]
+__all__ = ["ARM_NAMES", "arm_configuration_signs", "arm_opw", "load_arm"]
 
 #: The ABB-style arms built from a shipped MJCF: name → (MJCF, joint speed limits [rad/s],
 #: joint acceleration limits [rad/s²], closed-form IK parameters).
@@ -36,6 +46,17 @@ def arm_opw(name: str) -> OPWParameters | None:
     for an arm without them (the UR10) or an unknown name."""
     arm = name[:-5] if name.endswith("_rail") else name
     return _MJCF_ARMS[arm][3] if arm in _MJCF_ARMS else None
+
+
+def arm_configuration_signs(name: str) -> Callable[[np.ndarray], np.ndarray] | None:
+    """The configuration-sign function of the arm of robot `name` ("<arm>" or "<arm>_rail"):
+    Q (K, 6) [rad] -> (K, 3) shoulder, elbow, wrist signs (`paintcell.robots.opw.
+    configuration_signs` for the ortho-parallel ABB arms, `paintcell.robots.ur_kinematics.
+    ur_configuration_signs` for the UR10); None for an unknown name."""
+    opw = arm_opw(name)
+    if opw is not None:
+        return partial(configuration_signs, opw)
+    return ur_configuration_signs if name == "ur10" else None
 
 
 def load_arm(name: str, T_world_base: npt.ArrayLike | None = None,

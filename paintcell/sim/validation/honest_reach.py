@@ -10,7 +10,8 @@ collisions. Here a pose is *reached* only when all of these hold:
   above its threshold: the arm cannot follow the path between the two poses);
 - no configuration flip into it: the wrist joint's sin changes sign between the previous pose and
   this one along the executed joint path (the wrist went through its singularity mid-pass), or,
-  on an arm with closed-form kinematics (`paintcell.robots.opw.configuration_signs`), the elbow
+  on the ABB arms (`paintcell.robots.opw.configuration_signs`) and the UR10
+  (`paintcell.robots.ur_kinematics.ur_configuration_signs`), the elbow
   (the arm through its stretched pose) or the shoulder (the wrist centre across the J1 axis);
 - no contact: the executed trace touched nothing (part, booth, itself) while painting it — a
   contact during a move between passes counts against the last pose before it and the first pose
@@ -33,8 +34,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.planning.coverage.plan import CoveragePlan
-from paintcell.robots.arms import arm_opw
-from paintcell.robots.opw import configuration_signs
+from paintcell.robots.arms import arm_configuration_signs
 from paintcell.robots.rail import RAIL_JOINT
 from paintcell.sim.execution.trace import ExecutedTrace
 from paintcell.sim.motion.joint_trajectory import PAINT, JointTrajectory
@@ -112,7 +112,7 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
     # speed actually commanded by the time law vs the plan's, on paint samples
     v_act = np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1)
     v_plan = np.asarray(traj.v_tcp_planned, float)
-    opw = arm_opw(traj.robot_name)
+    signs_of = arm_configuration_signs(traj.robot_name)
     arm0 = 1 if traj.joint_names and traj.joint_names[0] == RAIL_JOINT else 0
     n_kind = [0, 0, 0]                # poses after a shoulder, elbow, wrist flip
     for i, s in enumerate(s_poses):
@@ -134,8 +134,8 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
             change = np.flatnonzero(sg[1:] * sg[:-1] < 0) + 1
             flip[offsets[i] + np.unique(k[change])] = True
             n_kind[2] += len(np.unique(k[change]))
-        if opw is not None and traj.q.shape[1] >= arm0 + 6:
-            sg = configuration_signs(opw, traj.q[sel, arm0:arm0 + 6])
+        if signs_of is not None and traj.q.shape[1] >= arm0 + 6:
+            sg = signs_of(traj.q[sel, arm0:arm0 + 6])
             for c in (0, 1):              # shoulder, elbow
                 change = np.flatnonzero(sg[1:, c] * sg[:-1, c] < 0) + 1
                 flip[offsets[i] + np.unique(k[change])] = True
