@@ -19,6 +19,11 @@ surface, the first offset that lies completely outside is kept as a sideways ove
 samples have no offset there (their indexing curves left the surface along the boundary the pass
 ends at, `paintcell.planning.coverage.offset.walk`), the edge pass continues straight along its own
 path as far as the current pass reaches, then by the overspray.
+An offset that leaves the surface over only part of its length keeps that stretch as a sideways
+pass over the virtual extension (its end is not extended within the surface), and where a new
+pass is extended within the surface past the pass it came from, the extension is walked back by
+the index width onto that pass (`paintcell.planning.coverage.back_fill`): a boundary oblique to
+the passes gets the neighbour pass an edge pass gives a parallel one.
 
 The code lives in `coverage_settings` (`PlannerSettings`), `coverage_planner` (pass geometry and
 the width choice), `coverage_timing` (overspray, band, speed QP, execution order) and
