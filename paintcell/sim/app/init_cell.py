@@ -12,7 +12,7 @@ passes with `solve_rail_paths`. Clearance of a rail cell is left to the run's co
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,12 +44,16 @@ class CellChoice:
 
 def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
                 speeds_m_s: Sequence[np.ndarray], part_points_world: np.ndarray,
-                part_label: str, floor_z_m: float = 0.0) -> CellChoice:
+                part_label: str, floor_z_m: float = 0.0,
+                verify: Callable[[str, np.ndarray], str | None] | None = None) -> CellChoice:
     """The first of `robots` that reaches every pose of `paths` ((M, 4, 4) T_world_tcp each).
 
     speeds_m_s: (M,) planned TCP speeds per path [m/s]; part_points_world: (K, 3) [m] (the motion
-    score's clearance); part_label: the part file, for the refusal. Raises PaintcellError (one
-    line: what each robot reached and what to change) when none does.
+    score's clearance); part_label: the part file, for the refusal; verify(robot name, T_base):
+    None when the cell is good, else why not in a few words (`init` builds the joint program
+    there, as `run` will: a cell whose moves between passes leave the joint limits is not
+    chosen). Raises PaintcellError (one line: what each robot reached and what to change) when
+    none does.
     """
     from paintcell.robots import load_robot
     from paintcell.robots.placement import find_base_pose
@@ -63,6 +67,11 @@ def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
             T, rep = find_base_pose(robot, paths, speeds_m_s=list(speeds_m_s),
                                     part_points_world=part_points_world, floor_z_m=floor_z_m)
             ok, verdict = rep.feasible, rep.verdict
+        if ok and verify is not None:
+            problem = verify(name, T)
+            if problem is not None:
+                tried.append(f"{name} reaches every pose but {problem}")
+                continue
         if ok:
             why = f"robot {name}" + (f", because {'; '.join(tried)}" if tried else
                                      f": the first of {', '.join(robots)} to reach every pose")

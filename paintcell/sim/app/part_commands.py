@@ -227,7 +227,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.planning.atomic_io import atomic_write_text
     from paintcell.planning.surface.part_import import import_part
     from paintcell.sim.app.init_cell import AUTO_ROBOTS, choose_cell
-    from paintcell.sim.app.pipeline import make_plan
+    from paintcell.sim.app.pipeline import load_robot_for, make_plan, make_trajectory
     from paintcell.sim.app.scenario import Placement, Scenario
 
     out: Path = args.out
@@ -264,8 +264,19 @@ def _cmd_init(args: argparse.Namespace) -> int:
     # the first robot model that reaches every pose (`init_cell.AUTO_ROBOTS` with --robot auto)
     part_world = surf.vertices @ pl.matrix[:3, :3].T + pl.matrix[:3, 3]
     robots = AUTO_ROBOTS if args.robot == "auto" else (args.robot,)
+    def verify(robot_name: str, T_cell: np.ndarray) -> str | None:
+        # what `run` does first: the joint program (IK, moves between passes, time law)
+        cand = Scenario(name=name, part=spec_rel, part_placement=pl, robot=robot_name,
+                        base=Placement(tuple(float(x) for x in T_cell[:3, 3]),  # type: ignore[arg-type]
+                                       _rpy(T_cell[:3, :3])))
+        try:
+            make_trajectory(cand, load_robot_for(cand), plan)
+        except PaintcellError as exc:
+            return f"its program fails ({str(exc).split(';')[0]})"
+        return None
+
     cell = choose_cell(robots, paths, [p.speeds_m_s for p in plan.passes], part_world,
-                       str(spec.file), floor_z_m=0.0)
+                       str(spec.file), floor_z_m=0.0, verify=verify)
     T_base = cell.T_base
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
     text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
