@@ -15,6 +15,8 @@ by (Hawkins, "Analytic inverse kinematics for the Universal Robots UR-5/UR-10 ar
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 import numpy.typing as npt
 
@@ -23,14 +25,14 @@ from paintcell.robots.errors import RobotError
 __all__ = ["UR10_DH", "ur_configuration_signs", "ur_dh_fk"]
 
 #: UR10 standard DH parameters (d [m], a [m], alpha [rad]) of joints 1..6 (Universal Robots).
-UR10_DH = {
+UR10_DH: dict[str, tuple[float, ...]] = {
     "d": (0.1273, 0.0, 0.0, 0.163941, 0.1157, 0.0922),
     "a": (0.0, -0.612, -0.5723, 0.0, 0.0, 0.0),
     "alpha": (np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0),
 }
 
 
-def ur_dh_fk(Q: npt.ArrayLike, dh: dict[str, tuple[float, ...]] = UR10_DH) -> np.ndarray:
+def ur_dh_fk(Q: npt.ArrayLike, dh: Mapping[str, tuple[float, ...]] = UR10_DH) -> np.ndarray:
     """(K, 4, 4) T_base_flange of joint angles Q (K, 6) [rad] in the DH base frame [m]."""
     Q = np.atleast_2d(np.asarray(Q, float))
     if Q.shape[-1] != 6:
@@ -48,7 +50,7 @@ def ur_dh_fk(Q: npt.ArrayLike, dh: dict[str, tuple[float, ...]] = UR10_DH) -> np
     return T
 
 
-def ur_configuration_signs(Q: npt.ArrayLike, dh: dict[str, tuple[float, ...]] = UR10_DH
+def ur_configuration_signs(Q: npt.ArrayLike, dh: Mapping[str, tuple[float, ...]] = UR10_DH
                            ) -> np.ndarray:
     """(K, 3) shoulder, elbow, wrist signs (+1, −1; 0 on the singularity) of joint angles
     Q (K, 6) [rad] (module doc); the same columns as `paintcell.robots.opw.configuration_signs`."""

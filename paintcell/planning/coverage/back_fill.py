@@ -46,12 +46,9 @@ def back_fill(pl: _Planner, prev: _PassGeom, new: _PassGeom, sign: int, width_m:
     tail = _back_piece(pl, new, tails, sign, width_m, prev.foot, prev.normals)
     if head is None and tail is None:
         return False
-    parts_p, parts_n, parts_f = [], [], []
-    if head is not None:
-        parts_p.append(head[0][::-1]), parts_n.append(head[1][::-1]), parts_f.append(head[2][::-1])
-    parts_p.append(prev.foot), parts_n.append(prev.normals), parts_f.append(prev.on_part)
-    if tail is not None:
-        parts_p.append(tail[0]), parts_n.append(tail[1]), parts_f.append(tail[2])
+    pieces = ([] if head is None else [tuple(a[::-1] for a in head)]) \
+        + [(prev.foot, prev.normals, prev.on_part)] + ([] if tail is None else [tail])
+    parts_p, parts_n, parts_f = (list(x) for x in zip(*pieces, strict=True))
     foot, nrm, on = resample(np.concatenate(parts_p), np.concatenate(parts_n), sp,
                              np.concatenate(parts_f))
     added = (0.0 if head is None else float(arc_length(head[0])[-1]),

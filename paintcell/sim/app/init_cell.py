@@ -29,6 +29,8 @@ RAIL_DISTANCES_M = (0.8, 1.1, 1.4, 1.7, 2.0)
 RAIL_HEIGHTS_M = (0.0, 0.5, 1.0)
 #: Carriage positions scanned per pass while ranking rail frames (the check uses the default).
 RAIL_SCAN = 21
+#: At most this many reaching rail frames are checked with the full IK and `verify`.
+RAIL_VERIFIED = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,12 +64,21 @@ def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
     for name in robots:
         robot = load_robot(name)
         if name.endswith("_rail"):
-            T, ok, verdict = _place_rail(robot, paths)
+            def check(T_r: np.ndarray, n: str = name) -> str | None:
+                return None if verify is None else verify(n, T_r)
+
+            T, ok, verdict = _place_rail(robot, paths, check)
+            if ok or not verdict.startswith("rail frames"):
+                verify_here = False
+            else:                       # every reaching frame's program failed: say why
+                tried.append(f"{name} {verdict}")
+                continue
         else:
             T, rep = find_base_pose(robot, paths, speeds_m_s=list(speeds_m_s),
                                     part_points_world=part_points_world, floor_z_m=floor_z_m)
             ok, verdict = rep.feasible, rep.verdict
-        if ok and verify is not None:
+            verify_here = True
+        if ok and verify is not None and verify_here:
             problem = verify(name, T)
             if problem is not None:
                 tried.append(f"{name} reaches every pose but {problem}")
@@ -91,16 +102,20 @@ def _short(verdict: str) -> str:
     return f"{head}; {tail}" if tail != head else head
 
 
-def _place_rail(robot: object, paths: Sequence[np.ndarray]) -> tuple[np.ndarray, bool, str]:
-    """(T_world_rail (4, 4), every pose reached, one line) for a rail robot (module doc)."""
+def _place_rail(robot: object, paths: Sequence[np.ndarray],
+                verify: Callable[[np.ndarray], str | None] | None = None
+                ) -> tuple[np.ndarray, bool, str]:
+    """(T_world_rail (4, 4), every pose reached, one line) for a rail robot (module doc). The
+    frames where every pass is feasible are checked in order of cost (full IK, then `verify`,
+    at most `RAIL_VERIFIED` of them); the verdict starts "rail frames" when every checked
+    frame reached all poses but failed `verify`."""
     from paintcell.robots.ik import IKSettings, combined_report
     from paintcell.robots.rail import best_rail_position, placed_rail, rail_cost, solve_rail_paths
 
     st = IKSettings()
     xyz = np.concatenate([np.asarray(p)[:, :3, 3] for p in paths])
     y0 = float(0.5 * (xyz[:, 1].min() + xyz[:, 1].max()))
-    best: tuple[float, np.ndarray] | None = None
-    n_ok = 0
+    ranked: list[tuple[float, int, np.ndarray]] = []
     for d in RAIL_DISTANCES_M:
         for z in RAIL_HEIGHTS_M:
             T = np.eye(4)
@@ -115,16 +130,26 @@ def _place_rail(robot: object, paths: Sequence[np.ndarray]) -> tuple[np.ndarray,
                     break
                 cost += rail_cost(placed, np.asarray(p), s_m, pref, st)[0]
             if feasible:
-                n_ok += 1
-                if best is None or cost < best[0]:
-                    best = (cost, T)
+                ranked.append((cost, len(ranked), T))
     n = len(RAIL_DISTANCES_M) * len(RAIL_HEIGHTS_M)
-    if best is None:
+    if not ranked:
         return np.eye(4), False, f"0/{n} rail frames feasible"
-    T = best[1]
-    rep = combined_report(solve_rail_paths(robot.placed(T), paths))  # type: ignore[attr-defined]
-    p = T[:3, 3]
-    verdict = (f"{'rail found' if rep.all_reachable else 'NO fully reachable rail'}: {n_ok}/{n} "
-               f"rail frames feasible; chosen rail at x {p[0]:.2f} m, height {p[2]:.2f} m; "
-               f"{rep.verdict}")
-    return T, bool(rep.all_reachable), verdict
+    ranked.sort(key=lambda c: (c[0], c[1]))
+    problems: list[str] = []
+    verdict = ""
+    for _, _, T in ranked[:RAIL_VERIFIED]:
+        rep = combined_report(solve_rail_paths(robot.placed(T), paths))  # type: ignore[attr-defined]
+        p = T[:3, 3]
+        verdict = (f"{'rail found' if rep.all_reachable else 'NO fully reachable rail'}: "
+                   f"{len(ranked)}/{n} rail frames feasible; chosen rail at x {p[0]:.2f} m, "
+                   f"height {p[2]:.2f} m; {rep.verdict}")
+        if not rep.all_reachable:
+            continue
+        problem = None if verify is None else verify(T)
+        if problem is None:
+            return T, True, verdict
+        problems.append(problem)
+    if problems:
+        return ranked[0][2], False, (f"rail frames: {len(ranked)}/{n} reach every pose, the "
+                                     f"{len(problems)} tried fail: {problems[0]}")
+    return ranked[0][2], False, verdict
