@@ -118,7 +118,7 @@ def test_allocation_taken_by_its_real_cycle(roof_booth):
     chosen = min(built, key=lambda t: (t["real_cycle_s"], t["rank"]))
     names = [r.name for r in ROOF_BOOTH.robots]
     assert a["chosen"] == chosen["jobs"]
-    jobs = {names[r]: [j.part, j.first, j.end] for r, j in roof_booth.jobs.items()}
+    jobs = {names[r]: [j.part, j.first, j.end] for r, (j,) in roof_booth.jobs.items()}
     assert jobs == chosen["jobs"]
     dt = roof_booth.static_trajectories[0].dt_s
     assert all(abs(tr.meta.get("start_delay_s", 0.0) - d) < 1e-9
@@ -183,7 +183,8 @@ def test_allocation_is_the_brute_force_optimum():
             continue
         best = min(best, max(estimate_s(durations[p][a:b]) for p, a, b in used))
     assert record["estimated_cycle_s"] == pytest.approx(best, rel=1e-12)
-    covered = sorted((j.part, i) for j in jobs.values() for i in range(j.first, j.end))
+    covered = sorted((j.part, i) for js in jobs.values() for j in js
+                     for i in range(j.first, j.end))
     assert covered == sorted((p, i) for p, n in enumerate(n_passes) for i in range(n))
 
 

@@ -153,7 +153,8 @@ def test_part_offset_on_the_skid_moves_the_body_the_films_see(roof_payload: Any)
     body = progs.body
     film = np.zeros(len(body.vertices))
     for i, tr in enumerate(progs.trajs):
-        app = progs.plans[progs.jobs[i].part].applicator   # robot i's part, at its own flow
+        (job,) = progs.jobs[i]                   # one job per robot here
+        app = progs.plans[job.part].applicator   # robot i's part, at its own flow
         film += thickness(app, gun_in_body(t, tr.tcp_pos_world - o, tr.tcp_rot_world,
                                            tr.paint_on, T0, carrier, ROOF_BOOTH.conveyor.unit),
                           body.vertices, body.normals)

@@ -123,7 +123,8 @@ class BoothThresholds:
 class Booth:
     """A booth job (module doc). `robots` and `parts` are tuples; `trajectory` and `servo` hold
     `TrajectorySettings` / `ServoSettings` fields shared by all robots. `allocation` fixes the
-    jobs instead of the automatic choice: {robot name: [part index, first pass, end pass]}.
+    jobs instead of the automatic choice: {robot name: [part index, first pass, end pass]} (several
+    jobs: a list of them).
     """
 
     name: str
@@ -137,7 +138,11 @@ class Booth:
     trajectory: dict[str, Any] = field(default_factory=dict)
     servo: dict[str, Any] = field(default_factory=dict)
     thresholds: BoothThresholds = BoothThresholds()
-    allocation: dict[str, tuple[int, int, int]] | None = None
+    allocation: dict[str, Any] | None = None
+    max_jobs_per_robot: int = 1
+    """Jobs one robot may run one after the other (`paintcell.sim.booth.booth_chain`): > 1 lets
+    a booth have more jobs than robots (e.g. a roof robot paints its piece of the roof, then
+    of the hood)."""
     common_film_build: bool = True
     """Scale each part's bell flow so every part's planned mean film is one target
     (`paintcell.sim.booth.booth_build`); False: each part at the default flow, its own film
@@ -200,47 +205,128 @@ def job_options(n_passes: list[int]) -> list[list[list[Job]]]:
 
 
 def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
-                     reachable: Any) -> tuple[list[dict[int, Job]], dict[str, Any]]:
+                     reachable: Any, max_jobs_per_robot: int = 1
+                     ) -> tuple[list[dict[int, tuple[Job, ...]]], dict[str, Any]]:
     """Every feasible allocation of the module doc, best first.
 
     n_passes: per part, its number of passes; durations: per part, (P,) planned pass times [s];
-    reachable(robot, job) -> bool. Returns the allocations ({robot index: Job}), best first by
-    lexicographic min-max of the estimated program times, and a record of the search.
+    reachable(robot, job) -> bool; max_jobs_per_robot: jobs one robot may run one after the
+    other (its program: `paintcell.sim.booth.booth_chain.chain_programs`). Returns the
+    allocations ({robot index: its jobs in part order}), best first by lexicographic min-max of
+    the estimated program times (a robot's: the sum of its jobs' `estimate_s`), and a record of
+    the search. With more than one job per robot every robot gets a job and only the best
+    `KEEP_RANKED` are kept (a partial assignment whose longest program already exceeds the
+    worst kept is not completed).
     """
-    ranked: list[tuple[tuple[float, ...], int, dict[int, Job]]] = []
+    if max_jobs_per_robot < 1:
+        raise BoothError(f"max_jobs_per_robot must be >= 1, got {max_jobs_per_robot}")
+    ranked: list[tuple[tuple[float, ...], int, dict[int, tuple[Job, ...]]]] = []
     n_considered = 0
+    est_of: dict[Job, float] = {}
+    serial = itertools.count()
     for cut in itertools.product(*job_options(n_passes)):
         jobs = [j for part_jobs in cut for j in part_jobs]
-        if len(jobs) > n_robots:
-            continue
-        for robots in itertools.permutations(range(n_robots), len(jobs)):
-            n_considered += 1
-            if not all(reachable(r, j) for r, j in zip(robots, jobs, strict=True)):
+        for j in jobs:
+            if j not in est_of:
+                est_of[j] = estimate_s(durations[j.part][j.first:j.end])
+        if max_jobs_per_robot == 1:
+            if len(jobs) > n_robots:
                 continue
-            est = [estimate_s(durations[j.part][j.first:j.end]) for j in jobs]
-            # Lexicographic min-max: the longest program first, then the next longest, ...
-            ranked.append((tuple(sorted(est, reverse=True)), len(ranked),
-                           dict(zip(robots, jobs, strict=True))))
+            for robots in itertools.permutations(range(n_robots), len(jobs)):
+                n_considered += 1
+                if not all(reachable(r, j) for r, j in zip(robots, jobs, strict=True)):
+                    continue
+                est = [est_of[j] for j in jobs]
+                # Lexicographic min-max: the longest program first, then the next longest, ...
+                ranked.append((tuple(sorted(est, reverse=True)), next(serial),
+                               {r: (j,) for r, j in zip(robots, jobs, strict=True)}))
+        elif n_robots <= len(jobs) <= n_robots * max_jobs_per_robot:
+            n_considered += _assign_multi(n_robots, jobs, est_of, reachable,
+                                          max_jobs_per_robot, ranked, serial)
     if not ranked:
         raise BoothError(f"no allocation puts every part within reach ({n_considered} "
                          "candidates); move the robots or add one")
     ranked.sort(key=lambda c: (c[0], c[1]))
+
     record = {"rule": "every job reachable, split parts swept in step; ranked by "
                       "lexicographic min-max of the estimated program times; of the best "
                       "ranked, the one whose programs, staggered to keep the arms apart, give "
                       "the shortest real cycle is taken",
+              "max_jobs_per_robot": max_jobs_per_robot,
               "candidates": n_considered, "feasible": len(ranked),
               "estimated_cycle_s": ranked[0][0][0], "estimated_programs_s": list(ranked[0][0]),
               "best_ranked": [{"estimated_programs_s": list(c[0]),
-                               "jobs": {r: [j.part, j.first, j.end] for r, j in c[2].items()},
-                               "estimated_s": {r: estimate_s(durations[j.part][j.first:j.end])
-                                               for r, j in c[2].items()}}
+                               "jobs": {r: job_record(js) for r, js in c[2].items()},
+                               "estimated_s": {r: sum(est_of[j] for j in js)
+                                               for r, js in c[2].items()}}
                               for c in ranked[:8]]}
     return [c[2] for c in ranked], record
 
 
+#: allocations kept by the multi-job search of `rank_allocations`.
+KEEP_RANKED = 64
+
+
+def _assign_multi(n_robots: int, jobs: list[Job], est_of: dict[Job, float], reachable: Any,
+                  max_jobs: int, ranked: list[Any], serial: Any) -> int:
+    """Depth-first assignment of `jobs` to robots (each robot 1..max_jobs jobs, each job
+    reachable by its robot) appended to `ranked` (kept to the best KEEP_RANKED); returns the
+    number of complete assignments considered."""
+    load = [0.0] * n_robots
+    got: list[list[Job]] = [[] for _ in range(n_robots)]
+    n = [0]
+
+    def bound() -> float:
+        if len(ranked) < KEEP_RANKED:
+            return float("inf")
+        return max(c[0][0] for c in ranked)
+
+    def worst_index() -> int:
+        return max(range(len(ranked)), key=lambda k: (ranked[k][0], ranked[k][1]))
+
+    def dfs(k: int) -> None:
+        if k == len(jobs):
+            if any(not g for g in got):
+                return
+            n[0] += 1
+            key = tuple(sorted(load, reverse=True))
+            entry = (key, next(serial), {r: tuple(g) for r, g in enumerate(got)})
+            if len(ranked) < KEEP_RANKED:
+                ranked.append(entry)
+            else:
+                w = worst_index()
+                if key < ranked[w][0]:
+                    ranked[w] = entry
+            return
+        # robots still without a job must all be served by the jobs left
+        if sum(1 for g in got if not g) > len(jobs) - k:
+            return
+        j = jobs[k]
+        for r in range(n_robots):
+            if len(got[r]) >= max_jobs or load[r] + est_of[j] > bound():
+                continue
+            if not reachable(r, j):
+                continue
+            got[r].append(j)
+            load[r] += est_of[j]
+            dfs(k + 1)
+            load[r] -= est_of[j]
+            got[r].pop()
+
+    dfs(0)
+    return n[0]
+
+
+def job_record(jobs: tuple[Job, ...]) -> list[int] | list[list[int]]:
+    """A robot's jobs for records and reports: [part, first, end] for one job, a list of them
+    for several."""
+    if len(jobs) == 1:
+        return [jobs[0].part, jobs[0].first, jobs[0].end]
+    return [[j.part, j.first, j.end] for j in jobs]
+
+
 def allocate(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
-             reachable: Any) -> tuple[dict[int, Job], dict[str, Any]]:
+             reachable: Any) -> tuple[dict[int, tuple[Job, ...]], dict[str, Any]]:
     """The best allocation of `rank_allocations` and its record."""
     ranked, record = rank_allocations(n_robots, n_passes, durations, reachable)
     return ranked[0], record

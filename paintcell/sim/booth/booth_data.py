@@ -39,7 +39,7 @@ from paintcell.sim.booth.conveyor import Conveyor
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
         "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
-        "applicator", "film_refine_pace")
+        "applicator", "film_refine_pace", "max_jobs_per_robot")
 _PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -47,6 +47,13 @@ _PLACEMENT = ("xyz_m", "rpy_rad")
 
 class BoothDataError(PaintcellError):
     """A booth file holds an unknown key or an invalid value."""
+
+
+def _jobs_per_robot(v: Any, where: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 3:
+        raise BoothDataError(f"{where} = {v!r} must be 1, 2 or 3 (jobs one robot runs one after "
+                             "the other)")
+    return v
 
 
 def _check_keys(d: Any, valid: tuple[str, ...], where: str) -> dict[str, Any]:
@@ -128,7 +135,11 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             trajectory={k: tuple(v) if isinstance(v, list) else v
                         for k, v in d.get("trajectory", {}).items()},
             servo=dict(d.get("servo", {})), thresholds=BoothThresholds(**th),
-            allocation=None if alloc is None else {k: tuple(v) for k, v in alloc.items()},
+            allocation=None if alloc is None else {
+                k: tuple(tuple(x) for x in v) if v and isinstance(v[0], list) else tuple(v)
+                for k, v in alloc.items()},
+            max_jobs_per_robot=_jobs_per_robot(d.get("max_jobs_per_robot", 1),
+                                               f"{where} max_jobs_per_robot"),
             common_film_build=_bool(d.get("common_film_build", True),
                                     f"{where} common_film_build"),
             blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),

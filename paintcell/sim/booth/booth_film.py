@@ -10,6 +10,7 @@ carrier really was): see `paintcell.sim.booth.booth_run` for the loss split they
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -66,7 +67,7 @@ def gun_in_body(t_s: np.ndarray, pos: np.ndarray, rot: np.ndarray, paint_on: np.
 
 
 def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[CoveragePlan],
-           jobs: dict[int, Job], T_bp: list[np.ndarray], trajs: list[JointTrajectory],
+           jobs: dict[int, tuple[Job, ...]], T_bp: list[np.ndarray], trajs: list[JointTrajectory],
            traces: list[ExecutedTrace], trace: ExecutedTrace, t_ref: float
            ) -> dict[str, np.ndarray]:
     """Per robot and kind (plan, trajectory, servo, executed): film (R, N) [m]."""
@@ -79,18 +80,37 @@ def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[Cover
     out = {k: np.zeros((bcell.n_robots, len(pts))) for k in ("plan", "trajectory", "servo",
                                                              "executed")}
     for i, (tr, ex) in enumerate(zip(trajs, traces, strict=True)):
-        job = jobs[i]
-        # each part at its own flow (`paintcell.sim.booth.booth_build`)
-        app = plans[job.part].applicator
-        sub = dataclasses.replace(plans[job.part],
-                                  passes=plans[job.part].passes[job.first:job.end])
-        out["plan"][i] = thickness(app, plan_gun_in_body(sub, T_bp[job.part]), pts, nrm)
+        out["plan"][i] = planned_film(plans, jobs[i], T_bp, pts, nrm)
         for key, p, r, x in (("trajectory", tr.tcp_pos_world, tr.tcp_rot_world, nominal),
                              ("servo", ex.tcp_pos_world, ex.tcp_rot_world, nominal),
                              ("executed", ex.tcp_pos_world, ex.tcp_rot_world, actual)):
-            g = gun_in_body(t, p, r, tr.paint_on, T0, x, unit)
-            out[key][i] = thickness(app, g, pts, nrm)
+            for app, on in job_paint(plans, jobs[i], tr):
+                g = gun_in_body(t, p, r, on, T0, x, unit)
+                out[key][i] += thickness(app, g, pts, nrm)
     return out
+
+
+def planned_film(plans: list[CoveragePlan], jobs: tuple[Job, ...], T_bp: list[np.ndarray],
+                 pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
+    """(N,) film [m] of one robot's jobs at planned timing, each at its part's flow
+    (`paintcell.sim.booth.booth_build`), at body points pts (N, 3) with normals nrm (N, 3)."""
+    film = np.zeros(len(pts))
+    for job in jobs:
+        sub = dataclasses.replace(plans[job.part],
+                                  passes=plans[job.part].passes[job.first:job.end])
+        film += thickness(plans[job.part].applicator, plan_gun_in_body(sub, T_bp[job.part]),
+                          pts, nrm)
+    return film
+
+
+def job_paint(plans: list[CoveragePlan], jobs: tuple[Job, ...], traj: JointTrajectory
+              ) -> list[tuple[Any, np.ndarray]]:
+    """Per job of one robot: its part's applicator (its flow) and the (K,) brush-on samples of
+    `traj` (booth clock) that belong to the job (`paintcell.sim.booth.booth_chain.job_windows`)."""
+    from paintcell.sim.booth.booth_chain import job_windows
+
+    return [(plans[j.part].applicator, traj.paint_on & w)
+            for j, w in zip(jobs, job_windows(traj, len(jobs)), strict=True)]
 
 
 def body_uniformity(film_m: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None,

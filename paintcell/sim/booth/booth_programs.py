@@ -7,7 +7,6 @@ execute them).
 
 from __future__ import annotations
 
-import dataclasses
 import re
 import time
 from dataclasses import dataclass, field
@@ -24,12 +23,14 @@ from paintcell.sim.booth.booth import (
     Job,
     arm_points,
     estimate_s,
+    job_record,
     pass_feasible,
     rank_allocations,
     stagger_starts,
 )
 from paintcell.sim.booth.booth_film import merge_surfaces
 from paintcell.sim.booth.booth_hold import delayed, held_to
+from paintcell.sim.booth.booth_job_programs import robot_programs
 from paintcell.sim.booth.conveyor import ConveyorError, track_program
 from paintcell.sim.motion.joint_trajectory import JointTrajectory
 
@@ -44,7 +45,7 @@ class BoothPrograms:
     builds it once and executes it under many disturbances.
 
     surfaces: the parts' surfaces (part frames); body: their merge in the body frame;
-    T_body_parts: (4, 4) part placements in the body frame; jobs: robot index → its job;
+    T_body_parts: (4, 4) part placements in the body frame; jobs: robot index → its jobs;
     record: the allocation record; static: each robot's own program (static cell, not delayed);
     trajs: the programs delayed, padded to one clock and tracking the conveyor; t_ref_s: when the
     body passes its nominal placement [s]; robots: the loaded robot models (None once sent to a
@@ -57,7 +58,7 @@ class BoothPrograms:
     body: Surface
     plans: list[CoveragePlan]
     T_body_parts: list[np.ndarray]
-    jobs: dict[int, Job]
+    jobs: dict[int, tuple[Job, ...]]
     record: dict[str, Any]
     static: list[JointTrajectory]
     trajs: list[JointTrajectory]
@@ -136,7 +137,9 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
             shrink = need
     record["tried"] = tried
     record["rejected"] = [t for t in tried if "rejected" in t]
-    record["chosen"] = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
+    record["chosen"] = {booth.robots[r].name: job_record(js) for r, js in jobs.items()}
+    record["transfer_moves_s"] = {booth.robots[r].name: tr.meta["transfer_moves_s"]
+                                  for r, tr in enumerate(static) if "transfer_moves_s" in tr.meta}
     record["start_delays_s"] = [float(tr.meta.get("start_delay_s", 0.0)) for tr in trajs0]
     record["rail_tracking_margin_m"] = shrink
     record["film_refine"] = refine
@@ -148,9 +151,9 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
 
 
 def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
-            ranked: list[dict[int, Job]], T_wb: np.ndarray, T_bp: list[np.ndarray],
+            ranked: list[dict[int, tuple[Job, ...]]], T_wb: np.ndarray, T_bp: list[np.ndarray],
             shrink_m: float, probes: list[Any] | None = None
-            ) -> tuple[dict[int, Job], list[JointTrajectory], list[JointTrajectory],
+            ) -> tuple[dict[int, tuple[Job, ...]], list[JointTrajectory], list[JointTrajectory],
                        list[dict[str, Any]]]:
     """The allocation of `ranked[:MAX_ALLOCATIONS_TRIED]` with the shortest REAL cycle (rails
     shrunk by shrink_m at both ends for the passes): its jobs, static programs, staggered
@@ -167,25 +170,25 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
     tried: list[dict[str, Any]] = []
-    best: tuple[int, dict[int, Job], list[JointTrajectory], list[int]] | None = None
+    best: tuple[int, dict[int, tuple[Job, ...]], list[JointTrajectory], list[int]] | None = None
     for rank, jobs in enumerate(ranked[:MAX_ALLOCATIONS_TRIED]):
-        names = {booth.robots[r].name: [j.part, j.first, j.end] for r, j in jobs.items()}
+        names = {booth.robots[r].name: job_record(js) for r, js in jobs.items()}
         if best is not None:
             # its longest program — as built if it was, else estimated — against the best
             # real cycle: no start delay can make it shorter
             dt = best[2][0].dt_s
-            longest = max((len(got.t_s) - 1) * dt
-                          if isinstance(got := cache.get((r, j)), JointTrajectory)
-                          else estimate_s(np.array([ps.duration_s for ps in
-                                                    plans[j.part].passes[j.first:j.end]]))
-                          for r, j in jobs.items())
+            longest = max(sum((len(got.t_s) - 1) * dt
+                              if isinstance(got := cache.get((r, j)), JointTrajectory)
+                              else estimate_s(np.array([ps.duration_s for ps in
+                                                        plans[j.part].passes[j.first:j.end]]))
+                              for j in js) for r, js in jobs.items())
             if longest >= (best[0] - 1) * dt:
                 tried.append({"rank": rank + 1, "jobs": names,
                               "skipped": f"its longest program ({longest:.2f} s, built or "
                                          "estimated) is no shorter than the best real cycle"})
                 continue
         try:
-            trajs0 = _programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes)
+            trajs0 = robot_programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes)
             delays = _stagger(booth, robots, trajs0)
         except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
             tried.append({"rank": rank + 1, "jobs": names, "rejected": str(exc)})
@@ -263,14 +266,15 @@ def _load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
 
 
 def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: np.ndarray,
-              T_bp: list[np.ndarray]) -> tuple[list[dict[int, Job]], dict[str, Any]]:
+              T_bp: list[np.ndarray]) -> tuple[list[dict[int, tuple[Job, ...]]], dict[str, Any]]:
     if booth.allocation is not None:
         names = [r.name for r in booth.robots]
         jobs = {}
-        for rname, (p, a, b) in booth.allocation.items():
+        for rname, v in booth.allocation.items():
             if rname not in names:
                 raise BoothError(f"allocation names robot {rname!r}; robots are {names}")
-            jobs[names.index(rname)] = Job(int(p), int(a), int(b))
+            triples = v if v and isinstance(v[0], (list, tuple)) else [v]
+            jobs[names.index(rname)] = tuple(Job(int(p), int(a), int(b)) for p, a, b in triples)
         return [jobs], {"rule": "fixed in the booth script"}
     cache: dict[tuple[int, int, int], bool] = {}
 
@@ -285,7 +289,7 @@ def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: 
 
     durations = [np.array([ps.duration_s for ps in pl.passes]) for pl in plans]
     return rank_allocations(len(robots), [len(pl.passes) for pl in plans], durations,
-                            reachable)
+                            reachable, booth.max_jobs_per_robot)
 
 
 def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> list[int]:
@@ -302,95 +306,3 @@ def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> l
                      str(exc), count=1)
         raise BoothError(msg) from exc
     return [sub * d for d in delays]
-
-
-def _programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan], jobs: dict[int, Job],
-              T_wb: np.ndarray, T_bp: list[np.ndarray],
-              cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
-              probes: list[Any] | None = None) -> list[JointTrajectory]:
-    """Each robot's static program for its job (cached per robot and job, failures too), kept
-    `Booth.body_clearance_m` from the whole body (`paintcell.sim.booth.booth_clearance`)."""
-    from paintcell.sim.app.pipeline import settings_from
-    from paintcell.sim.motion.trajectory import TrajectorySettings
-
-    out = []
-    for i, (spec, robot) in enumerate(zip(booth.robots, robots, strict=True)):
-        kw = dict(booth.trajectory)
-        if spec.home is not None:
-            kw["q_home"] = tuple(spec.home)
-        settings = settings_from(TrajectorySettings, kw, "trajectory")
-        job = jobs.get(i)
-        if job is None:
-            raise BoothError(f"robot {spec.name!r} got no job; remove it or give it one in "
-                             "Booth.allocation")
-        if (i, job) not in cache:
-            plan = dataclasses.replace(plans[job.part],
-                                       passes=plans[job.part].passes[job.first:job.end])
-            try:
-                cache[(i, job)] = _clear_program(booth, spec.name, robot, plan,
-                                                 T_wb @ T_bp[job.part], settings,
-                                                 None if probes is None else probes[i])
-            except PaintcellError as exc:
-                cache[(i, job)] = exc
-        got = cache[(i, job)]
-        if isinstance(got, PaintcellError):
-            raise got
-        out.append(got)
-    return out
-
-
-def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
-                   T_world_part: np.ndarray, settings: Any, probe: Any) -> JointTrajectory:
-    """The robot's program; with a probe (`booth_clearance.BodyProbe`), its rail positions
-    keep the arm clear of the whole body, and a program that still comes closer than
-    `Booth.body_clearance_m` is built again — approach and retract folded
-    (`TrajectorySettings.fold_moves`), its home on the passes' wrist branch
-    (`booth_clearance.wrist_flipped_home`), farther back-offs (`booth_clearance.clear_settings`)
-    — until one keeps clear, else refused with the closest call named. The tries are in
-    `meta["body_clearance"]`."""
-    from paintcell.sim.motion.trajectory import build_program
-
-    if probe is None:
-        return build_program(robot, plan, T_world_part, settings)
-    from paintcell.sim.booth import booth_clearance as bc
-
-    ik = None
-    q_home = np.asarray(robot.q_home if settings.q_home is None else settings.q_home, float)
-    if getattr(robot, "rail", None) is not None:
-        from paintcell.robots.rail import solve_rail_paths
-
-        ik = solve_rail_paths(robot, [T_world_part @ plan.tcp_frames(k)
-                                      for k in range(len(plan.passes))],
-                              q_seed=q_home, free_spin=settings.ik_free_spin,
-                              penalty=probe.rail_penalty(bc.PLACEMENT_MARGIN_M,
-                                                         bc.PLACEMENT_WEIGHT))
-    assert booth.body_clearance_m is not None    # a probe only with a clearance to keep
-    margin = float(booth.body_clearance_m)
-    homes = [q_home]
-    if ik is not None:   # the same home pose on the passes' wrist branch: no flip on the way
-        flipped = bc.wrist_flipped_home(robot, q_home, ik[0].q[0])
-        homes += [] if flipped is None else [flipped]
-    # The ladder: as set; approach and retract folded; + home on the passes' wrist branch;
-    # + farther back-offs.
-    last = len(homes) - 1
-    ladder = [(1.0, False, 0), (1.0, True, 0)] + [(1.0, True, 1)] * last \
-        + [(f, True, last) for f in bc.CLEAR_FACTORS]
-    tries = []
-    for factor, fold, k in ladder:
-        st = settings if factor == 1.0 else bc.clear_settings(settings, factor)
-        st = dataclasses.replace(st, q_home=tuple(homes[k]), fold_moves=fold)
-        traj = build_program(robot, plan, T_world_part, st, ik_results=ik)
-        c = probe.clearance(traj.q, traj.t_s, margin)
-        tries.append({"backoff_factor": factor, "fold_moves": fold,
-                      "home_wrist_flipped": k == 1, **c.to_dict()})
-        if c.clear:
-            traj.meta["body_clearance"] = {"margin_m": margin, "tries": tries}
-            return traj
-    best = max(tries, key=lambda t: t["min_distance_m"])       # the closest call, said
-    c = bc.Clearance(best["min_distance_m"], best["n_close"], best["first_t_s"],
-                     tuple(best["bodies"]), tuple(best["parts"]))
-    parts = ", ".join(booth.parts[p].part for p in c.parts)
-    near = "touch" if c.min_distance_m <= 0 else f"come within {c.min_distance_m * 1e3:.0f} mm of"
-    raise BoothError(f"robot {name!r}'s {', '.join(c.bodies[:2])} {near} the body ({parts}) "
-                     f"at t = {c.first_t_s:.2f} s of its program, even with folded moves and "
-                     f"{bc.CLEAR_FACTORS[-1]:g}x back-offs")

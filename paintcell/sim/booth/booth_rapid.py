@@ -59,11 +59,12 @@ def _rail_values_mm(traj: JointTrajectory, via_dt_s: float) -> tuple[dict[int, f
 
 def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[str],
                  conveyor: Any, delay_s: float = 0.0, via_dt_s: float = 0.2,
-                 flow_factor: float | None = None) -> str:
+                 flow_factor: float | tuple[float | None, ...] | None = None) -> str:
     """RAPID module text of one booth robot's static program (module doc); delay_s: its start
     delay after the common start [s] (`paintcell.sim.booth.booth.stagger_starts`); flow_factor: its
     bell flow
-    relative to the applicator's (`paintcell.sim.booth.booth_build`), stated in the header."""
+    relative to the applicator's (`paintcell.sim.booth.booth_build`), stated in the header (a
+    robot with several jobs: one per job)."""
     arm, arm_traj = _arm_view(robot, traj)
     text = rapid_module(arm_traj, arm, module_name=name, via_dt_s=via_dt_s)
     lines = text.splitlines()
@@ -96,7 +97,14 @@ def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[
     ]
     if getattr(robot, "rail", None) is not None:
         head.append("  ! Rail: the carriage is external axis eax_a [mm] of every target.")
-    if flow_factor is not None:
+    if isinstance(flow_factor, tuple):        # several jobs, each at its part's flow
+        starts = traj.meta.get("job_first_pass_index", [])
+        for k, (f, p0) in enumerate(zip(flow_factor, starts, strict=True)):
+            if f is not None:
+                head.append(f"  ! Bell flow of job {k + 1} (from pass p{p0}_): {f:.3f} x the "
+                            "applicator's nominal rate (paintcell.sim.booth.booth_build): set it "
+                            "in the brush table.")
+    elif flow_factor is not None:
         head.append(f"  ! Bell flow: {flow_factor:.3f} x the applicator's nominal rate (the "
                     "booth's common film build, paintcell.sim.booth.booth_build): set it in the "
                     "brush table.")
@@ -123,10 +131,11 @@ def booth_rapid_modules(result: Any, robots: list[Any]) -> dict[str, str]:
     names = [f"T_{r.name.upper()}" for r in booth.robots]
     delays = result.report.metrics["allocation"].get("start_delays_s", [0.0] * len(names))
     build = result.report.metrics.get("film_build", {}).get("parts", {})
-    flows = []
+    flows: list[Any] = []
     for i in range(len(names)):
-        p = result.jobs[i].part
-        flows.append(build.get(f"{p}:{booth.parts[p].part}", {}).get("flow_factor"))
+        f = tuple(build.get(f"{j.part}:{booth.parts[j.part].part}", {}).get("flow_factor")
+                  for j in result.jobs[i])
+        flows.append(f[0] if len(f) == 1 else f)
     return {n: booth_module(rb, tr, n, names, booth.conveyor, d, flow_factor=f)
             for n, rb, tr, d, f in zip(names, robots, result.static_trajectories, delays, flows,
                                        strict=True)}

@@ -123,12 +123,21 @@ def _jobs_text(jobs: dict[str, Any], names: list[str], parts: list[str],
     """'side_a: fender passes 0–5 (24.8 s); ...' from {robot (index or name): [part, first,
     end]} and optionally the estimated program time of each [s]."""
     out = []
-    for r, (p, a, b) in jobs.items():
+    for r, v in jobs.items():
         rn = names[int(r)] if str(r).isdigit() else str(r)
         t = f" ({est[r]:.1f} s)" if est is not None and r in est else ""
-        span = f"pass {a}" if b - a == 1 else f"passes {a}–{b - 1}"
-        out.append(f"{rn}: {parts[int(p)]} {span}{t}")
+        triples = v if isinstance(v[0], (list, tuple)) else [v]
+        work = " then ".join(f"{parts[int(p)]} {_span([a, b])}" for p, a, b in triples)
+        out.append(f"{rn}: {work}{t}")
     return "; ".join(out)
+
+
+def _span(passes: list[Any]) -> str:
+    """'pass 3' / 'passes 0–5' from [first, end] (a list of them: joined with '+')."""
+    if passes and isinstance(passes[0], (list, tuple)):
+        return " + ".join(_span(list(x)) for x in passes)
+    a, b = passes
+    return f"pass {a}" if b - a == 1 else f"passes {a}–{b - 1}"
 
 
 def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
@@ -154,8 +163,8 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
         ["robot", "model", "part", "passes", "start delay [s]", "own program [s]",
          "busy [% of cycle]", "brush on [% of cycle]", "paint credit [% of film]",
          "coverage credit [% of area]", "peak torque [÷ limit]"],
-        [[n, r["model"], r["part"], (f"{r['passes'][0]}" if r["passes"][1] - r["passes"][0] == 1
-                                    else f"{r['passes'][0]}–{r['passes'][1] - 1}"),
+        [[n, r["model"], r["part"],
+          _span(r["passes"]).replace("passes ", "").replace("pass ", ""),
           r["start_delay_s"], r["program_s"], r["busy_share_pct"], r["paint_share_pct"],
           r["paint_credit_pct"], r["coverage_credit_pct"], r.get("max_torque_utilization")]
          for n, r in m["robots"].items()]))

@@ -64,7 +64,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
                   trajs0: list[JointTrajectory], trajs: list[JointTrajectory],
                   traces: list[ExecutedTrace], trace: ExecutedTrace,
                   events: list[dict[str, Any]], record: dict[str, Any],
-                  jobs: dict[int, Job], part_counts: list[int]) -> ValidationReport:
+                  jobs: dict[int, tuple[Job, ...]], part_counts: list[int]) -> ValidationReport:
     """The booth's `ValidationReport` (module doc). trajs0: each robot's own program (static, not
     delayed); trajs: the tracked programs on the booth clock. part_counts: the parts' vertex
     counts, in the order `paintcell.sim.booth.booth_film.merge_surfaces` stacked them into
@@ -81,9 +81,11 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     lead = np.argmax(films["executed"], axis=0)
     robots: dict[str, Any] = {}
     for i, rspec in enumerate(booth.robots):
-        j = jobs[i]
+        js = jobs[i]
         robots[rspec.name] = {
-            "model": rspec.model, "part": booth.parts[j.part].part, "passes": [j.first, j.end],
+            "model": rspec.model, "part": "+".join(booth.parts[j.part].part for j in js),
+            "passes": [js[0].first, js[0].end] if len(js) == 1
+            else [[j.first, j.end] for j in js],
             "busy_share_pct": 100.0 * own[i] / cycle,
             "paint_share_pct": 100.0 * float(trajs[i].paint_on.mean()),
             "paint_credit_pct": 100.0 * float(vol[i] / vol.sum()),

@@ -49,7 +49,7 @@ class BoothResult:
     out_dir: Path | None
     surface: Surface
     plans: list[CoveragePlan]
-    jobs: dict[int, Job]
+    jobs: dict[int, tuple[Job, ...]]
     trajectories: list[JointTrajectory]
     traces: list[ExecutedTrace]
     report: ValidationReport

@@ -80,7 +80,7 @@ def reference_films(booth: Any, progs: Any) -> tuple[np.ndarray, np.ndarray]:
     """Plan and trajectory films (R, N) [m] of the booth's programs on the body (the kinds of
     `paintcell.sim.booth.booth_film.robot_films` that no execution changes)."""
     from paintcell.planning.paint.deposition import thickness
-    from paintcell.sim.booth.booth_film import gun_in_body, plan_gun_in_body
+    from paintcell.sim.booth.booth_film import gun_in_body, job_paint, planned_film
 
     pts, nrm = progs.body.vertices, progs.body.normals
     t = progs.trajs[0].t_s
@@ -89,15 +89,12 @@ def reference_films(booth: Any, progs: Any) -> tuple[np.ndarray, np.ndarray]:
     plan = np.zeros((len(progs.trajs), len(pts)))
     traj = np.zeros_like(plan)
     for i, tr in enumerate(progs.trajs):
-        job = progs.jobs[i]
         # each part at its own flow (paintcell.sim.booth.booth_build)
-        app = progs.plans[job.part].applicator
-        sub = dataclasses.replace(progs.plans[job.part],
-                                  passes=progs.plans[job.part].passes[job.first:job.end])
-        plan[i] = thickness(app, plan_gun_in_body(sub, progs.T_body_parts[job.part]), pts, nrm)
-        g = gun_in_body(t, tr.tcp_pos_world, tr.tcp_rot_world, tr.paint_on, T0, nominal,
-                        booth.conveyor.unit)
-        traj[i] = thickness(app, g, pts, nrm)
+        plan[i] = planned_film(progs.plans, progs.jobs[i], progs.T_body_parts, pts, nrm)
+        for app, on in job_paint(progs.plans, progs.jobs[i], tr):
+            g = gun_in_body(t, tr.tcp_pos_world, tr.tcp_rot_world, on, T0, nominal,
+                            booth.conveyor.unit)
+            traj[i] += thickness(app, g, pts, nrm)
     return plan, traj
 
 
@@ -226,6 +223,7 @@ def _films(booth: Any, bcell: Any, payload: BoothPayload, trace: Any, traces: li
     position: the carrier's, and the placement on the skid) films (R, N) [m] —
     `paintcell.sim.booth.booth_film.robot_films` without the two reused kinds."""
     from paintcell.planning.paint.deposition import thickness
+    from paintcell.sim.booth.booth_film import job_paint
 
     progs = payload.programs
     pts, nrm = progs.body.vertices, progs.body.normals
@@ -237,8 +235,9 @@ def _films(booth: Any, bcell: Any, payload: BoothPayload, trace: Any, traces: li
     out = {"plan": payload.films[0], "trajectory": payload.films[1],
            "servo": np.zeros_like(payload.films[0]), "executed": np.zeros_like(payload.films[0])}
     for i, (tr, ex) in enumerate(zip(progs.trajs, traces, strict=True)):
-        app = progs.plans[progs.jobs[i].part].applicator   # the part's own flow
-        for key, T, x in (("servo", bcell.T_world_part, nominal), ("executed", T_actual, actual)):
-            g = gun_in_body(t, ex.tcp_pos_world, ex.tcp_rot_world, tr.paint_on, T, x, unit)
-            out[key][i] = thickness(app, g, pts, nrm)
+        for app, on in job_paint(progs.plans, progs.jobs[i], tr):   # each part's own flow
+            for key, T, x in (("servo", bcell.T_world_part, nominal),
+                              ("executed", T_actual, actual)):
+                g = gun_in_body(t, ex.tcp_pos_world, ex.tcp_rot_world, on, T, x, unit)
+                out[key][i] += thickness(app, g, pts, nrm)
     return out

@@ -1,0 +1,106 @@
+"""A booth robot with more than one job (`Booth.max_jobs_per_robot`): its program is its jobs'
+programs one after the other (`chain_programs`), each built, and kept clear of the body, on its
+own (`paintcell.sim.booth.booth_programs`): each ends at rest at its home and the next starts at
+rest at its own, so the move between two jobs is the retract home of the first and the approach
+of the next — both already checked against the joint limits and the whole body. Where the two
+homes differ (the body clearance may put a job's home on the passes' wrist branch), a
+time-optimal jerk-limited joint move joins them, with the first program's joint limits
+(`paintcell.sim.motion.moves.plan_move`); the booth then checks that move against the body like
+any other sample of the program.
+
+The film of a robot is credited per job at the job's part flow (`job_windows`: which samples
+belong to which job on the booth clock).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from paintcell.sim.motion.joint_trajectory import RETRACT, JointTrajectory
+
+#: homes closer than this [rad or m] are one pose (no transfer move).
+SAME_POSE_TOL = 1e-9
+
+
+def chain_programs(trajs: list[JointTrajectory], robot: Any) -> JointTrajectory:
+    """One program of `robot` (its `fk_many` gives a joining move's TCP): `trajs` (each at rest
+    at both ends, one dt) back to back, a joint move between two that end and start at
+    different poses. meta: the first's, with
+    `job_starts_s` (when each job's program starts in the chained one [s]) and
+    `transfer_moves_s` (duration of each joining move [s], 0 where none was needed) and
+    `job_first_pass_index` (pass indices run on across the jobs: job k's passes start at
+    this index)."""
+    if len(trajs) == 1:
+        return trajs[0]
+    dt = trajs[0].dt_s
+    if any(abs(t.dt_s - dt) > 1e-12 for t in trajs):
+        raise ValueError("chained programs need one sample step")
+    pieces: list[JointTrajectory] = [trajs[0]]
+    starts, transfers, first_pass = [0.0], [], [0]
+    k = len(trajs[0].t_s)
+    for nxt in trajs[1:]:
+        prev = pieces[-1]
+        gap = np.abs(prev.q[-1] - nxt.q[0]).max()
+        if gap > SAME_POSE_TOL:
+            move = _transfer(prev, nxt, robot)
+            pieces.append(move)
+            transfers.append(float(len(move.t_s) * dt))
+            k += len(move.t_s)
+        else:
+            transfers.append(0.0)
+        starts.append(k * dt)
+        # pass indices run on across the jobs (RAPID names its targets by them)
+        shift = int(max(p.pass_index.max() for p in pieces)) + 1
+        pieces.append(dataclasses.replace(nxt, pass_index=np.where(
+            nxt.pass_index >= 0, nxt.pass_index + shift, -1)))
+        first_pass.append(shift)
+        k += len(nxt.t_s)
+    arrays = {name: np.concatenate([getattr(p, name) for p in pieces])
+              for name in JointTrajectory._ARRAYS if name != "t_s"}
+    arrays["t_s"] = trajs[0].t_s[0] + dt * np.arange(k)
+    first = trajs[0]
+    return JointTrajectory(**arrays, robot_name=first.robot_name, joint_names=first.joint_names,
+                           slowdowns=tuple(s for t in trajs for s in t.slowdowns),
+                           pass_summary=tuple(s for t in trajs for s in t.pass_summary),
+                           meta={**first.meta, "job_starts_s": starts,
+                                 "transfer_moves_s": transfers,
+                                 "job_first_pass_index": first_pass})
+
+
+def _transfer(a: JointTrajectory, b: JointTrajectory, robot: Any) -> JointTrajectory:
+    """Samples strictly between a's last pose and b's first, both at rest (brush off)."""
+    from paintcell.sim.motion.moves import plan_move
+
+    lim = a.meta["limits"]
+    n = a.q.shape[1]
+    z = np.zeros(n)
+    move = plan_move(a.q[-1], z, z, b.q[0], z, z, lim["v_used_rad_s"], lim["a_used_rad_s2"],
+                     lim["j_used_rad_s3"])
+    dt = a.dt_s
+    t = dt * np.arange(1, max(int(np.ceil(move.duration_s / dt)), 1))
+    q, qd, qdd = move.sample(t)
+    q, qd, qdd = (np.asarray(x, float) for x in (q, qd, qdd))
+    m = len(t)
+    T = robot.fk_many(q)
+    pos, rot = T[:, :3, 3], T[:, :3, :3]
+    return JointTrajectory(t_s=t, q=q, qd=qd, qdd=qdd, tcp_pos_world=pos, tcp_rot_world=rot,
+                           v_tcp_planned=np.zeros(m), paint_on=np.zeros(m, bool),
+                           pass_index=np.full(m, -1), segment=np.full(m, RETRACT),
+                           s_pass_m=np.full(m, np.nan), robot_name=a.robot_name,
+                           joint_names=a.joint_names)
+
+
+def job_windows(traj: JointTrajectory, n_jobs: int) -> list[np.ndarray]:
+    """(K,) boolean masks of `traj`'s samples (booth clock: its start delay included) that belong
+    to each of its n_jobs jobs (all samples for one job)."""
+    if n_jobs == 1:
+        return [np.ones(len(traj.t_s), bool)]
+    starts = np.asarray(traj.meta["job_starts_s"], float) \
+        + float(traj.meta.get("start_delay_s", 0.0))
+    k = np.arange(len(traj.t_s))
+    first = np.round(starts / traj.dt_s).astype(int)
+    edges = np.append(first, len(traj.t_s) + 1)
+    return [(k >= edges[i]) & (k < edges[i + 1]) for i in range(n_jobs)]
