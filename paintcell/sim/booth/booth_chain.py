@@ -95,12 +95,14 @@ def _transfer(a: JointTrajectory, b: JointTrajectory, robot: Any) -> JointTrajec
 
 def job_windows(traj: JointTrajectory, n_jobs: int) -> list[np.ndarray]:
     """(K,) boolean masks of `traj`'s samples (booth clock: its start delay included) that belong
-    to each of its n_jobs jobs (all samples for one job)."""
+    to each of its n_jobs jobs (all samples for one job): a partition of the samples, the hold
+    before the start in the first job's, the hold after the end in the last one's."""
     if n_jobs == 1:
         return [np.ones(len(traj.t_s), bool)]
     starts = np.asarray(traj.meta["job_starts_s"], float) \
         + float(traj.meta.get("start_delay_s", 0.0))
     k = np.arange(len(traj.t_s))
     first = np.round(starts / traj.dt_s).astype(int)
+    first[0] = 0                  # the start delay's hold belongs to the first job (brush off)
     edges = np.append(first, len(traj.t_s) + 1)
     return [(k >= edges[i]) & (k < edges[i + 1]) for i in range(n_jobs)]

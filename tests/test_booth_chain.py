@@ -1,0 +1,141 @@
+"""A booth robot with more than one job (`paintcell.sim.booth.booth_chain`,
+`paintcell.sim.booth.booth.rank_allocations` with max_jobs_per_robot > 1), against independent
+truth: a brute-force enumeration of the allocations, the chained program re-measured (its pieces
+verbatim, the joining move inside the joint, velocity and acceleration limits by finite
+differences, its TCP by forward kinematics), and the film of a two-job robot equal to the sum of
+its jobs' films, each at its own flow (superposition)."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from paintcell.planning.paint.applicator import Applicator
+from paintcell.planning.paint.deposition import thickness
+from paintcell.robots import load_robot
+from paintcell.sim.booth.booth import Job, estimate_s, rank_allocations
+from paintcell.sim.booth.booth_build import scaled_applicator
+from paintcell.sim.booth.booth_chain import chain_programs, job_windows
+from paintcell.sim.booth.booth_film import gun_in_body, job_paint
+from paintcell.sim.booth.booth_hold import delayed
+from paintcell.sim.motion.joint_trajectory import PAINT, RETRACT, JointTrajectory
+from paintcell.sim.motion.moves import plan_move
+
+DT = 0.004
+
+
+def test_multi_job_allocation_is_the_brute_force_optimum():
+    """rank_allocations(max_jobs_per_robot=2) against an independent enumeration: every part
+    whole or cut in two, every job to a robot that reaches it, every robot 1–2 jobs; the best
+    by the lexicographic min-max of the robots' summed estimates."""
+    rng = np.random.default_rng(7)
+    n_passes = [3, 2, 4]
+    durations = [rng.uniform(2, 5, n) for n in n_passes]
+    reach = {(r, p): rng.random(n) < 0.8 for r in range(2) for p, n in enumerate(n_passes)}
+
+    def reachable(r: int, job: Job) -> bool:
+        return bool(reach[(r, job.part)][job.first:job.end].all())
+
+    ranked, record = rank_allocations(2, n_passes, durations, reachable, max_jobs_per_robot=2)
+    best = None
+    cuts = [[[(p, 0, n)]] + [[(p, 0, k), (p, k, n)] for k in range(1, n)]
+            for p, n in enumerate(n_passes)]
+    for cut in itertools.product(*cuts):
+        jobs = [j for c in cut for j in c]
+        for owners in itertools.product(range(2), repeat=len(jobs)):
+            load = [0.0, 0.0]
+            count = [0, 0]
+            ok = True
+            for (p, a, b), r in zip(jobs, owners, strict=True):
+                ok &= reachable(r, Job(p, a, b))
+                load[r] += estimate_s(durations[p][a:b])
+                count[r] += 1
+            if ok and all(1 <= c <= 2 for c in count):
+                key = tuple(sorted(load, reverse=True))
+                best = key if best is None or key < best else best
+    assert best is not None
+    assert record["estimated_programs_s"] == pytest.approx(list(best), rel=1e-12)
+    top = ranked[0]
+    covered = sorted((j.part, i) for js in top.values() for j in js for i in range(j.first, j.end))
+    assert covered == sorted((p, i) for p, n in enumerate(n_passes) for i in range(n))
+    assert all(1 <= len(js) <= 2 for js in top.values())
+
+
+def _program(robot, q0: np.ndarray, q1: np.ndarray, paint_frac: tuple[float, float],
+             v: np.ndarray, a: np.ndarray, j: np.ndarray) -> JointTrajectory:
+    """A rest-to-rest program q0 -> q1 (ruckig) with the brush on over paint_frac of it."""
+    z = np.zeros(len(q0))
+    mv = plan_move(q0, z, z, q1, z, z, v, a, j)
+    t = DT * np.arange(int(np.ceil(mv.duration_s / DT)) + 1)
+    q, qd, qdd = mv.sample(np.minimum(t, mv.duration_s))
+    T = robot.fk_many(q)
+    K = len(t)
+    on = (t >= paint_frac[0] * t[-1]) & (t <= paint_frac[1] * t[-1])
+    return JointTrajectory(
+        t_s=t, q=q, qd=qd, qdd=qdd, tcp_pos_world=T[:, :3, 3], tcp_rot_world=T[:, :3, :3],
+        v_tcp_planned=np.where(on, 0.4, 0.0), paint_on=on, pass_index=np.where(on, 0, -1),
+        segment=np.where(on, PAINT, RETRACT), s_pass_m=np.where(on, 0.0, np.nan),
+        robot_name=robot.name, joint_names=tuple(f"joint{k + 1}" for k in range(len(q0))),
+        meta={"limits": {"v_used_rad_s": v.tolist(), "a_used_rad_s2": a.tolist(),
+                         "j_used_rad_s3": j.tolist()}})
+
+
+def test_two_jobs_chain_and_film_superposition():
+    """A robot with two jobs whose homes differ: the chained program holds both verbatim, the
+    joining move is at rest at both ends and inside the joint, velocity and acceleration limits
+    (re-measured by finite differences), its TCP is the forward kinematics; on the booth clock
+    (a start delay) the film credited per job at its own flow is the sum of the two programs'
+    films computed alone (superposition, to round-off)."""
+    robot = load_robot("irb5500")
+    v = 0.5 * np.asarray(robot.v_max, float)
+    a = 0.5 * np.asarray(robot.a_max, float)
+    j = a / 0.1
+    home = np.asarray(robot.q_home, float)
+    far = home + np.array([0.4, 0.2, -0.1, 0.3, 0.2, 0.5])
+    home_b = home + np.array([0.0, 0.0, 0.0, 0.6, 0.0, -0.6])     # the next job's start
+    p1 = _program(robot, home, far, (0.3, 0.7), v, a, j)
+    p2 = _program(robot, home_b, far + 0.1, (0.2, 0.9), v, a, j)
+    ch = chain_programs([p1, p2], robot)
+    K1, K2 = len(p1.t_s), len(p2.t_s)
+    np.testing.assert_array_equal(ch.q[:K1], p1.q)
+    np.testing.assert_array_equal(ch.q[-K2:], p2.q)
+    move = ch.q[K1 - 1:len(ch.t_s) - K2 + 1]          # from p1's end to p2's start
+    assert ch.meta["transfer_moves_s"][0] > 0 and len(move) > 2
+    qd_fd = np.diff(move, axis=0) / DT
+    qdd_fd = np.diff(move, 2, axis=0) / DT**2
+    assert np.all(np.abs(qd_fd) <= v * 1.001)
+    assert np.all(np.abs(qdd_fd) <= a * 1.05)
+    assert np.all(move >= robot.q_lower) and np.all(move <= robot.q_upper)
+    mid = K1 + (len(move) - 2) // 2
+    np.testing.assert_allclose(ch.tcp_pos_world[mid], robot.fk(ch.q[mid])[:3, 3], atol=1e-12)
+    assert not ch.paint_on[K1:len(ch.t_s) - K2].any()
+    assert ch.meta["job_starts_s"][1] == pytest.approx((len(ch.t_s) - K2) * DT)
+    assert ch.pass_index[-K2:][p2.pass_index >= 0].min() == 1       # run on across the jobs
+
+    n_delay = 37
+    booth_clock = delayed(ch, n_delay)
+    w = job_windows(booth_clock, 2)
+    assert not (w[0] & w[1]).any() and (w[0] | w[1]).all()
+    app = Applicator.default()
+    apps = [app, scaled_applicator(app, 1.7)]
+    pts = np.array([[x, y, 0.0] for x in np.linspace(0.3, 1.6, 14)
+                    for y in np.linspace(-0.8, 0.8, 14)])
+    nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+    plans = [type("P", (), {"applicator": ap})() for ap in apps]
+    jobs = (Job(0, 0, 1), Job(1, 0, 1))
+    t = booth_clock.t_s
+    zero = np.zeros(len(t))
+    chained = np.zeros(len(pts))
+    for ap, on in job_paint(plans, jobs, booth_clock):
+        chained += thickness(ap, gun_in_body(t, booth_clock.tcp_pos_world, booth_clock.tcp_rot_world,
+                                             on, np.eye(4), zero, np.array([1.0, 0, 0])),
+                             pts, nrm)
+    alone = np.zeros(len(pts))
+    for ap, p in zip(apps, (p1, p2), strict=True):
+        alone += thickness(ap, gun_in_body(p.t_s, p.tcp_pos_world, p.tcp_rot_world, p.paint_on,
+                                           np.eye(4), np.zeros(len(p.t_s)),
+                                           np.array([1.0, 0, 0])), pts, nrm)
+    assert alone.max() > 0
+    np.testing.assert_allclose(chained, alone, rtol=1e-9, atol=1e-12 * alone.max())
