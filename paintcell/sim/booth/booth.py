@@ -53,6 +53,8 @@ APPROACH_RETRACT_S = 4.0
 #: start-delay step and largest delay of `stagger_starts` [s].
 STAGGER_STEP_S = 0.25
 STAGGER_MAX_S = 20.0
+#: largest step between the carriage positions `pass_feasible` tries on a rail [m].
+RAIL_STEP_M = 0.12
 
 
 class BoothError(PaintcellError):
@@ -215,8 +217,7 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
     allocations ({robot index: its jobs in part order}), best first by lexicographic min-max of
     the estimated program times (a robot's: the sum of its jobs' `estimate_s`), and a record of
     the search. With more than one job per robot every robot gets a job and only the best
-    `KEEP_RANKED` are kept (a partial assignment whose longest program already exceeds the
-    worst kept is not completed).
+    `booth_chain.KEEP_RANKED` are kept (`booth_chain.assign_job_lists`).
     """
     if max_jobs_per_robot < 1:
         raise BoothError(f"max_jobs_per_robot must be >= 1, got {max_jobs_per_robot}")
@@ -241,8 +242,10 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
                 ranked.append((tuple(sorted(est, reverse=True)), next(serial),
                                {r: (j,) for r, j in zip(robots, jobs, strict=True)}))
         elif n_robots <= len(jobs) <= n_robots * max_jobs_per_robot:
-            n_considered += _assign_multi(n_robots, jobs, est_of, reachable,
-                                          max_jobs_per_robot, ranked, serial)
+            from paintcell.sim.booth.booth_chain import assign_job_lists
+
+            n_considered += assign_job_lists(n_robots, jobs, est_of, reachable,
+                                             max_jobs_per_robot, ranked, serial)
     if not ranked:
         raise BoothError(f"no allocation puts every part within reach ({n_considered} "
                          "candidates); move the robots or add one")
@@ -261,60 +264,6 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
                                                for r, js in c[2].items()}}
                               for c in ranked[:8]]}
     return [c[2] for c in ranked], record
-
-
-#: allocations kept by the multi-job search of `rank_allocations`.
-KEEP_RANKED = 64
-
-
-def _assign_multi(n_robots: int, jobs: list[Job], est_of: dict[Job, float], reachable: Any,
-                  max_jobs: int, ranked: list[Any], serial: Any) -> int:
-    """Depth-first assignment of `jobs` to robots (each robot 1..max_jobs jobs, each job
-    reachable by its robot) appended to `ranked` (kept to the best KEEP_RANKED); returns the
-    number of complete assignments considered."""
-    load = [0.0] * n_robots
-    got: list[list[Job]] = [[] for _ in range(n_robots)]
-    n = [0]
-
-    def bound() -> float:
-        if len(ranked) < KEEP_RANKED:
-            return float("inf")
-        return max(c[0][0] for c in ranked)
-
-    def worst_index() -> int:
-        return max(range(len(ranked)), key=lambda k: (ranked[k][0], ranked[k][1]))
-
-    def dfs(k: int) -> None:
-        if k == len(jobs):
-            if any(not g for g in got):
-                return
-            n[0] += 1
-            key = tuple(sorted(load, reverse=True))
-            entry = (key, next(serial), {r: tuple(g) for r, g in enumerate(got)})
-            if len(ranked) < KEEP_RANKED:
-                ranked.append(entry)
-            else:
-                w = worst_index()
-                if key < ranked[w][0]:
-                    ranked[w] = entry
-            return
-        # robots still without a job must all be served by the jobs left
-        if sum(1 for g in got if not g) > len(jobs) - k:
-            return
-        j = jobs[k]
-        for r in range(n_robots):
-            if len(got[r]) >= max_jobs or load[r] + est_of[j] > bound():
-                continue
-            if not reachable(r, j):
-                continue
-            got[r].append(j)
-            load[r] += est_of[j]
-            dfs(k + 1)
-            load[r] -= est_of[j]
-            got[r].pop()
-
-    dfs(0)
-    return n[0]
 
 
 def job_record(jobs: tuple[Job, ...]) -> list[int] | list[list[int]]:
@@ -351,8 +300,10 @@ def pass_feasible(robot: Any, T_world_tcp: np.ndarray) -> bool:
         from paintcell.robots.rail import rail_cost
 
         spec = robot.rail.spec
+        # carriage positions at most RAIL_STEP_M apart (21 on a rail up to 2.4 m long)
+        n = max(21, int(np.ceil((spec.upper_m - spec.lower_m) / RAIL_STEP_M - 1e-9)) + 1)
         return any(rail_cost(robot, sub, s, robot.rail.arm.q_home, settings, js)[1]
-                   for s in np.linspace(spec.lower_m, spec.upper_m, 21))
+                   for s in np.linspace(spec.lower_m, spec.upper_m, n))
     if robot.opw is None:
         raise BoothError(f"{robot.name}: booth allocation needs closed-form IK (abb_paint, "
                          "irb5500 or their _rail variants)")

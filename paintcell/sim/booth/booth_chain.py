@@ -8,6 +8,8 @@ time-optimal jerk-limited joint move joins them, with the first program's joint 
 (`paintcell.sim.motion.moves.plan_move`); the booth then checks that move against the body like
 any other sample of the program.
 
+The allocation's search over jobs-lists (`assign_job_lists`) is here too.
+
 The film of a robot is credited per job at the job's part flow (`job_windows`: which samples
 belong to which job on the booth clock).
 """
@@ -91,6 +93,64 @@ def _transfer(a: JointTrajectory, b: JointTrajectory, robot: Any) -> JointTrajec
                            pass_index=np.full(m, -1), segment=np.full(m, RETRACT),
                            s_pass_m=np.full(m, np.nan), robot_name=a.robot_name,
                            joint_names=a.joint_names)
+
+
+#: allocations kept by the multi-job search of `rank_allocations`.
+KEEP_RANKED = 64
+
+
+def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
+                     reachable: Any, max_jobs: int, ranked: list[Any], serial: Any) -> int:
+    """Depth-first assignment of `jobs` (`paintcell.sim.booth.booth.Job`s of one cut of the
+    parts) to robots — each robot 1..max_jobs jobs, each job reachable(robot, job) — for
+    `paintcell.sim.booth.booth.rank_allocations`: each complete one is added to `ranked` as
+    (its robots' summed estimates `est_of` [s] sorted longest first, next(serial), {robot: jobs})
+    while `ranked` holds fewer than KEEP_RANKED, else in place of the worst when better (a
+    partial assignment whose longest program already exceeds the worst kept is not
+    completed). Returns the number of complete assignments considered."""
+    load = [0.0] * n_robots
+    got: list[list[Any]] = [[] for _ in range(n_robots)]
+    n = [0]
+
+    def bound() -> float:
+        if len(ranked) < KEEP_RANKED:
+            return float("inf")
+        return max(c[0][0] for c in ranked)
+
+    def worst_index() -> int:
+        return max(range(len(ranked)), key=lambda k: (ranked[k][0], ranked[k][1]))
+
+    def dfs(k: int) -> None:
+        if k == len(jobs):
+            if any(not g for g in got):
+                return
+            n[0] += 1
+            key = tuple(sorted(load, reverse=True))
+            entry = (key, next(serial), {r: tuple(g) for r, g in enumerate(got)})
+            if len(ranked) < KEEP_RANKED:
+                ranked.append(entry)
+            else:
+                w = worst_index()
+                if key < ranked[w][0]:
+                    ranked[w] = entry
+            return
+        # robots still without a job must all be served by the jobs left
+        if sum(1 for g in got if not g) > len(jobs) - k:
+            return
+        j = jobs[k]
+        for r in range(n_robots):
+            if len(got[r]) >= max_jobs or load[r] + est_of[j] > bound():
+                continue
+            if not reachable(r, j):
+                continue
+            got[r].append(j)
+            load[r] += est_of[j]
+            dfs(k + 1)
+            load[r] -= est_of[j]
+            got[r].pop()
+
+    dfs(0)
+    return n[0]
 
 
 def job_windows(traj: JointTrajectory, n_jobs: int) -> list[np.ndarray]:

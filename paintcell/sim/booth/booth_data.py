@@ -14,7 +14,9 @@
 A `[[robots]]` table with `rail` puts the arm on a linear rail with that carriage travel [m]
 (the base is then the rail frame, `paintcell.robots.rail`). `allocation` (optional table: robot name
 →
-[part index, first pass, end pass]) fixes the jobs. Every key is checked: unknown names are refused
+[part index, first pass, end pass], or a list of them) fixes the jobs; `max_jobs_per_robot`
+(default 1) lets the automatic allocation give a robot up to that many jobs, run one after the
+other (`paintcell.sim.booth.booth_chain`). Every key is checked: unknown names are refused
 with one line naming the file, the table and the valid keys. A TOML file is a booth when it has
 `[[robots]]` tables. `common_film_build` (default true) and `film_target_um` (default: the body's
 area-weighted planned mean) set one film build over the parts (`paintcell.sim.booth.booth_build`);
