@@ -51,8 +51,7 @@ from paintcell.sim.booth.conveyor import Conveyor
 TURN_S = 1.2
 APPROACH_RETRACT_S = 4.0
 #: start-delay step and largest delay of `stagger_starts` [s].
-STAGGER_STEP_S = 0.25
-STAGGER_MAX_S = 20.0
+STAGGER_STEP_S, STAGGER_MAX_S = 0.25, 20.0
 #: largest step between the carriage positions `pass_feasible` tries on a rail [m].
 RAIL_STEP_M = 0.12
 
@@ -217,14 +216,14 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
     allocations ({robot index: its jobs in part order}), best first by lexicographic min-max of
     the estimated program times (a robot's: the sum of its jobs' `estimate_s`), and a record of
     the search. With more than one job per robot every robot gets a job and only the best
-    `booth_chain.KEEP_RANKED` are kept (`booth_chain.assign_job_lists`).
-    """
+    `booth_chain.KEEP_RANKED` are kept (`booth_chain.assign_job_lists`)."""
     if max_jobs_per_robot < 1:
         raise BoothError(f"max_jobs_per_robot must be >= 1, got {max_jobs_per_robot}")
     ranked: list[tuple[tuple[float, ...], int, dict[int, tuple[Job, ...]]]] = []
     n_considered = 0
     est_of: dict[Job, float] = {}
     serial = itertools.count()
+    heap: list[Any] = []                      # the multi-job search's best kept
     for cut in itertools.product(*job_options(n_passes)):
         jobs = [j for part_jobs in cut for j in part_jobs]
         for j in jobs:
@@ -245,7 +244,8 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
             from paintcell.sim.booth.booth_chain import assign_job_lists
 
             n_considered += assign_job_lists(n_robots, jobs, est_of, reachable,
-                                             max_jobs_per_robot, ranked, serial)
+                                             max_jobs_per_robot, heap, serial)
+    ranked += [item[2] for item in heap]
     if not ranked:
         raise BoothError(f"no allocation puts every part within reach ({n_considered} "
                          "candidates); move the robots or add one")

@@ -96,29 +96,27 @@ def _transfer(a: JointTrajectory, b: JointTrajectory, robot: Any) -> JointTrajec
 
 
 #: allocations kept by the multi-job search of `rank_allocations`.
-KEEP_RANKED = 64
+KEEP_RANKED = 512
 
 
 def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
-                     reachable: Any, max_jobs: int, ranked: list[Any], serial: Any) -> int:
+                     reachable: Any, max_jobs: int, heap: list[Any], serial: Any) -> int:
     """Depth-first assignment of `jobs` (`paintcell.sim.booth.booth.Job`s of one cut of the
     parts) to robots — each robot 1..max_jobs jobs, each job reachable(robot, job) — for
-    `paintcell.sim.booth.booth.rank_allocations`: each complete one is added to `ranked` as
-    (its robots' summed estimates `est_of` [s] sorted longest first, next(serial), {robot: jobs})
-    while `ranked` holds fewer than KEEP_RANKED, else in place of the worst when better (a
-    partial assignment whose longest program already exceeds the worst kept is not
-    completed). Returns the number of complete assignments considered."""
+    `paintcell.sim.booth.booth.rank_allocations`: each complete one, entry = (its robots' summed
+    estimates `est_of` [s] sorted longest first, next(serial), {robot: jobs}), is pushed on
+    `heap` (a heapq of (negated key, negated serial, entry): the worst kept on top) while it
+    holds fewer than KEEP_RANKED, else replaces the worst when better (a partial assignment
+    whose longest program already exceeds the worst kept is not completed). Returns the number
+    of complete assignments considered."""
+    import heapq
+
     load = [0.0] * n_robots
     got: list[list[Any]] = [[] for _ in range(n_robots)]
     n = [0]
 
     def bound() -> float:
-        if len(ranked) < KEEP_RANKED:
-            return float("inf")
-        return max(c[0][0] for c in ranked)
-
-    def worst_index() -> int:
-        return max(range(len(ranked)), key=lambda k: (ranked[k][0], ranked[k][1]))
+        return float("inf") if len(heap) < KEEP_RANKED else float(heap[0][2][0][0])
 
     def dfs(k: int) -> None:
         if k == len(jobs):
@@ -127,12 +125,11 @@ def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
             n[0] += 1
             key = tuple(sorted(load, reverse=True))
             entry = (key, next(serial), {r: tuple(g) for r, g in enumerate(got)})
-            if len(ranked) < KEEP_RANKED:
-                ranked.append(entry)
-            else:
-                w = worst_index()
-                if key < ranked[w][0]:
-                    ranked[w] = entry
+            item = (tuple(-x for x in key), -entry[1], entry)
+            if len(heap) < KEEP_RANKED:
+                heapq.heappush(heap, item)
+            elif key < heap[0][2][0]:
+                heapq.heapreplace(heap, item)
             return
         # robots still without a job must all be served by the jobs left
         if sum(1 for g in got if not g) > len(jobs) - k:

@@ -155,7 +155,7 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
             shrink_m: float, probes: list[Any] | None = None
             ) -> tuple[dict[int, tuple[Job, ...]], list[JointTrajectory], list[JointTrajectory],
                        list[dict[str, Any]]]:
-    """The allocation of `ranked[:MAX_ALLOCATIONS_TRIED]` with the shortest REAL cycle (rails
+    """The allocation of the best ranked with the shortest REAL cycle (rails
     shrunk by shrink_m at both ends for the passes): its jobs, static programs, staggered
     programs and the record of every one tried.
 
@@ -165,14 +165,26 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     than estimated. So every candidate of the ranking whose programs can be built and staggered
     is built (programs are cached per robot and job) and the shortest real cycle is taken (ties:
     the better ranked). A candidate whose longest program — as built when the cache holds it,
-    else its estimate — is already no shorter than the best real cycle is not built. probes:
+    else its estimate — is already no shorter than the best real cycle is not built; one
+    holding a job already refused is passed over (recorded, not counted: MAX_ALLOCATIONS_TRIED
+    counts the others). probes:
     per robot, its `paintcell.sim.booth.booth_clearance.BodyProbe` (None: no body clearance)."""
     planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
     tried: list[dict[str, Any]] = []
     best: tuple[int, dict[int, tuple[Job, ...]], list[JointTrajectory], list[int]] | None = None
-    for rank, jobs in enumerate(ranked[:MAX_ALLOCATIONS_TRIED]):
+    n_tried = 0
+    for rank, jobs in enumerate(ranked):
+        if n_tried == MAX_ALLOCATIONS_TRIED:
+            break
         names = {booth.robots[r].name: job_record(js) for r, js in jobs.items()}
+        known = next((got for r, js in jobs.items() for j in js
+                      if isinstance(got := cache.get((r, j)), PaintcellError)), None)
+        if known is not None:      # a job already refused: not built again, not counted
+            tried.append({"rank": rank + 1, "jobs": names, "rejected": str(known),
+                          "known_failure": True})
+            continue
+        n_tried += 1
         if best is not None:
             # its longest program — as built if it was, else estimated — against the best
             # real cycle: no start delay can make it shorter
@@ -201,7 +213,8 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
         if best is None or K < best[0]:
             best = (K, jobs, list(trajs0), delays)
     if best is None:
-        why = "; ".join(f"#{t['rank']}: {t['rejected'].split('; ')[0]}" for t in tried)
+        why = "; ".join(f"#{t['rank']}: {t['rejected'].split('; ')[0]}" for t in tried
+                        if not t.get("known_failure"))
         raise BoothError(f"none of the {len(tried)} best allocations works ({why}); move the "
                          "robots")
     _, jobs, trajs0, delays = best
