@@ -44,6 +44,7 @@ import numpy as np
 
 from paintcell.planning.errors import PaintcellError
 from paintcell.sim.app.scenario import Placement
+from paintcell.sim.booth.booth_chain import job_record
 from paintcell.sim.booth.conveyor import Conveyor
 
 #: cycle estimate of the allocation: time per turn-around and for approach + retract [s]
@@ -87,12 +88,14 @@ class BoothRobot:
 class BodyPart:
     """A library part of the body and its placement in the body frame (x along the car).
     reverse: run the part's passes in the reverse order and direction (the same film), e.g. so
-    two robots on neighbouring parts sweep in step instead of meeting at the seam."""
+    two robots on neighbouring parts sweep in step instead of meeting at the seam.
+    robots: names of the robots that may paint it (None: any that reaches it)."""
 
     part: str
     placement: Placement
     planner: dict[str, Any] = field(default_factory=dict)
     reverse: bool = False
+    robots: tuple[str, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -175,6 +178,9 @@ class Booth:
         names = [r.name for r in self.robots]
         if len(set(names)) != len(names):
             raise BoothError(f"robot names must be unique, got {names}")
+        for p in self.parts:
+            if p.robots is not None and (bad := sorted(set(p.robots) - set(names))):
+                raise BoothError(f"part {p.part!r} names robot(s) {bad}; robots are {names}")
         if not isinstance(self.conveyor, Conveyor):
             raise BoothError("Booth.conveyor must be a paintcell.sim.booth.conveyor.Conveyor")
 
@@ -242,7 +248,6 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
                                {r: (j,) for r, j in zip(robots, jobs, strict=True)}))
         elif n_robots <= len(jobs) <= n_robots * max_jobs_per_robot:
             from paintcell.sim.booth.booth_chain import assign_job_lists
-
             n_considered += assign_job_lists(n_robots, jobs, est_of, reachable,
                                              max_jobs_per_robot, heap, serial)
     ranked += [item[2] for item in heap]
@@ -264,14 +269,6 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
                                                for r, js in c[2].items()}}
                               for c in ranked[:8]]}
     return [c[2] for c in ranked], record
-
-
-def job_record(jobs: tuple[Job, ...]) -> list[int] | list[list[int]]:
-    """A robot's jobs for records and reports: [part, first, end] for one job, a list of them
-    for several."""
-    if len(jobs) == 1:
-        return [jobs[0].part, jobs[0].first, jobs[0].end]
-    return [[j.part, j.first, j.end] for j in jobs]
 
 
 def allocate(n_robots: int, n_passes: list[int], durations: list[np.ndarray],

@@ -150,6 +150,14 @@ def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
     return n[0]
 
 
+def job_record(jobs: tuple[Any, ...]) -> list[int] | list[list[int]]:
+    """A robot's jobs (`paintcell.sim.booth.booth.Job`s) for records and reports: [part, first,
+    end] for one job, a list of them for several."""
+    if len(jobs) == 1:
+        return [jobs[0].part, jobs[0].first, jobs[0].end]
+    return [[j.part, j.first, j.end] for j in jobs]
+
+
 def job_windows(traj: JointTrajectory, n_jobs: int) -> list[np.ndarray]:
     """(K,) boolean masks of `traj`'s samples (booth clock: its start delay included) that belong
     to each of its n_jobs jobs (all samples for one job): a partition of the samples, the hold

@@ -42,7 +42,7 @@ _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
         "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
         "applicator", "film_refine_pace", "max_jobs_per_robot")
-_PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse")
+_PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse", "robots")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
 
@@ -85,8 +85,14 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
         if "part" not in p:
             raise BoothDataError(f"{where} [[parts]] #{i}: give `part` (a library part name)")
         pl = _placement({k: p[k] for k in _PLACEMENT if k in p}, f"{where} [[parts]] #{i}")
+        who = p.get("robots")
+        if who is not None and (not isinstance(who, list) or not who
+                                or not all(isinstance(x, str) for x in who)):
+            raise BoothDataError(f"{where} [[parts]] #{i}: robots = {who!r} must be a list of "
+                                 "robot names, e.g. [\"roof_l\", \"roof_r\"]")
         parts.append(BodyPart(str(p["part"]), pl, dict(p.get("planner", {})),
-                              _bool(p.get("reverse", False), f"{where} [[parts]] #{i} reverse")))
+                              _bool(p.get("reverse", False), f"{where} [[parts]] #{i} reverse"),
+                              None if who is None else tuple(who)))
     robots = []
     for i, r in enumerate(d.get("robots", [])):
         r = _check_keys(r, _ROBOT, f"{where} [[robots]] #{i}")

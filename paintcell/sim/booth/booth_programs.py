@@ -23,11 +23,11 @@ from paintcell.sim.booth.booth import (
     Job,
     arm_points,
     estimate_s,
-    job_record,
     pass_feasible,
     rank_allocations,
     stagger_starts,
 )
+from paintcell.sim.booth.booth_chain import job_record
 from paintcell.sim.booth.booth_film import merge_surfaces
 from paintcell.sim.booth.booth_hold import delayed, held_to
 from paintcell.sim.booth.booth_job_programs import robot_programs
@@ -298,6 +298,9 @@ def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: 
         return cache[(r, p, i)]
 
     def reachable(r: int, job: Job) -> bool:
+        allowed = booth.parts[job.part].robots
+        if allowed is not None and booth.robots[r].name not in allowed:
+            return False
         return all(pass_ok(r, job.part, i) for i in range(job.first, job.end))
 
     durations = [np.array([ps.duration_s for ps in pl.passes]) for pl in plans]
