@@ -139,3 +139,28 @@ def test_two_jobs_chain_and_film_superposition():
                                            np.array([1.0, 0, 0])), pts, nrm)
     assert alone.max() > 0
     np.testing.assert_allclose(chained, alone, rtol=1e-9, atol=1e-12 * alone.max())
+
+
+def test_jobs_per_robot_and_part_robots_keys(tmp_path):
+    """TOML `max_jobs_per_robot`, `[[parts]] robots` and a two-job `[allocation]` are read;
+    bad values are refused with one line."""
+    from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.sim.booth.booth_data import BoothDataError
+
+    f = tmp_path / "b.toml"
+    head = 'name = "b"\nmax_jobs_per_robot = {m}\n[[parts]]\npart = "door"\nrobots = {r}\n'
+    tail = '[[robots]]\nname = "a"\n[[robots]]\nname = "c"\n'
+    f.write_text(head.format(m=2, r='["a"]') + tail
+                 + '[allocation]\na = [[0, 0, 2], [0, 2, 4]]\nc = [0, 4, 5]\n')
+    b = load_scenario(f)
+    assert b.max_jobs_per_robot == 2 and b.parts[0].robots == ("a",)
+    assert b.allocation == {"a": ((0, 0, 2), (0, 2, 4)), "c": (0, 4, 5)}
+    f.write_text(head.format(m=0, r='["a"]') + tail)
+    with pytest.raises(BoothDataError, match="max_jobs_per_robot = 0 must be 1, 2 or 3"):
+        load_scenario(f)
+    f.write_text(head.format(m=1, r='["x"]') + tail)
+    with pytest.raises(BoothDataError, match=r"part 'door' names robot\(s\) \['x'\]"):
+        load_scenario(f)
+    f.write_text(head.format(m=1, r='"a"') + tail)
+    with pytest.raises(BoothDataError, match="must be a list of robot names"):
+        load_scenario(f)
