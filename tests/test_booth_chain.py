@@ -71,7 +71,6 @@ def _program(robot, q0: np.ndarray, q1: np.ndarray, paint_frac: tuple[float, flo
     t = DT * np.arange(int(np.ceil(mv.duration_s / DT)) + 1)
     q, qd, qdd = mv.sample(np.minimum(t, mv.duration_s))
     T = robot.fk_many(q)
-    K = len(t)
     on = (t >= paint_frac[0] * t[-1]) & (t <= paint_frac[1] * t[-1])
     return JointTrajectory(
         t_s=t, q=q, qd=qd, qdd=qdd, tcp_pos_world=T[:, :3, 3], tcp_rot_world=T[:, :3, :3],
@@ -129,9 +128,9 @@ def test_two_jobs_chain_and_film_superposition():
     zero = np.zeros(len(t))
     chained = np.zeros(len(pts))
     for ap, on in job_paint(plans, jobs, booth_clock):
-        chained += thickness(ap, gun_in_body(t, booth_clock.tcp_pos_world, booth_clock.tcp_rot_world,
-                                             on, np.eye(4), zero, np.array([1.0, 0, 0])),
-                             pts, nrm)
+        g = gun_in_body(t, booth_clock.tcp_pos_world, booth_clock.tcp_rot_world, on, np.eye(4),
+                        zero, np.array([1.0, 0, 0]))
+        chained += thickness(ap, g, pts, nrm)
     alone = np.zeros(len(pts))
     for ap, p in zip(apps, (p1, p2), strict=True):
         alone += thickness(ap, gun_in_body(p.t_s, p.tcp_pos_world, p.tcp_rot_world, p.paint_on,
