@@ -19,7 +19,6 @@ import pytest
 from paintcell.planning.paint.deposition import GunSamples, thickness
 from paintcell.sim.app.scenario import Placement
 from paintcell.sim.booth.booth import (
-    STAGGER_STEP_S,
     BodyPart,
     Booth,
     BoothError,
@@ -28,13 +27,12 @@ from paintcell.sim.booth.booth import (
     Job,
     allocate,
     estimate_s,
-    pair_offsets_ok,
-    stagger_starts,
 )
 from paintcell.sim.booth.booth_film import gun_in_body, plan_gun_in_body
 from paintcell.sim.booth.booth_programs import _load_robots
 from paintcell.sim.booth.booth_rapid import booth_rapid_modules
 from paintcell.sim.booth.booth_run import run_booth
+from paintcell.sim.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagger_starts
 from paintcell.sim.booth.conveyor import Conveyor
 
 HOME = (0.0, 0.0, -0.6, 0.3, 0.0, 0.9, 0.0)
@@ -250,6 +248,39 @@ def test_stagger_ends_the_booth_soonest_brute_force():
     assert delays == [2 * step, 0, 0]
     with pytest.raises(BoothError, match="robot 1's arm"):
         stagger_starts([a, a[:1] + [0.2, 0.3, 0.0]], dt, 0.5)     # b parked 0.36 m off
+
+
+def test_stagger_refuses_an_impossible_booth_at_once(monkeypatch):
+    """Infeasible delays are refused without trying every combination of the earlier robots'
+    (the plain search took ~10 s for 4 robots and ×81 per extra one): a pair kept apart at no
+    delay difference before any search node, and a robot left without a free delay by the first
+    robot's delay (forward checking) at the root. Search nodes are counted."""
+    from paintcell.sim.booth import booth_stagger
+
+    nodes = []
+    place = booth_stagger._place
+    monkeypatch.setattr(booth_stagger, "_place", lambda *a: (nodes.append(1), place(*a))[1])
+
+    def at(*pts: tuple[float, ...]) -> np.ndarray:
+        return np.array(pts, float)[:, None, :]
+
+    far = [at(*[(10.0 * k, 10.0, 0.0)] * 5) for k in range(1, 4)]       # never near anyone
+    parked = at(*[(0.0, 0.0, 0.0)] * 40)
+    with pytest.raises(BoothError, match="robot 4's arm comes closer than 0.5 m to robot 0's"):
+        stagger_starts([parked, *far, parked + [0.2, 0.0, 0.0]], 0.25, 0.5)
+    assert nodes == []
+    # Robot 0 holds the origin 19.5 s, then parks at B; robot 1 holds B 21.5 s (so robot 0 must
+    # wait >= 2 s); robot 4 parks on the origin at once (so robot 0 may wait <= 0.75 s). Every
+    # pair alone can be kept apart; together they cannot.
+    o, b = (0.0, 0.0, 0.0), (5.0, 0.0, 0.0)
+    p0, p1 = at(*[o] * 78, b, b), at(*[b] * 86, (0.0, 5.0, 0.0), (0.0, 5.0, 0.0))
+    p4 = at((0.0, -5.0, 0.0), o, o, o)
+    assert stagger_starts([p0, p1], 0.25, 0.5) == [8, 0]
+    assert stagger_starts([p0, p4], 0.25, 0.5) == [0, 77]
+    nodes.clear()
+    with pytest.raises(BoothError, match="robot 1's arm comes closer than 0.5 m to robot 0's"):
+        stagger_starts([p0, p1, *far[:2], p4], 0.25, 0.5)
+    assert len(nodes) == 1       # every delay of robot 0 leaves robot 1 or 4 none: the root only
 
 
 def test_pair_offsets_match_the_clock_replay():

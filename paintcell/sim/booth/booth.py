@@ -22,10 +22,10 @@ per job — is enumerated (≤ a few hundred for four robots) and the one chosen
 3. no two bells in the same zone: the two pieces of a split part are painted in the same pass
    order and direction at the same time, so the two bells stay a piece's width apart; robots on
    neighbouring parts can still meet at the seam, so the programs are then staggered
-   (`stagger_starts`): start delays (a hold at home, in steps of STAGGER_STEP_S) that keep every
-   robot's bell, wrist, elbow, shoulder and base `min_bell_distance_m` from every other robot's at
-   every instant (checked every 20 ms), those of the shortest cycle (any robot may wait, not
-   only the later ones). (Neighbouring parts whose
+   (`paintcell.sim.booth.booth_stagger.stagger_starts`): start delays (a hold at home, in steps
+   of STAGGER_STEP_S) that keep every robot's bell, wrist, elbow, shoulder and base
+   `min_bell_distance_m` from every other robot's at every instant (checked every 20 ms), those
+   of the shortest cycle (any robot may wait, not only the later ones). (Neighbouring parts whose
    passes run in step, `BodyPart.reverse`, need no delay.) The smallest bell-to-bell distance
    of the executed programs is checked against the same limit, and MuJoCo counts robot–robot
    contacts;
@@ -51,8 +51,6 @@ from paintcell.sim.booth.conveyor import Conveyor
 #: (measured on the library parts' programs: turn-arounds 0.8–1.8 s, approach + retract 3–5 s).
 TURN_S = 1.2
 APPROACH_RETRACT_S = 4.0
-#: start-delay step and largest delay of `stagger_starts` [s].
-STAGGER_STEP_S, STAGGER_MAX_S = 0.25, 20.0
 #: largest step between the carriage positions `pass_feasible` tries on a rail [m].
 RAIL_STEP_M = 0.12
 
@@ -306,78 +304,6 @@ def pass_feasible(robot: Any, T_world_tcp: np.ndarray) -> bool:
                          "irb5500 or their _rail variants)")
     Q, _, within = opw_branches(robot, sub, robot.q_home)
     return bool(branch_feasibility(robot, Q, within, settings, js).feasible.any())
-
-
-def pair_offsets_ok(p: np.ndarray, q: np.ndarray, offsets: np.ndarray,
-                    min_distance_m: float) -> np.ndarray:
-    """(O,) whether two robots' arms stay `min_distance_m` [m] apart when p starts `offsets`
-    (O,) samples after q (negative: before). p, q: (K, P, 3) arm points on one clock; each holds
-    its first pose before its start and its last after its end, so only the offset matters.
-
-    The close pairs of samples (a of p, b of q) are found once (a k-d tree); a pair meets on the
-    common clock at offset o when p's sample a and q's sample b are shown at one instant: o =
-    b − a, or any o ≤ / ≥ that when a or b is a held first / last sample."""
-    from scipy.spatial import cKDTree
-
-    Kp, Kq, P = len(p), len(q), p.shape[1]
-    close = cKDTree(p.reshape(-1, 3)).sparse_distance_matrix(
-        cKDTree(q.reshape(-1, 3)), min_distance_m, output_type="ndarray")
-    close = close[close["v"] < min_distance_m]
-    a, b = close["i"] // P, close["j"] // P
-    pairs = np.unique(np.column_stack([a, b]), axis=0) if len(a) else np.zeros((0, 2), int)
-    a, b = pairs[:, 0], pairs[:, 1]
-    lo = np.where((a < Kp - 1) & (b > 0), b - a, np.iinfo(np.int64).min // 2)
-    hi = np.where((a > 0) & (b < Kq - 1), b - a, np.iinfo(np.int64).max // 2)
-    o = np.asarray(offsets)[:, None]
-    return ~np.any((lo[None] <= o) & (o <= hi[None]), axis=1)
-
-
-def stagger_starts(paths: list[np.ndarray], dt_s: float, min_distance_m: float) -> list[int]:
-    """Start delays [samples] that keep every two robots' arms `min_distance_m` [m] apart and
-    end the booth soonest.
-
-    paths: per robot, positions (K_i, P, 3) [m] of P points along its arm (the bell, the wrist
-    centre, the elbow, ...) every dt_s [s]; a delayed robot holds its first pose, a finished one
-    its last. Delays are multiples of STAGGER_STEP_S up to STAGGER_MAX_S. Whether two robots
-    keep apart depends only on the difference of their delays, so it is measured once per pair
-    and difference (`pair_offsets_ok`); a depth-first search over the delays then takes those
-    with the shortest cycle (max over the robots of delay + program), ties to the smallest sum
-    of delays, then to the earliest robots' smallest. Raises BoothError when no delays work.
-    """
-    step = max(1, int(round(STAGGER_STEP_S / dt_s)))
-    dmax = int(round(STAGGER_MAX_S / dt_s)) // step         # in steps
-    rel = np.arange(-dmax, dmax + 1)
-    n = len(paths)
-    ok = {(i, j): pair_offsets_ok(paths[i], paths[j], rel * step, min_distance_m)
-          for i in range(n) for j in range(i)}
-    lens = [len(p) for p in paths]
-    grid = np.arange(dmax + 1)
-    best: list[tuple[tuple[int, int, tuple[int, ...]], list[int]]] = []
-    deepest = [0]
-
-    def search(d: list[int]) -> None:
-        i = len(d)
-        deepest[0] = max(deepest[0], i)
-        if i == n:
-            key = (max(lens[k] + d[k] * step for k in range(n)), sum(d), tuple(d))
-            if not best or key < best[0][0]:
-                best[:] = [(key, list(d))]
-            return
-        free = np.ones(dmax + 1, bool)
-        for j in range(i):
-            free &= ok[(i, j)][grid - d[j] + dmax]
-        done = max([lens[k] + d[k] * step for k in range(i)], default=0)
-        for di in np.flatnonzero(free):
-            if best and (max(done, lens[i] + di * step), sum(d) + di) > best[0][0][:2]:
-                break                         # larger delays only lengthen it
-            search(d + [int(di)])
-
-    search([])
-    if not best:        # the first robot that could not be placed against the ones before it
-        raise BoothError(f"robot {deepest[0]}'s arm comes closer than {min_distance_m} m to "
-                         f"another for every start delay up to {STAGGER_MAX_S} s; change the "
-                         "allocation or the robots' places")
-    return [d * step for d in best[0][1]]
 
 
 def arm_points(robot: Any, q: np.ndarray) -> np.ndarray:

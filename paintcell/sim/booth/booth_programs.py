@@ -25,12 +25,12 @@ from paintcell.sim.booth.booth import (
     estimate_s,
     pass_feasible,
     rank_allocations,
-    stagger_starts,
 )
 from paintcell.sim.booth.booth_chain import job_record
 from paintcell.sim.booth.booth_film import merge_surfaces
 from paintcell.sim.booth.booth_hold import delayed, held_to
 from paintcell.sim.booth.booth_job_programs import robot_programs
+from paintcell.sim.booth.booth_stagger import stagger_starts
 from paintcell.sim.booth.conveyor import ConveyorError, track_program
 from paintcell.sim.motion.joint_trajectory import JointTrajectory
 
@@ -309,16 +309,16 @@ def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: 
 
 
 def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> list[int]:
-    """Start delays [samples] of `paintcell.sim.booth.booth.stagger_starts` (none without a
-    clearance limit)."""
+    """Start delays [samples] of `paintcell.sim.booth.booth_stagger.stagger_starts` (none
+    without a clearance limit)."""
     if booth.thresholds.min_bell_distance_m is None:
         return [0] * len(trajs)
     sub = max(1, int(round(0.02 / trajs[0].dt_s)))    # arm points every 20 ms
     pts = [arm_points(r, tr.q[::sub]) for r, tr in zip(robots, trajs, strict=True)]
     try:
         delays = stagger_starts(pts, sub * trajs[0].dt_s, booth.thresholds.min_bell_distance_m)
-    except BoothError as exc:          # name the robot, not its index
+    except BoothError as exc:          # name the robots, not their indices
         msg = re.sub(r"robot (\d+)'s", lambda m: f"robot {booth.robots[int(m[1])].name!r}'s",
-                     str(exc), count=1)
+                     str(exc))
         raise BoothError(msg) from exc
     return [sub * d for d in delays]

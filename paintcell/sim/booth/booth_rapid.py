@@ -61,8 +61,8 @@ def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[
                  conveyor: Any, delay_s: float = 0.0, via_dt_s: float = 0.2,
                  flow_factor: float | tuple[float | None, ...] | None = None) -> str:
     """RAPID module text of one booth robot's static program (module doc); delay_s: its start
-    delay after the common start [s] (`paintcell.sim.booth.booth.stagger_starts`); flow_factor: its
-    bell flow
+    delay after the common start [s] (`paintcell.sim.booth.booth_stagger.stagger_starts`);
+    flow_factor: its bell flow
     relative to the applicator's (`paintcell.sim.booth.booth_build`), stated in the header (a
     robot with several jobs: one per job)."""
     arm, arm_traj = _arm_view(robot, traj)
