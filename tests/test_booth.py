@@ -128,6 +128,45 @@ def test_allocation_taken_by_its_real_cycle(roof_booth):
         real, abs=dt + 1e-9)
 
 
+def test_allocation_skip_keeps_the_real_optimum(roof_booth, monkeypatch):
+    """The candidates `_choose` skipped in the fixture (on built programs or on estimates less
+    ESTIMATE_MARGIN, which are no lower bound) are built and staggered here with the skip off:
+    none has a shorter real cycle than the one taken, so the taken one is the shortest real
+    cycle of every ranked candidate (the fixture built the others). Cheap: the fixture's plans
+    are reused, only the skipped candidates are built."""
+    from paintcell.planning.surface import parts
+    from paintcell.sim.booth import booth_programs as bp
+
+    a = roof_booth.report.metrics["allocation"]
+    skipped = [t["jobs"] for t in a["tried"] if "skipped" in t]
+    assert skipped, "the fixture skipped nothing: the skip is not exercised"
+    names = [r.name for r in ROOF_BOOTH.robots]
+    allocate_all = bp._allocate
+
+    def only_skipped(*args):
+        ranked, record = allocate_all(*args)
+        return [js for js in ranked if {names[r]: [[j.part, j.first, j.end] for j in jj]
+                                        for r, jj in js.items()} in
+                [{n: v if isinstance(v[0], list) else [v] for n, v in sk.items()}
+                 for sk in skipped]], record
+
+    surface = parts.get_part("roof", resolution_m=ROOF_BOOTH.fast_resolution_m)
+    monkeypatch.setattr(bp, "_plan_parts", lambda booth, fast: (
+        [surface], roof_booth.plans, [p.placement.matrix for p in ROOF_BOOTH.parts]))
+    monkeypatch.setattr(bp, "_allocate", only_skipped)
+    monkeypatch.setattr(bp, "_longest_program_s", lambda *args: 0.0)      # nothing skipped
+    # the fixture's plans already carry the common film build
+    progs = bp.booth_programs(dataclasses.replace(ROOF_BOOTH, common_film_build=False), True)
+    tried = progs.record["tried"]
+    assert len(tried) == len(skipped) and not any("skipped" in t for t in tried)
+    assert any("real_cycle_s" in t for t in tried)          # a skipped one really built here
+    taken = next(t for t in a["tried"] if t["jobs"] == a["chosen"] and "real_cycle_s" in t)
+    for t in tried:
+        assert "rejected" in t or t["real_cycle_s"] >= taken["real_cycle_s"]
+    built = [t for t in a["tried"] if "real_cycle_s" in t]
+    assert taken == min(built, key=lambda t: (t["real_cycle_s"], t["rank"]))
+
+
 def test_rapid_modules_are_synchronised_and_conveyor_coordinated(roof_booth):
     robots = _load_robots(ROOF_BOOTH)
     mods = booth_rapid_modules(roof_booth, robots)
