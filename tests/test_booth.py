@@ -167,6 +167,46 @@ def test_allocation_skip_keeps_the_real_optimum(roof_booth, monkeypatch):
     assert taken == min(built, key=lambda t: (t["real_cycle_s"], t["rank"]))
 
 
+def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeypatch):
+    """`film_refine_pace = true` refines every part with its pace held except one whose planner
+    sets `film_refine = false` (booth [planner] or the part's own): the user's false wins. The
+    refinement is stubbed to record which parts it got; the run stops after it."""
+    from paintcell.planning.surface import parts
+    from paintcell.sim.booth import booth_programs as bp
+    from paintcell.sim.booth import booth_refine
+
+    class Stop(Exception):
+        pass
+
+    got: list[list[str]] = []
+
+    def record(surfaces, plans, settings, names):
+        got.append(list(names))
+        assert all(st.film_refine for st in settings)
+        return plans, {"rule": "stub", "parts": {n: {"applied": True} for n in names}}
+
+    def stop(*args):
+        raise Stop
+
+    surface = parts.get_part("roof", resolution_m=ROOF_BOOTH.fast_resolution_m)
+    monkeypatch.setattr(bp, "_plan_parts", lambda booth, fast: (
+        [surface] * len(booth.parts), roof_booth.plans * len(booth.parts),
+        [p.placement.matrix for p in booth.parts]))
+    monkeypatch.setattr(booth_refine, "refine_parts", record)
+    monkeypatch.setattr(bp, "merge_surfaces", stop)
+    roof = ROOF_BOOTH.parts[0]
+    two = (roof, dataclasses.replace(roof, planner={**roof.planner, "film_refine": False}))
+    for booth, want in (
+            (dataclasses.replace(ROOF_BOOTH, parts=two), ["0:roof"]),
+            (dataclasses.replace(ROOF_BOOTH, parts=two[:1]), ["0:roof"]),
+            (dataclasses.replace(ROOF_BOOTH, parts=two[:1],
+                                 planner={**ROOF_BOOTH.planner, "film_refine": False}), [])):
+        with pytest.raises(Stop):
+            bp.booth_programs(dataclasses.replace(booth, film_refine_pace=True,
+                                                  common_film_build=False), True)
+        assert got.pop() == want
+
+
 def test_rapid_modules_are_synchronised_and_conveyor_coordinated(roof_booth):
     robots = _load_robots(ROOF_BOOTH)
     mods = booth_rapid_modules(roof_booth, robots)

@@ -158,7 +158,8 @@ class Booth:
     film_refine_pace: bool = False
     """Plan the parts without the planner's film refinement and refine each afterwards with
     every pass's duration held, so robots sweeping in step keep their pace
-    (`paintcell.sim.booth.booth_refine`)."""
+    (`paintcell.sim.booth.booth_refine`); a part whose planner sets `film_refine = false`
+    (the booth's `[planner]` or its own) is not refined at all."""
     blend_seams: bool = True
     """Switch off the samples that paint other parts more than their own
     (`paintcell.sim.booth.booth_seams`)."""

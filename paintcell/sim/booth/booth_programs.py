@@ -88,10 +88,17 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
         from paintcell.sim.app.pipeline import settings_from
         from paintcell.sim.booth.booth_refine import refine_parts
 
-        plans, refine = refine_parts(
-            surfaces, plans, [settings_from(PlannerSettings, {**booth.planner, **bp.planner},
-                                            "planner") for bp in booth.parts],
-            [f"{i}:{p.part}" for i, p in enumerate(booth.parts)])
+        # a part whose planner says film_refine = false (booth or part table) is not refined
+        kws = [{**booth.planner, **bp.planner} for bp in booth.parts]
+        on = [i for i, kw in enumerate(kws) if kw.get("film_refine") is not False]
+        refined, refine = refine_parts(
+            [surfaces[i] for i in on], [plans[i] for i in on],
+            [settings_from(PlannerSettings, kws[i], "planner") for i in on],
+            [f"{i}:{booth.parts[i].part}" for i in on])
+        plans = [refined[on.index(i)] if i in on else pl for i, pl in enumerate(plans)]
+        refine["parts"].update({f"{i}:{bp.part}": {"applied": False,
+                                                   "reason": "planner.film_refine = false"}
+                                for i, bp in enumerate(booth.parts) if i not in on})
     build: dict[str, Any] = {"rule": "off: each part at the default bell flow"}
     if booth.common_film_build:
         from paintcell.sim.booth.booth_build import common_film_build
