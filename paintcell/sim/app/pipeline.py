@@ -23,6 +23,7 @@ from paintcell.planning.paint.applicator import Applicator
 from paintcell.planning.surface.part_spec import CAD_SUFFIXES, MESH_SUFFIXES, MeshPart
 from paintcell.planning.surface.surface import Surface
 from paintcell.sim.app.scenario import Scenario, ScenarioError
+from paintcell.sim.app.scenario_checks import check_types
 from paintcell.sim.output.interrupts import raise_if_interrupted
 from paintcell.sim.output.results_dir import new_results
 
@@ -138,11 +139,12 @@ def load_applicator(scn: Scenario) -> Applicator:
 
 def settings_from(cls: type, values: dict[str, Any], what: str) -> Any:
     """An instance of the settings dataclass `cls` from a scenario's dict, with a clear error
-    naming the valid keys when one is misspelt."""
+    naming the valid keys when one is misspelt or a value is not of its field's type."""
     names = {f.name for f in fields(cls)}
     unknown = sorted(set(values) - names)
     if unknown:
         raise ScenarioError(f"unknown {what} setting(s) {unknown}; valid: {sorted(names)}")
+    check_types(cls, values, f"[{what}]")
     return cls(**values)
 
 
