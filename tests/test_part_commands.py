@@ -47,6 +47,25 @@ def test_bad_part_file_is_one_line_exit_2(tmp_path: Path,
     assert not (tmp_path / "door.dwg").exists()
 
 
+def test_init_refuses_an_unknown_robot_before_it_imports_the_part(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A typo in --robot is refused at once, not after the part's import and fast plan."""
+    import paintcell.planning.surface.part_import as part_import
+
+    def no_import(*a: object, **k: object) -> None:
+        raise AssertionError("init imported the part before checking --robot")
+
+    monkeypatch.setattr(part_import, "import_part", no_import)
+    part = tmp_path / "part.stl"
+    part.write_text("solid nothing\nendsolid nothing\n")
+    toml = tmp_path / "s.toml"
+    assert main(["init", str(part), "--out", str(toml), "--robot", "abb_pain"]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--robot 'abb_pain'" in err and "irb5500_rail" in err
+    assert not toml.exists()
+
+
 def test_toml_part_table_errors_are_one_line(tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     scn = tmp_path / "s.toml"

@@ -226,6 +226,7 @@ def _placement(surf: Any) -> np.ndarray:
 def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.planning.atomic_io import atomic_write_text
     from paintcell.planning.surface.part_import import import_part
+    from paintcell.robots.catalog import ROBOT_NAMES
     from paintcell.sim.app.init_cell import AUTO_ROBOTS, choose_cell
     from paintcell.sim.app.pipeline import load_robot_for, make_plan, make_trajectory
     from paintcell.sim.app.scenario import Placement, Scenario
@@ -233,6 +234,9 @@ def _cmd_init(args: argparse.Namespace) -> int:
     out: Path = args.out
     if out.suffix != ".toml":
         raise PaintcellError(f"--out {out}: a scenario file ends in .toml")
+    if args.robot != "auto" and args.robot not in ROBOT_NAMES:  # before minutes of planning
+        raise PaintcellError(f"--robot {args.robot!r} is not a robot paintcell ships; write "
+                             f"--robot auto or one of {', '.join(ROBOT_NAMES)}")
     spec = _spec(args)
     spec_rel = replace(spec, file=_relpath(Path(spec.file), out.parent))
     surf, rep = import_part(spec, resolution_m=0.025)
