@@ -413,6 +413,15 @@ def test_moving_vias_are_faster_and_keep_their_clearance(robot, plan) -> None:
         # never nearer the part (along the spray axis) than the pass end
         assert np.max((tr.tcp_pos_world[sel] - T_pass[:3, 3]) @ T_pass[:3, 2]) < 1e-6
     assert tr.duration_s < at_rest.duration_s
+    # at the default settings (turnaround_max_dip_m = 50 mm) too: a moving via never brings the
+    # TCP nearer the part than the stop at it does (0 here: never nearer than the pass end)
+    default = _build(robot, plan)
+    for kind, end in ((APPROACH, 0), (RETRACT, -1)):
+        T_pass = plan.tcp_frames(0 if kind == APPROACH else N_PASSES - 1)[end]
+        rest_dip, dip = (np.max((t.tcp_pos_world[t.segment == kind] - T_pass[:3, 3])
+                                @ T_pass[:3, 2]) for t in (at_rest, default))
+        assert dip <= max(rest_dip, 0.0) + 1e-6 and rest_dip < 1e-6
+    assert default.meta["approach_retract"]["approach"]["mode"] == "moving via"
     for i, t in enumerate(tr.meta["turnarounds"]):
         assert t["mode"] == "via" and t["direct_dip_m"] > 0.03       # direct would dip ~40 mm
         k0 = np.flatnonzero(tr.pass_index == i)[-1] + 1

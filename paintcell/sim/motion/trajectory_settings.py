@@ -63,8 +63,8 @@ class TrajectorySettings:
     moving_vias: bool = True
     """Approach and retract pass their backed-off via without stopping where that is faster and
     brings the TCP no closer to the part (along the pass end's spray axis) than stopping there
-    does, plus `turnaround_max_dip_m` (`paintcell.sim.motion.trajectory_turnaround._through_via`;
-    False: stop at the via, as before; with `fold_moves` the vias are always stops)."""
+    does (`paintcell.sim.motion.trajectory_turnaround._through_via`; False: stop at the via, as
+    before; with `fold_moves` the vias are always stops)."""
     fold_moves: bool = False
     """Approach and retract also pass through a folded via: the backed-off via with the shoulder
     and elbow (J2, J3) at home's values, so the arm pulls back toward its base before it turns

@@ -109,6 +109,11 @@ def _turnaround(robot: RobotLike, move: Any, end: tuple[np.ndarray, ...],
                    "direct_dip_m": direct_dip, "direct_duration_s": direct.duration_s}
 
 
+#: How much nearer the part [m] a moving approach/retract via may bring the TCP than stopping
+#: there does: none, beyond the sampling's round-off (a via exists to keep the bell away).
+VIA_DIP_TOLERANCE_M = 1e-6
+
+
 def _through_via(robot: RobotLike, move: Any, a: tuple[np.ndarray, ...], q_via: np.ndarray,
                  b: tuple[np.ndarray, ...], T_pass: np.ndarray, settings: TrajectorySettings,
                  dt: float) -> tuple[list[JointMove], dict[str, Any]]:
@@ -119,16 +124,16 @@ def _through_via(robot: RobotLike, move: Any, a: tuple[np.ndarray, ...], q_via: 
     either leg of the resting version or of both together, full or half (capped at 0.8 of the
     usable joint velocity, as a turn-around's midpoint via). The fastest moving one is used when
     it beats the stop and its TCP comes no closer to the part, along the pass end's spray axis,
-    than the resting one does plus `turnaround_max_dip_m` (the via still backs the bell off
-    before it turns toward the part). Returns the moves and
-    a record (mode, dip [m] of the chosen moves, duration [s], the other candidate's duration).
+    than the resting one does (`VIA_DIP_TOLERANCE_M`: the via exists to back the bell off before
+    it turns toward the part). Returns the moves and a record (mode, dip [m] of the chosen moves,
+    duration [s], the resting candidate's duration and dip).
     """
     zero = np.zeros_like(q_via)
     rest = [move(a, (q_via, zero, zero)), move((q_via, zero, zero), b)]
     dip_rest = max(_move_dip(robot, m, T_pass, T_pass, dt) for m in rest)
     t_rest = float(sum(m.duration_s for m in rest))
     record = {"mode": "via at rest", "dip_m": dip_rest, "duration_s": t_rest,
-              "at_rest_duration_s": t_rest}
+              "at_rest_duration_s": t_rest, "at_rest_dip_m": dip_rest}
     v_cap = 0.8 * settings.velocity_margin * np.asarray(robot.v_max, float)
     # Via velocities tried: the mean joint velocity of each leg at rest and of the two together
     # (full and half): the fastest candidate within the dip bound wins.
@@ -145,7 +150,7 @@ def _through_via(robot: RobotLike, move: Any, a: tuple[np.ndarray, ...], q_via: 
         if t_moving >= (t_rest if best is None else best[0]):
             continue
         dip = max(_move_dip(robot, m, T_pass, T_pass, dt) for m in moving)
-        if dip <= dip_rest + settings.turnaround_max_dip_m:
+        if dip <= dip_rest + VIA_DIP_TOLERANCE_M:
             best = (t_moving, moving, dip)
     if best is not None:
         record.update(mode="moving via", dip_m=best[2], duration_s=best[0])
