@@ -10,7 +10,7 @@ import pytest
 from paintcell.planning.errors import PaintcellError
 from paintcell.robots import load_robot
 from paintcell.robots.rail import solve_rail_paths
-from paintcell.sim.app.init_cell import AUTO_ROBOTS, choose_cell
+from paintcell.sim.app.init_cell import AUTO_ROBOTS, RAIL_VERIFIED, _place_rail, choose_cell
 
 
 def _vertical_pass(z0_m: float, z1_m: float, y_m: float, n: int = 30) -> np.ndarray:
@@ -50,3 +50,55 @@ def test_a_part_no_robot_reaches_is_refused_in_one_line() -> None:
     msg = str(e.value)
     assert "\n" not in msg and "tower.stl" in msg and "abb_paint reaches no base" in msg
     assert "--robot auto" in msg and "[base]" in msg
+
+
+SHORT = [_vertical_pass(0.9, 1.5, y, n=12) for y in (-0.2, 0.2)]   # every model reaches it
+SPEEDS = [np.full(12, 0.5)] * 2
+
+
+def test_a_robot_whose_program_fails_is_skipped_with_the_reason() -> None:
+    """init's `verify` (the joint program as run builds it) failing the first robot: the next
+    one is chosen, at its own base, and the reason is in the one line."""
+    calls: list[tuple[str, np.ndarray]] = []
+
+    def verify(name: str, T: np.ndarray) -> str | None:
+        calls.append((name, T.copy()))
+        return "a move between passes would leave the joint limits" if name == "abb_paint" \
+            else None
+
+    cell = choose_cell(("abb_paint", "irb5500"), SHORT, SPEEDS, PART, "part.stl", verify=verify)
+    assert [c[0] for c in calls] == ["abb_paint", "irb5500"]
+    assert cell.robot == "irb5500" and np.array_equal(cell.T_base, calls[1][1])
+    assert "abb_paint reaches every pose but a move between passes would leave the joint " \
+           "limits" in cell.why and "\n" not in cell.why
+
+
+def test_rail_frames_are_checked_in_turn_then_refused_in_one_line() -> None:
+    """The rail: a frame whose program fails gives way to the next checked frame; when all
+    `RAIL_VERIFIED` checked frames fail, one line says so, and the frame returned is the one the
+    line names."""
+    calls: list[np.ndarray] = []
+
+    def fail_first(name: str, T: np.ndarray) -> str | None:
+        calls.append(T.copy())
+        return "its moves leave the joint limits" if len(calls) == 1 else None
+
+    cell = choose_cell(("irb5500_rail",), SHORT, SPEEDS, PART, "part.stl", verify=fail_first)
+    assert len(calls) == 2 and not np.array_equal(calls[0], calls[1])
+    assert np.array_equal(cell.T_base, calls[1])
+    x, z = cell.T_base[0, 3], cell.T_base[2, 3]
+    assert cell.verdict.startswith("rail found")
+    assert f"rail at x {x:.2f} m, height {z:.2f} m" in cell.verdict
+
+    calls.clear()
+    robot = load_robot("irb5500_rail")
+    T, ok, line = _place_rail(robot, SHORT, lambda T: calls.append(T.copy()) or "no paint left")
+    assert not ok and len(calls) == RAIL_VERIFIED                  # then it gives up
+    assert np.array_equal(T, calls[0]) and "\n" not in line
+    assert line.startswith("rail frames: ") and f"{RAIL_VERIFIED} of the {RAIL_VERIFIED} checked" \
+        in line and f"rail at x {T[0, 3]:.2f} m, height {T[2, 3]:.2f} m: no paint left" in line
+    with pytest.raises(PaintcellError) as e:                       # as init says it
+        choose_cell(("irb5500_rail",), SHORT, SPEEDS, PART, "part.stl",
+                    verify=lambda n, T: "no paint left")
+    msg = str(e.value)
+    assert "\n" not in msg and "irb5500_rail rail frames: " in msg and "no paint left" in msg

@@ -6,8 +6,10 @@ A floor-standing arm is placed by `paintcell.robots.placement.find_base_pose` (t
 grid of 765 bases). A rail robot is placed on a small grid of rail frames running along the part
 (world y, the part's longest extent as `init` presents it), the arm facing it (+x): each frame is
 scored by `paintcell.robots.rail.best_rail_position` on every pass (closed-form IK, one carriage
-position per pass), the cheapest frame where every pass is feasible is checked on the full
-passes with `solve_rail_paths`. Clearance of a rail cell is left to the run's collision check.
+position per pass). The frames where every pass is feasible are then checked cheapest first, at
+most `RAIL_VERIFIED` of them: the full passes with `solve_rail_paths`, then `verify` (init builds
+the joint program there, as `run` will); the first that passes both is chosen. Clearance of a
+rail cell is left to the run's collision check.
 """
 
 from __future__ import annotations
@@ -107,8 +109,10 @@ def _place_rail(robot: object, paths: Sequence[np.ndarray],
                 ) -> tuple[np.ndarray, bool, str]:
     """(T_world_rail (4, 4), every pose reached, one line) for a rail robot (module doc). The
     frames where every pass is feasible are checked in order of cost (full IK, then `verify`,
-    at most `RAIL_VERIFIED` of them); the verdict starts "rail frames" when every checked
-    frame reached all poses but failed `verify`."""
+    at most `RAIL_VERIFIED` of them); the verdict starts "rail frames" when a checked frame
+    reached all poses but failed `verify` (returned: the first such frame, whose failure the
+    line quotes); none reached: the cheapest frame and its own verdict. The returned frame is
+    always the one the line describes."""
     from paintcell.robots.ik import IKSettings, combined_report
     from paintcell.robots.rail import best_rail_position, placed_rail, rail_cost, solve_rail_paths
 
@@ -135,21 +139,26 @@ def _place_rail(robot: object, paths: Sequence[np.ndarray],
     if not ranked:
         return np.eye(4), False, f"0/{n} rail frames feasible"
     ranked.sort(key=lambda c: (c[0], c[1]))
-    problems: list[str] = []
-    verdict = ""
-    for _, _, T in ranked[:RAIL_VERIFIED]:
+    problems: list[tuple[np.ndarray, str]] = []     # (frame, why its program failed)
+    first: tuple[np.ndarray, bool, str] | None = None
+    checked = ranked[:RAIL_VERIFIED]
+    for _, _, T in checked:
         rep = combined_report(solve_rail_paths(robot.placed(T), paths))  # type: ignore[attr-defined]
         p = T[:3, 3]
         verdict = (f"{'rail found' if rep.all_reachable else 'NO fully reachable rail'}: "
-                   f"{len(ranked)}/{n} rail frames feasible; chosen rail at x {p[0]:.2f} m, "
+                   f"{len(ranked)}/{n} rail frames feasible; rail at x {p[0]:.2f} m, "
                    f"height {p[2]:.2f} m; {rep.verdict}")
+        first = first or (T, False, verdict)
         if not rep.all_reachable:
             continue
         problem = None if verify is None else verify(T)
         if problem is None:
             return T, True, verdict
-        problems.append(problem)
+        problems.append((T, problem))
     if problems:
-        return ranked[0][2], False, (f"rail frames: {len(ranked)}/{n} reach every pose, the "
-                                     f"{len(problems)} tried fail: {problems[0]}")
-    return ranked[0][2], False, verdict
+        (T, why), p = problems[0], problems[0][0][:3, 3]
+        return T, False, (f"rail frames: {len(ranked)}/{n} feasible, {len(problems)} of the "
+                          f"{len(checked)} checked reach every pose but fail (the first, rail at "
+                          f"x {p[0]:.2f} m, height {p[2]:.2f} m: {why})")
+    assert first is not None  # ranked is not empty
+    return first
