@@ -27,6 +27,8 @@ import os
 
 import numpy as np
 
+from paintcell.planning.paint.deposition_kernel import EXP_MIN, INV_MAX
+
 
 def _prefer_512_bit_vectors() -> None:
     """On AVX-512 hosts let LLVM use 512-bit vectors (its x86 tuning prefers 256-bit; the
@@ -53,15 +55,13 @@ BLOCK = 64
 #: samples the inner loop takes at once (chunks of `CHUNK_SAMPLES` must be a multiple).
 LANES = 4
 LOG2E = 1.4426950408889634
-#: 2^y is clamped at y = −700·log2(e), i.e. e^x at x = −700 (as the numpy kernel).
-Y_FLOOR = -700.0 * LOG2E
+#: 2^y is clamped at y = −700·log2(e), i.e. e^x at x = −700 (the numpy kernel's `EXP_MIN`).
+Y_FLOOR = EXP_MIN * LOG2E
 #: the clamp of a zero-amplitude term: 2^−1023 is built with exponent bits 0, i.e. exactly 0.
 Y_ZERO = -1023.0
 #: 1.5·2^52 + 1023: y + _ROUND rounds y to the integer k and leaves k + 1023 (the biased
 #: exponent of 2^k) in the low bits, with no float-to-int conversion.
 _ROUND = 6755399441055744.0 + 1023.0
-#: h/dz is clipped to this (as in the numpy kernel).
-INV_MAX = 1e12
 #: the degree-10 Chebyshev interpolant of 2^f on [−½, ½] (relative error 4.4e-16), highest first.
 C10, C9, C8, C7 = (7.072585949269223e-09, 1.0208690299958306e-07, 1.321544258792169e-06,
                    1.5252657260200837e-05)

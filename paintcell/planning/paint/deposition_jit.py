@@ -31,6 +31,8 @@ from typing import Any
 
 import numpy as np
 
+from paintcell.planning.paint.deposition_kernel import EXP_MIN, INV_MAX
+
 try:  # numba is a dependency; the numpy kernel stays as the reference if it cannot load
     import numba
     from numba import njit, prange
@@ -41,12 +43,11 @@ try:  # numba is a dependency; the numpy kernel stays as the reference if it can
 except ImportError:  # pragma: no cover - exercised only without numba
     HAVE_NUMBA = False
 
-#: exponents are clamped here, as in the numpy kernel (e^-700 ≈ 1e-304: zero for any film).
-EXP_FLOOR = 700.0
-#: h/dz is clipped to this (as in the numpy kernel).
+#: exponents are clamped at −EXP_FLOOR, the numpy kernel's `EXP_MIN` (e^-700 ≈ 1e-304: zero
+#: for any film); h/dz is clipped to the numpy kernel's `INV_MAX`.
+EXP_FLOOR = -EXP_MIN
 #: rings the CPU kernel evaluates inline (the Applicator model has two).
 MAX_RINGS = 2
-INV_MAX = 1e12
 
 
 def params(app: Any) -> np.ndarray:

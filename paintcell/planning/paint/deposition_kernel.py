@@ -23,10 +23,11 @@ CHUNK_SAMPLES = 16
 #: at most this many (sample, point) pairs in one kernel call (128 kB per temporary).
 MAX_PAIRS_PER_CALL = 1 << 14
 #: exponents are clamped here: exp below -708 underflows and numpy's exp is then 10-20x slower
-#: (measured); e^-700 ≈ 1e-304 is zero for any film.
-_EXP_MIN = -700.0
+#: (measured); e^-700 ≈ 1e-304 is zero for any film. The compiled kernels
+#: (`deposition_jit`, `deposition_cpu`) import this and `INV_MAX`, so every backend clamps alike.
+EXP_MIN = -700.0
 #: h/dz is clipped to this (dz ≈ +0: the pattern coordinates are then huge and f underflows).
-_INV_MAX = 1e12
+INV_MAX = 1e12
 
 
 def _morton_order(p: np.ndarray) -> np.ndarray:
@@ -124,7 +125,7 @@ def _rates(app: Applicator, w_mat: np.ndarray, feats: np.ndarray) -> np.ndarray:
     np.maximum(nd, 0.0, out=nd)
     with np.errstate(divide="ignore"):
         np.divide(h, inv, out=inv)
-    np.clip(inv, 0.0, _INV_MAX, out=inv)                         # h/dz
+    np.clip(inv, 0.0, INV_MAX, out=inv)                         # h/dz
     u2 = np.multiply(dx, inv, out=dx)
     np.square(u2, out=u2)
     v2 = np.multiply(dy, inv, out=dy)
@@ -137,7 +138,7 @@ def _rates(app: Applicator, w_mat: np.ndarray, feats: np.ndarray) -> np.ndarray:
         np.multiply(v2, -0.5 / app.sigma_y_m**2, out=t2)
         t1 += t2
         t1 += math.log(app.a0_m_s)
-        np.maximum(t1, _EXP_MIN, out=t1)
+        np.maximum(t1, EXP_MIN, out=t1)
         np.exp(t1, out=t1)
     else:
         t1.fill(0.0)
@@ -153,7 +154,7 @@ def _rates(app: Applicator, w_mat: np.ndarray, feats: np.ndarray) -> np.ndarray:
         t2 -= mu * c
         np.square(t2, out=t2)
         np.subtract(math.log(amp), t2, out=t2)
-        np.maximum(t2, _EXP_MIN, out=t2)
+        np.maximum(t2, EXP_MIN, out=t2)
         np.exp(t2, out=t2)
         t1 += t2
     # rate·h = f · (−n·d) · (h/dz)³ ; coef carries dwell/h
