@@ -148,6 +148,43 @@ def test_thread_count_does_not_change_the_film() -> None:
     np.testing.assert_array_equal(one, two)
 
 
+_CONCURRENT = """
+import sys, threading
+import numpy as np, numba
+from paintcell.planning.paint import deposition_jit as jit
+rng = np.random.default_rng(0); N, S = 6000, 1500
+p = np.c_[rng.uniform(0, 1, N), rng.uniform(0, 1, N), np.zeros(N)]; n = np.tile([0, 0, 1.0], (N, 1))
+g = np.c_[rng.uniform(0, 1, S), rng.uniform(0, 1, S), np.full(S, 0.2)]
+xh = np.tile([1.0, 0, 0], (S, 1)); yh = np.tile([0, 1.0, 0], (S, 1))
+a = np.tile([0, 0, -1.0], (S, 1))
+dw = np.full(S, 1e-3); prm = np.array([0.2, 1.0, 50.0, 50.0])
+film = lambda: jit.film_cpu(p, n, g, xh, yh, a, dw, 64, 0.5, prm, 2)[0]
+ref = film()
+assert numba.threading_layer() == "workqueue", numba.threading_layer()
+out = [None] * 4
+def work(i): out[i] = film()
+ths = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+[t.start() for t in ths]; [t.join() for t in ths]
+assert all(np.array_equal(o, ref) for o in out)
+print("ok")
+"""
+
+
+def test_concurrent_launches_survive_the_workqueue_layer() -> None:
+    """numba's fallback threading layer aborts the process (SIGABRT) when two threads launch a
+    parallel kernel at once; `paintcell run` computes films on a background thread and a Dask
+    worker may run samples in threads. Four threads at once, forced onto that layer, in a fresh
+    process: it survives and every film equals the lone launch's bit for bit."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_THREADING_LAYER": "workqueue", "NUMBA_NUM_THREADS": "2"}
+    r = subprocess.run([sys.executable, "-c", _CONCURRENT], env=env, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0 and r.stdout.strip() == "ok", (r.returncode, r.stderr[-800:])
+
+
 def test_backend_choice_errors_are_one_line() -> None:
     app = Applicator.default()
     p, n = _patch(10)

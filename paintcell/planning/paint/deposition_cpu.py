@@ -32,16 +32,24 @@ from paintcell.planning.paint.deposition_kernel import EXP_MIN, INV_MAX
 
 def _prefer_512_bit_vectors() -> None:
     """On AVX-512 hosts let LLVM use 512-bit vectors (its x86 tuning prefers 256-bit; the
-    branch-free film loop runs ~1.5× faster per core with 512, benchmarks/deposition.py). Only
-    when the user has not set NUMBA_CPU_FEATURES and before numba compiles anything."""
-    if "NUMBA_CPU_FEATURES" in os.environ:
+    branch-free film loop runs ~1.5× faster per core with 512, benchmarks/deposition.py).
+
+    Process-wide: numba has one code generator a process, so this also applies to every other
+    numba function compiled after it (results are the same; only the vector width changes), and
+    it has no effect if something was compiled before this module was imported. Left alone when
+    the user chose the target (`NUMBA_CPU_NAME`, `NUMBA_CPU_FEATURES`) or switched AVX off
+    (`NUMBA_ENABLE_AVX=0`): the features come from numba's own `get_host_cpu_features`, which
+    applies that switch."""
+    if "NUMBA_CPU_FEATURES" in os.environ or "NUMBA_CPU_NAME" in os.environ:
         return
     try:
-        import llvmlite.binding as llvm
         import numba.core.config as cfg
+        from numba.core.codegen import get_host_cpu_features
 
-        feats = llvm.get_host_cpu_features().flatten()
-        if "+avx512f" in feats.split(",") and getattr(cfg, "CPU_FEATURES", None) is None:
+        if not getattr(cfg, "ENABLE_AVX", True) or getattr(cfg, "CPU_FEATURES", None) is not None:
+            return
+        feats = get_host_cpu_features()
+        if "+avx512f" in feats.split(","):
             setattr(cfg, "CPU_FEATURES", feats + ",-prefer-256-bit")  # noqa: B010 (untyped)
     except Exception:  # any trouble: numba's defaults
         return

@@ -27,6 +27,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import threading
 from typing import Any
 
 import numpy as np
@@ -40,6 +41,10 @@ try:  # numba is a dependency; the numpy kernel stays as the reference if it can
     # sets the vector width (before anything compiles)
     from paintcell.planning.paint import deposition_cpu as cpu
     HAVE_NUMBA = True
+    if "NUMBA_THREADING_LAYER_PRIORITY" not in os.environ:
+        # OpenMP first: thread-safe, and it keeps numba from trying an old libtbb that another
+        # package bundles (pymeshlab's: a NumbaWarning on every run); numba's order otherwise
+        numba.config.THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]  # type: ignore[attr-defined]
 except ImportError:  # pragma: no cover - exercised only without numba
     HAVE_NUMBA = False
 
@@ -60,6 +65,14 @@ def params(app: Any) -> np.ndarray:
     return np.array(head + [v for r in rings for v in r], float)
 
 
+#: one parallel kernel launch at a time in a process. numba's `workqueue` threading layer (its
+#: fallback where neither OpenMP nor TBB loads) aborts the process on launches from two threads
+#: at once — `paintcell run` computes films on a background thread while MuJoCo steps, and a
+#: Dask worker may run two samples in threads. Two launches at once would not be faster anyway:
+#: each already uses every thread of numba's pool.
+_LAUNCH = threading.Lock()
+
+
 def film_cpu(p: np.ndarray, n: np.ndarray, g: np.ndarray, xh: np.ndarray, yh: np.ndarray,
              a: np.ndarray, dwell: np.ndarray, chunk: int, tan_cone: float, prm: np.ndarray,
              threads: int | None = None) -> tuple[np.ndarray, int]:
@@ -71,6 +84,14 @@ def film_cpu(p: np.ndarray, n: np.ndarray, g: np.ndarray, xh: np.ndarray, yh: np
         raise ValueError(f"the compiled kernel takes at most {MAX_RINGS} rings")
     if len(p) == 0 or len(g) == 0:
         return np.zeros(len(p)), 0
+    with _LAUNCH:
+        return _film_cpu_locked(p, n, g, xh, yh, a, dwell, chunk, tan_cone, prm, threads)
+
+
+def _film_cpu_locked(p: np.ndarray, n: np.ndarray, g: np.ndarray, xh: np.ndarray,
+                     yh: np.ndarray, a: np.ndarray, dwell: np.ndarray, chunk: int,
+                     tan_cone: float, prm: np.ndarray,
+                     threads: int | None) -> tuple[np.ndarray, int]:
     old = numba.get_num_threads()
     if threads is not None:
         most = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
@@ -197,5 +218,6 @@ def candidates_cpu(centers: np.ndarray, radii: np.ndarray, g: np.ndarray, a: np.
     """(n_chunks, nb) bool: the (chunk, block) pairs the kernel evaluates (same test as the
     numpy kernel's `_candidate_blocks`)."""
     cand = np.zeros((-(-len(g) // chunk), len(radii)), np.bool_)
-    _cand(centers, radii, g, a, int(chunk), float(tan_cone), cand)
+    with _LAUNCH:
+        _cand(centers, radii, g, a, int(chunk), float(tan_cone), cand)
     return cand
