@@ -244,6 +244,7 @@ def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
     """Nominal first, then every sample in `todo`, streamed to `store` as they complete."""
     from concurrent.futures import CancelledError
 
+    import dask
     from distributed import Client, LocalCluster, as_completed
 
     cluster = None
@@ -253,8 +254,12 @@ def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
         old = os.environ.get("NUMBA_NUM_THREADS")
         os.environ["NUMBA_NUM_THREADS"] = "1"   # inherited by the worker processes only
         try:
-            cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1,
-                                   processes=True, dashboard_address=None, silence_logs=40)
+            # spawned, never forked: the client ran the OpenMP film kernel (the payload's films)
+            # and GNU OpenMP kills a forked child that uses it (dask's default is spawn; a
+            # user's dask config may say fork)
+            with dask.config.set({"distributed.worker.multiprocessing-method": "spawn"}):
+                cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1,
+                                       processes=True, dashboard_address=None, silence_logs=40)
         finally:
             if old is None:
                 os.environ.pop("NUMBA_NUM_THREADS", None)
