@@ -18,7 +18,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
-	$(BIN)/paintcell check scenarios/ --fast --junit results/check-junit.xml
+	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml
 
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow"

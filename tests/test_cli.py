@@ -94,6 +94,14 @@ def test_check_reports_broken_scenarios_as_errors_and_still_writes_junit(tmp_pat
     assert "fast_resolution_m = -0.01 must be a positive length" in out.stdout
     root = ET.parse(tmp_path / "j.xml").getroot()
     assert root.get("tests") == "3" and root.get("errors") == "3"
+    # Three at once: the same rows in the same (the files') order, the same JUnit cases.
+    par = _run("check", str(tmp_path), "--fast", "--jobs", "3", "--junit", str(tmp_path / "k.xml"))
+    assert par.returncode == 1 and par.stdout == out.stdout, par.stdout
+    names = [c.get("name") for c in root.iter("testcase")]
+    assert [c.get("name") for c in ET.parse(tmp_path / "k.xml").getroot().iter("testcase")] \
+        == names == sorted(names)
+    bad = _run("check", str(tmp_path), "--jobs", "two")
+    assert bad.returncode == 2 and "--jobs 'two' must be a whole number" in bad.stderr
 
 
 def test_help_shows_only_meaningful_defaults() -> None:

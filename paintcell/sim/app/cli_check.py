@@ -4,6 +4,9 @@ Each scenario runs as `python -m paintcell run SCENARIO --row-json FILE` in a ch
 anything a scenario does — an exception that is not paintcell's, `sys.exit` on import, a
 MemoryError, a crash or a kill — becomes an ERROR row and a JUnit error case, and the check goes
 on to the next scenario. The JUnit file is written even when the check is interrupted.
+With `--jobs N` up to N scenarios run at once (a thread waits on each child process); the rows
+and the JUnit cases keep the scenarios' order, and every figure is the same as run one by one
+(a scenario's results do not depend on what else runs).
 """
 
 from __future__ import annotations
@@ -15,7 +18,9 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -41,25 +46,91 @@ def add_check(add_parser: Any) -> None:
                    help="also write each scenario's results under this folder (no report)")
     c.add_argument("--timeout", type=float, default=None,
                    help="wall-clock limit per scenario [s]; a scenario over it is an ERROR row")
+    c.add_argument("--jobs", "-j", type=_jobs, default=1, metavar="N",
+                   help="scenarios run at once, each in its own process (default 1; 0 = one "
+                   "per CPU core). Each needs ~1-2 GB of memory; the figures do not change")
     c.set_defaults(func=_cmd_check)
+
+
+def _jobs(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"--jobs {text!r} must be a whole number >= 0 "
+                                         "(0 = one per CPU core), e.g. --jobs 2")
+    return n or (os.cpu_count() or 1)
+
+
+class _Children:
+    """The check's running scenario processes, so that an interrupt stops every one of them."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._procs: set[subprocess.Popen[str]] = set()
+
+    def add(self, proc: subprocess.Popen[str]) -> None:
+        with self._lock:
+            self._procs.add(proc)
+
+    def discard(self, proc: subprocess.Popen[str]) -> None:
+        with self._lock:
+            self._procs.discard(proc)
+
+    def stop_all(self) -> None:
+        with self._lock:
+            procs = list(self._procs)
+        for proc in procs:
+            if proc.poll() is None:
+                proc.terminate()
+        for proc in procs:
+            try:
+                proc.wait(10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from paintcell.sim.app.scenario_files import find_scenarios
 
     scripts = find_scenarios(args.paths)
-    rows: list[dict[str, Any]] = []
-    cases: list[tuple[str, float, list[dict[str, Any]], str | None]] = []
+    done: dict[int, tuple[dict[str, Any], float]] = {}
+    children = _Children()
+    stopping = threading.Event()
+
+    def one(i: int) -> None:
+        t0 = time.perf_counter()
+        r = run_isolated(scripts[i], fast=args.fast, out_under=args.out,
+                         timeout_s=args.timeout, children=children)
+        if not stopping.is_set():  # a scenario the interrupt stopped is not a result
+            done[i] = (r, time.perf_counter() - t0)
+
+    jobs = max(1, min(args.jobs, len(scripts) or 1))
+    pool = ThreadPoolExecutor(max_workers=jobs) if jobs > 1 else None
     try:
-        for script in scripts:
-            t0 = time.perf_counter()
-            r = run_isolated(script, fast=args.fast, out_under=args.out, timeout_s=args.timeout)
-            rows.append(r)
-            cases.append((r["name"], time.perf_counter() - t0, r["checks"], r.get("error")))
+        if pool is None:  # one at a time, from this thread
+            for i in range(len(scripts)):
+                one(i)
+        else:
+            for f in [pool.submit(one, i) for i in range(len(scripts))]:
+                f.result()
+    except BaseException:
+        stopping.set()
+        if pool is not None:
+            pool.shutdown(wait=False, cancel_futures=True)
+        children.stop_all()
+        raise
     finally:
-        # Written on every way out (an interrupted check reports the scenarios it finished).
+        if pool is not None:
+            pool.shutdown(wait=True)
+        # Written on every way out (an interrupted check reports the scenarios it finished),
+        # in the scenarios' order.
         if args.junit is not None:
-            write_junit(args.junit, cases)
+            write_junit(args.junit, [(r["name"], dt, r["checks"], r.get("error"))
+                                     for _, (r, dt) in sorted(done.items())])
+    rows = [done[i][0] for i in range(len(scripts))]
     print(format_table(rows))
     failed = [r["name"] for r in rows if not r["passed"]]
     print(f"{len(rows) - len(failed)} passed, {len(failed)} failed")
@@ -67,9 +138,10 @@ def _cmd_check(args: argparse.Namespace) -> int:
 
 
 def run_isolated(script: Path, *, fast: bool, out_under: Path | None = None,
-                 timeout_s: float | None = None) -> dict[str, Any]:
+                 timeout_s: float | None = None,
+                 children: _Children | None = None) -> dict[str, Any]:
     """Run one scenario in a child process; its table row, or an ERROR row saying what happened.
-    """
+    `children`: where the running process is registered (so an interrupt can stop it)."""
     import paintcell
 
     with tempfile.TemporaryDirectory(prefix="paintcell-check-") as td:
@@ -84,6 +156,8 @@ def run_isolated(script: Path, *, fast: bool, out_under: Path | None = None,
         env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
         proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                 text=True, env=env)
+        if children is not None:
+            children.add(proc)
         try:
             _, err = proc.communicate(timeout=timeout_s)
         except subprocess.TimeoutExpired:
@@ -97,6 +171,8 @@ def run_isolated(script: Path, *, fast: bool, out_under: Path | None = None,
                     proc.wait(10)
                 except subprocess.TimeoutExpired:
                     proc.kill()
+            if children is not None:
+                children.discard(proc)
         rc = proc.returncode
         if rc in (0, 1) and row_file.exists():
             try:
