@@ -5,7 +5,9 @@ the compiled numba kernel (2 threads and 1), today's numpy kernel, and a plain c
 evaluation of all pairs (the simplified formula, and the literal `deposition_rate_reference`):
 time, evaluated pairs per second (wall and per CPU-second: other jobs share this machine, and
 the load average is printed), the thread count and what the threads' CPU time says 2 idle cores
-would give, speed-ups, and the agreement relative to the peak film.
+would give, speed-ups, and the agreement relative to the peak film: between the kernels, with
+the all-pairs evaluations (they differ by the paint the culling leaves out, f < FOOTPRINT_REL of
+the peak, by design) and with the literal formula on exactly the kernels' pairs (round-off).
 
     .venv/bin/python benchmarks/deposition.py [--threads 2] [--repeat 3] [--plain-fraction 0.25]
 """
@@ -80,6 +82,29 @@ def plain_broadcast(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarr
         sl = slice(i, i + chunk)
         out += gun.dwell_s[sl] @ deposition_rate_reference(
             app, gun.positions[sl], gun.spray_axes[sl], gun.travel_dirs[sl], p, n)
+    return out
+
+
+def plain_same_pairs(app: Applicator, gun: GunSamples, p: np.ndarray,
+                     n: np.ndarray) -> np.ndarray:
+    """The literal DESIGN.md formula (`deposition_rate_reference`) on exactly the pairs the
+    kernels evaluate: every sample of a `CHUNK_SAMPLES` chunk against the points of the blocks
+    the cone test keeps for that chunk (the kernels' culling, and nothing else, applied to an
+    independent all-pairs evaluation) — so the kernels' arithmetic can be held to round-off."""
+    blocks = _make_blocks(p, n, BLOCK_POINTS)
+    block_of = np.empty(len(p), np.int64)
+    block_of[blocks.order] = np.arange(len(p)) // BLOCK_POINTS
+    _, _, a = _tool_axes(gun.spray_axes, gun.travel_dirs)
+    tan_cone = app.footprint_radius_m / app.standoff_m
+    out = np.zeros(len(p))
+    for i in range(0, len(gun), CHUNK_SAMPLES):
+        sl = slice(i, min(i + CHUNK_SAMPLES, len(gun)))
+        keep = np.zeros(len(blocks.radii), bool)
+        keep[_candidate_blocks(blocks, gun.positions[sl], a[sl], tan_cone)] = True
+        pts = np.flatnonzero(keep[block_of])
+        if len(pts):
+            out[pts] += gun.dwell_s[sl] @ deposition_rate_reference(
+                app, gun.positions[sl], gun.spray_axes[sl], gun.travel_dirs[sl], p[pts], n[pts])
     return out
 
 
@@ -182,6 +207,13 @@ def main() -> None:
         print(f"speed-up numba (evaluated pairs/s) / {name}: "
               f"{n_eval / rows[0][1] / (s * npts / t_pl):.1f} x")
         print(f"max |numpy kernel - {name}| / max thickness: {err:.2e}")
+    # the all-pairs references differ from the kernels by what the culling leaves out (f below
+    # FOOTPRINT_REL of the peak, by design); on the kernels' own pairs they must agree to round-off
+    same = plain_same_pairs(app, gsub, p, n)
+    numba_sub = thickness(app, gsub, p, n, threads=args.threads, backend="numba")
+    for name, t_k in (("numba kernel", numba_sub), ("numpy kernel", t_sub)):
+        print(f"max |{name} - literal formula on the kernels' pairs| / max thickness: "
+              f"{float(np.max(np.abs(t_k - same)) / np.max(same)):.2e} (on {sub} samples)")
     print(f"max thickness: {np.max(ref) * 1e6:.2f} um")
     print(f"load average after (1 min): {os.getloadavg()[0]:.2f}")
 
