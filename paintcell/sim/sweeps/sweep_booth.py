@@ -34,7 +34,7 @@ import numpy as np
 from paintcell.planning.errors import PaintcellError
 from paintcell.sim.sweeps.sweep_names import BOOTH_FACTORS, BOOTH_METRICS, SAMPLE_METRICS
 from paintcell.sim.sweeps.sweep_spec import SweepError
-from paintcell.sim.sweeps.sweep_worker import _num
+from paintcell.sim.sweeps.sweep_worker import _num, cached_context
 
 BOOTH_EXTRA = tuple(BOOTH_METRICS)
 
@@ -106,12 +106,8 @@ class _BoothContext:
     build_s: float
 
 
-_CONTEXTS: dict[str, _BoothContext] = {}
-
-
 def _context(payload: BoothPayload) -> _BoothContext:
-    ctx = _CONTEXTS.get(payload.digest)
-    if ctx is None:
+    def build() -> _BoothContext:
         from paintcell.sim.app.pipeline import settings_from
         from paintcell.sim.booth.booth_cell import build_booth_cell
         from paintcell.sim.booth.booth_programs import _load_robots
@@ -121,12 +117,11 @@ def _context(payload: BoothPayload) -> _BoothContext:
         booth = payload.scenario
         bcell = build_booth_cell(_load_robots(booth), payload.programs.body,
                                  booth.body_placement.matrix, booth.conveyor)
-        ctx = _BoothContext(payload, bcell,
-                            settings_from(ServoSettings, booth.servo, "servo"),
-                            time.perf_counter() - t0)
-        _CONTEXTS.clear()
-        _CONTEXTS[payload.digest] = ctx
-    return ctx
+        return _BoothContext(payload, bcell,
+                             settings_from(ServoSettings, booth.servo, "servo"),
+                             time.perf_counter() - t0)
+
+    return cached_context(payload.digest, build)
 
 
 def carrier_program(bcell: Any, progs: Any, speed_m_s: float) -> Any:

@@ -11,13 +11,16 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
 from paintcell.planning.errors import PaintcellError
 from paintcell.sim.sweeps.sweep_names import SAMPLE_METRICS
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,13 +54,27 @@ class WorkerContext:
     build_s: float = 0.0
 
 
-_CONTEXTS: dict[str, WorkerContext] = {}
+_CONTEXTS: dict[str, Any] = {}
+
+
+def cached_context(digest: str, build: Callable[[], T]) -> T:
+    """The worker's context for the sweep `digest`: built by `build()` on first use, then reused.
+
+    One sweep at a time per worker: a new digest drops the older sweep's context (its compiled
+    MuJoCo cell), whatever kind of sweep (single robot or booth) it was.
+    """
+    ctx = _CONTEXTS.get(digest)
+    if ctx is None:
+        ctx = build()
+        _CONTEXTS.clear()
+        _CONTEXTS[digest] = ctx
+    return ctx  # type: ignore[no-any-return]
 
 
 def context(payload: SweepPayload) -> WorkerContext:
     """The worker's context for this payload (built on first use, then reused)."""
-    ctx = _CONTEXTS.get(payload.digest)
-    if ctx is None:
+
+    def build() -> WorkerContext:
         from paintcell.sim.app.pipeline import _servo, load_robot_for
         from paintcell.sim.execution.cell import build_cell
 
@@ -67,9 +84,9 @@ def context(payload: SweepPayload) -> WorkerContext:
         cell = build_cell(robot, payload.surface, scn.part_placement.matrix)
         ctx = WorkerContext(payload, robot, cell, _servo(scn))
         ctx.build_s = time.perf_counter() - t0
-        _CONTEXTS.clear()  # one sweep at a time per worker: drop an older one's cell
-        _CONTEXTS[payload.digest] = ctx
-    return ctx
+        return ctx
+
+    return cached_context(payload.digest, build)
 
 
 def disturbances_for(payload: SweepPayload, values: np.ndarray | None, seed: int) -> Any:
