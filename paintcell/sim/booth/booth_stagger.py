@@ -8,6 +8,14 @@ can be kept apart at no delay difference is refused before the search, and after
 is fixed the free delays of every later robot are narrowed at once (forward checking) and the
 branch is left as soon as one has none. Without them a robot that cannot be placed made the
 search try every combination of the earlier robots' delays (81^3 for the fourth robot).
+
+Robots that can never meet (every delay difference keeps them apart) constrain nothing, so the
+robots are split into independent groups (the connected components of "may meet") and each
+group is searched alone: otherwise a robot that meets nobody, ahead of a group that cannot be
+placed, multiplied that group's search by its 81 delays. The groups' best delays make the whole
+booth's: the cycle is the longest group's, and a group that ends sooner takes its least delays
+that end by then (its own search again with that cycle as a floor; sums and the earliest
+robots' delays are separable over groups, so the combination is the plain search's answer).
 """
 
 from __future__ import annotations
@@ -68,25 +76,58 @@ def stagger_starts(paths: list[np.ndarray], dt_s: float, min_distance_m: float) 
             raise BoothError(f"robot {i}'s arm comes closer than {min_distance_m} m to robot "
                              f"{j}'s at every start delay up to {STAGGER_MAX_S} s of either; "
                              "change the allocation or the robots' places")
-    search = _Search(ok, [len(p) for p in paths], step, dmax)
-    _place(search, [], [np.ones(dmax + 1, bool) for _ in range(n)])
+    lens = [len(p) for p in paths]
+    groups = _groups(ok, n)
+    best = [_search_group(g, ok, lens, step, dmax, 0, min_distance_m) for g in groups]
+    cycle = max([lens[k] for k in range(n)] + [b[0][0] for b in best])
+    delays = [0] * n                      # a robot that meets nobody starts at once
+    for g, b in zip(groups, best, strict=True):
+        if b[0][0] < cycle:               # this group may end later: its least delays by then
+            b = _search_group(g, ok, lens, step, dmax, cycle, min_distance_m)
+        for k, d in zip(g, b[1], strict=True):
+            delays[k] = d * step
+    return delays
+
+
+def _groups(ok: dict[tuple[int, int], np.ndarray], n: int) -> list[list[int]]:
+    """The robots (indices, ascending) of each group of two or more that may meet: connected
+    components of the pairs whose `ok` row is not all True, ordered by their first robot."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    edges = np.array([ij for ij, row in ok.items() if not row.all()], int).reshape(-1, 2)
+    _, label = connected_components(
+        coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), (n, n)), directed=False)
+    out = [[int(k) for k in np.flatnonzero(label == c)] for c in np.unique(label)]
+    return sorted((g for g in out if len(g) > 1), key=lambda g: g[0])
+
+
+def _search_group(g: list[int], ok: dict[tuple[int, int], np.ndarray], lens: list[int],
+                  step: int, dmax: int, floor: int, min_distance_m: float
+                  ) -> tuple[tuple[int, int, tuple[int, ...]], list[int]]:
+    """The best (key, delays [steps]) of group g's robots alone, their cycle counted as at least
+    floor [samples]; raises BoothError (robot indices of the whole booth) when none."""
+    search = _Search({(a, b): ok[(g[a], g[b])] for a in range(len(g)) for b in range(a)},
+                     [lens[k] for k in g], step, dmax, floor)
+    _place(search, [], [np.ones(dmax + 1, bool) for _ in g])
     if search.best is None:
-        i, k = search.dead
+        i, k = (g[x] for x in search.dead)
         raise BoothError(f"robot {k}'s arm comes closer than {min_distance_m} m to robot {i}'s "
                          f"or an earlier one's for every start delay up to {STAGGER_MAX_S} s "
                          "that keeps those apart; change the allocation or the robots' places")
-    return [d * step for d in search.best[1]]
+    return search.best
 
 
 class _Search:
     """State of `stagger_starts`'s depth-first search: ok[(i, j)] (2 dmax + 1,) whether robot i
-    may start (offset − dmax) steps after robot j; lens: program lengths [samples]; best: (key,
-    delays [steps]) of the best complete solution; dead: (fixed robot, later robot) of the
-    deepest dead end (the error message)."""
+    may start (offset − dmax) steps after robot j; lens: program lengths [samples]; floor: the
+    cycle [samples] a shorter one counts as (0: none); best: (key, delays [steps]) of the best
+    complete solution; dead: (fixed robot, later robot) of the deepest dead end (the error
+    message)."""
 
     def __init__(self, ok: dict[tuple[int, int], np.ndarray], lens: list[int], step: int,
-                 dmax: int) -> None:
-        self.ok, self.lens, self.step, self.dmax = ok, lens, step, dmax
+                 dmax: int, floor: int = 0) -> None:
+        self.ok, self.lens, self.step, self.dmax, self.floor = ok, lens, step, dmax, floor
         self.grid = np.arange(dmax + 1)
         self.best: tuple[tuple[int, int, tuple[int, ...]], list[int]] | None = None
         self.dead = (0, 1)
@@ -98,11 +139,11 @@ def _place(s: _Search, d: list[int], free: list[np.ndarray]) -> None:
     every robot k ≥ len(d) that keep it apart from all of d (forward-checked)."""
     i, n = len(d), len(s.lens)
     if i == n:
-        key = (max(s.lens[k] + d[k] * s.step for k in range(n)), sum(d), tuple(d))
+        key = (max([s.floor] + [s.lens[k] + d[k] * s.step for k in range(n)]), sum(d), tuple(d))
         if s.best is None or key < s.best[0]:
             s.best = (key, list(d))
         return
-    done = max([s.lens[k] + d[k] * s.step for k in range(i)], default=0)
+    done = max([s.floor] + [s.lens[k] + d[k] * s.step for k in range(i)])
     for di in np.flatnonzero(free[i]):
         if s.best is not None and \
                 (max(done, s.lens[i] + di * s.step), sum(d) + di) > s.best[0][:2]:
