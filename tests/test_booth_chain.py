@@ -20,6 +20,7 @@ from paintcell.sim.booth.booth_build import scaled_applicator
 from paintcell.sim.booth.booth_chain import chain_programs, job_windows
 from paintcell.sim.booth.booth_film import gun_in_body, job_paint
 from paintcell.sim.booth.booth_hold import delayed
+from paintcell.sim.booth.booth_programs import _longest_program_s
 from paintcell.sim.motion.joint_trajectory import PAINT, RETRACT, JointTrajectory
 from paintcell.sim.motion.moves import plan_move
 
@@ -112,6 +113,14 @@ def test_two_jobs_chain_and_film_superposition():
     assert not ch.paint_on[K1:len(ch.t_s) - K2].any()
     assert ch.meta["job_starts_s"][1] == pytest.approx((len(ch.t_s) - K2) * DT)
     assert ch.pass_index[-K2:][p2.pass_index >= 0].min() == 1       # run on across the jobs
+    # the allocation's skip bound for a robot whose jobs were built together: the chained
+    # program, the move between the jobs included (the jobs' programs alone are shorter)
+    own = (Job(0, 0, 1), Job(1, 0, 1))
+    cache = {(0, own[0]): p1, (0, own[1]): p2}
+    alone = _longest_program_s({0: own}, cache, [], DT)
+    built = _longest_program_s({0: own}, cache, [], DT, {(0, own): len(ch.t_s)})
+    assert alone == pytest.approx((K1 - 1 + K2 - 1) * DT)
+    assert built == pytest.approx(ch.t_s[-1] - ch.t_s[0]) and built > alone
 
     n_delay = 37
     booth_clock = delayed(ch, n_delay)

@@ -185,6 +185,7 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     per robot, its `paintcell.sim.booth.booth_clearance.BodyProbe` (None: no body clearance)."""
     planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
+    chained: dict[tuple[int, tuple[Job, ...]], int] = {}   # a robot's jobs as built [samples]
     tried: list[dict[str, Any]] = []
     best: tuple[int, dict[int, tuple[Job, ...]], list[JointTrajectory], list[int]] | None = None
     n_tried = 0
@@ -201,7 +202,7 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
         n_tried += 1
         if best is not None:
             dt = best[2][0].dt_s
-            longest = _longest_program_s(jobs, cache, plans, dt)
+            longest = _longest_program_s(jobs, cache, plans, dt, chained)
             if longest >= (best[0] - 1) * dt:
                 tried.append({"rank": rank + 1, "jobs": names,
                               "skipped": f"its longest program ({longest:.2f} s: built, or "
@@ -210,6 +211,7 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
                 continue
         try:
             trajs0 = robot_programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes)
+            chained.update({(r, jobs[r]): len(tr.t_s) for r, tr in enumerate(trajs0)})
             delays = _stagger(booth, robots, trajs0)
         except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
             tried.append({"rank": rank + 1, "jobs": names, "rejected": str(exc)})
@@ -233,14 +235,22 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
 
 def _longest_program_s(jobs: dict[int, tuple[Job, ...]],
                        cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
-                       plans: list[CoveragePlan], dt_s: float) -> float:
-    """A candidate's longest robot program [s] for `_choose`'s skip: each job's program as built
-    when the cache holds it, else its estimate less ESTIMATE_MARGIN."""
-    return max(sum((len(got.t_s) - 1) * dt_s
-                   if isinstance(got := cache.get((r, j)), JointTrajectory)
-                   else (1.0 - ESTIMATE_MARGIN) * estimate_s(np.array(
-                       [ps.duration_s for ps in plans[j.part].passes[j.first:j.end]]))
-                   for j in js) for r, js in jobs.items())
+                       plans: list[CoveragePlan], dt_s: float,
+                       chained: dict[tuple[int, tuple[Job, ...]], int] | None = None) -> float:
+    """A candidate's longest robot program [s] for `_choose`'s skip: a robot's jobs as built
+    together when `chained` holds them (the moves between jobs included) [samples], else each
+    job's program as built when the cache holds it, else its estimate less ESTIMATE_MARGIN."""
+    chained = chained or {}
+
+    def job_s(r: int, j: Job) -> float:
+        got = cache.get((r, j))
+        if isinstance(got, JointTrajectory):
+            return (len(got.t_s) - 1) * dt_s
+        return (1.0 - ESTIMATE_MARGIN) * estimate_s(np.array(
+            [ps.duration_s for ps in plans[j.part].passes[j.first:j.end]]))
+
+    return max((chained[(r, js)] - 1) * dt_s if (r, js) in chained
+               else sum(job_s(r, j) for j in js) for r, js in jobs.items())
 
 
 def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoveragePlan],
