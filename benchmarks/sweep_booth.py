@@ -1,6 +1,6 @@
 """Benchmark: the booth's conveyor-speed sweep on the local Dask cluster.
 
-Runs `scenarios/booth.toml` (4 rail robots, fender + door + roof, line at 0.05 m/s) under its
+Runs `scenarios/booth.toml` (4 rail robots, fender + door + roof + hood, line at 0.05 m/s) under its
 [sweep.factors] (the line speed error; the robots track the nominal speed), servo execution, at
 the fast resolution, with `--workers` processes, and prints: wall time, planning time (the
 client builds the booth's programs once), the steady rate (samples per second between the first
