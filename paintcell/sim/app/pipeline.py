@@ -53,29 +53,38 @@ class RunResult:
 
 def load_surface(scn: Scenario, fast: bool = False) -> Surface:
     """The scenario's part surface in the part frame, at the full or fast resolution."""
+    return part_surface(scn.part, scn.fast_resolution_m if fast else scn.resolution_m,
+                        scn.source, "fast_resolution_m" if fast else "resolution_m")
+
+
+def part_surface(part: str | MeshPart, res: float, source: str | None = None,
+                 res_key: str = "resolution_m") -> Surface:
+    """A part's surface in its own frame at remesh edge length res [m]: a library part name, a
+    mesh/CAD `MeshPart` (a scenario's or a booth's `[part]` table) or a bare path (every [part]
+    setting at its default); a relative file is relative to `source` (the scenario file).
+    res_key names the setting in the budget's error."""
     from paintcell.planning.surface import parts
 
-    res = scn.fast_resolution_m if fast else scn.resolution_m
-    if isinstance(scn.part, str) and scn.part in parts.PART_NAMES:
+    if isinstance(part, str) and part in parts.PART_NAMES:
         from paintcell.sim.app.budget import check_surface_budget
 
         # The area from a coarse build (~40 ms) sizes the real one before it allocates.
-        area = parts.get_part(scn.part, resolution_m=max(res, 0.05)).area
-        check_surface_budget(area, res, "fast_resolution_m" if fast else "resolution_m")
-        return parts.get_part(scn.part, resolution_m=res)
+        area = parts.get_part(part, resolution_m=max(res, 0.05)).area
+        check_surface_budget(area, res, res_key)
+        return parts.get_part(part, resolution_m=res)
     # A mesh/CAD file: a [part] table, or a bare path (every [part] setting at its default).
-    if isinstance(scn.part, MeshPart):
-        spec = scn.part
-    elif Path(scn.part).suffix.lower() in MESH_SUFFIXES + CAD_SUFFIXES:
-        spec = MeshPart(file=scn.part)
+    if isinstance(part, MeshPart):
+        spec = part
+    elif Path(part).suffix.lower() in MESH_SUFFIXES + CAD_SUFFIXES:
+        spec = MeshPart(file=part)
     else:
-        raise PaintcellError(f"part {scn.part!r} is neither a library part "
+        raise PaintcellError(f"part {part!r} is neither a library part "
                              f"({', '.join(parts.PART_NAMES)}) nor a mesh/CAD file")
     from paintcell.planning.surface.part_import import import_part
 
     path = Path(spec.file)
-    if not path.is_absolute() and scn.source:
-        path = Path(scn.source).parent / path
+    if not path.is_absolute() and source:
+        path = Path(source).parent / path
     if path.is_file() and path.suffix.lower() in MESH_SUFFIXES:
         sniff_mesh(path)
     return import_part(replace(spec, file=str(path)), resolution_m=res)[0]

@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.planning.errors import PaintcellError
+from paintcell.planning.surface.part_spec import MeshPart
 from paintcell.sim.app.scenario import Placement
 from paintcell.sim.booth.booth_chain import job_record
 from paintcell.sim.booth.conveyor import Conveyor
@@ -84,16 +85,21 @@ class BoothRobot:
 
 @dataclass(frozen=True)
 class BodyPart:
-    """A library part of the body and its placement in the body frame (x along the car).
+    """A part of the body and its placement in the body frame (x along the car).
+    part: a library part name, or the label of a mesh/CAD part (its `MeshPart.stem`).
     reverse: run the part's passes in the reverse order and direction (the same film), e.g. so
     two robots on neighbouring parts sweep in step instead of meeting at the seam.
-    robots: names of the robots that may paint it (None: any that reaches it)."""
+    robots: names of the robots that may paint it (None: any that reaches it).
+    mesh: a mesh/CAD file part (the `[part]` table of a scenario,
+    `paintcell.planning.surface.part_spec.MeshPart`, its file resolved), or None for a library
+    part."""
 
     part: str
     placement: Placement
     planner: dict[str, Any] = field(default_factory=dict)
     reverse: bool = False
     robots: tuple[str, ...] | None = None
+    mesh: MeshPart | None = None
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,8 @@
     [body_placement]  xyz_m = [..], rpy_rad = [..]     # the body frame at conveyor position 0
     [conveyor]        speed_m_s = 0.05, direction = [1, 0, 0]   (+ mass_kg, force_max_n, ...)
     [[parts]]         part = "door", xyz_m = [..], rpy_rad = [..]   (+ [parts.planner])
+                      or a mesh/CAD part: [parts.part] file = "..", units, pieces, side, judge
+                      (the `[part]` table of a scenario; file relative to the booth file)
     [[robots]]        name = "side_a", model = "irb5500", home = [..], rail = [-1.2, 1.2]
                       [robots.base] xyz_m = [..], rpy_rad = [..]
     [planner] [trajectory] [servo] [thresholds]
@@ -34,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from paintcell.planning.errors import PaintcellError
+from paintcell.planning.surface.part_spec import MeshPart
 from paintcell.sim.app.scenario import Placement
 from paintcell.sim.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
 from paintcell.sim.booth.conveyor import Conveyor
@@ -83,16 +86,19 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     for i, p in enumerate(d.get("parts", [])):
         p = _check_keys(p, _PART, f"{where} [[parts]] #{i}")
         if "part" not in p:
-            raise BoothDataError(f"{where} [[parts]] #{i}: give `part` (a library part name)")
+            raise BoothDataError(f"{where} [[parts]] #{i}: give `part` (a library part name or "
+                                 "a [parts.part] table with file = \"...\")")
+        mesh = _mesh_part(p["part"], f"{where} [[parts]] #{i}", source)
         pl = _placement({k: p[k] for k in _PLACEMENT if k in p}, f"{where} [[parts]] #{i}")
         who = p.get("robots")
         if who is not None and (not isinstance(who, list) or not who
                                 or not all(isinstance(x, str) for x in who)):
             raise BoothDataError(f"{where} [[parts]] #{i}: robots = {who!r} must be a list of "
                                  "robot names, e.g. [\"roof_l\", \"roof_r\"]")
-        parts.append(BodyPart(str(p["part"]), pl, dict(p.get("planner", {})),
+        parts.append(BodyPart(str(p["part"]) if mesh is None else mesh.stem, pl,
+                              dict(p.get("planner", {})),
                               _bool(p.get("reverse", False), f"{where} [[parts]] #{i} reverse"),
-                              None if who is None else tuple(who)))
+                              None if who is None else tuple(who), mesh))
     robots = []
     for i, r in enumerate(d.get("robots", [])):
         r = _check_keys(r, _ROBOT, f"{where} [[robots]] #{i}")
@@ -160,6 +166,17 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             source=source, sweep=dict(sweep), applicator=app)
     except PaintcellError as exc:
         raise BoothDataError(f"{where}: {exc}") from exc
+
+
+def _mesh_part(v: Any, where: str, source: str | None) -> MeshPart | None:
+    """None for a library part name; the `MeshPart` of a `[parts.part]` table (the `[part]`
+    table of a scenario, checked by the same loader; `file` relative to the booth file)."""
+    if not isinstance(v, dict):
+        return None
+    try:
+        return MeshPart.from_dict(v, base_dir=None if source is None else Path(source).parent)
+    except PaintcellError as exc:
+        raise BoothDataError(f"{where}: {str(exc).replace('[part]', '[parts.part]')}") from exc
 
 
 def _bool(v: Any, where: str) -> bool:

@@ -258,21 +258,25 @@ def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoverageP
     from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
     from paintcell.planning.paint.applicator import Applicator
     from paintcell.planning.surface import parts
-    from paintcell.sim.app.pipeline import settings_from
+    from paintcell.sim.app.pipeline import part_surface, settings_from
 
     res = booth.fast_resolution_m if fast else booth.resolution_m
     app = Applicator.default() if booth.applicator is None \
         else Applicator.from_toml(booth.applicator)
     surfaces, plans, Ts = [], [], []
     for bp in booth.parts:
-        if bp.part not in parts.PART_NAMES:
+        if bp.mesh is None and bp.part not in parts.PART_NAMES:
             raise BoothError(f"booth part {bp.part!r} is not a library part "
-                             f"({', '.join(parts.PART_NAMES)})")
-        s = parts.get_part(bp.part, resolution_m=res)
+                             f"({', '.join(parts.PART_NAMES)}); a mesh/CAD file goes in a "
+                             "[parts.part] table with file = \"...\"")
+        # the scenario's loader (a mesh part: import, repair, remesh, regions)
+        s = part_surface(bp.part if bp.mesh is None else bp.mesh, res)
         kw = {**booth.planner, **bp.planner}
         if booth.film_refine_pace:      # refined later with the pace held (booth_refine)
             kw["film_refine"] = False
-        plan = plan_coverage(s, app, settings_from(PlannerSettings, kw, "planner"))
+        # a real part's planner covers its skin, as a scenario's (`pipeline.make_plan`)
+        plan = plan_coverage(s.region_surface(("skin",)), app,
+                             settings_from(PlannerSettings, kw, "planner"))
         if bp.reverse:
             from paintcell.sim.booth.booth_build import reversed_plan
 

@@ -1,0 +1,89 @@
+"""A booth part read from a mesh file: the `[parts.part]` table is a scenario's `[part]` table,
+read by the same loader (`MeshPart.from_dict`, `paintcell.sim.app.pipeline.part_surface`), so the
+booth plans exactly the surface and passes a one-robot scenario of that file plans."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from paintcell.sim.app.pipeline import load_surface, make_plan
+from paintcell.sim.app.scenario_files import load_scenario
+from paintcell.sim.booth.booth import Booth
+from paintcell.sim.booth.booth_data import BoothDataError
+from paintcell.sim.booth.booth_programs import _plan_parts
+
+PART = '''[parts.part]
+file = "parts/bent_plate.stl"
+units = "mm"
+'''
+
+
+def _plate(path: Path) -> None:
+    """A 600 x 400 mm plate bent about its short axis (radius 1.5 m), in mm, convex side +z."""
+    u, v = np.meshgrid(np.linspace(-300, 300, 31), np.linspace(-200, 200, 21), indexing="ij")
+    r = 1500.0
+    V = np.column_stack([(r * np.sin(u / r)).ravel(), v.ravel(),
+                         (r * np.cos(u / r) - r).ravel()])
+    i = np.arange(30)[:, None] * 21 + np.arange(20)[None, :]
+    F = np.concatenate([np.column_stack([i.ravel(), (i + 21).ravel(), (i + 1).ravel()]),
+                        np.column_stack([(i + 1).ravel(), (i + 21).ravel(), (i + 22).ravel()])])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    trimesh.Trimesh(V, F, process=False).export(path)
+
+
+def _booth(tmp_path: Path, part: str) -> Path:
+    p = tmp_path / "cell.toml"
+    p.write_text(f'''name = "plate_cell"
+fast_resolution_m = 0.025
+[[parts]]
+xyz_m = [1.4, 0.0, 1.0]
+{part}
+[[robots]]
+name = "r"
+model = "irb5500"
+''')
+    return p
+
+
+def test_mesh_part_in_a_booth_is_the_scenario_part(tmp_path):
+    _plate(tmp_path / "parts" / "bent_plate.stl")
+    booth = load_scenario(_booth(tmp_path, PART))
+    assert isinstance(booth, Booth)
+    bp = booth.parts[0]
+    # the file is relative to the booth file; the label is the file's stem
+    assert bp.part == "bent_plate" and bp.mesh is not None
+    assert Path(bp.mesh.file) == tmp_path / "parts" / "bent_plate.stl"
+    assert bp.mesh.units == "mm" and bp.mesh.judge == ("skin",)
+    # the same part in a one-robot scenario
+    scn_file = tmp_path / "one.toml"
+    scn_file.write_text('name = "one"\nrobot = "irb5500"\nfast_resolution_m = 0.025\n'
+                        '[part_placement]\nxyz_m = [1.4, 0.0, 1.0]\nrpy_rad = [0, 0, 0]\n'
+                        + PART.replace("[parts.part]", "[part]"))
+    scn = load_scenario(scn_file)
+    surf = load_surface(scn, fast=True)
+    surfaces, plans, _ = _plan_parts(booth, fast=True)
+    np.testing.assert_array_equal(surfaces[0].vertices, surf.vertices)
+    np.testing.assert_array_equal(surfaces[0].faces, surf.faces)
+    # 0.6 x 0.4 m in m (units = "mm" applied), the same passes as the scenario's planner
+    assert np.ptp(surf.vertices, axis=0)[:2] == pytest.approx([0.6 * np.sin(0.2) / 0.2, 0.4],
+                                                              rel=0.02)
+    plan = make_plan(scn, surf, fast=True)
+    assert len(plans[0].passes) == len(plan.passes) >= 2
+    for i in range(len(plan.passes)):
+        np.testing.assert_allclose(plans[0].tcp_frames(i), plan.tcp_frames(i), atol=1e-12)
+
+
+def test_bad_mesh_part_table_is_one_line(tmp_path):
+    bad = _booth(tmp_path, PART + 'colour = "red"\n')
+    with pytest.raises(BoothDataError) as e:
+        load_scenario(bad)
+    msg = str(e.value)
+    assert "\n" not in msg and "[parts.part] has unknown key(s) ['colour']" in msg
+    assert "cell.toml [[parts]] #0" in msg and "valid keys" in msg
+    bad = _booth(tmp_path, '[parts.part]\nunits = "mm"\n')
+    with pytest.raises(BoothDataError, match=r"\[parts.part\] has no file; add file ="):
+        load_scenario(bad)
