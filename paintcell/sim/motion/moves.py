@@ -98,9 +98,12 @@ def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: np
         # ruckig (community) does not enforce position limits: check the move's extrema.
         lo = np.array([b.min for b in traj.position_extrema])
         hi = np.array([b.max for b in traj.position_extrema])
-        if np.any(lo < np.asarray(q_lower) - 1e-9) or np.any(hi > np.asarray(q_upper) + 1e-9):
-            raise TrajectoryError("a move between passes would leave the joint position limits; "
-                                  "move the part or the robot base")
+        over = np.maximum(np.asarray(q_lower) - lo, hi - np.asarray(q_upper))
+        if np.any(over > 1e-9):
+            k = int(np.argmax(over))
+            raise TrajectoryError("a move between passes would leave the joint position limits "
+                                  f"(axis {k + 1} of {n} by {over[k]:.3g}); move the part or "
+                                  "the robot base")
     move = _from_profiles(traj, n)
     _crosscheck(move, traj)
     return move
