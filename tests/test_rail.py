@@ -141,3 +141,31 @@ def test_rail_and_fixed_cells_execute_the_same_tcp_path(roof_case):
     tr7 = execute(build_cell(rail, part, scn.part_placement.matrix), traj7, mode="kinematic")
     assert np.abs(tr6.tcp_pos_world - tr7.tcp_pos_world).max() < FK_AGREEMENT_ATOL_M
     assert np.abs(tr6.tcp_rot_world - tr7.tcp_rot_world).max() < FK_AGREEMENT_ATOL_M
+
+
+def test_refined_pass_keeps_the_carriage_still(roof_case):
+    """Where the spline through a pass's IK samples strays, knots are inserted and the TCP moved
+    back onto the plan: on a rail robot by the arm alone (the carriage stays where the rail
+    placement put it for the pass). Every 8th IK sample of a roof pass leaves the spline
+    centimetres off the path, so knots are inserted; re-measured: the rail column is exactly
+    constant, and the inserted knots are on the path."""
+    from paintcell.robots.paths import solve_paths
+    from paintcell.sim.motion.trajectory_paths import _refined_path
+
+    scn, _, plan, robot = roof_case
+    T = scn.part_placement.matrix @ plan.tcp_frames(1)
+    q = solve_paths(robot, [T])[0].q
+    p = T[:, :3, 3]
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    keep = np.unique(np.r_[np.arange(0, len(T), 8), len(T) - 1])
+
+    def fk_pos(Q):
+        return robot.fk_many(Q)[:, :3, 3]
+
+    path, dev = _refined_path(robot, fk_pos, s[keep], p[keep], q[keep], 1e-4)
+    assert len(path.s_knots) > len(keep)                  # knots were inserted
+    assert np.ptp(path.q_knots[:, 0]) == 0.0              # the carriage did not move
+    on = np.isin(path.s_knots, s[keep], invert=True)
+    p_new = fk_pos(path.q_knots[on])
+    p_lin = np.column_stack([np.interp(path.s_knots[on], s[keep], p[keep][:, k]) for k in range(3)])
+    assert np.linalg.norm(p_new - p_lin, axis=1).max() < 1e-4

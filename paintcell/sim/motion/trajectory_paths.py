@@ -13,6 +13,7 @@ from typing import Any, cast
 import numpy as np
 import pinocchio as pin
 
+from paintcell.robots.rail import RAIL_JOINT
 from paintcell.sim.motion.joint_trajectory import TrajectoryError
 from paintcell.sim.motion.time_law import JointPath
 from paintcell.sim.motion.trajectory_settings import RobotLike, TrajectorySettings
@@ -71,6 +72,10 @@ def _refined_path(robot: RobotLike, fk_pos: Any, s_plan: np.ndarray, p_plan: np.
                               "duplicate samples from the plan")
     s, q = s_plan.copy(), q_knots.copy()
     frac = np.array([0.25, 0.5, 0.75])
+    # A rail's carriage stays where `paintcell.robots.rail` put it for the pass: the inserted
+    # knots move the arm only (moving the carriage too left it drifting at the pass's ends, out
+    # through its travel's end when it sat there).
+    hold = np.array([n == RAIL_JOINT for n in robot.joint_names])
     for _ in range(max_rounds + 1):
         path = JointPath(s, q)
         s_chk = (s[:-1, None] + np.diff(s)[:, None] * frac).ravel()
@@ -88,7 +93,7 @@ def _refined_path(robot: RobotLike, fk_pos: Any, s_plan: np.ndarray, p_plan: np.
         q_new = path(s_new)
         p_target = _lerp_rows(s_plan, p_plan, s_new)
         for k in range(len(s_new)):  # loop over a few inserted knots, not samples
-            q_new[k] = _move_tcp_to(robot, q_new[k], p_target[k])
+            q_new[k] = _move_tcp_to(robot, q_new[k], p_target[k], hold=hold)
         s = np.concatenate([s, s_new])
         q = np.concatenate([q, q_new])
         order = np.argsort(s)
@@ -102,9 +107,10 @@ def _lerp_rows(x: np.ndarray, Y: np.ndarray, xq: np.ndarray) -> np.ndarray:
 
 
 def _move_tcp_to(robot: RobotLike, q: np.ndarray, p_target: np.ndarray,
-                 R_target: np.ndarray | None = None, iters: int = 8) -> np.ndarray:
+                 R_target: np.ndarray | None = None, iters: int = 8,
+                 hold: np.ndarray | None = None) -> np.ndarray:
     """Damped Newton steps moving the TCP to p_target (3,) [m], holding R_target (default: the
-    orientation at q). Returns the new q (n,) [rad]."""
+    orientation at q). hold: (n,) bool, joints kept where they are. Returns the new q (n,)."""
     q = np.array(q, float)
     T = robot.fk(q)
     R_target = T[:3, :3] if R_target is None else R_target
@@ -113,6 +119,8 @@ def _move_tcp_to(robot: RobotLike, q: np.ndarray, p_target: np.ndarray,
         if np.linalg.norm(err) < 1e-10:
             break
         J = robot.jacobian(q)
+        if hold is not None:
+            J = np.where(hold[None, :], 0.0, J)
         # Projected onto the joint limits: the other joints take over the remaining error.
         q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-8 * np.eye(6), err), robot.q_lower,
                     robot.q_upper)
