@@ -75,6 +75,14 @@ def test_move_rejects_bad_input() -> None:
         plan_move(z, z, z, z + np.nan, z, z, V, A, J)
     with pytest.raises(TrajectoryError, match="position limits"):
         plan_move(z, z, z, z + 0.5, z, z, V, A, J, q_lower=z - 1, q_upper=z + 0.2)
+    # a move that starts at a limit still heading out of it: the line names the axis and by how
+    # much it overshoots (the brake from 0.5 rad/s under the acceleration and jerk limits)
+    qd0 = np.zeros(N)
+    qd0[2] = 0.5
+    hi = np.full(N, 1.0)
+    hi[2] = 0.0
+    with pytest.raises(TrajectoryError, match=rf"axis 3 of {N} by 0\.0\d+\)"):
+        plan_move(z, qd0, z, z, z, z, V, A, J, q_lower=z - 1, q_upper=hi)
 
 
 def test_phase_tables_cover_brake_and_hold() -> None:
