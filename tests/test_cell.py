@@ -75,6 +75,28 @@ def test_robot_at_home_touches_nothing() -> None:
     assert d.sensordata[cell.sensor_contact_self.start] == 0
 
 
+def test_a_rail_at_floor_level_stands_on_the_floor_without_contact() -> None:
+    """A rail robot whose rail frame is on the floor (init's rail frames at height 0): the
+    arm's foot rides the carriage at floor level by design, at every carriage position — no
+    booth contact (it was one at every step of the run: 235 of 235 poses lost on
+    bezier_part_scan). The arm itself still meets the floor: its wrist bent down to it does."""
+    from paintcell.robots import load_robot
+
+    case = make_case()
+    robot = load_robot("irb5500_rail")
+    cell = build_cell(robot, case.surface, case.T_world_part)
+    d = mujoco.MjData(cell.model)
+    for s_m in (-1.5, 0.0, 1.5):
+        d.qpos[cell.qpos_adr] = np.r_[s_m, robot.q_home[1:]]
+        mujoco.mj_forward(cell.model, d)
+        assert d.sensordata[cell.sensor_contact_booth.start] == 0
+    q = np.r_[0.0, robot.q_home[1:]]
+    q[2] = 1.4                                   # shoulder forward and down: the arm on the floor
+    d.qpos[cell.qpos_adr] = q
+    mujoco.mj_forward(cell.model, d)
+    assert d.sensordata[cell.sensor_contact_booth.start] > 0
+
+
 def _robot_contacts(cell: Cell, q: np.ndarray) -> dict[tuple[str, str], float]:
     """{(body, body): min distance [m]} of the robot-vs-robot contacts MuJoCo finds at q."""
     m, d = cell.model, mujoco.MjData(cell.model)

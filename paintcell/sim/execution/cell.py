@@ -260,8 +260,12 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         floor = spec.worldbody.add_body(name=BOOTH_BODY)
         floor.add_geom(name="booth_floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
                        material="booth_floor")
-        # The robot's foot stands on the floor by design: not a collision.
-        spec.add_exclude(bodyname1=ROBOT_PREFIX + robot.base_body_name, bodyname2=BOOTH_BODY)
+        # The robot's foot stands on the floor by design: not a collision. On a rail, the
+        # carriage and the arm's foot on it ride at the rail's height (no rotating joint between
+        # them and the rail's frame): on a rail at floor level they stand on it by design too.
+        foot = spec.body(ROBOT_PREFIX + robot.base_body_name)   # None: refused below
+        for body in [] if foot is None else [foot, *_riding(foot)]:
+            spec.add_exclude(bodyname1=body.name, bodyname2=BOOTH_BODY)
     # MuJoCo filters parent-child contacts except for a parent welded to the world (the robot's
     # foot): exclude the foot from its moving children too, as the arm's own parents are (the
     # rotating base stands in the foot plate by construction, e.g. the ABB link1 cylinder
@@ -371,6 +375,15 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
         q_home=np.asarray(robot.q_home, float).copy(),
         surface_name=surface.name,
     )
+
+
+def _riding(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
+    """The bodies below `body` that only slide with it (no hinge or ball joint on the way)."""
+    out = []
+    for child in body.bodies:
+        if all(j.type == mujoco.mjtJoint.mjJNT_SLIDE for j in child.joints):
+            out += [child, *_riding(child)]
+    return out
 
 
 def _is_descendant(model: mujoco.MjModel, body: int, ancestor: int) -> bool:
