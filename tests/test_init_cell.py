@@ -10,7 +10,13 @@ import pytest
 from paintcell.planning.errors import PaintcellError
 from paintcell.robots import load_robot
 from paintcell.robots.rail import solve_rail_paths
-from paintcell.sim.app.init_cell import AUTO_ROBOTS, RAIL_VERIFIED, _place_rail, choose_cell
+from paintcell.sim.app.init_cell import (
+    AUTO_ROBOTS,
+    BASES_VERIFIED,
+    RAIL_VERIFIED,
+    _place_rail,
+    choose_cell,
+)
 
 
 def _vertical_pass(z0_m: float, z1_m: float, y_m: float, n: int = 30) -> np.ndarray:
@@ -67,10 +73,40 @@ def test_a_robot_whose_program_fails_is_skipped_with_the_reason() -> None:
             else None
 
     cell = choose_cell(("abb_paint", "irb5500"), SHORT, SPEEDS, PART, "part.stl", verify=verify)
-    assert [c[0] for c in calls] == ["abb_paint", "irb5500"]
-    assert cell.robot == "irb5500" and np.array_equal(cell.T_base, calls[1][1])
+    names = [c[0] for c in calls]
+    # abb_paint: its best base, then the next ones of the motion ranking (at most
+    # BASES_VERIFIED, each a different base), then the next robot
+    assert names[-1] == "irb5500" and set(names[:-1]) == {"abb_paint"}
+    assert 1 < len(names) - 1 <= BASES_VERIFIED
+    assert len({c[1].tobytes() for c in calls[:-1]}) == len(names) - 1
+    assert cell.robot == "irb5500" and np.array_equal(cell.T_base, calls[-1][1])
     assert "abb_paint reaches every pose but a move between passes would leave the joint " \
            "limits" in cell.why and "\n" not in cell.why
+
+
+def test_a_base_whose_program_fails_gives_way_to_the_next_base() -> None:
+    """The best-ranked base's program fails: the next base of the ranking, whose program
+    passes, is chosen — a feasible base (its joints re-measured by FK) — and the line says
+    why the best one was not."""
+    from paintcell.robots.paths import solve_paths
+
+    calls: list[np.ndarray] = []
+
+    def verify(name: str, T: np.ndarray) -> str | None:
+        calls.append(T.copy())
+        return "its program meets the part (flange 5 mm deep at t = 9.0 s)" \
+            if len(calls) == 1 else None
+
+    cell = choose_cell(("abb_paint",), SHORT, SPEEDS, PART, "part.stl", verify=verify)
+    assert cell.robot == "abb_paint" and len(calls) == 2
+    assert not np.array_equal(calls[0], calls[1]) and np.array_equal(cell.T_base, calls[1])
+    assert "(the best-ranked base's program: its program meets the part" in cell.verdict
+    p = cell.T_base[:3, 3]
+    assert f"chosen base at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m" in cell.verdict
+    robot = load_robot("abb_paint").placed(cell.T_base)
+    for r, T in zip(solve_paths(robot, SHORT), SHORT, strict=True):
+        fk = robot.fk_many(r.q)
+        assert np.max(np.linalg.norm(fk[:, :3, 3] - T[:, :3, 3], axis=1)) < 1e-4
 
 
 def test_rail_frames_are_checked_in_turn_then_refused_in_one_line() -> None:

@@ -3,19 +3,23 @@ rail) reaches every pose of the part's fast plan as `init` placed it; or a one-l
 says what each reached and what the user can change (lengths in m).
 
 A floor-standing arm is placed by `paintcell.robots.placement.find_base_pose` (the motion-scored
-grid of 765 bases). A rail robot is placed on a small grid of rail frames running along the part
+grid of 765 bases); when `verify` refuses the best-ranked base, the next feasible ones of the
+motion ranking (at most `BASES_VERIFIED` in all) are checked with the full IK and `verify`. A
+rail robot is placed on a small grid of rail frames running along the part
 (world y, the part's longest extent as `init` presents it), the arm facing it (+x): each frame is
 scored by `paintcell.robots.rail.best_rail_position` on every pass (closed-form IK, one carriage
 position per pass). The frames where every pass is feasible are then checked cheapest first, at
 most `RAIL_VERIFIED` of them: the full passes with `solve_rail_paths`, then `verify` (init builds
-the joint program there, as `run` will); the first that passes both is chosen. Clearance of a
-rail cell is left to the run's collision check.
+the joint program there, as `run` will, and sweeps it through the part's collision model:
+`init_verify`); the first that passes both is chosen.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
+from typing import Any
 
 import numpy as np
 
@@ -33,6 +37,8 @@ RAIL_HEIGHTS_M = (0.0, 0.5, 1.0)
 RAIL_SCAN = 21
 #: At most this many reaching rail frames are checked with the full IK and `verify`.
 RAIL_VERIFIED = 3
+#: At most this many of a floor arm's bases (best motion score first) are checked with `verify`.
+BASES_VERIFIED = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,9 +88,13 @@ def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
             verify_here = True
         if ok and verify is not None and verify_here:
             problem = verify(name, T)
-            if problem is not None:
-                tried.append(f"{name} reaches every pose but {problem}")
-                continue
+            if problem is not None:             # the next bases of the motion ranking
+                found = _next_base(robot, rep, paths, partial(verify, name))
+                if found is None:
+                    tried.append(f"{name} reaches every pose but {problem}")
+                    continue
+                T, verdict = found
+                verdict += f" (the best-ranked base's program: {problem})"
         if ok:
             why = f"robot {name}" + (f", because {'; '.join(tried)}" if tried else
                                      f": the first of {', '.join(robots)} to reach every pose")
@@ -95,6 +105,26 @@ def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
         f"no robot reaches every pose of {part_label} as init places it: {'; '.join(tried)}; "
         f"paint it in pieces (`--pieces 0` …) or patches, or write the cell by hand (robot, "
         f"[base], [part_placement]) in a scenario{more}")
+
+
+def _next_base(robot: Any, rep: Any, paths: Sequence[np.ndarray],
+               verify: Callable[[np.ndarray], str | None]) -> tuple[np.ndarray, str] | None:
+    """(T_base, its verdict) of the first of the next `BASES_VERIFIED` − 1 feasible bases of
+    `find_base_pose`'s motion ranking (`rep`, its `PlacementReport`) where every pose is reached
+    (full IK) and `verify` passes; None when none is."""
+    from dataclasses import replace
+
+    from paintcell.robots.ik import combined_report
+    from paintcell.robots.paths import solve_paths
+
+    ranked = sorted((m.cost, c) for c, m in (rep.motion or {}).items()
+                    if m.feasible and c != rep.best)
+    for _, c in ranked[:BASES_VERIFIED - 1]:
+        T = rep.candidates[c]
+        reach = combined_report(solve_paths(robot.placed(T), list(paths)))
+        if reach.all_reachable and verify(T) is None:
+            return T.copy(), replace(rep, best=c, reachability=reach).verdict
+    return None
 
 
 def _short(verdict: str) -> str:

@@ -228,7 +228,8 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.planning.surface.part_import import import_part
     from paintcell.robots.catalog import ROBOT_NAMES
     from paintcell.sim.app.init_cell import AUTO_ROBOTS, choose_cell
-    from paintcell.sim.app.pipeline import load_robot_for, make_plan, make_trajectory
+    from paintcell.sim.app.init_verify import ProgramCheck
+    from paintcell.sim.app.pipeline import make_plan
     from paintcell.sim.app.scenario import Placement, Scenario
 
     out: Path = args.out
@@ -268,23 +269,21 @@ def _cmd_init(args: argparse.Namespace) -> int:
     # the first robot model that reaches every pose (`init_cell.AUTO_ROBOTS` with --robot auto)
     part_world = surf.vertices @ pl.matrix[:3, :3].T + pl.matrix[:3, 3]
     robots = AUTO_ROBOTS if args.robot == "auto" else (args.robot,)
-    def verify(robot_name: str, T_cell: np.ndarray) -> str | None:
-        # what `run` does first: the joint program (IK, moves between passes, time law)
-        cand = Scenario(name=name, part=spec_rel, part_placement=pl, robot=robot_name,
+    def candidate(robot_name: str, T_cell: np.ndarray, trajectory: dict[str, Any]) -> Scenario:
+        return Scenario(name=name, part=spec_rel, part_placement=pl, robot=robot_name,
                         base=Placement(tuple(float(x) for x in T_cell[:3, 3]),  # type: ignore[arg-type]
-                                       _rpy(T_cell[:3, :3])))
-        try:
-            make_trajectory(cand, load_robot_for(cand), plan)
-        except PaintcellError as exc:
-            return f"its program fails ({str(exc).split(';')[0]})"
-        return None
+                                       _rpy(T_cell[:3, :3])), trajectory=trajectory)
 
+    # what `run` does first, the joint program, and what its execution will touch: the part
+    check = ProgramCheck(candidate, plan, surf)
     cell = choose_cell(robots, paths, [p.speeds_m_s for p in plan.passes], part_world,
-                       str(spec.file), floor_z_m=0.0, verify=verify)
+                       str(spec.file), floor_z_m=0.0, verify=check)
+    trajectory = check.trajectory.get(cell.robot, {})
     T_base = cell.T_base
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
     text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
-                          f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried)
+                          f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried,
+                          trajectory, check.clearance_m.get(cell.robot))
     atomic_write_text(out, text)
     print(_describe(rep, surf))
     print(f"cell: {cell.why}")
@@ -312,7 +311,8 @@ _PLANNER_TRIES: tuple[dict[str, Any], ...] = (
 
 
 def _scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, base: Any,
-                   verdict: str, n_passes: int, planner: dict[str, Any], tried: list[str]) -> str:
+                   verdict: str, n_passes: int, planner: dict[str, Any], tried: list[str],
+                   trajectory: dict[str, Any], clearance_m: float | None) -> str:
     ops = rep.openings
     pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m²" for p in rep.pieces[:6])
     pieces += ", …" if len(rep.pieces) > 6 else ""
@@ -321,6 +321,14 @@ def _scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, bas
     planner_lines = "".join(f"# failed: {t[:300]}\n" for t in tried)
     planner_lines += "".join(f"{k} = {_v(v)}\n" for k, v in planner.items()) or \
         "# the planner's defaults plan this part\n"
+    gap = f"at least {(clearance_m or 0.0) * 1e3:.0f} mm"   # init_verify's sweep of the program
+    traj_lines = "".join(f"{k} = {_v(v)}\n" for k, v in trajectory.items())
+    if traj_lines:
+        traj_lines = (f"# the default moves came close to the part on the fast plan; folded (the "
+                      f"arm pulls back toward its base before it turns) they keep {gap} from "
+                      "it\n" + traj_lines)
+    else:
+        traj_lines = f"# the default moves keep {gap} from the part on the fast plan\n"
     return f"""# Written by `paintcell init {rep.spec.file}`: every choice below is editable.
 name = {_v(name)}
 robot = {_v(robot)}               # see [base] for why this robot
@@ -350,6 +358,8 @@ rpy_rad = {_v([round(x, 6) for x in base.rpy_rad])}
 
 [planner]
 {planner_lines}
+[trajectory]
+{traj_lines}
 [thresholds]
 reachability_pct = 100.0
 max_collisions = 0

@@ -1,0 +1,107 @@
+"""`paintcell init`'s check of a candidate cell, the way `run` will start it: the joint program
+built on the fast plan (IK, moves between passes, time law: `pipeline.make_trajectory`), then
+swept through the part's collision model — the robot's capsules and the part's convex slabs that
+the MuJoCo execution collides, measured with `mujoco.mj_geomDistance` every 10 ms of the program
+(`paintcell.sim.booth.booth_clearance.BodyProbe`, the booth's check of a program against the
+body).
+
+- A program that comes within `CONTACT_M` of the part meets it (run counts the contact, and the
+  poses it links, against honest reachability): the cell is refused, with the robot body, the
+  depth and the time in the reason.
+- A program that comes within `FOLD_BELOW_M` is built again with `[trajectory] fold_moves = true`
+  (approach and retract pull the shoulder and elbow back toward the base before the wrist
+  turns), and the folded program is kept when it keeps farther from the part. The margin is
+  there because `init` checks the fast plan and a full run plans at 10 mm: on reach_hood_panel
+  the fast program's move home passed 81 mm from the part and the full one's went 54 mm into it;
+  folded, both kept ≥ 195 mm (`init` wrote no `fold_moves` then: a user added it by hand).
+- A program that does not build is built folded too before the cell is refused.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from paintcell.planning.errors import PaintcellError
+
+__all__ = ["CONTACT_M", "FOLD_BELOW_M", "ProgramCheck"]
+
+#: Closer than this to the part [m] is contact (the booth's default `body_clearance_m`).
+CONTACT_M = 0.01
+#: A program closer than this to the part [m] is built again with folded moves (module doc).
+FOLD_BELOW_M = 0.1
+#: The program is swept in windows of this length [s] (a program through the part stops early).
+WINDOW_S = 1.0
+#: The `[trajectory]` tables tried, in turn: the defaults, then folded moves.
+TRIES: tuple[dict[str, Any], ...] = ({}, {"fold_moves": True})
+
+
+class ProgramCheck:
+    """`init_cell.choose_cell`'s `verify`: check(robot name, T_base (4, 4)) is None when the cell's
+    program builds and keeps clear of the part, else why not in a few words.
+
+    scenario(robot name, T_base, trajectory table): the candidate `Scenario`; plan: the fast
+    `CoveragePlan`; surface: the part (its part frame) as planned, placed by the scenarios'
+    `part_placement`. `trajectory[name]` holds the `[trajectory]` table of the last cell of that
+    robot that passed (`{}` or `{"fold_moves": True}`), `clearance_m[name]` its smallest distance
+    to the part [m] (`FOLD_BELOW_M` when nothing came closer).
+    """
+
+    def __init__(self, scenario: Callable[[str, np.ndarray, dict[str, Any]], Any], plan: Any,
+                 surface: Any) -> None:
+        self._scenario, self._plan, self._surface = scenario, plan, surface
+        self.trajectory: dict[str, dict[str, Any]] = {}
+        self.clearance_m: dict[str, float] = {}
+
+    def __call__(self, name: str, T_base: np.ndarray) -> str | None:
+        from paintcell.sim.app.pipeline import load_robot_for, make_trajectory
+        from paintcell.sim.booth.booth_clearance import BodyProbe
+
+        robot, probe = None, None
+        best: tuple[float, dict[str, Any]] | None = None
+        failed: list[str] = []                     # why each try is not clear, in order
+        for table in TRIES:
+            scn = self._scenario(name, T_base, dict(table))
+            robot = robot or load_robot_for(scn)
+            try:
+                traj = make_trajectory(scn, robot, self._plan)
+            except PaintcellError as exc:
+                failed.append(f"its program fails ({str(exc).split(';')[0]})")
+                continue
+            probe = probe or BodyProbe(robot, self._surface, scn.part_placement.matrix,
+                                       np.zeros(len(self._surface.vertices), int))
+            gap, hit = _sweep(probe, traj)
+            if hit is None:
+                if best is None or gap > best[0]:
+                    best = (gap, table)
+            else:
+                d = hit.min_distance_m
+                how = f"{-d * 1e3:.0f} mm deep" if d < 0 else f"{d * 1e3:.0f} mm from it"
+                body = hit.bodies[0] if hit.bodies else "the arm"
+                failed.append(f"its program meets the part ({body} {how} at t = "
+                              f"{hit.first_t_s:.1f} s)")
+            if gap >= FOLD_BELOW_M:                # nothing within FOLD_BELOW_M: done
+                break
+        if best is not None:
+            self.clearance_m[name], self.trajectory[name] = best[0], dict(best[1])
+            return None
+        if len(failed) == 1 or failed[0] == failed[1]:
+            return failed[0]
+        return f"{failed[0]}; with fold_moves {failed[1].removeprefix('its ')}"
+
+
+def _sweep(probe: Any, traj: Any) -> tuple[float, Any]:
+    """(smallest distance to the part [m] up to FOLD_BELOW_M, the `Clearance` at CONTACT_M of
+    the first `WINDOW_S` of the program that comes within CONTACT_M, or None). Window by
+    window, so that a program through the part stops at its first contact."""
+    t = traj.t_s
+    cuts = np.searchsorted(t, np.arange(t[0], t[-1], WINDOW_S))
+    gap = FOLD_BELOW_M
+    for a, b in zip(cuts, [*cuts[1:], len(t) - 1], strict=True):
+        c = probe.clearance(traj.q[a:b + 1], t[a:b + 1], FOLD_BELOW_M)
+        gap = min(gap, c.min_distance_m)
+        if c.min_distance_m < CONTACT_M:
+            return gap, probe.clearance(traj.q[a:b + 1], t[a:b + 1], CONTACT_M)
+    return gap, None

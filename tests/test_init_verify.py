@@ -1,0 +1,142 @@
+"""`paintcell init`'s program check (`paintcell.sim.app.init_verify.ProgramCheck`): a cell whose
+program meets the part is refused — and the run's own MuJoCo cell, replayed pose by pose,
+touches it; a cell whose default moves pass through the part but whose folded moves do not gets
+`fold_moves` — and the replay of the folded program touches nothing.
+
+Independent truth: the execution's MuJoCo model (`paintcell.sim.execution.cell.build_cell`) and
+its own collision detection (`mj_forward` contacts), not the clearance sweep's
+`mj_geomDistance`."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from paintcell.planning.surface.surface import plane
+from paintcell.planning.surface.surface_data import surface_from_triangles
+from paintcell.sim.app.init_verify import FOLD_BELOW_M, ProgramCheck
+from paintcell.sim.app.pipeline import (
+    load_robot_for,
+    load_surface,
+    make_plan,
+    make_trajectory,
+)
+from paintcell.sim.app.scenario_files import load_scenario
+from paintcell.sim.execution.cell import build_cell
+
+PANEL = Path(__file__).resolve().parents[1] / "scenarios" / "panel.toml"
+
+
+@pytest.fixture(scope="module")
+def panel() -> tuple:
+    scn = load_scenario(PANEL)
+    surf = load_surface(scn, fast=True)
+    return scn, surf, make_plan(scn, surf, fast=True)
+
+
+def _with_plate(surf, centre_world: np.ndarray, normal_world: np.ndarray, size_m: float,
+                T_world_part: np.ndarray):
+    """The part plus a square plate (size_m, 25 mm grid) at centre_world facing normal_world,
+    both in the part frame."""
+    p = plane(size_m, size_m, 0.025)
+    n = normal_world / np.linalg.norm(normal_world)
+    a = np.cross(n, [0.0, 0.0, 1.0] if abs(n[2]) < 0.9 else [1.0, 0.0, 0.0])
+    a /= np.linalg.norm(a)
+    R = np.column_stack([a, np.cross(n, a), n])
+    world = p.vertices @ R.T + centre_world
+    T_pw = np.linalg.inv(T_world_part)
+    v = np.vstack([surf.vertices, world @ T_pw[:3, :3].T + T_pw[:3, 3]])
+    f = np.vstack([surf.faces, p.faces + len(surf.vertices)])
+    return surface_from_triangles(surf.name, v, f)
+
+
+def _touches(scn, surf, traj) -> int:
+    """Samples (every 10 ms) at which the run's cell has a robot–part contact, replayed
+    kinematically."""
+    robot = load_robot_for(scn)
+    cell = build_cell(robot, surf, scn.part_placement.matrix, booth=False)
+    m, d = cell.model, mujoco.MjData(cell.model)
+    robot_body = np.zeros(m.nbody, bool)
+    robot_body[cell.robot_body_ids] = True
+    n = 0
+    for q in traj.q[::max(1, int(round(0.01 / (traj.t_s[1] - traj.t_s[0]))))]:
+        d.qpos[cell.qpos_adr] = q
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_collision(m, d)
+        b = m.geom_bodyid[d.contact.geom[:d.ncon]]
+        n += bool(np.any(robot_body[b[:, 0]] != robot_body[b[:, 1]]))
+    return n
+
+
+def _check(scn, plan, surf) -> ProgramCheck:
+    return ProgramCheck(lambda name, T, tr: replace(scn, robot=name, trajectory={
+        **scn.trajectory, **tr}), plan, surf)
+
+
+def test_a_program_through_the_part_is_refused_and_a_clear_one_is_kept(panel) -> None:
+    scn, surf, plan = panel
+    T_base = scn.base.matrix
+    # a 2 m wall halfway between the base and the panel: the arm reaches through it
+    wall = _with_plate(surf, np.array([0.35, 0.0, 1.2]), np.array([1.0, 0.0, 0.0]), 2.0,
+                       scn.part_placement.matrix)
+    check = _check(scn, plan, wall)
+    why = check("abb_paint", T_base)
+    assert why is not None and why.startswith("its program meets the part (") and "\n" not in why
+    traj = make_trajectory(scn, load_robot_for(scn), plan)
+    assert _touches(scn, wall, traj) > 0                       # the truth: it does
+
+    clear = _check(scn, plan, surf)
+    assert clear("abb_paint", T_base) is None and clear.trajectory["abb_paint"] == {}
+    assert _touches(scn, surf, traj) == 0                      # the truth: it does not
+
+
+def test_moves_that_pass_through_the_part_are_folded(panel) -> None:
+    """A small plate where the default program's flange passes, away from the folded
+    program: init keeps the folded moves."""
+    scn, surf, plan = panel
+    robot = load_robot_for(scn)
+    plain = make_trajectory(scn, robot, plan)
+    folded = make_trajectory(replace(scn, trajectory={**scn.trajectory, "fold_moves": True}),
+                             robot, plan)
+    cell = build_cell(robot, surf, scn.part_placement.matrix, booth=False)
+    m, d = cell.model, mujoco.MjData(cell.model)
+    g = np.flatnonzero(np.isin(m.geom_bodyid, cell.robot_body_ids) & (m.geom_contype > 0))
+    centre, axis = [], []
+    for q in folded.q[::10]:                     # every 10 ms
+        d.qpos[cell.qpos_adr] = q
+        mujoco.mj_kinematics(m, d)
+        centre.append(d.geom_xpos[g].copy())
+        axis.append(d.geom_xmat[g].reshape(-1, 3, 3)[:, :, 2].copy())
+    C, A = np.concatenate(centre), np.concatenate(axis)
+    kind, size = np.tile(m.geom_type[g], len(centre)), np.tile(m.geom_size[g], (len(centre), 1))
+    bound = np.tile(m.geom_rbound[g], len(centre))
+    capsule = kind == mujoco.mjtGeom.mjGEOM_CAPSULE
+
+    def folded_distance(p: np.ndarray) -> float:
+        """From p to the folded program's geoms: exact for capsules, bounding spheres else."""
+        v = p - C
+        t = np.clip(np.sum(v * A, axis=1), -size[:, 1], size[:, 1])
+        d_cap = np.linalg.norm(v - t[:, None] * A, axis=1) - size[:, 0]
+        return float(np.min(np.where(capsule, d_cap, np.linalg.norm(v, axis=1) - bound)))
+
+    flange = m.body("robot/flange").id
+    spots = []
+    for q in plain.q[::50]:                      # every 50 ms
+        d.qpos[cell.qpos_adr] = q
+        mujoco.mj_kinematics(m, d)
+        spots.append(d.xpos[flange].copy())          # inside the flange's capsule
+    far = [folded_distance(p) for p in spots]
+    spot = spots[int(np.argmax(far))]            # the panel: on the default approach, 0.4 s
+    assert max(far) > 0.06                       # the folded arm passes clear of a 40 mm plate
+    plate = _with_plate(surf, spot, np.array([0.0, 0.0, 1.0]), 0.04, scn.part_placement.matrix)
+    assert _touches(scn, plate, plain) > 0 and _touches(scn, plate, folded) == 0   # truth
+
+    check = _check(scn, plan, plate)
+    assert check("abb_paint", scn.base.matrix) is None
+    assert check.trajectory["abb_paint"] == {"fold_moves": True}
+    assert check.clearance_m["abb_paint"] >= 0.01
+    assert FOLD_BELOW_M > 0.01
