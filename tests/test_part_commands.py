@@ -100,6 +100,9 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     # contacts (paintcell.sim.validation.honest_reach) and says which
     m = res.report.metrics
     assert m["ik_reachability_pct"] == 100.0
+    # init swept its program through the part (init_verify): the run's own contact count agrees
+    assert m["n_collisions"] == 0 and m["reach_n_contact_poses"] == 0
+    assert "[trajectory]" in toml.read_text()
     assert m["reachability_pct"] == 100.0 or "painted as planned (" in m["reachability_verdict"]
     judged = res.surface.judged_vertex_mask()
     hem = res.surface.regions.vertex_mask(res.surface.faces, ("hem",))
