@@ -115,6 +115,9 @@ class BoothThresholds:
     max_abs_loss_pp: |executed − planned σ/μ| [pp]. max_cycle_time_s: booth cycle [s].
     min_bell_distance_m: smallest distance between two bells while both paint [m].
     max_torque_utilization: largest demanded/limit torque of any joint [-].
+    reachability_pct: the least robot's honest reachability [%]
+        (`paintcell.sim.booth.booth_reach`: poses lost to IK, joint jumps, configuration flips,
+        contacts and time-law slowdowns > 10 % count against it).
     """
 
     max_collisions: int | None = 0
@@ -125,6 +128,7 @@ class BoothThresholds:
     max_cycle_time_s: float | None = 120.0
     min_bell_distance_m: float | None = 0.8
     max_torque_utilization: float | None = 1.0
+    reachability_pct: float | None = 100.0
 
 
 @dataclass(frozen=True)

@@ -34,7 +34,7 @@ def chain_programs(trajs: list[JointTrajectory], robot: Any) -> JointTrajectory:
     `job_starts_s` (when each job's program starts in the chained one [s]) and
     `transfer_moves_s` (duration of each joining move [s], 0 where none was needed) and
     `job_first_pass_index` (pass indices run on across the jobs: job k's passes start at
-    this index)."""
+    this index) and `job_reachability` (each job's IK report, in order)."""
     if len(trajs) == 1:
         return trajs[0]
     dt = trajs[0].dt_s
@@ -69,7 +69,9 @@ def chain_programs(trajs: list[JointTrajectory], robot: Any) -> JointTrajectory:
                            pass_summary=tuple(s for t in trajs for s in t.pass_summary),
                            meta={**first.meta, "job_starts_s": starts,
                                  "transfer_moves_s": transfers,
-                                 "job_first_pass_index": first_pass})
+                                 "job_first_pass_index": first_pass,
+                                 "job_reachability": [t.meta.get("reachability")
+                                                      for t in trajs]})
 
 
 def _transfer(a: JointTrajectory, b: JointTrajectory, robot: Any) -> JointTrajectory:

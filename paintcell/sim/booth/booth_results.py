@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.planning.atomic_io import atomic_write_text
+from paintcell.planning.coverage.plan import CoveragePlan
 from paintcell.planning.surface.surface import Surface
 from paintcell.sim.app.pipeline import json_default
 from paintcell.sim.booth.booth import Booth, Job
@@ -47,6 +48,13 @@ def _torque_use(trace: ExecutedTrace, tau_max: np.ndarray) -> float:
     return float((np.abs(trace.tau_demand) / np.asarray(tau_max, float)).max())
 
 
+def _least(honest: list[dict[str, Any] | None], key: str) -> float:
+    """The least robot's figure `key` [%]; nan when a robot has none (no IK report)."""
+    if any(h is None for h in honest):
+        return float("nan")
+    return min(float(h[key]) for h in honest if h is not None)
+
+
 def min_bell_distance(trajs: list[JointTrajectory]) -> float:
     """Smallest distance [m] between two robots' TCPs at a step where both paint (inf if never)."""
     best = np.inf
@@ -64,12 +72,14 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
                   trajs0: list[JointTrajectory], trajs: list[JointTrajectory],
                   traces: list[ExecutedTrace], trace: ExecutedTrace,
                   events: list[dict[str, Any]], record: dict[str, Any],
-                  jobs: dict[int, tuple[Job, ...]], part_counts: list[int]) -> ValidationReport:
+                  jobs: dict[int, tuple[Job, ...]], part_counts: list[int],
+                  plans: list[CoveragePlan]) -> ValidationReport:
     """The booth's `ValidationReport` (module doc). trajs0: each robot's own program (static, not
     delayed); trajs: the tracked programs on the booth clock. part_counts: the parts' vertex
     counts, in the order `paintcell.sim.booth.booth_film.merge_surfaces` stacked them into
-    `body`."""
+    `body`. plans: the parts' plans (the jobs' passes are slices of them)."""
     from paintcell.sim.booth.booth_film import overlap_mask
+    from paintcell.sim.booth.booth_reach import robot_honest_reach
 
     areas = body.vertex_areas
     tot = {k: v.sum(axis=0) for k, v in films.items()}
@@ -80,6 +90,8 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     vol = films["executed"] @ areas
     lead = np.argmax(films["executed"], axis=0)
     robots: dict[str, Any] = {}
+    honest = [robot_honest_reach(plans, jobs[i], trajs0[i], trajs[i], traces[i])
+              for i in range(len(booth.robots))]
     for i, rspec in enumerate(booth.robots):
         js = jobs[i]
         robots[rspec.name] = {
@@ -94,6 +106,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
             "start_delay_s": float(trajs[i].meta.get("start_delay_s", 0.0)),
             "conveyor": trajs[i].meta.get("conveyor"),
             "max_torque_utilization": _torque_use(traces[i], bcell.robots[i].tau_max),
+            "honest_reachability": honest[i],
         }
     robot_robot = [e for e in events if bcell.robot_of_body(e["body1"]) >= 0
                    and bcell.robot_of_body(e["body2"]) >= 0
@@ -126,9 +139,11 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
         "executed_mean_um": 1e6 * float(tot["executed"] @ areas / areas.sum()),
         "executed_cycle_time_s": cycle, "one_robot_cycle_s": float(sum(own)),
         "speedup": float(sum(own)) / cycle,
-        "reachability_pct": float(min(tr.meta["reachability"]["n_reachable"]
-                                      / tr.meta["reachability"]["n_poses"] for tr in trajs0)
-                                  * 100.0),
+        # the least robot's honest figure (`booth_reach`); IK alone beside it
+        "reachability_pct": _least(honest, "reachability_pct"),
+        "ik_reachability_pct": _least(honest, "ik_reachability_pct"),
+        "reachability_verdict": "; ".join(f"{r.name}: {h['verdict']}" for r, h
+                                          in zip(booth.robots, honest, strict=True) if h),
         "n_collisions": len(events), "n_robot_robot_collisions": len(robot_robot),
         "min_bell_distance_m": min_bell_distance(trajs),
         "max_torque_utilization": float(tau_use),
@@ -153,7 +168,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
             ("bell distance", "min_bell_distance_m", th.min_bell_distance_m, "m", "min"),
             ("torque utilization", "max_torque_utilization", th.max_torque_utilization, "-",
              "max"),
-            ("reachability", "reachability_pct", 100.0, "%", "min")]
+            ("reachability", "reachability_pct", th.reachability_pct, "%", "min")]
     checks = []
     for name, key, limit, unit, kind in spec:
         if limit is None:

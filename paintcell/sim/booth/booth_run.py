@@ -132,7 +132,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
                         t_ref)
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), progs.record, jobs,
-                           [len(x.vertices) for x in surfaces])
+                           [len(x.vertices) for x in surfaces], plans)
     report.metrics["film_build"] = progs.film_build
     report.metrics["seams"] = progs.seams
     timings["validate"] = time.perf_counter() - t0

@@ -183,7 +183,7 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
         films = _films(booth, bcell, payload, trace, traces, gun_in_body)
         rep = booth_metrics(booth, bcell, progs.body, films, progs.static, progs.trajs, traces,
                             trace, collision_events(trace), progs.record, progs.jobs,
-                            [len(s.vertices) for s in progs.surfaces])
+                            [len(s.vertices) for s in progs.surfaces], progs.plans)
         t3 = time.perf_counter()
     except PaintcellError as exc:
         msg = str(exc).strip().splitlines()
