@@ -162,11 +162,12 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
     s.append("<h2>Robots</h2>" + _table(
         ["robot", "model", "part", "passes", "start delay [s]", "own program [s]",
          "busy [% of cycle]", "brush on [% of cycle]", "paint credit [% of film]",
-         "coverage credit [% of area]", "peak torque [÷ limit]"],
+         "coverage credit [% of area]", "peak torque [÷ limit]", "honest reach"],
         [[n, r["model"], r["part"],
           _span(r["passes"]).replace("passes ", "").replace("pass ", ""),
           r["start_delay_s"], r["program_s"], r["busy_share_pct"], r["paint_share_pct"],
-          r["paint_credit_pct"], r["coverage_credit_pct"], r.get("max_torque_utilization")]
+          r["paint_credit_pct"], r["coverage_credit_pct"], r.get("max_torque_utilization"),
+          (r.get("honest_reachability") or {}).get("verdict", "n/m")]
          for n, r in m["robots"].items()]))
     a = m.get("allocation", {})
     alloc = [f"<p>Rule: {html.escape(str(a.get('rule', '')))}.</p>"]
