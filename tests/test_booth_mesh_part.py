@@ -87,3 +87,28 @@ def test_bad_mesh_part_table_is_one_line(tmp_path):
     bad = _booth(tmp_path, '[parts.part]\nunits = "mm"\n')
     with pytest.raises(BoothDataError, match=r"\[parts.part\] has no file; add file ="):
         load_scenario(bad)
+
+
+def test_booth_judges_a_mesh_part_on_its_skin():
+    """The booth judges a mesh part's film where a one-robot run does (its skin, not its hem or
+    turned edges): the body mask is each part's judged mask in stacking order, every vertex of a
+    part without regions."""
+    import dataclasses
+
+    from paintcell.planning.paint.metrics import uniformity
+    from paintcell.sim.booth.booth_film import judged_body_mask
+
+    root = Path(__file__).resolve().parents[1]
+    door = load_surface(load_scenario(root / "scenarios" / "cad_door.toml"), fast=True)
+    own = door.judged_vertex_mask()
+    assert own is not None and 0 < own.sum() < len(own)
+    bare = dataclasses.replace(door, regions=None)
+    mask = judged_body_mask([door, bare])
+    np.testing.assert_array_equal(mask, np.concatenate([own, np.ones(len(own), bool)]))
+    # zero area off the judged vertices (booth_metrics' weighting) is the one-robot run's mask
+    film = np.random.default_rng(0).uniform(10e-6, 30e-6, len(mask))
+    areas = np.concatenate([door.vertex_areas, door.vertex_areas])
+    a = uniformity(film, areas * mask)
+    b = uniformity(film, areas, mask=mask)
+    assert a.nsd_pct == pytest.approx(b.nsd_pct, rel=1e-12)
+    assert a.within_tolerance_fraction == pytest.approx(b.within_tolerance_fraction, rel=1e-12)

@@ -43,6 +43,14 @@ def merge_surfaces(parts: list[Surface], T_body_part: list[np.ndarray], name: st
                    principal_directions=cat["principal_directions"])
 
 
+def judged_body_mask(parts: list[Surface]) -> np.ndarray:
+    """(N,) bool over `merge_surfaces(parts, …)`'s vertices: a mesh part's judged regions
+    (`Surface.judged_vertex_mask`, its skin), every vertex of a part without regions."""
+    masks = [s.judged_vertex_mask() for s in parts]
+    return np.concatenate([np.ones(len(s.vertices), bool) if m is None else np.asarray(m, bool)
+                           for s, m in zip(parts, masks, strict=True)])
+
+
 def plan_gun_in_body(plan: CoveragePlan, T_body_part: np.ndarray) -> GunSamples:
     """A plan's paint-on gun samples moved from its part frame into the body frame."""
     g = plan.gun_samples()

@@ -48,6 +48,14 @@ def _torque_use(trace: ExecutedTrace, tau_max: np.ndarray) -> float:
     return float((np.abs(trace.tau_demand) / np.asarray(tau_max, float)).max())
 
 
+def _within(film: np.ndarray, plan: np.ndarray, areas: np.ndarray) -> float:
+    """% of the area within ±10 % of the planned film's area-weighted mean."""
+    from paintcell.planning.paint.metrics import uniformity
+
+    target = float(plan @ areas / areas.sum())
+    return 100.0 * uniformity(film, areas, target_m=target).within_tolerance_fraction
+
+
 def _least(honest: list[dict[str, Any] | None], key: str) -> float:
     """The least robot's figure `key` [%]; nan when a robot has none (no IK report)."""
     if any(h is None for h in honest):
@@ -73,15 +81,19 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
                   traces: list[ExecutedTrace], trace: ExecutedTrace,
                   events: list[dict[str, Any]], record: dict[str, Any],
                   jobs: dict[int, tuple[Job, ...]], part_counts: list[int],
-                  plans: list[CoveragePlan]) -> ValidationReport:
+                  plans: list[CoveragePlan], judged: np.ndarray | None = None
+                  ) -> ValidationReport:
     """The booth's `ValidationReport` (module doc). trajs0: each robot's own program (static, not
     delayed); trajs: the tracked programs on the booth clock. part_counts: the parts' vertex
     counts, in the order `paintcell.sim.booth.booth_film.merge_surfaces` stacked them into
-    `body`. plans: the parts' plans (the jobs' passes are slices of them)."""
+    `body`. plans: the parts' plans (the jobs' passes are slices of them). judged: (N,) bool,
+    the body's vertices the film is judged on (a mesh part's skin, as a one-robot run judges it:
+    `paintcell.sim.booth.booth_film.judged_body_mask`); the others count with zero area in every
+    film figure. None: every vertex."""
     from paintcell.sim.booth.booth_film import overlap_mask
     from paintcell.sim.booth.booth_reach import robot_honest_reach
 
-    areas = body.vertex_areas
+    areas = body.vertex_areas if judged is None else body.vertex_areas * judged
     tot = {k: v.sum(axis=0) for k, v in films.items()}
     band = overlap_mask(films["executed"])
     nsd = {k: _nsd(tot[k], areas) for k in tot}
@@ -137,6 +149,9 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
         "overlap_planned_nsd_pct": _nsd(tot["plan"], areas, band),
         "overlap_executed_nsd_pct": _nsd(tot["executed"], areas, band),
         "executed_mean_um": 1e6 * float(tot["executed"] @ areas / areas.sum()),
+        # share of the judged area within ±10 % of the planned mean film (as a one-robot run)
+        "executed_within_tolerance_pct": _within(tot["executed"], tot["plan"], areas),
+        "planned_within_tolerance_pct": _within(tot["plan"], tot["plan"], areas),
         "executed_cycle_time_s": cycle, "one_robot_cycle_s": float(sum(own)),
         "speedup": float(sum(own)) / cycle,
         # the least robot's honest figure (`booth_reach`); IK alone beside it

@@ -30,7 +30,7 @@ from paintcell.planning.coverage.plan import CoveragePlan
 from paintcell.planning.surface.surface import Surface
 from paintcell.sim.booth.booth import Booth, Job
 from paintcell.sim.booth.booth_cell import BoothCell, build_booth_cell
-from paintcell.sim.booth.booth_film import robot_films
+from paintcell.sim.booth.booth_film import judged_body_mask, robot_films
 from paintcell.sim.booth.booth_programs import MAX_ALLOCATIONS_TRIED, BoothPrograms, booth_programs
 from paintcell.sim.execution.trace import ExecutedTrace
 from paintcell.sim.motion.joint_trajectory import JointTrajectory
@@ -132,7 +132,8 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
                         t_ref)
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), progs.record, jobs,
-                           [len(x.vertices) for x in surfaces], plans)
+                           [len(x.vertices) for x in surfaces], plans,
+                           judged_body_mask(surfaces))
     report.metrics["film_build"] = progs.film_build
     report.metrics["seams"] = progs.seams
     timings["validate"] = time.perf_counter() - t0

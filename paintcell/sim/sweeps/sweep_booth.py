@@ -158,7 +158,7 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
                      seed: int) -> dict[str, Any]:
     """Execute and evaluate one booth sample; a JSON-safe record like `run_sample`'s (index −1:
     the nominal run). Booth figures beyond `SAMPLE_METRICS` are under `metrics` too."""
-    from paintcell.sim.booth.booth_film import gun_in_body
+    from paintcell.sim.booth.booth_film import gun_in_body, judged_body_mask
     from paintcell.sim.booth.booth_results import booth_metrics
     from paintcell.sim.booth.booth_run import _robot_traces, robot_tcp
     from paintcell.sim.execution.execute import execute
@@ -183,7 +183,8 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
         films = _films(booth, bcell, payload, trace, traces, gun_in_body)
         rep = booth_metrics(booth, bcell, progs.body, films, progs.static, progs.trajs, traces,
                             trace, collision_events(trace), progs.record, progs.jobs,
-                            [len(s.vertices) for s in progs.surfaces], progs.plans)
+                            [len(s.vertices) for s in progs.surfaces], progs.plans,
+                            judged_body_mask(progs.surfaces))
         t3 = time.perf_counter()
     except PaintcellError as exc:
         msg = str(exc).strip().splitlines()
