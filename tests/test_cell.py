@@ -97,6 +97,29 @@ def test_a_rail_at_floor_level_stands_on_the_floor_without_contact() -> None:
     assert d.sensordata[cell.sensor_contact_booth.start] > 0
 
 
+def test_a_booth_rail_at_floor_level_stands_on_the_floor_without_contact() -> None:
+    """The booth cell follows the one-robot cell's floor rule: a rail robot with its rail on the
+    floor rides it without a booth contact at every carriage position; its arm bent down to the
+    floor still meets it."""
+    from paintcell.robots import load_robot
+    from paintcell.sim.booth.booth_cell import build_booth_cell
+
+    case = make_case()
+    robot = load_robot("irb5500_rail")
+    bcell = build_booth_cell([robot], case.surface, case.T_world_part)
+    cell = bcell.cell
+    d = mujoco.MjData(cell.model)
+    for s_m in (-1.5, 0.0, 1.5):
+        d.qpos[cell.qpos_adr] = np.r_[s_m, robot.q_home[1:]]
+        mujoco.mj_forward(cell.model, d)
+        assert d.sensordata[cell.sensor_contact_booth.start] == 0
+    q = np.r_[0.0, robot.q_home[1:]]
+    q[2] = 1.4                                   # shoulder forward and down: the arm on the floor
+    d.qpos[cell.qpos_adr] = q
+    mujoco.mj_forward(cell.model, d)
+    assert d.sensordata[cell.sensor_contact_booth.start] > 0
+
+
 def _robot_contacts(cell: Cell, q: np.ndarray) -> dict[tuple[str, str], float]:
     """{(body, body): min distance [m]} of the robot-vs-robot contacts MuJoCo finds at q."""
     m, d = cell.model, mujoco.MjData(cell.model)

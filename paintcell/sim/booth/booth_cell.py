@@ -42,6 +42,7 @@ from paintcell.sim.execution.cell import (
     add_contact_sensors,
     add_part_geoms,
     new_cell_spec,
+    riding_bodies,
 )
 
 #: the static body that holds every robot (its subtree is "the robots" for the contact sensors).
@@ -163,8 +164,9 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
         base = spec.body(robot_prefix(i) + robot.base_body_name)
         if base is None:
             raise CellError(f"robot {i} MJCF has no body {robot.base_body_name!r}")
-        if booth:
-            spec.add_exclude(bodyname1=base.name, bodyname2=BOOTH_BODY)
+        if booth:   # the foot, and on a rail the carriage, stand on the floor by design
+            for body in [base, *riding_bodies(base)]:
+                spec.add_exclude(bodyname1=body.name, bodyname2=BOOTH_BODY)
         # as paintcell.sim.execution.cell: the foot against its moving children
         for child in base.bodies:
             spec.add_exclude(bodyname1=base.name, bodyname2=child.name)

@@ -41,7 +41,7 @@ from paintcell.sim.execution.cell_sensors import (
 
 __all__ = ["BOOTH_BODY", "PART_BODY", "ROBOT_PREFIX", "SELF_CONTACT_SENSOR", "TIMESTEP_S",
            "CameraSpec", "Cell", "CellError", "RobotLike", "add_contact_sensors", "add_part_geoms",
-           "build_cell"]
+           "build_cell", "riding_bodies"]
 
 #: physics and control rate: 1 kHz (DESIGN.md, execution).
 TIMESTEP_S = 1e-3
@@ -264,7 +264,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         # carriage and the arm's foot on it ride at the rail's height (no rotating joint between
         # them and the rail's frame): on a rail at floor level they stand on it by design too.
         foot = spec.body(ROBOT_PREFIX + robot.base_body_name)   # None: refused below
-        for body in [] if foot is None else [foot, *_riding(foot)]:
+        for body in [] if foot is None else [foot, *riding_bodies(foot)]:
             spec.add_exclude(bodyname1=body.name, bodyname2=BOOTH_BODY)
     # MuJoCo filters parent-child contacts except for a parent welded to the world (the robot's
     # foot): exclude the foot from its moving children too, as the arm's own parents are (the
@@ -377,12 +377,12 @@ def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, su
     )
 
 
-def _riding(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
+def riding_bodies(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
     """The bodies below `body` that only slide with it (no hinge or ball joint on the way)."""
     out = []
     for child in body.bodies:
         if all(j.type == mujoco.mjtJoint.mjJNT_SLIDE for j in child.joints):
-            out += [child, *_riding(child)]
+            out += [child, *riding_bodies(child)]
     return out
 
 
