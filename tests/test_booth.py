@@ -547,3 +547,27 @@ def test_booth_reachability_is_honest(roof_booth):
         h = robot_honest_reach(res.plans, res.jobs[i], static, tracked, hit)
         assert h["n_contact_poses"] == base["n_contact_poses"] + lost
         assert h["reachability_pct"] < 100.0 and "in contact" in h["verdict"]
+
+
+@pytest.mark.parametrize("key, value, words", [
+    ("reachability_pct", "150", "is out of range; valid: [0, 100]"),
+    ("reachability_pct", "-5", "is out of range; valid: [0, 100]"),
+    ("max_cycle_time_s", '"x"', "must be a number (seconds)"),
+    ("min_bell_distance_m", "nan", "is not a finite number"),
+    ("max_robot_collisions", "0.5", "must be a whole number"),
+])
+def test_booth_thresholds_are_checked_at_load(tmp_path, key, value, words):
+    """A booth limit no run can meet, one that cannot fail, or a wrong type is refused when the
+    file loads, in one line naming the key (as a one-robot scenario's), not after the run."""
+    from paintcell.sim.app.scenario_checks import ScenarioDataError
+    from paintcell.sim.app.scenario_files import load_scenario
+
+    src = (Path(__file__).resolve().parents[1] / "scenarios" / "booth.toml").read_text()
+    lines = [ln for ln in src.splitlines() if not ln.startswith(f"{key} = ")]
+    text = "\n".join(lines).replace("[thresholds]\n", f"[thresholds]\n{key} = {value}\n", 1)
+    f = tmp_path / "b.toml"
+    f.write_text(text)
+    with pytest.raises(ScenarioDataError) as e:
+        load_scenario(f)
+    msg = str(e.value)
+    assert "\n" not in msg and f"[thresholds]: {key} = " in msg and words in msg

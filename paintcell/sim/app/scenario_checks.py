@@ -37,6 +37,10 @@ _THRESHOLD_RANGES: dict[str, tuple[float, float, bool, str]] = {
     "max_torque_utilization": (0.0, math.inf, False, "|τ|/τ_max"),
     "max_joint_range_utilization": (0.0, math.inf, False, "a fraction of the joint range"),
     "tolerance": (0.0, 1.0, False, "a fraction of the mean thickness"),
+    # a booth's (paintcell.sim.booth.booth.BoothThresholds)
+    "max_robot_collisions": (0.0, math.inf, True, "a count of robot–robot collision events"),
+    "max_body_nsd_pct": (0.0, math.inf, False, "σ/μ [%]"),
+    "min_bell_distance_m": (0.0, math.inf, True, "a distance [m]"),
 }
 
 # Ranges the settings classes do not check themselves: (table, key) → (low, high, what).
@@ -77,8 +81,9 @@ def check_thresholds(th: Any, where: str = "thresholds") -> None:
                 or (f.name == "tolerance" and v >= hi):
             raise ScenarioDataError(f"{where}: {f.name} = {v!r} is out of range; valid: "
                                     f"{_fmt_range(lo, hi, lo_incl)} ({what})")
-        if f.name == "max_collisions" and math.isfinite(v) and v != int(v):
-            raise ScenarioDataError(f"{where}: max_collisions = {v!r} must be a whole number")
+        if f.name in ("max_collisions", "max_robot_collisions") and math.isfinite(v) \
+                and v != int(v):
+            raise ScenarioDataError(f"{where}: {f.name} = {v!r} must be a whole number")
 
 
 def _settings_classes() -> dict[str, type]:

@@ -38,6 +38,7 @@ from typing import Any
 from paintcell.planning.errors import PaintcellError
 from paintcell.planning.surface.part_spec import MeshPart
 from paintcell.sim.app.scenario import Placement
+from paintcell.sim.app.scenario_checks import check_thresholds
 from paintcell.sim.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
 from paintcell.sim.booth.conveyor import Conveyor
 
@@ -121,6 +122,8 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                        f"{where} [conveyor]")
     th = _check_keys(d.get("thresholds", {}), tuple(f.name for f in fields(BoothThresholds)),
                      f"{where} [thresholds]")
+    # the one-robot scenario's ranges: a limit no run can meet, or one that cannot fail, refused
+    check_thresholds(BoothThresholds(**th), f"{where} [thresholds]")
     alloc = d.get("allocation")
     sweep = d.get("sweep", {})
     app = d.get("applicator")
