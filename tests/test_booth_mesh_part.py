@@ -112,3 +112,31 @@ def test_booth_judges_a_mesh_part_on_its_skin():
     b = uniformity(film, areas, mask=mask)
     assert a.nsd_pct == pytest.approx(b.nsd_pct, rel=1e-12)
     assert a.within_tolerance_fraction == pytest.approx(b.within_tolerance_fraction, rel=1e-12)
+    # the common film build scales a part's flow by its planned mean on the skin alone: one
+    # straight pass 0.25 m off the door's skin centroid, along the door (a plan's duck type)
+    from paintcell.planning.paint.applicator import Applicator
+    from paintcell.planning.paint.deposition import GunSamples, thickness
+    from paintcell.sim.booth.booth_build import planned_mean_m
+
+    c = door.vertices[own].mean(axis=0)
+    n = door.normals[own].mean(axis=0)
+    n /= np.linalg.norm(n)
+    d = np.cross(n, [0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.cross(n, [1.0, 0.0, 0.0])
+    d /= np.linalg.norm(d)
+    s_m = np.linspace(-0.4, 0.4, 81)
+    gun = GunSamples(positions=c + 0.25 * n + s_m[:, None] * d,
+                     spray_axes=np.tile(-n, (81, 1)), travel_dirs=np.tile(d, (81, 1)),
+                     dwell_s=np.full(81, 0.01 / 0.5))
+
+    class _Pass:
+        applicator = Applicator.default()
+
+        def gun_samples(self) -> GunSamples:
+            return gun
+
+    f = thickness(_Pass.applicator, gun, door.vertices, door.normals)
+    w = door.vertex_areas
+    mean, area = planned_mean_m(_Pass(), door)        # type: ignore[arg-type]
+    assert area == pytest.approx(w[own].sum(), rel=1e-12)
+    assert mean == pytest.approx(float(f[own] @ w[own] / w[own].sum()), rel=1e-12)
+    assert abs(mean - float(f @ w / w.sum())) > 0.01 * mean     # the hems do move it

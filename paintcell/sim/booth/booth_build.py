@@ -47,10 +47,11 @@ def scaled_applicator(app: Applicator, factor: float) -> Applicator:
 
 
 def planned_mean_m(plan: CoveragePlan, surface: Surface) -> tuple[float, float]:
-    """(area-weighted mean [m], area [m²]) of a plan's film on its own part surface."""
+    """(area-weighted mean [m], area [m²]) of a plan's film on its own part surface, over the
+    vertices its film is judged on (a mesh part's skin: `Surface.judged_vertex_mask`)."""
     film = thickness(plan.applicator, plan.gun_samples(), surface.vertices, surface.normals)
-    return (float(uniformity(film, surface.vertex_areas).mean_m),
-            float(surface.vertex_areas.sum()))
+    u = uniformity(film, surface.vertex_areas, mask=surface.judged_vertex_mask())
+    return float(u.mean_m), float(u.area_m2)
 
 
 def common_film_build(surfaces: list[Surface], plans: list[CoveragePlan], names: list[str],

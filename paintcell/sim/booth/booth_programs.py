@@ -27,7 +27,7 @@ from paintcell.sim.booth.booth import (
     rank_allocations,
 )
 from paintcell.sim.booth.booth_chain import job_record
-from paintcell.sim.booth.booth_film import merge_surfaces
+from paintcell.sim.booth.booth_film import judged_body_mask, merge_surfaces
 from paintcell.sim.booth.booth_hold import delayed, held_to
 from paintcell.sim.booth.booth_job_programs import robot_programs
 from paintcell.sim.booth.booth_stagger import stagger_starts
@@ -113,7 +113,8 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
 
         plans, seams = blend_part_seams(body, plans, T_body_parts,
                                         [len(x.vertices) for x in surfaces],
-                                        [f"{i}:{p.part}" for i, p in enumerate(booth.parts)])
+                                        [f"{i}:{p.part}" for i, p in enumerate(booth.parts)],
+                                        judged_body_mask(surfaces))
     T_wb = booth.body_placement.matrix
     robots = _load_robots(booth)
     # Every robot's arm measured against the whole body, every part of it

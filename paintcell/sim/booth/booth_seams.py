@@ -38,14 +38,17 @@ def pass_in_body(p: PassPlan, T_body_part: np.ndarray) -> PassPlan:
 
 
 def blend_part_seams(body: Surface, plans: list[CoveragePlan], T_body_parts: list[np.ndarray],
-                     part_counts: list[int], names: list[str]
+                     part_counts: list[int], names: list[str],
+                     judged: np.ndarray | None = None
                      ) -> tuple[list[CoveragePlan], dict[str, Any]]:
     """The plans with the samples that paint other parts more than their own switched off
     (module doc), and a record {rule, share, nsd by share, samples switched off per part}.
 
     body: the parts' surfaces merged in the body frame
     (`paintcell.sim.booth.booth_film.merge_surfaces`, parts
-    stacked in order, part_counts vertices each); plans: per part, in its part frame.
+    stacked in order, part_counts vertices each); plans: per part, in its part frame;
+    judged: (N,) bool, the body's vertices the film is judged on
+    (`paintcell.sim.booth.booth_film.judged_body_mask`; None: every vertex).
     """
     offs = np.cumsum([0, *part_counts])
     vols = []
@@ -66,7 +69,7 @@ def blend_part_seams(body: Surface, plans: list[CoveragePlan], T_body_parts: lis
     def body_nsd(ps: list[CoveragePlan]) -> float:
         film = sum(thickness(p.applicator, plan_gun_in_body(p, T), body.vertices, body.normals)
                    for p, T in zip(ps, T_body_parts, strict=True))
-        return float(uniformity(np.asarray(film), body.vertex_areas).nsd_pct)
+        return float(uniformity(np.asarray(film), body.vertex_areas, mask=judged).nsd_pct)
 
     unblended = body_nsd(plans)
     tried: dict[str, float] = {}

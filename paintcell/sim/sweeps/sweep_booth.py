@@ -196,7 +196,8 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
         return rec
     m = dict(rep.metrics)
     total = films["executed"].sum(axis=0)
-    m["executed_min_um"] = 1e6 * float(total.min())
+    # the thinnest judged film (a mesh part's skin), as a one-robot sample's
+    m["executed_min_um"] = 1e6 * float(total[judged_body_mask(progs.surfaces)].min())
     m["tracking_error_max_mm"] = 1e3 * max(
         float(np.linalg.norm(ex.tcp_pos_world - tr.tcp_pos_world, axis=1).max())
         for ex, tr in zip(traces, progs.trajs, strict=True))
