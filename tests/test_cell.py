@@ -75,39 +75,28 @@ def test_robot_at_home_touches_nothing() -> None:
     assert d.sensordata[cell.sensor_contact_self.start] == 0
 
 
-def test_a_rail_at_floor_level_stands_on_the_floor_without_contact() -> None:
+def _one_robot_cell(robot: Any, case: Any) -> Cell:
+    return build_cell(robot, case.surface, case.T_world_part)
+
+
+def _booth_cell(robot: Any, case: Any) -> Cell:
+    from paintcell.sim.booth.booth_cell import build_booth_cell
+
+    return build_booth_cell([robot], case.surface, case.T_world_part).cell
+
+
+@pytest.mark.parametrize("builder", [_one_robot_cell, _booth_cell], ids=["cell", "booth"])
+def test_a_rail_at_floor_level_stands_on_the_floor_without_contact(builder: Any) -> None:
     """A rail robot whose rail frame is on the floor (init's rail frames at height 0): the
     arm's foot rides the carriage at floor level by design, at every carriage position — no
     booth contact (it was one at every step of the run: 235 of 235 poses lost on
-    bezier_part_scan). The arm itself still meets the floor: its wrist bent down to it does."""
+    bezier_part_scan), in the one-robot cell and in the booth's. The arm itself still meets the
+    floor: its wrist bent down to it does."""
     from paintcell.robots import load_robot
 
     case = make_case()
     robot = load_robot("irb5500_rail")
-    cell = build_cell(robot, case.surface, case.T_world_part)
-    d = mujoco.MjData(cell.model)
-    for s_m in (-1.5, 0.0, 1.5):
-        d.qpos[cell.qpos_adr] = np.r_[s_m, robot.q_home[1:]]
-        mujoco.mj_forward(cell.model, d)
-        assert d.sensordata[cell.sensor_contact_booth.start] == 0
-    q = np.r_[0.0, robot.q_home[1:]]
-    q[2] = 1.4                                   # shoulder forward and down: the arm on the floor
-    d.qpos[cell.qpos_adr] = q
-    mujoco.mj_forward(cell.model, d)
-    assert d.sensordata[cell.sensor_contact_booth.start] > 0
-
-
-def test_a_booth_rail_at_floor_level_stands_on_the_floor_without_contact() -> None:
-    """The booth cell follows the one-robot cell's floor rule: a rail robot with its rail on the
-    floor rides it without a booth contact at every carriage position; its arm bent down to the
-    floor still meets it."""
-    from paintcell.robots import load_robot
-    from paintcell.sim.booth.booth_cell import build_booth_cell
-
-    case = make_case()
-    robot = load_robot("irb5500_rail")
-    bcell = build_booth_cell([robot], case.surface, case.T_world_part)
-    cell = bcell.cell
+    cell = builder(robot, case)
     d = mujoco.MjData(cell.model)
     for s_m in (-1.5, 0.0, 1.5):
         d.qpos[cell.qpos_adr] = np.r_[s_m, robot.q_home[1:]]
