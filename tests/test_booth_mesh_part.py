@@ -140,3 +140,13 @@ def test_booth_judges_a_mesh_part_on_its_skin():
     assert area == pytest.approx(w[own].sum(), rel=1e-12)
     assert mean == pytest.approx(float(f[own] @ w[own] / w[own].sum()), rel=1e-12)
     assert abs(mean - float(f @ w / w.sum())) > 0.01 * mean     # the hems do move it
+
+
+def test_missing_mesh_part_file_is_one_line_at_load(tmp_path):
+    """A booth part file that is not there is refused when the booth loads, naming the booth's
+    table ([[parts]] #0 [parts.part]), not a scenario's [part] after the robots are loaded."""
+    with pytest.raises(BoothDataError) as e:
+        load_scenario(_booth(tmp_path, PART))          # parts/bent_plate.stl never written
+    msg = str(e.value)
+    assert "\n" not in msg and "[[parts]] #0 [parts.part]: file " in msg
+    assert "bent_plate.stl does not exist" in msg and "[part] file" not in msg

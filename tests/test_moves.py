@@ -81,7 +81,7 @@ def test_move_rejects_bad_input() -> None:
     qd0[2] = 0.5
     hi = np.full(N, 1.0)
     hi[2] = 0.0
-    with pytest.raises(TrajectoryError, match=rf"axis 3 of {N} by 0\.0\d+\)"):
+    with pytest.raises(TrajectoryError, match=rf"axis 3 of {N} by 0\.0\d+ rad\)"):
         plan_move(z, qd0, z, z, z, z, V, A, J, q_lower=z - 1, q_upper=hi)
 
 

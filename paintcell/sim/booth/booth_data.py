@@ -177,9 +177,13 @@ def _mesh_part(v: Any, where: str, source: str | None) -> MeshPart | None:
     if not isinstance(v, dict):
         return None
     try:
-        return MeshPart.from_dict(v, base_dir=None if source is None else Path(source).parent)
+        mp = MeshPart.from_dict(v, base_dir=None if source is None else Path(source).parent)
     except PaintcellError as exc:
         raise BoothDataError(f"{where}: {str(exc).replace('[part]', '[parts.part]')}") from exc
+    if source is not None and not Path(mp.file).is_file():
+        raise BoothDataError(f"{where} [parts.part]: file {mp.file} does not exist; check file "
+                             "(relative to the booth file)")
+    return mp
 
 
 def _bool(v: Any, where: str) -> bool:

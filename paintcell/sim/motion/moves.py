@@ -101,9 +101,11 @@ def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: np
         over = np.maximum(np.asarray(q_lower) - lo, hi - np.asarray(q_upper))
         if np.any(over > 1e-9):
             k = int(np.argmax(over))
+            # paintcell's 7-axis robots are arms on a rail whose carriage is axis 1 (metres)
+            unit = "m (the rail's carriage)" if n == 7 and k == 0 else "rad"
             raise TrajectoryError("a move between passes would leave the joint position limits "
-                                  f"(axis {k + 1} of {n} by {over[k]:.3g}); move the part or "
-                                  "the robot base")
+                                  f"(axis {k + 1} of {n} by {over[k]:.3g} {unit}); move the part "
+                                  "or the robot base")
     move = _from_profiles(traj, n)
     _crosscheck(move, traj)
     return move
