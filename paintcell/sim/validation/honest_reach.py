@@ -141,21 +141,25 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
                 flip[offsets[i] + np.unique(k[change])] = True
                 n_kind[c] += len(np.unique(k[change]))
 
-    # contacts: during a pass the pose painted then; during a move the poses it links
+    # contacts: during a pass the pose painted then; during a move the poses it links (all
+    # contact times at once: a run in contact throughout records one per 1 kHz step)
     t = np.asarray(traj.t_s)
     paint_idx = np.flatnonzero(paint)
-    for tc in sorted({c.time_s for c in trace.contacts}):   # one entry per contact time
-        j = int(np.clip(np.searchsorted(t, tc - 1e-9), 0, len(t) - 1))
-        if paint[j]:
-            i = int(pidx[j])
-            contact[offsets[i] + int(_nearest_pose(s_poses[i], traj.s_pass_m[j:j + 1])[0])] = True
-            continue
-        before = paint_idx[paint_idx < j]
-        after = paint_idx[paint_idx > j]
-        if len(before):
-            contact[offsets[int(pidx[before[-1]])] + counts[int(pidx[before[-1]])] - 1] = True
-        if len(after):
-            contact[offsets[int(pidx[after[0]])]] = True
+    tc = np.unique(np.fromiter((c.time_s for c in trace.contacts), float))
+    if len(tc) and len(paint_idx):
+        j = np.clip(np.searchsorted(t, tc - 1e-9), 0, len(t) - 1)
+        on = paint[j]
+        for i in np.unique(pidx[j[on]]):              # during a pass: the poses painted then
+            ji = j[on][pidx[j[on]] == i]
+            contact[offsets[i] + _nearest_pose(s_poses[i], traj.s_pass_m[ji])] = True
+        jm = j[~on]                                    # during a move: the poses it links
+        b = np.searchsorted(paint_idx, jm) - 1         # last paint sample before
+        a = b + 1                                      # first paint sample after
+        ok = b >= 0
+        pb = pidx[paint_idx[b[ok]]]
+        contact[offsets[pb] + np.asarray(counts)[pb] - 1] = True
+        ok = a < len(paint_idx)
+        contact[offsets[pidx[paint_idx[a[ok]]]]] = True
 
     lost = unreachable | jump | flip | contact | slow
     n_ik = int(reachability.get("n_poses") or 0)
