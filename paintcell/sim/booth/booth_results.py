@@ -157,6 +157,10 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
         # the least robot's honest figure (`booth_reach`); IK alone beside it
         "reachability_pct": _least(honest, "reachability_pct"),
         "ik_reachability_pct": _least(honest, "ik_reachability_pct"),
+        # the robots' lost poses by cause, summed (a one-robot run's keys)
+        **{f"reach_{k}": (sum(int(h[k]) for h in honest if h) if all(honest) else None)
+           for k in ("n_lost", "n_unreachable", "n_joint_jumps", "n_config_flips",
+                     "n_contact_poses", "n_slowed_poses")},
         "reachability_verdict": "; ".join(f"{r.name}: {h['verdict']}" for r, h
                                           in zip(booth.robots, honest, strict=True) if h),
         "n_collisions": len(events), "n_robot_robot_collisions": len(robot_robot),
