@@ -109,8 +109,9 @@ def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
     estimates `est_of` [s] sorted longest first, next(serial), {robot: jobs}), is pushed on
     `heap` (a heapq of (negated key, negated serial, entry): the worst kept on top) while it
     holds fewer than KEEP_RANKED, else replaces the worst when better (a partial assignment
-    whose longest program already exceeds the worst kept is not completed). Returns the number
-    of complete assignments considered."""
+    whose longest program already exceeds the worst kept is not completed). A robot never gets
+    both pieces of one part (dominated by the whole part: APPROACH_RETRACT_S − TURN_S more).
+    Returns the number of complete assignments considered."""
     import heapq
 
     load = [0.0] * n_robots
@@ -139,6 +140,11 @@ def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
         j = jobs[k]
         for r in range(n_robots):
             if len(got[r]) >= max_jobs or load[r] + est_of[j] > bound():
+                continue
+            # Both pieces of a split part to one robot: the whole part as one job (enumerated
+            # too) has the same passes with one turn-around instead of a retract and an
+            # approach, so its estimate is always the smaller; not worth building.
+            if any(g.part == j.part for g in got[r]):
                 continue
             if not reachable(r, j):
                 continue
