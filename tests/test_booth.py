@@ -384,12 +384,14 @@ def test_booth_toml_is_read_and_checked(tmp_path):
     assert isinstance(b, Booth) and [r.name for r in b.robots] == ["side_a", "side_b", "roof_l",
                                                                    "roof_r"]
     assert all(r.model == "irb5500_rail" for r in b.robots)
-    assert [r.rail_m for r in b.robots] == [(-1.5, 1.5)] * 2 + [(-3.2, 4.5), (-3.2, 3.2)]
+    assert [r.rail_m for r in b.robots] == [(-1.5, 1.65), (-1.5, 1.5), (-3.2, 4.5), (-3.2, 3.2)]
+    # roof_r wall-mounted: its rail frame turned 90° about the rail, J1 horizontal
+    assert b.robots[3].base.rpy_rad[1] == pytest.approx(np.pi / 2)
     assert b.conveyor.speed_m_s == 0.05 and [p.part for p in b.parts] == ["fender", "door", "roof",
                                                                            "hood"]
     assert [p.reverse for p in b.parts] == [False, True, False, False]
     assert b.body_clearance_m == 0.01 and b.max_jobs_per_robot == 2
-    assert [p.robots for p in b.parts] == [None, None, ("roof_l", "roof_r"), ("roof_l", "roof_r")]
+    assert [p.robots for p in b.parts] == [("side_a",), ("side_b",), ("roof_l",), ("roof_r",)]
     bad = tmp_path / "bad.toml"
     bad.write_text('name = "b"\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\nspeed = 1\n')
     with pytest.raises(BoothDataError, match=r"unknown key\(s\) \['speed'\]; valid:"):
