@@ -140,3 +140,33 @@ def test_unreachable_verdict_says_where_and_how_far(abb):
     assert f"min joint-limit margin {abb.limit_margin(np.delete(Q, 4, 0)).min():.3f}" in \
         rep2.verdict
     assert "nan" not in rep2.verdict.lower()
+
+
+def test_coarse_scores_stop_at_the_first_infeasible_path_without_changing_any_score(abb):
+    """The placement score of a base is the worst `path_margin` over the paths (−inf when one is
+    infeasible); the search stops at the first infeasible path. Brute force, every path of every
+    base of a grid where some bases reach everything and others lose some passes: the same
+    scores and reachable fractions, to the bit."""
+    from paintcell.robots.ik import IKSettings
+    from paintcell.robots.opw import inverse
+    from paintcell.robots.placement import _score, _subsample, path_margin
+
+    T_part = np.eye(4)
+    T_part[:3, 3] = [0.0, 0.0, 0.9]
+    paths = _panel_raster(T_part, width=1.0, height=1.0, n_pass=5, step=0.02)
+    C = facing_grid([0, 0, 0.9], dx=[-2.0, -1.4, -1.0, -0.7], dy=[-0.8, 0.0, 0.8],
+                    heights=[0.0, 0.25, 0.5])
+    sub, s = _subsample(paths, 25), IKSettings()
+    scores, reached = _score(abb, C, sub, False, s)
+    T_tcp_flange = np.linalg.inv(abb.T_flange_tcp)
+    for c, T in enumerate(C):
+        margins, posed = [], []
+        for p, stride in sub:
+            Q, reach = inverse(abb.opw, np.linalg.inv(T) @ p @ T_tcp_flange)
+            margins.append(path_margin(abb, Q, reach, s, max(stride, 1.0)))
+            posed.append(reach.any(axis=1))
+        assert scores[c] == min(margins)
+        assert reached[c] == (1.0 if np.isfinite(min(margins)) else np.concatenate(posed).mean())
+    feasible = np.isfinite(scores)
+    assert 0 < feasible.sum() < len(C)                      # both kinds of base in the grid
+    assert (reached[~feasible] < 1.0).any()                 # and bases with poses out of reach

@@ -223,6 +223,7 @@ def _score(robot: Robot, C: np.ndarray, sub: list[tuple[np.ndarray, float]], fre
     allp = np.concatenate([p for p, _ in sub])
     starts = np.cumsum([0] + [len(p) for p, _ in sub])
     strides = [st for _, st in sub]
+    first = 0           # the path that sank the previous candidate: the likeliest to sink this one
     # disable=None: a bar only on a terminal (CI logs and pipes stay clean)
     for c, T_base in enumerate(tqdm(C, desc="placement", unit="base", leave=False,
                                     disable=None if len(C) > 50 else True)):
@@ -230,10 +231,9 @@ def _score(robot: Robot, C: np.ndarray, sub: list[tuple[np.ndarray, float]], fre
             # One closed-form call for all paths of the candidate, then path by path.
             flange = np.linalg.inv(T_base) @ allp @ T_tcp_flange
             Q, reach = inverse(robot.opw, flange)
-            margins = [path_margin(robot, Q[a:b], reach[a:b], s, max(st, 1.0))
-                       for a, b, st in zip(starts[:-1], starts[1:], strides, strict=True)]
-            scores[c] = min(margins)
-            fallback[c] = 1.0 if np.isfinite(scores[c]) else reach.any(axis=1).mean()
+            posed = np.asarray(reach.any(axis=1), bool)
+            scores[c], first = _worst_margin(robot, Q, reach, posed, starts, strides, s, first)
+            fallback[c] = 1.0 if np.isfinite(scores[c]) else posed.mean()
         else:
             paths = [p for p, _ in sub]
             thin = IKSettings(**{**s.__dict__, "max_joint_jump_rad": s.max_joint_jump_rad
@@ -246,3 +246,28 @@ def _score(robot: Robot, C: np.ndarray, sub: list[tuple[np.ndarray, float]], fre
                          if robot.wrist_joint_index is not None else np.inf)
                 scores[c] = min(float(np.nanmin(rep.limit_margin_rad)), wrist)
     return scores, fallback
+
+
+def _worst_margin(robot: Robot, Q: np.ndarray, reach: np.ndarray, posed: np.ndarray,
+                  starts: np.ndarray, strides: list[float], s: IKSettings, first: int
+                  ) -> tuple[float, int]:
+    """(the smallest `path_margin` over the paths, or −inf; the path to try first next time).
+
+    Q (N, 8, 6), reach (N, 8): the closed-form IK of every path's poses, concatenated (path k is
+    rows starts[k]:starts[k+1]); posed (N,): some branch reaches the pose. A single infeasible
+    path makes the candidate's score −inf, so the search stops there: a path with a pose no branch
+    reaches is infeasible on every branch (`branch_feasibility` wants every pose inside the
+    limits), and the other paths are scored one by one, the one that sank the previous candidate
+    first. The score is the one `min(path_margin(...) for every path)` gives."""
+    if not posed.all():
+        return -np.inf, int(np.searchsorted(starts, np.argmin(posed), side="right")) - 1
+    n = len(strides)
+    bounds = list(zip(starts[:-1], starts[1:], strict=True))
+    worst = np.inf
+    for k in (first, *(j for j in range(n) if j != first)):
+        a, b = bounds[k]
+        m = path_margin(robot, Q[a:b], reach[a:b], s, max(strides[k], 1.0))
+        if not np.isfinite(m):
+            return -np.inf, k
+        worst = min(worst, m)
+    return worst, first
