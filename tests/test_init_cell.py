@@ -4,6 +4,9 @@ kinematics — and a part no robot reaches is refused in one line with a fix."""
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -56,6 +59,11 @@ def test_a_part_no_robot_reaches_is_refused_in_one_line() -> None:
     msg = str(e.value)
     assert "\n" not in msg and "tower.stl" in msg and "abb_paint reaches no base" in msg
     assert "--robot auto" in msg and "[base]" in msg
+    # what works instead: a two-robot booth, pointing at a shipped scenario that is one
+    named = re.search(r"(scenarios/\S+\.toml)", msg)
+    assert named and "two-robot booth" in msg, msg
+    text = (Path(__file__).resolve().parents[1] / named.group(1)).read_text()
+    assert "[[parts]]" in text and "[parts.part]" in text and text.count("[[robots]]") == 2
 
 
 SHORT = [_vertical_pass(0.9, 1.5, y, n=12) for y in (-0.2, 0.2)]   # every model reaches it

@@ -104,7 +104,9 @@ def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
     raise PaintcellError(
         f"no robot reaches every pose of {part_label} as init places it: {'; '.join(tried)}; "
         f"paint it in pieces (`--pieces 0` …) or patches, or write the cell by hand (robot, "
-        f"[base], [part_placement]) in a scenario{more}")
+        f"[base], [part_placement]) in a scenario{more}, or a two-robot booth "
+        f"(`[[parts]]` with a `[parts.part]` mesh table, as scenarios/crs_cowling_3_holes.toml "
+        f"paints a cowling no robot reaches alone)")
 
 
 def _next_base(robot: Any, rep: Any, paths: Sequence[np.ndarray],
