@@ -140,3 +140,24 @@ def test_moves_that_pass_through_the_part_are_folded(panel) -> None:
     assert check.trajectory["abb_paint"] == {"fold_moves": True}
     assert check.clearance_m["abb_paint"] >= 0.01
     assert FOLD_BELOW_M > 0.01
+
+
+def test_a_program_the_time_law_cannot_follow_is_refused(panel) -> None:
+    """The panel's plan asked at 8× its speeds (4 m/s) builds (the time law slows it down) but
+    lays a different film: init refuses such a cell before it writes it. Truth: the TCP speed of the
+    built program, re-measured by finite differences, is below 90 % of the planned one on more
+    than MAX_LOST_SHARE of the brush-on samples; at the plan's own speeds the check passes."""
+    from paintcell.sim.app.init_verify import MAX_LOST_SHARE
+    from paintcell.sim.motion.joint_trajectory import PAINT
+
+    scn, surf, plan = panel
+    fast = replace(plan, passes=tuple(
+        replace(p, speeds_m_s=8.0 * p.speeds_m_s, times_s=p.times_s / 8.0) for p in plan.passes))
+    traj = make_trajectory(scn, load_robot_for(scn), fast)
+    on = traj.segment == PAINT
+    v = np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1)[on]
+    assert np.mean(v < 0.9 * traj.v_tcp_planned[on]) > MAX_LOST_SHARE   # truth: it slows
+    why = _check(scn, fast, surf)("abb_paint", scn.base.matrix)
+    assert why is not None and why.startswith("its time law and joint path lose ")
+    assert "slowed > 10 %" in why and "\n" not in why
+    assert _check(scn, plan, surf)("abb_paint", scn.base.matrix) is None
