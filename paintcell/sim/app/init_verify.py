@@ -16,11 +16,11 @@ body).
   folded, both kept ≥ 195 mm (`init` wrote no `fold_moves` then: a user added it by hand).
 - A program that does not build is refused as it is (folding was tried there too: on the shared
   meshes it never made one build, and it cost noether_scan_with_holes 7 s).
-- A program that builds but loses more than `MAX_LOST_SHARE` of the plan's poses to the time law
-  and the joint path (`paintcell.sim.validation.honest_reach` without contacts: slowed > 10 %
-  below the planned speed, joint jumps, configuration flips, IK misses) is refused as it is
-  (folding changes only the moves to and from home): the run would fail its reachability and
-  film. Found on noether_scan_with_holes: a rail frame at 0.000 rad joint margin built, and its
+- A program that builds but loses more than `MAX_LOST_SHARE` (20 %) of the plan's poses to the
+  time law and the joint path (`paintcell.sim.validation.honest_reach` without contacts: slowed
+  > 10 % below the planned speed, joint jumps, configuration flips, IK misses) is refused as it
+  is (folding changes only the moves to and from home): the run would fail its reachability
+  and film. Found on noether_scan_with_holes: a rail frame at 0.000 rad joint margin built, and its
   run lost 215 of 426 poses to slowdowns (σ/μ 68 %, torque 1.75).
 """
 
@@ -41,8 +41,12 @@ CONTACT_M = 0.01
 FOLD_BELOW_M = 0.1
 #: The program is swept in windows of this length [s] (a program through the part stops early).
 WINDOW_S = 1.0
-#: A program losing more than this share of the plan's poses before execution is refused.
-MAX_LOST_SHARE = 0.05
+#: A program losing more than this share of the plan's poses before execution is refused. init
+#: judges its own plan, before the film refinement and the robot-aware speeds `run` applies, so
+#: it sees more slowdowns than the run will: bezier_part_scan's cell loses 22 of 235 poses here
+#: and 1 in its run (99.57 %); noether_scan_with_holes' rail loses 191 of 426 here and 215 in
+#: its run (σ/μ 68 %). The guard refuses only a cell whose run is hopeless.
+MAX_LOST_SHARE = 0.2
 #: The `[trajectory]` tables tried, in turn: the defaults, then folded moves.
 TRIES: tuple[dict[str, Any], ...] = ({}, {"fold_moves": True})
 

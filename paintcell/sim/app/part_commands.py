@@ -272,7 +272,8 @@ def _cmd_init(args: argparse.Namespace) -> int:
     def candidate(robot_name: str, T_cell: np.ndarray, trajectory: dict[str, Any]) -> Scenario:
         return Scenario(name=name, part=spec_rel, part_placement=pl, robot=robot_name,
                         base=Placement(tuple(float(x) for x in T_cell[:3, 3]),  # type: ignore[arg-type]
-                                       _rpy(T_cell[:3, :3])), trajectory=trajectory)
+                                       _rpy(T_cell[:3, :3])), trajectory=trajectory,
+                        planner=dict(planner), fast_planner=dict(_INIT_PLANNER))
 
     # what `run` does first, the joint program, and what its execution will touch: the part
     check = ProgramCheck(candidate, plan, surf)
