@@ -573,3 +573,40 @@ def test_booth_thresholds_are_checked_at_load(tmp_path, key, value, words):
         load_scenario(f)
     msg = str(e.value)
     assert "\n" not in msg and f"[thresholds]: {key} = " in msg and words in msg
+
+
+def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
+    """A robot with two jobs (the two roof robots' programs chained as one robot's, as
+    `booth_chain` chains a robot's jobs): its plan, its joined IK reports and its clock line up
+    pose for pose. A pose of the second job marked unreachable in that job's own report and a
+    contact injected at the booth time that pose is painted are ONE lost pose (any shift by a
+    job, a pass or the clock makes them two)."""
+    import copy
+
+    from paintcell.sim.booth.booth_chain import chain_programs
+    from paintcell.sim.booth.booth_reach import robot_honest_reach
+    from paintcell.sim.execution.trace import Contact
+
+    res = roof_booth
+    robot = _load_robots(ROOF_BOOTH)[0]
+    s0, s1 = (dataclasses.replace(s, meta=copy.deepcopy(s.meta))
+              for s in res.static_trajectories)
+    jobs = (res.jobs[0][0], res.jobs[1][0])
+    p_local = 7                                     # pose 7 of the second job's first pass
+    rep = s1.meta["reachability"]
+    assert len(rep["poses"]["reachable"]) == rep["n_poses"]
+    rep["poses"]["reachable"][p_local] = False
+    rep["n_reachable"] -= 1
+    static = chain_programs([s0, s1], robot)
+    tracked = _held_first(static, 1500)
+    shift = static.meta["job_first_pass_index"][1]
+    pas = res.plans[jobs[1].part].passes[jobs[1].first]
+    s_pose = float(np.linalg.norm(np.diff(pas.positions[:p_local + 1], axis=0), axis=1).sum())
+    sel = np.flatnonzero(static.paint_on & (static.pass_index == shift))
+    j = int(sel[np.argmin(np.abs(static.s_pass_m[sel] - s_pose))])
+    t_b = float(tracked.t_s[_arm_sample(tracked, static, j)])
+    trace = dataclasses.replace(res.traces[0], contacts=(Contact(t_b, "arm", "part", 1e-3),))
+    h = robot_honest_reach(res.plans, jobs, static, tracked, trace)
+    assert h["n_poses"] == s0.meta["reachability"]["n_poses"] + rep["n_poses"]
+    assert h["n_unreachable"] == 1 and h["n_contact_poses"] == 1
+    assert h["n_lost"] == 1 and h["per_pose"]
