@@ -47,6 +47,18 @@ def test_script_without_scenario_and_bad_option(tmp_path: Path) -> None:
     assert out.returncode == EXIT_USAGE and "metrics.json" in out.stderr
 
 
+def test_plan_of_a_booth_is_refused_in_one_line(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """`paintcell plan` plans one robot's scenario; given a booth it says so and names the
+    command that plans and runs it (it said "part 'fender+door+roof+hood' is neither a library
+    part …"), and writes nothing."""
+    booth = Path(__file__).resolve().parents[1] / "scenarios" / "booth.toml"
+    assert main(["plan", str(booth), "--fast", "--out", str(tmp_path / "p")]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is a booth" in err and f"paintcell run {booth}" in err
+    assert not (tmp_path / "p").exists()
+
+
 def test_debug_shows_traceback(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--debug", "run", str(tmp_path / "nope.py")]) == EXIT_USAGE
     assert "Traceback" in capsys.readouterr().err

@@ -114,9 +114,14 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     from paintcell.planning.atomic_io import atomic_write_text
     from paintcell.sim.app.pipeline import load_surface, make_plan, scenario_json
     from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.sim.booth.booth import Booth
     from paintcell.sim.output.results_dir import new_results
 
     scn = load_scenario(args.scenario)
+    if isinstance(scn, Booth):   # it said "part 'fender+door+…' is neither a library part …"
+        raise PaintcellError(f"{args.scenario} is a booth (several robots): `paintcell plan` "
+                             "plans a one-robot scenario; plan and run the booth with "
+                             f"`paintcell run {args.scenario}`")
     out = args.out or default_out(scn.name)
     with new_results(out, "plan") as tmp:
         assert tmp is not None
