@@ -119,11 +119,16 @@ def test_allocation_taken_by_its_real_cycle(roof_booth):
     jobs = {names[r]: [j.part, j.first, j.end] for r, (j,) in roof_booth.jobs.items()}
     assert jobs == chosen["jobs"]
     dt = roof_booth.static_trajectories[0].dt_s
+    # the chosen allocation then ran the robot-aware speeds: its programs are the last round's
+    # (the tried table holds the candidates as first built)
+    sf = a["speed_feedback"]
+    assert sf["rounds"][0]["cycle_s"] == pytest.approx(chosen["real_cycle_s"], abs=1e-9)
     assert all(abs(tr.meta.get("start_delay_s", 0.0) - d) < 1e-9
-               for tr, d in zip(roof_booth.trajectories, chosen["start_delays_s"], strict=True))
+               for tr, d in zip(roof_booth.trajectories, a["start_delays_s"], strict=True))
     real = max(d + st.t_s[-1] - st.t_s[0] for d, st in
-               zip(chosen["start_delays_s"], roof_booth.static_trajectories, strict=True))
-    assert real == pytest.approx(chosen["real_cycle_s"], abs=1e-9)
+               zip(a["start_delays_s"], roof_booth.static_trajectories, strict=True))
+    assert real == pytest.approx(sf["cycle_s"], abs=1e-9)
+    assert real <= 1.05 * chosen["real_cycle_s"] + 1e-9
     assert roof_booth.report.metrics["executed_cycle_time_s"] == pytest.approx(
         real, abs=dt + 1e-9)
 
@@ -151,12 +156,13 @@ def test_allocation_skip_keeps_the_real_optimum(roof_booth, monkeypatch):
                  for sk in skipped]], record
 
     surface = parts.get_part("roof", resolution_m=ROOF_BOOTH.fast_resolution_m)
-    monkeypatch.setattr(bp, "_plan_parts", lambda booth, fast: (
-        [surface], roof_booth.plans, [p.placement.matrix for p in ROOF_BOOTH.parts]))
+    monkeypatch.setattr(bp, "plan_parts", lambda booth, fast: _part_plans(
+        [surface], roof_booth.plans, booth))
     monkeypatch.setattr(bp, "_allocate", only_skipped)
     monkeypatch.setattr(bp, "_longest_program_s", lambda *args: 0.0)      # nothing skipped
-    # the fixture's plans already carry the common film build
-    progs = bp.booth_programs(dataclasses.replace(ROOF_BOOTH, common_film_build=False), True)
+    # the fixture's plans already carry the common film build and the robot-aware speeds
+    progs = bp.booth_programs(dataclasses.replace(ROOF_BOOTH, common_film_build=False,
+                                                  robot_aware_speeds=False), True)
     tried = progs.record["tried"]
     assert len(tried) == len(skipped) and not any("skipped" in t for t in tried)
     assert any("real_cycle_s" in t for t in tried)          # a skipped one really built here
@@ -167,20 +173,28 @@ def test_allocation_skip_keeps_the_real_optimum(roof_booth, monkeypatch):
     assert taken == min(built, key=lambda t: (t["real_cycle_s"], t["rank"]))
 
 
+def _part_plans(surfaces, plans, booth):
+    """`booth_plans.PartPlans` of given surfaces and plans (a stand-in for planning the parts)."""
+    from paintcell.sim.booth.booth_plans import PartPlans
+
+    return PartPlans(list(surfaces), list(plans), [p.placement.matrix for p in booth.parts],
+                     list(surfaces), [None] * len(plans), plans[0].applicator)
+
+
 def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeypatch):
     """`film_refine_pace = true` refines every part with its pace held except one whose planner
     sets `film_refine = false` (booth [planner] or the part's own): the user's false wins. The
     refinement is stubbed to record which parts it got; the run stops after it."""
     from paintcell.planning.surface import parts
+    from paintcell.sim.booth import booth_plans, booth_refine
     from paintcell.sim.booth import booth_programs as bp
-    from paintcell.sim.booth import booth_refine
 
     class Stop(Exception):
         pass
 
     got: list[list[str]] = []
 
-    def record(surfaces, plans, settings, names):
+    def record(surfaces, plans, settings, names, caps=None):
         got.append(list(names))
         assert all(st.film_refine for st in settings)
         return plans, {"rule": "stub", "parts": {n: {"applied": True} for n in names}}
@@ -189,11 +203,10 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
         raise Stop
 
     surface = parts.get_part("roof", resolution_m=ROOF_BOOTH.fast_resolution_m)
-    monkeypatch.setattr(bp, "_plan_parts", lambda booth, fast: (
-        [surface] * len(booth.parts), roof_booth.plans * len(booth.parts),
-        [p.placement.matrix for p in booth.parts]))
+    monkeypatch.setattr(bp, "plan_parts", lambda booth, fast: _part_plans(
+        [surface] * len(booth.parts), roof_booth.plans * len(booth.parts), booth))
     monkeypatch.setattr(booth_refine, "refine_parts", record)
-    monkeypatch.setattr(bp, "merge_surfaces", stop)
+    monkeypatch.setattr(booth_plans, "merge_surfaces", stop)
     roof = ROOF_BOOTH.parts[0]
     two = (roof, dataclasses.replace(roof, planner={**roof.planner, "film_refine": False}))
     for booth, want in (

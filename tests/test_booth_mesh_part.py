@@ -14,7 +14,7 @@ from paintcell.sim.app.pipeline import load_surface, make_plan
 from paintcell.sim.app.scenario_files import load_scenario
 from paintcell.sim.booth.booth import Booth
 from paintcell.sim.booth.booth_data import BoothDataError
-from paintcell.sim.booth.booth_programs import _plan_parts
+from paintcell.sim.booth.booth_plans import plan_parts
 
 PART = '''[parts.part]
 file = "parts/bent_plate.stl"
@@ -65,7 +65,8 @@ def test_mesh_part_in_a_booth_is_the_scenario_part(tmp_path):
                         + PART.replace("[parts.part]", "[part]"))
     scn = load_scenario(scn_file)
     surf = load_surface(scn, fast=True)
-    surfaces, plans, _ = _plan_parts(booth, fast=True)
+    pp = plan_parts(booth, fast=True)
+    surfaces, plans = pp.surfaces, pp.plans
     np.testing.assert_array_equal(surfaces[0].vertices, surf.vertices)
     np.testing.assert_array_equal(surfaces[0].faces, surf.faces)
     # 0.6 x 0.4 m in m (units = "mm" applied), the same passes as the scenario's planner

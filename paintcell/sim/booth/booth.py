@@ -170,6 +170,10 @@ class Booth:
     every pass's duration held, so robots sweeping in step keep their pace
     (`paintcell.sim.booth.booth_refine`); a part whose planner sets `film_refine = false`
     (the booth's `[planner]` or its own) is not refined at all."""
+    robot_aware_speeds: bool = True
+    """Measure each robot's program on its passes and re-plan the parts' speeds under what the
+    robots reached where they ran slower than planned (`paintcell.sim.booth.booth_speeds`, as
+    a one-robot run does); False: the plans as the planner made them."""
     blend_seams: bool = True
     """Switch off the samples that paint other parts more than their own
     (`paintcell.sim.booth.booth_seams`)."""

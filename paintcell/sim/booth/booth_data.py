@@ -24,8 +24,10 @@ with one line naming the file, the table and the valid keys. A TOML file is a bo
 area-weighted planned mean) set one film build over the parts (`paintcell.sim.booth.booth_build`);
 `blend_seams` (default true) blends the seams between parts (`paintcell.sim.booth.booth_seams`).
 `film_refine_pace` (default false) refines each part's film with every pass's duration held
-(`paintcell.sim.booth.booth_refine`). `body_clearance_m` (default 0.01 m; false: no check)
-keeps every robot's program that far from the whole body (`paintcell.sim.booth.booth_clearance`).
+(`paintcell.sim.booth.booth_refine`). `robot_aware_speeds` (default true) re-plans the parts'
+speeds under what the robots' programs reach (`paintcell.sim.booth.booth_speeds`).
+`body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
+the whole body (`paintcell.sim.booth.booth_clearance`).
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ from paintcell.sim.booth.conveyor import Conveyor
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
         "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
-        "applicator", "film_refine_pace", "max_jobs_per_robot")
+        "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds")
 _PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse", "robots")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -160,6 +162,8 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             common_film_build=_bool(d.get("common_film_build", True),
                                     f"{where} common_film_build"),
             blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
+            robot_aware_speeds=_bool(d.get("robot_aware_speeds", True),
+                                     f"{where} robot_aware_speeds"),
             film_refine_pace=_bool(d.get("film_refine_pace", False),
                                    f"{where} film_refine_pace"),
             body_clearance_m=_clearance(d.get("body_clearance_m", 0.01),

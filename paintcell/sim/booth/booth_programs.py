@@ -27,9 +27,10 @@ from paintcell.sim.booth.booth import (
     rank_allocations,
 )
 from paintcell.sim.booth.booth_chain import job_record
-from paintcell.sim.booth.booth_film import judged_body_mask, merge_surfaces
 from paintcell.sim.booth.booth_hold import delayed, held_to
 from paintcell.sim.booth.booth_job_programs import robot_programs
+from paintcell.sim.booth.booth_plans import finish_plans, plan_parts
+from paintcell.sim.booth.booth_speeds import Built, robot_aware_booth
 from paintcell.sim.booth.booth_stagger import stagger_starts
 from paintcell.sim.booth.conveyor import ConveyorError, track_program
 from paintcell.sim.motion.joint_trajectory import JointTrajectory
@@ -81,40 +82,9 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
     """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc)."""
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    surfaces, plans, T_body_parts = _plan_parts(booth, fast)
-    refine: dict[str, Any] = {"rule": "off"}
-    if booth.film_refine_pace:
-        from paintcell.planning.coverage.coverage import PlannerSettings
-        from paintcell.sim.app.pipeline import settings_from
-        from paintcell.sim.booth.booth_refine import refine_parts
-
-        # a part whose planner says film_refine = false (booth or part table) is not refined
-        kws = [{**booth.planner, **bp.planner} for bp in booth.parts]
-        on = [i for i, kw in enumerate(kws) if kw.get("film_refine") is not False]
-        refined, refine = refine_parts(
-            [surfaces[i] for i in on], [plans[i] for i in on],
-            [settings_from(PlannerSettings, kws[i], "planner") for i in on],
-            [f"{i}:{booth.parts[i].part}" for i in on])
-        plans = [refined[on.index(i)] if i in on else pl for i, pl in enumerate(plans)]
-        refine["parts"].update({f"{i}:{bp.part}": {"applied": False,
-                                                   "reason": "planner.film_refine = false"}
-                                for i, bp in enumerate(booth.parts) if i not in on})
-    build: dict[str, Any] = {"rule": "off: each part at the default bell flow"}
-    if booth.common_film_build:
-        from paintcell.sim.booth.booth_build import common_film_build
-
-        plans, build = common_film_build(surfaces, plans,
-                                         [f"{i}:{p.part}" for i, p in enumerate(booth.parts)],
-                                         booth.film_target_um)
-    body = merge_surfaces(surfaces, T_body_parts, booth.name)
-    seams: dict[str, Any] = {"rule": "off" if not booth.blend_seams else "one part: no seams"}
-    if booth.blend_seams and len(plans) > 1:
-        from paintcell.sim.booth.booth_seams import blend_part_seams
-
-        plans, seams = blend_part_seams(body, plans, T_body_parts,
-                                        [len(x.vertices) for x in surfaces],
-                                        [f"{i}:{p.part}" for i, p in enumerate(booth.parts)],
-                                        judged_body_mask(surfaces))
+    pp = plan_parts(booth, fast)
+    fin = finish_plans(booth, pp, pp.plans)
+    surfaces, T_body_parts, body = pp.surfaces, pp.T_body_parts, fin.body
     T_wb = booth.body_placement.matrix
     robots = _load_robots(booth)
     # Every robot's arm measured against the whole body, every part of it
@@ -128,14 +98,25 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
     timings["plan"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    ranked, record = _allocate(booth, robots, plans, T_wb, T_body_parts)
+    ranked, record = _allocate(booth, robots, fin.plans, T_wb, T_body_parts)
     # Rail robots place their carriage for each pass inside a range shrunk by the travel the
     # conveyor tracking will add (half the line travel over the estimated cycle, +25 %); if the
     # staggered cycle came out longer and the tracking leaves a rail, once more with its cycle.
     shrink = 0.5 * booth.conveyor.speed_m_s * record.get("estimated_cycle_s", 0.0) * 1.25
+    speeds: dict[str, Any] = {"rule": "off"}
     for attempt in range(2):
-        jobs, static, trajs0, tried = _choose(booth, robots, plans, ranked, T_wb, T_body_parts,
-                                              shrink, probes)
+        built = Built(*_choose(booth, robots, fin.plans, ranked, T_wb, T_body_parts, shrink,
+                               probes))
+        if attempt == 0 and booth.robot_aware_speeds:
+            def rebuild(pls: list[CoveragePlan], jobs: Any = built.jobs,
+                        shrink_m: float = shrink) -> Built:
+                return Built(*_choose(booth, robots, pls, [jobs], T_wb, T_body_parts,
+                                      shrink_m, probes))
+
+            tried0 = built.tried          # the candidates of the allocation, as chosen
+            fin, built, speeds = robot_aware_booth(booth, pp, fin, built, rebuild)
+            built.tried = tried0
+        jobs, static, trajs0, tried = built.jobs, built.static, built.trajs, built.tried
         K = max(len(tr.t_s) for tr in trajs0)
         dt = trajs0[0].dt_s
         t_ref = 0.5 * (K - 1) * dt
@@ -155,12 +136,13 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
                                   for r, tr in enumerate(static) if "transfer_moves_s" in tr.meta}
     record["start_delays_s"] = [float(tr.meta.get("start_delay_s", 0.0)) for tr in trajs0]
     record["rail_tracking_margin_m"] = shrink
-    record["film_refine"] = refine
+    record["film_refine"] = fin.refine
+    record["speed_feedback"] = speeds
     record["body_clearance"] = {booth.robots[r].name: tr.meta.get("body_clearance")
                                 for r, tr in enumerate(static)}
     timings["trajectory"] = time.perf_counter() - t0
-    return BoothPrograms(surfaces, body, plans, T_body_parts, jobs, record, static, trajs, t_ref,
-                         robots, timings, build, seams)
+    return BoothPrograms(surfaces, body, fin.plans, T_body_parts, jobs, record, static, trajs,
+                         t_ref, robots, timings, fin.film_build, fin.seams)
 
 
 def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
@@ -252,40 +234,6 @@ def _longest_program_s(jobs: dict[int, tuple[Job, ...]],
 
     return max((chained[(r, js)] - 1) * dt_s if (r, js) in chained
                else sum(job_s(r, j) for j in js) for r, js in jobs.items())
-
-
-def _plan_parts(booth: Booth, fast: bool) -> tuple[list[Surface], list[CoveragePlan],
-                                                    list[np.ndarray]]:
-    from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-    from paintcell.planning.paint.applicator import Applicator
-    from paintcell.planning.surface import parts
-    from paintcell.sim.app.pipeline import part_surface, settings_from
-
-    res = booth.fast_resolution_m if fast else booth.resolution_m
-    app = Applicator.default() if booth.applicator is None \
-        else Applicator.from_toml(booth.applicator)
-    surfaces, plans, Ts = [], [], []
-    for bp in booth.parts:
-        if bp.mesh is None and bp.part not in parts.PART_NAMES:
-            raise BoothError(f"booth part {bp.part!r} is not a library part "
-                             f"({', '.join(parts.PART_NAMES)}); a mesh/CAD file goes in a "
-                             "[parts.part] table with file = \"...\"")
-        # the scenario's loader (a mesh part: import, repair, remesh, regions)
-        s = part_surface(bp.part if bp.mesh is None else bp.mesh, res)
-        kw = {**booth.planner, **bp.planner}
-        if booth.film_refine_pace:      # refined later with the pace held (booth_refine)
-            kw["film_refine"] = False
-        # a real part's planner covers its skin, as a scenario's (`pipeline.make_plan`)
-        plan = plan_coverage(s.region_surface(("skin",)), app,
-                             settings_from(PlannerSettings, kw, "planner"))
-        if bp.reverse:
-            from paintcell.sim.booth.booth_build import reversed_plan
-
-            plan = reversed_plan(plan)
-        plans.append(plan)
-        surfaces.append(s)
-        Ts.append(bp.placement.matrix)
-    return surfaces, plans, Ts
 
 
 def _load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:

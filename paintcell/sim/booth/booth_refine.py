@@ -35,7 +35,8 @@ PASS_TIME_WEIGHT = 1e3
 
 
 def refine_parts(surfaces: list[Surface], plans: list[CoveragePlan],
-                 settings: list[Any], names: list[str]
+                 settings: list[Any], names: list[str],
+                 caps: list[list[np.ndarray | None] | None] | None = None
                  ) -> tuple[list[CoveragePlan], dict[str, Any]]:
     """Each part's plan re-timed against its film with its passes' durations held (module doc).
 
@@ -47,13 +48,14 @@ def refine_parts(surfaces: list[Surface], plans: list[CoveragePlan],
     from paintcell.planning.paint.metrics import boundary_band_mask, boundary_vertices
 
     out, rec = [], {}
-    for s, plan, st, name in zip(surfaces, plans, settings, names, strict=True):
+    caps = caps if caps is not None else [None] * len(plans)
+    for s, plan, st, name, cap in zip(surfaces, plans, settings, names, caps, strict=True):
         interior = boundary_band_mask(s.vertices, s.vertices[boundary_vertices(s.faces)],
                                       st.film_guard_band_m)
         if not interior.any():
             interior = np.ones(len(s.vertices), bool)
         passes, info = refine_speeds(plan.applicator, s, list(plan.passes), st.v_min_m_s,
-                                     st.v_max_m_s, interior, None,
+                                     st.v_max_m_s, interior, cap,
                                      pass_time_weight=PASS_TIME_WEIGHT)
         change = [float((q.times_s[-1] - q.times_s[0]) - (p.times_s[-1] - p.times_s[0]))
                   for p, q in zip(plan.passes, passes, strict=True)]

@@ -203,6 +203,17 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
                      f"{', '.join(f'{d:.2f}' for d in a.get('start_delays_s', []))} s (each "
                      "the shortest cycle that keeps every two arms apart).</p>")
     s.append("<h2>How the work was shared</h2>" + "".join(alloc))
+    sf = a.get("speed_feedback", {})
+    if sf.get("rounds"):
+        s.append("<h2>Robot-aware speeds</h2>"
+                 f"<p>{html.escape(str(sf.get('rule', '')))}. Round 0 is the plans as the "
+                 "planner made them; each later round is planned again under the speeds the "
+                 "robots reached:</p>" + _table(
+                     ["round", "newly capped samples", "largest speed deficit [%]",
+                      "booth cycle [s]", "re-planned", "not taken"],
+                     [[k, r["capped_samples"], r["max_deficit_pct"], r["cycle_s"],
+                       ", ".join(r.get("replanned", [])), r.get("rejected", "")]
+                      for k, r in enumerate(sf["rounds"])]))
     fb = m.get("film_build", {})
     s.append("<h2>Film build</h2>"
              f"<p>{html.escape(str(fb.get('rule', '')))}"

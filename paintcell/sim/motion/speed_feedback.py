@@ -52,26 +52,29 @@ class FeedbackResult:
     caps_m_s: dict[int, np.ndarray] = field(default_factory=dict)
 
 
-def achieved_speeds(plan: CoveragePlan, traj: Any) -> list[np.ndarray]:
-    """Per pass, the TCP speed the joint program reaches at each plan sample [m/s] ((M,) each).
+def pass_speeds(p: Any, traj: Any, index: int) -> np.ndarray:
+    """The TCP speed a joint program reaches at each sample of pass `p` [m/s] ((M,)).
 
-    traj: `paintcell.sim.motion.joint_trajectory.JointTrajectory` of the plan (s_pass_m along the
-    plan samples'
-    arc length). The speed is ds/dt of the program's samples, interpolated at the plan samples.
+    traj: `paintcell.sim.motion.joint_trajectory.JointTrajectory` whose samples with
+    pass_index == index run `p` (s_pass_m along the plan samples' arc length). The speed is ds/dt
+    of the program's samples, interpolated at the plan samples; the plan's own speeds where the
+    program has fewer than 3 samples of the pass.
     """
-    out = []
-    for i, p in enumerate(plan.passes):
-        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
-                                                                 axis=1))])
-        idx = np.flatnonzero(traj.pass_index == i)
-        if len(idx) < 3:
-            out.append(np.asarray(p.speeds_m_s, float).copy())
-            continue
-        s = traj.s_pass_m[idx]
-        v = np.gradient(s, traj.t_s[idx])
-        order = np.argsort(s, kind="stable")
-        out.append(np.interp(s_plan, s[order], v[order]))
-    return out
+    s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                             axis=1))])
+    idx = np.flatnonzero(traj.pass_index == index)
+    if len(idx) < 3:
+        return np.asarray(p.speeds_m_s, float).copy()
+    s = traj.s_pass_m[idx]
+    v = np.gradient(s, traj.t_s[idx])
+    order = np.argsort(s, kind="stable")
+    return np.interp(s_plan, s[order], v[order])
+
+
+def achieved_speeds(plan: CoveragePlan, traj: Any) -> list[np.ndarray]:
+    """Per pass, the TCP speed the joint program reaches at each plan sample [m/s] ((M,) each;
+    `pass_speeds` of pass i at pass_index i)."""
+    return [pass_speeds(p, traj, i) for i, p in enumerate(plan.passes)]
 
 
 def speed_caps(plan: CoveragePlan, traj: Any, previous: dict[int, np.ndarray] | None = None,
@@ -81,18 +84,32 @@ def speed_caps(plan: CoveragePlan, traj: Any, previous: dict[int, np.ndarray] | 
 
     Returns (caps, number of newly capped samples, largest speed deficit [%]).
     """
+    return caps_from_speeds(plan, achieved_speeds(plan, traj), None, previous, slow_rel, margin)
+
+
+def caps_from_speeds(plan: CoveragePlan, v_act: list[np.ndarray],
+                     v_plan: list[np.ndarray] | None = None,
+                     previous: dict[int, np.ndarray] | None = None,
+                     slow_rel: float = SLOW_REL, margin: float = CAP_MARGIN
+                     ) -> tuple[dict[int, np.ndarray], int, float]:
+    """`speed_caps` from speeds already measured: v_act, per pass of `plan` (execution order,
+    odd passes run reversed), the speed the robot reached at each sample [m/s]; v_plan, the
+    speeds it was asked for (default: the plan's own) [m/s]. Caps only shrink from `previous`.
+    Returns (caps {side: (M,) [m/s], generation direction}, newly capped samples, largest
+    deficit [%])."""
     caps = {k: v.copy() for k, v in (previous or {}).items()}
     n_new, worst = 0, 0.0
-    for i, (p, v_act) in enumerate(zip(plan.passes, achieved_speeds(plan, traj), strict=True)):
-        v_plan = np.asarray(p.speeds_m_s, float)
-        deficit = 1.0 - v_act / v_plan
+    asked = v_plan if v_plan is not None else [np.asarray(p.speeds_m_s, float)
+                                               for p in plan.passes]
+    for i, (p, v_a, v_p) in enumerate(zip(plan.passes, v_act, asked, strict=True)):
+        deficit = 1.0 - np.asarray(v_a, float) / np.asarray(v_p, float)
         worst = max(worst, float(100 * deficit.max()))
         slow = deficit > slow_rel
         if not slow.any():
             continue
         # widen by one sample each side: the limit acts over the interval, not at the point
         slow = slow | np.r_[slow[1:], False] | np.r_[False, slow[:-1]]
-        cap = np.where(slow, v_act * (1.0 - margin), np.inf)
+        cap = np.where(slow, v_a * (1.0 - margin), np.inf)
         if i % 2 == 1:                      # plan.passes[i] runs reversed (boustrophedon)
             cap = cap[::-1]
         old = caps.get(p.side, np.full(len(cap), np.inf))
