@@ -13,6 +13,7 @@ from paintcell.planning.coverage.plan import PassPlan, times_from_speeds
 from paintcell.planning.coverage.smoothing import limit_turn_rate, smooth_along
 from paintcell.planning.coverage.speed_qp import SubOffsetBand, optimize_pass_speed
 from paintcell.planning.errors import PlanError
+from paintcell.planning.surface.surface import Surface
 
 
 def _band(pl: _Planner, p: _PassGeom, half_width_m: float) -> SubOffsetBand | None:
@@ -69,9 +70,15 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
     # a pass whose end already runs off the part (an offset kept beyond the boundary) needs
     # only what is left of the overspray after that stretch
     off = (0.0, 0.0) if p.edge else _off_part_ends_m(p.foot, p.on_part)
+    ext = [max(0.0, st.overspray_m - off[0]), max(0.0, st.overspray_m - off[1])]
+    if not p.edge:
+        # where the surface beside the pass runs on past the end of its overspray (a pass
+        # ending in a notch between two tongues), the overspray is counted from the farthest
+        # of it
+        ahead = _surface_ahead_m(pl.surface, p.foot, p.normals, 0.5 * w_local)
+        ext = [a + st.overspray_m if a > e else e for e, a in zip(ext, ahead, strict=True)]
     foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
-                                             (max(0.0, st.overspray_m - off[0]) + p.extra_m[0],
-                                              max(0.0, st.overspray_m - off[1]) + p.extra_m[1]),
+                                             (ext[0] + p.extra_m[0], ext[1] + p.extra_m[1]),
                                              st.sample_spacing_m, h)
     axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
                            st.max_axis_turn_rad_m, h)
@@ -119,6 +126,24 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
             speeds = np.minimum(speeds, cap)
     p.timing = dict(pos=pos, axes=axes, travel=travel, on_part=on_part, speeds=speeds,
                     nsd_c=nsd_c, nsd_o=nsd_o)
+
+
+def _surface_ahead_m(surface: Surface, foot: np.ndarray, normals: np.ndarray,
+                     half_width_m: float) -> tuple[float, float]:
+    """How far [m] the surface beside a pass runs on past its head and its tail: the largest
+    distance along the end tangent of a surface vertex ahead of the end, within half_width_m of
+    the straight continuation and facing the same side (normal within 60° of the end's); 0 when
+    none is ahead."""
+    out = []
+    span = min(2, len(foot) - 1)
+    for f, n, t in ((foot[0], normals[0], unit(foot[0] - foot[span])),
+                    (foot[-1], normals[-1], unit(foot[-1] - foot[-1 - span]))):
+        d = surface.vertices - f
+        s = d @ t
+        lat = np.linalg.norm(d - s[:, None] * t, axis=1)
+        m = (s > 0) & (lat <= half_width_m) & (surface.normals @ n > 0.5)
+        out.append(float(s[m].max()) if m.any() else 0.0)
+    return out[0], out[1]
 
 
 def _off_part_ends_m(foot: np.ndarray, on_part: np.ndarray) -> tuple[float, float]:
