@@ -72,9 +72,8 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
     off = (0.0, 0.0) if p.edge else _off_part_ends_m(p.foot, p.on_part)
     ext = [max(0.0, st.overspray_m - off[0]), max(0.0, st.overspray_m - off[1])]
     if not p.edge:
-        # where the surface beside the pass runs on past the end of its overspray (a pass
-        # ending in a notch between two tongues), the overspray is counted from the farthest
-        # of it
+        # where the surface on both sides of the pass runs on past the end of its overspray (a
+        # pass ending in a notch between two tongues), the overspray is counted from there
         ahead = _surface_ahead_m(pl.surface, p.foot, p.normals, 0.5 * w_local)
         ext = [a + st.overspray_m if a > e else e for e, a in zip(ext, ahead, strict=True)]
     foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
@@ -130,10 +129,11 @@ def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
 
 def _surface_ahead_m(surface: Surface, foot: np.ndarray, normals: np.ndarray,
                      half_width_m: float) -> tuple[float, float]:
-    """How far [m] the surface beside a pass runs on past its head and its tail: the largest
-    distance along the end tangent of a surface vertex ahead of the end, within half_width_m of
-    the straight continuation and facing the same side (normal within 60° of the end's); 0 when
-    none is ahead."""
+    """How far [m] the surface on both sides of a pass runs on past its head and its tail (a
+    pass ending in a notch): along the end tangent, the farthest surface vertex ahead of the end
+    within half_width_m of the straight continuation and facing the same side (normal within
+    60° of the end's), on its left and on its right, the smaller of the two; 0 when either side
+    has none ahead (an edge oblique to the passes: the neighbour pass there paints it)."""
     out = []
     span = min(2, len(foot) - 1)
     for f, n, t in ((foot[0], normals[0], unit(foot[0] - foot[span])),
@@ -141,8 +141,11 @@ def _surface_ahead_m(surface: Surface, foot: np.ndarray, normals: np.ndarray,
         d = surface.vertices - f
         s = d @ t
         lat = np.linalg.norm(d - s[:, None] * t, axis=1)
+        side = d @ np.cross(n, t)
         m = (s > 0) & (lat <= half_width_m) & (surface.normals @ n > 0.5)
-        out.append(float(s[m].max()) if m.any() else 0.0)
+        left, right = m & (side > 0), m & (side < 0)
+        out.append(float(min(s[left].max(), s[right].max())) if left.any() and right.any()
+                   else 0.0)
     return out[0], out[1]
 
 
