@@ -120,3 +120,29 @@ def test_planner_setting_patches_runs_the_patch_planner() -> None:
     rep = plan.settings["report"]
     assert len(rep["patches"]) == 2 and plan.start_rule == "patches"
     assert PlannerSettings.from_dict(plan.settings).patches
+
+
+@pytest.mark.slow
+def test_speed_caps_reach_every_patch() -> None:
+    """A robot-aware re-plan (`plan_coverage(..., speed_caps_m_s=...)`, keyed by the pass's
+    index in the whole plan, in its generation direction: reversed when the index is odd) holds
+    every pass of every patch under its caps, sample by sample, where a patch plan ignored them;
+    the passes themselves do not move."""
+    s, _ = bracket()
+    app = Applicator.from_toml(ISSUE3_BELL)
+    st = PlannerSettings(patches=True)
+    plan = plan_coverage(s, app, st)
+    n = len(plan.passes)
+    rep = plan.settings["report"]["patches"]
+    assert len(rep) == 2 and n >= 4
+    caps = {}
+    for k in (1, n - 2):                    # a pass of each patch, one even and one odd index
+        v = np.asarray(plan.passes[k].speeds_m_s, float)
+        cap = np.full(len(v), 0.8 * float(v.max()))
+        caps[k] = cap if k % 2 == 0 else cap[::-1]
+    capped = plan_coverage(s, app, st, speed_caps_m_s=caps)
+    for k in caps:
+        exec_cap = caps[k] if k % 2 == 0 else caps[k][::-1]
+        assert np.all(capped.passes[k].speeds_m_s <= exec_cap + 1e-9), k
+        assert np.any(plan.passes[k].speeds_m_s > exec_cap + 1e-3), k   # the caps bind
+        np.testing.assert_allclose(capped.passes[k].positions, plan.passes[k].positions)

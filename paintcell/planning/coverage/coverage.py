@@ -127,5 +127,6 @@ def _plan(surface: Surface, applicator: Applicator, st: PlannerSettings,
           speed_caps_m_s: dict[int, np.ndarray] | None,
           tool_x: dict[int, np.ndarray] | None) -> CoveragePlan:
     if st.patches:
-        return plan_patches(surface, applicator, replace(st, patches=False))
+        return plan_patches(surface, applicator, replace(st, patches=False),
+                            speed_caps_m_s=speed_caps_m_s, tool_x=tool_x)
     return plan_family(surface, applicator, st, speed_caps_m_s, tool_x)

@@ -23,6 +23,7 @@ the nearest to the last pass's end.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -216,14 +217,19 @@ SEAM_SHARES = (0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.2, 1.5, 2.0)
 
 def plan_patches(surface: Surface, app: Applicator, settings: object = None,
                  labels: np.ndarray | None = None,
-                 start_point: np.ndarray | None = None) -> CoveragePlan:
+                 start_point: np.ndarray | None = None,
+                 speed_caps_m_s: dict[int, np.ndarray] | None = None,
+                 tool_x: dict[int, np.ndarray] | None = None) -> CoveragePlan:
     """Plan every patch with Algorithm 1, blend the seams, order the patches; one `CoveragePlan`
     of the whole part (passes' `side` renumbered in execution order; `settings["report"]`
     lists the patches: faces, area, cone, extrusion residual, passes, samples switched off, and
     the seam share chosen).
 
     Blending: the seam share (`ownership_brush_off`) is chosen among `SEAM_SHARES` as the one
-    whose film over the whole part (deposition model on the real mesh) has the smallest σ/μ."""
+    whose film over the whole part (deposition model on the real mesh) has the smallest σ/μ.
+    speed_caps_m_s / tool_x: as `plan_coverage`'s, keyed by the pass's index in this plan's
+    execution order (its `side`); each patch with some is planned again under its own (the
+    patches' passes and order come from their plans without them, which they do not move)."""
     from paintcell.planning.coverage.coverage_family import plan_family
     from paintcell.planning.coverage.coverage_settings import PlannerSettings
     from paintcell.planning.paint.deposition import thickness
@@ -234,17 +240,44 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
         raise PlanError("plan_patches settings must be PlannerSettings or None")
     labels = segment(surface) if labels is None else np.asarray(labels, int)
     pts = patches_of(surface, labels)
-    raw, vols = [], []
     # several patches: each planned without the film refinement, which then re-times every pass
     # together against the film of the whole part, seams included (one patch: refined as one)
     refine_whole = len(pts) > 1 and st.optimize_speed and st.film_refine
     st_patch = dataclasses.replace(st, film_refine=False) if refine_whole else st
-    for pt in pts:                          # a few patches per part
-        pl = plan_family(pt.surface, app, st_patch)
+    raw = _uncapped_plans(pts, app, st_patch)
+    # order: nearest patch first, then nearest to where the last pass ended
+    here = (np.zeros(3) if start_point is None else np.asarray(start_point, float))
+    todo = list(range(len(raw)))
+    order: list[int] = []
+    while todo:                            # a few patches
+        cent = [np.mean([p.positions.mean(axis=0) for p in raw[i]], axis=0) for i in todo]
+        i = todo[int(np.argmin([np.linalg.norm(c - here) for c in cent]))]
+        order.append(i)
+        todo.remove(i)
+        here = raw[i][-1].positions[-1]
+    first = {i: int(sum(len(raw[k]) for k in order[:order.index(i)])) for i in order}
+    caps_exec: list[np.ndarray | None] = []
+    if speed_caps_m_s or tool_x:
+        for i, pt in enumerate(pts):        # a few patches
+            loc_caps = _local(speed_caps_m_s, raw[i], first[i])
+            loc_x = _local(tool_x, raw[i], first[i])
+            if loc_caps or loc_x:
+                again = list(plan_family(pt.surface, app, st_patch, loc_caps, loc_x).passes)
+                if [len(p.positions) for p in again] != [len(p.positions) for p in raw[i]]:
+                    raise PlanError(f"patch {i} planned under speed caps / bell axes has other "
+                                    "passes; they must come from a plan of the same part and "
+                                    "settings")
+                raw[i] = again
+        n_all = sum(len(r) for r in raw)
+        for n in range(n_all):
+            c = None if speed_caps_m_s is None else speed_caps_m_s.get(n)
+            caps_exec.append(None if c is None else (np.asarray(c, float)[::-1] if n % 2 == 1
+                                                     else np.asarray(c, float)))
+    vols = []
+    for pt, r in zip(pts, raw, strict=True):
         own = np.zeros(len(surface.vertices), bool)
         own[pt.vertex_ids] = True
-        raw.append(list(pl.passes))
-        vols.append(seam_volumes(app, raw[-1], own, surface))
+        vols.append(seam_volumes(app, r, own, surface))
 
     def blended(share: float) -> tuple[list[list[PassPlan]], list[int]]:
         res = [ownership_brush_off(r, v, share) for r, v in zip(raw, vols, strict=True)]
@@ -263,21 +296,11 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
                "cone_deg": float(np.degrees(pt.cone_rad)),
                "extrusion_residual": pt.extrusion_residual, "passes": len(plans[k]),
                "samples_switched_off_at_seams": n_offs[k]} for k, pt in enumerate(pts)]
-    # order: nearest patch first, then nearest to where the last pass ended
-    here = (np.zeros(3) if start_point is None else np.asarray(start_point, float))
-    todo = list(range(len(plans)))
-    order: list[int] = []
-    while todo:                            # a few patches
-        cent = [np.mean([p.positions.mean(axis=0) for p in plans[i]], axis=0) for i in todo]
-        i = todo[int(np.argmin([np.linalg.norm(c - here) for c in cent]))]
-        order.append(i)
-        todo.remove(i)
-        here = plans[i][-1].positions[-1]
     passes = [dataclasses.replace(p, side=n) for n, p in
               enumerate(p for i in order for p in plans[i])]
     refine: dict[str, Any] = {}
     if refine_whole:
-        passes, refine = _refine_whole(app, surface, passes, st)
+        passes, refine = _refine_whole(app, surface, passes, st, caps_exec or None)
     sd = dict(st.to_dict(), patches=True)
     sd["report"] = {"patches": report, "order": order, "seam_share": share,
                     "film_refine": refine}
@@ -285,10 +308,48 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
                         start_rule="patches", settings=sd)
 
 
+#: the last part's patch plans without caps: a robot-aware re-plan of the same part and
+#: settings (`paintcell.sim.motion.speed_feedback`, `paintcell.sim.booth.booth_speeds`) needs
+#: their passes and order, which caps do not move, and planning them is most of its time.
+_LAST: dict[str, Any] = {}
+
+
+def _uncapped_plans(pts: list[Patch], app: Applicator, st: PlannerSettings
+                    ) -> list[list[PassPlan]]:
+    from paintcell.planning.coverage.coverage_family import plan_family
+
+    h = hashlib.sha1(repr(st.to_dict()).encode())
+    for pt in pts:                          # a few patches
+        h.update(pt.surface.vertices.tobytes())
+        h.update(pt.surface.faces.tobytes())
+    if _LAST.get("key") != h.hexdigest() or _LAST.get("app") is not app:
+        _LAST.clear()
+        _LAST.update(key=h.hexdigest(), app=app,
+                     raw=[list(plan_family(pt.surface, app, st).passes) for pt in pts])
+    return [list(r) for r in _LAST["raw"]]
+
+
+def _local(by_pass: dict[int, np.ndarray] | None, patch_passes: list[PassPlan],
+           first: int) -> dict[int, np.ndarray]:
+    """The per-pass arrays of a whole patch plan (keyed by execution index n, in generation
+    order: reversed when n is odd) that belong to one patch whose passes run from `first`, keyed
+    by that patch's own sides in its own generation order (`plan_family`'s convention)."""
+    out: dict[int, np.ndarray] = {}
+    for j, p in enumerate(patch_passes):    # tens of passes
+        a = None if by_pass is None else by_pass.get(first + j)
+        if a is None:
+            continue
+        a = np.asarray(a, float)
+        out[int(p.side)] = a[::-1] if (first + j) % 2 != j % 2 else a
+    return out
+
+
 def _refine_whole(app: Applicator, surface: Surface, passes: list[PassPlan],
-                  st: PlannerSettings) -> tuple[list[PassPlan], dict[str, Any]]:
+                  st: PlannerSettings, caps: list[np.ndarray | None] | None = None
+                  ) -> tuple[list[PassPlan], dict[str, Any]]:
     """`film_refine.refine_speeds` over the whole part (interior: beyond the film guard's band
-    from the part's boundary), as `coverage_family` refines one family."""
+    from the part's boundary), within the robot's speed caps (per pass in execution order, in
+    its execution direction), as `coverage_family` refines one family."""
     from paintcell.planning.coverage.coverage_family import _jsonable
     from paintcell.planning.coverage.film_refine import refine_speeds
     from paintcell.planning.paint.metrics import boundary_band_mask, boundary_vertices
@@ -298,5 +359,5 @@ def _refine_whole(app: Applicator, surface: Surface, passes: list[PassPlan],
                                   st.film_guard_band_m)
     if not interior.any():
         interior = np.ones(len(surface.vertices), bool)
-    out, info = refine_speeds(app, surface, passes, st.v_min_m_s, st.v_max_m_s, interior)
+    out, info = refine_speeds(app, surface, passes, st.v_min_m_s, st.v_max_m_s, interior, caps)
     return out, _jsonable(info)
