@@ -241,3 +241,61 @@ def test_sphere_cap_start_curve_is_a_great_circle_through_the_axis() -> None:
     sag = 0.024**2 / (8 * radius)
     np.testing.assert_allclose(np.linalg.norm(sc.points, axis=1), radius, atol=1.5 * sag)
     np.testing.assert_allclose(sc.points @ sc.plane_normal, sc.plane_offset_m, atol=1e-12)
+
+
+def _components_brute(geom: SurfaceGeometry, cross: np.ndarray) -> list[set[int]]:
+    """Connected components of the crossings (two crossed edges of one face are linked), by a
+    plain breadth-first search over the faces, written here from the definition."""
+    at = {int(e): k for k, e in enumerate(cross)}
+    nbrs: dict[int, set[int]] = {k: set() for k in range(len(cross))}
+    for fe in geom.face_edges:
+        hit = [at[int(e)] for e in fe if int(e) in at]
+        if len(hit) == 2:
+            nbrs[hit[0]].add(hit[1])
+            nbrs[hit[1]].add(hit[0])
+    comps, seen = [], set()
+    for k in range(len(cross)):
+        if k in seen:
+            continue
+        comp, todo = {k}, [k]
+        while todo:
+            for j in nbrs[todo.pop()] - comp:
+                comp.add(j)
+                todo.append(j)
+        seen |= comp
+        comps.append(comp)
+    return comps
+
+
+def test_section_components_are_ordered_chains_of_the_whole_component() -> None:
+    """Plane sections of a doubly curved part with a hole-free, bumpy skin: each component the
+    ordering returns (all of them, or the one holding a wanted crossing, as an indexing curve
+    asks) is exactly a connected component found by brute force, every consecutive pair of its
+    crossings shares a face, and an open chain starts at one of its ends."""
+    from paintcell.planning.coverage.offset_sections import _crossings, _order_components
+
+    geom = SurfaceGeometry.from_surface(parts.get_part("hood", 0.05))
+    rng = np.random.default_rng(7)
+    checked = 0
+    for _ in range(6):
+        o = geom.vertices[rng.integers(len(geom.vertices))]
+        nrm = rng.normal(size=3)
+        d = (geom.vertices - o) @ (nrm / np.linalg.norm(nrm))
+        cross, _, _ = _crossings(geom, d)
+        truth = _components_brute(geom, cross)
+        faces_of = [set(geom.edge_faces[e]) - {-1} for e in cross]
+        wanted = np.array([int(rng.integers(len(cross)))])
+        for want in (None, wanted):
+            got = _order_components(geom, d, cross, want)
+            expect = truth if want is None else [c for c in truth if int(wanted[0]) in c]
+            assert sorted(map(sorted, (set(o.tolist()) for o, _ in got))) == \
+                sorted(map(sorted, expect))
+            for order, closed in got:
+                assert len(set(order.tolist())) == len(order)
+                assert all(faces_of[a] & faces_of[b] for a, b in zip(order[:-1], order[1:]))
+                if not closed and len(order) > 1:
+                    first = order[0]
+                    links = sum(bool(faces_of[first] & faces_of[j]) for j in order if j != first)
+                    assert links == 1
+                checked += 1
+    assert checked >= 12
