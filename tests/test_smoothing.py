@@ -143,3 +143,17 @@ def test_auto_smoothing_plans_again_at_a_larger_scale_when_the_axis_cannot_follo
         plan_coverage(sheet, app, PlannerSettings(orientation=0.0, first_side="right",
                                                   sample_spacing_m=0.003, smoothing_m=base,
                                                   max_axis_turn_rad_m=BOUND_RAD_M))
+
+
+def test_limiter_window_is_the_distance_to_the_nearest_fast_segment() -> None:
+    """The limiter's window (how far each sample is from the nearest segment still too fast)
+    against a brute-force table of every distance."""
+    from paintcell.planning.coverage.smoothing import _near
+
+    rng = np.random.default_rng(3)
+    for m in (1, 2, 7, 300):
+        idx = np.arange(m)
+        for _ in range(20):
+            hot = np.unique(rng.integers(0, m, rng.integers(1, m + 1)))
+            brute = np.abs(idx[:, None] - hot[None, :]).min(axis=1)
+            assert np.array_equal(_near(idx, hot), brute)

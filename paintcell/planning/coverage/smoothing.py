@@ -139,8 +139,7 @@ def limit_turn_rate(foot: np.ndarray, axes: np.ndarray, max_rate_rad_m: float,
         # (a concave fold tighter than the standoff needs the turn spread over ~θ·(h + 1/bound))
         hot = np.flatnonzero(rate > max_rate_rad_m)
         reach = 2 + r // 4
-        near = np.abs(idx[:, None] - hot[None, :]).min(axis=1) if len(hot) < 512 else None
-        bad = near <= reach if near is not None else np.ones(len(a), bool)
+        bad = _near(idx, hot) <= reach if len(hot) < 512 else np.ones(len(a), bool)
         pad = np.concatenate([a[1:2], a, a[-2:-1]])
         blur = 0.25 * pad[:-2] + 0.5 * pad[1:-1] + 0.25 * pad[2:]
         a[bad] = blur[bad] / np.linalg.norm(blur[bad], axis=1, keepdims=True)
@@ -148,3 +147,12 @@ def limit_turn_rate(foot: np.ndarray, axes: np.ndarray, max_rate_rad_m: float,
     raise AxisTurnError(f"the bell axis turns {worst:.2f} rad/m along a pass, above "
                     f"max_axis_turn_rad_m = {max_rate_rad_m:g}; raise the bound or smooth the "
                     "surface more (smoothing_m)")
+
+
+def _near(idx: np.ndarray, hot: np.ndarray) -> np.ndarray:
+    """(M,) distance of each index `idx` (0 … M−1) to the nearest of the sorted indices `hot`
+    (non-empty), by a binary search (the limiter's rounds asked an (M, H) table for it)."""
+    k = np.searchsorted(hot, idx)
+    left = hot[np.maximum(k - 1, 0)]
+    right = hot[np.minimum(k, len(hot) - 1)]
+    return np.minimum(np.abs(idx - left), np.abs(right - idx))
