@@ -169,3 +169,26 @@ def test_refined_pass_keeps_the_carriage_still(roof_case):
     p_new = fk_pos(path.q_knots[on])
     p_lin = np.column_stack([np.interp(path.s_knots[on], s[keep], p[keep][:, k]) for k in range(3)])
     assert np.linalg.norm(p_new - p_lin, axis=1).max() < 1e-4
+
+
+def test_rail_scan_in_one_call_is_the_cost_at_each_position(rail_robot):
+    """The carriage scan computes the closed-form IK of every rail position in one call; it
+    gives exactly what `rail_branch` gives at each position alone (cost, feasibility, branch),
+    along a horizontal pass 1.6 m in front of the rail, feasible somewhere and not everywhere."""
+    from paintcell.robots.rail import rail_branch, rail_branches
+
+    y = np.linspace(-0.6, 0.6, 40)
+    T = np.tile(np.eye(4), (len(y), 1, 1))
+    T[:, :3, :3] = [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]   # spray axis +x
+    T[:, :3, 3] = np.column_stack([np.full_like(y, 1.1), y + 0.2, np.full_like(y, 1.2)])
+    s = IKSettings()
+    pref = rail_robot.rail.arm.q_home
+    grid = np.linspace(-2.0, 2.0, 21)
+    got = rail_branches(rail_robot, T, grid, pref, s, jump_scale=1.5)
+    feasible = 0
+    for s_m, (c, ok, Q) in zip(grid, got, strict=True):
+        c0, ok0, Q0 = rail_branch(rail_robot, T, float(s_m), pref, s, jump_scale=1.5)
+        assert (c, ok) == (c0, ok0)
+        assert (Q is None and Q0 is None) or np.array_equal(Q, Q0, equal_nan=True)
+        feasible += ok
+    assert 0 < feasible < len(grid)

@@ -214,11 +214,50 @@ def rail_branch(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.nd
     subsampled by this factor (the joint-jump threshold grows by it). The third value is that
     branch's arm joints (M, 6) [rad] along the pass (None where no branch is feasible).
     """
-    from paintcell.robots.ik import branch_feasibility, opw_branches
+    from paintcell.robots.ik import opw_branches
+
+    arm = placed_rail(robot).arm_at(s_m)
+    Q, _, within = opw_branches(arm, T_world_tcp, q_pref)
+    return _branch_cost(arm, Q, within, q_pref, settings, jump_scale, len(T_world_tcp))
+
+
+def rail_branches(robot: Robot, T_world_tcp: np.ndarray, s_grid: np.ndarray,
+                  q_pref: np.ndarray, settings: Any, jump_scale: float = 1.0
+                  ) -> list[tuple[float, bool, np.ndarray | None]]:
+    """`rail_branch` at every carriage position of `s_grid` [m], the same numbers: the
+    closed-form IK of the pass at all of them in one call (the arm is not re-placed per
+    position), then each position's branches and cost."""
+    from paintcell.robots.ik import continuous_branches
+    from paintcell.robots.opw import inverse
 
     ax = placed_rail(robot)
-    arm = ax.arm_at(s_m)
-    Q, _, within = opw_branches(arm, T_world_tcp, q_pref)
+    arm = ax.arm
+    if arm.opw is None:                     # rail_branch says what is missing
+        return [rail_branch(robot, T_world_tcp, float(s), q_pref, settings, jump_scale)
+                for s in s_grid]
+    T = np.asarray(T_world_tcp, float)
+    tool = np.linalg.inv(arm.T_flange_tcp)
+    flange = []
+    for s_m in s_grid:                      # Robot.flange_poses at RailAxis.arm_at(s_m)'s base
+        base = ax.T_world_rail.copy()
+        base[:3, 3] += s_m * ax.T_world_rail[:3, 1]
+        flange.append(np.linalg.inv(base) @ T @ tool)
+    Q_all, reach_all = inverse(arm.opw, np.concatenate(flange))
+    m = len(T)
+    out = []
+    for g in range(len(s_grid)):
+        Q, _, within = continuous_branches(arm, Q_all[g * m:(g + 1) * m],
+                                           reach_all[g * m:(g + 1) * m], q_pref)
+        out.append(_branch_cost(arm, Q, within, q_pref, settings, jump_scale, m))
+    return out
+
+
+def _branch_cost(arm: Robot, Q: np.ndarray, within: np.ndarray, q_pref: np.ndarray,
+                 settings: Any, jump_scale: float, m: int
+                 ) -> tuple[float, bool, np.ndarray | None]:
+    """`rail_branch`'s result from the arm's closed-form branches Q (8, M, 6), within (8, M)."""
+    from paintcell.robots.ik import branch_feasibility
+
     st = branch_feasibility(arm, Q, within, settings, jump_scale=jump_scale)
     span = (arm.q_upper - arm.q_lower)[:3]
     d2 = np.sum(((np.where(within[:, :, None], Q, 0.0)[:, :, :3] - q_pref[:3]) / span) ** 2, axis=2)
@@ -231,7 +270,7 @@ def rail_branch(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.nd
     if ok.any():
         b = int(np.argmin(np.where(ok, cost, np.inf)))
         return float(cost[b]), True, Q[b]
-    return 1e3 + float(len(T_world_tcp) - st.n_ok.max()), False, None
+    return 1e3 + float(m - st.n_ok.max()), False, None
 
 
 def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray,
@@ -254,7 +293,7 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
             and Q is not None else c
 
     grid = np.linspace(spec.lower_m, spec.upper_m, n_scan)
-    scan = [base(s) for s in grid]
+    scan = rail_branches(robot, sub, grid, q_pref, settings, jump_scale=js)
     costs = np.array([c for c, _, _ in scan])
     # The penalty (≥ 0) is evaluated in order of the plain cost until no unevaluated grid point
     # can win: the same grid minimum as evaluating it everywhere, usually in one or two calls.
