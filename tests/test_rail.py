@@ -172,10 +172,14 @@ def test_refined_pass_keeps_the_carriage_still(roof_case):
 
 
 def test_rail_scan_in_one_call_is_the_cost_at_each_position(rail_robot):
-    """The carriage scan computes the closed-form IK of every rail position in one call; it
-    gives exactly what `rail_branch` gives at each position alone (cost, feasibility, branch),
-    along a horizontal pass 1.6 m in front of the rail, feasible somewhere and not everywhere."""
-    from paintcell.robots.rail import rail_branch, rail_branches
+    """The carriage scan solves the closed-form IK of every rail position in one call, without
+    re-placing the arm. Checked at each position against the plain 6-axis arm standing where the
+    carriage puts it (`_fixed_at`, its own closed-form branches): the same feasibility, the
+    chosen branch is one of that arm's feasible branches, and the cost is the docstring's, mean
+    Σ_{J1..J3} ((q − q_pref) / range)² (+ the margin term, zero at a comfortable margin), along a
+    horizontal pass 1.1 m in front of the rail, feasible somewhere and not everywhere."""
+    from paintcell.robots.ik import branch_feasibility, opw_branches
+    from paintcell.robots.rail import COMFORT_MARGIN_RAD, rail_branch, rail_branches
 
     y = np.linspace(-0.6, 0.6, 40)
     T = np.tile(np.eye(4), (len(y), 1, 1))
@@ -187,8 +191,19 @@ def test_rail_scan_in_one_call_is_the_cost_at_each_position(rail_robot):
     got = rail_branches(rail_robot, T, grid, pref, s, jump_scale=1.5)
     feasible = 0
     for s_m, (c, ok, Q) in zip(grid, got, strict=True):
-        c0, ok0, Q0 = rail_branch(rail_robot, T, float(s_m), pref, s, jump_scale=1.5)
-        assert (c, ok) == (c0, ok0)
-        assert (Q is None and Q0 is None) or np.array_equal(Q, Q0, equal_nan=True)
-        feasible += ok
+        assert rail_branch(rail_robot, T, float(s_m), pref, s, 1.5)[:2] == (c, ok)
+        arm = _fixed_at(float(s_m))
+        Qf, _, within = opw_branches(arm, T, pref)
+        st = branch_feasibility(arm, Qf, within, s, jump_scale=1.5)
+        assert ok == bool(st.feasible.any())
+        if not ok:
+            assert Q is None and c >= 1e3
+            continue
+        feasible += 1
+        b = [k for k in range(len(Qf)) if st.feasible[k] and np.allclose(Qf[k], Q, atol=1e-9)]
+        assert b, "the chosen branch is none of the fixed arm's feasible branches"
+        span = (arm.q_upper - arm.q_lower)[:3]
+        dev = np.mean(np.sum(((Q[:, :3] - pref[:3]) / span) ** 2, axis=1))
+        short = max(0.0, COMFORT_MARGIN_RAD - float(st.margin[b[0]])) / COMFORT_MARGIN_RAD
+        assert c == pytest.approx(dev + short ** 2, rel=1e-9, abs=1e-12)
     assert 0 < feasible < len(grid)

@@ -216,7 +216,11 @@ def rail_branch(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.nd
     """
     from paintcell.robots.ik import opw_branches
 
-    arm = placed_rail(robot).arm_at(s_m)
+    ax = placed_rail(robot)
+    if ax.arm.opw is not None:          # the closed form at the carriage's base, no arm copy
+        return rail_branches(robot, T_world_tcp, np.array([s_m]), q_pref, settings,
+                             jump_scale)[0]
+    arm = ax.arm_at(s_m)
     Q, _, within = opw_branches(arm, T_world_tcp, q_pref)
     return _branch_cost(arm, Q, within, q_pref, settings, jump_scale, len(T_world_tcp))
 
