@@ -157,3 +157,36 @@ def test_limiter_window_is_the_distance_to_the_nearest_fast_segment() -> None:
             hot = np.unique(rng.integers(0, m, rng.integers(1, m + 1)))
             brute = np.abs(idx[:, None] - hot[None, :]).min(axis=1)
             assert np.array_equal(_near(idx, hot), brute)
+
+
+def test_start_orders_advance_in_turn_and_an_axis_failure_ends_both(monkeypatch) -> None:
+    """first_side = "best" plans both start orders a pass at a time in turn. Here the right-first
+    order would take 30 passes and the left-first one meets a pass the bell cannot follow at
+    fourth: with a larger "auto" scale left (axis_turn_fails_fast) the error ends the plan
+    after 4 passes of the right order, not all 30 as one order after the other did; without it the
+    left order drops out and the right one's plan is kept, the same as planned alone."""
+    import paintcell.planning.coverage.coverage_family as cf
+
+    steps = {False: 0, True: 0}
+
+    def fake_sweeps(pl, name, pts, nrm, planar_w):
+        reverse = bool(pts[0, 0] > pts[-1, 0])          # the start curve runs along +x
+        for _ in range(30 if not reverse else 3):
+            steps[reverse] += 1
+            yield
+        if reverse:
+            raise AxisTurnError("the bell axis turns 9 rad/m along a pass")
+        return {0: "plan of the right-first order"}
+
+    monkeypatch.setattr(cf, "_sweeps", fake_sweeps)
+    monkeypatch.setattr(cf, "_predicted_worst", lambda passes: 1.0)
+    x = np.linspace(0.0, 1.0, 5)
+    sc = type("Start", (), {"points": np.column_stack([x, 0 * x, 0 * x]),
+                            "normals": np.tile([0.0, 0.0, 1.0], (5, 1))})()
+    with pytest.raises(AxisTurnError):
+        cf._plan_orders(None, "sheet", sc, [False, True], None, axis_turn_fails_fast=True)
+    assert steps == {False: 4, True: 3}
+    steps.update({False: 0, True: 0})
+    got = cf._plan_orders(None, "sheet", sc, [False, True], None, axis_turn_fails_fast=False)
+    assert [(r, p) for _, r, p in got] == [(False, {0: "plan of the right-first order"})]
+    assert steps == {False: 30, True: 3}

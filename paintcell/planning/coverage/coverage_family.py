@@ -5,6 +5,7 @@ guard, assembled into one `CoveragePlan` (lengths in m, speeds in m/s, σ/μ in 
 from __future__ import annotations
 
 import math
+from collections.abc import Generator
 from typing import Any
 
 import numpy as np
@@ -25,7 +26,7 @@ from paintcell.planning.coverage.openings import (
 from paintcell.planning.coverage.plan import CoveragePlan, PassPlan, times_from_speeds
 from paintcell.planning.coverage.smoothing import smoothed_surface, smoothing_scale_m
 from paintcell.planning.coverage.start_curve import select_start_curve
-from paintcell.planning.errors import PlanError
+from paintcell.planning.errors import AxisTurnError, PlanError
 from paintcell.planning.paint.applicator import Applicator
 from paintcell.planning.surface.surface import Surface
 
@@ -41,12 +42,16 @@ def _is_planar(surface: Any) -> bool:
 
 def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
                 speed_caps_m_s: dict[int, np.ndarray] | None = None,
-                tool_x: dict[int, np.ndarray] | None = None) -> CoveragePlan:
+                tool_x: dict[int, np.ndarray] | None = None,
+                axis_turn_fails_fast: bool = False) -> CoveragePlan:
     """Algorithm 1 on one pass family over the whole of `surface` (`st.patches` is not looked
     at): the body of `paintcell.planning.coverage.coverage.plan_coverage` after its input checks,
     with the same
     arguments and result (see there); `paintcell.planning.coverage.patches` calls it on each
-    patch."""
+    patch. With `first_side = "best"` the two start orders are planned a pass at a time in turn
+    (`_plan_orders`); axis_turn_fails_fast: an `AxisTurnError` in either order is raised at
+    once (`plan_coverage` does when it has a larger "auto" smoothing scale left to try), else
+    the order that meets it drops out and the other plans on."""
     real_surface = surface            # the film is judged on it; the passes on its smoothing
     openings = find_openings(surface) if st.plan_across_openings else []
     surface = filled_surface(surface, openings)
@@ -78,18 +83,7 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
     orders = {"right": [False], "left": [True], "best": [False, True]}[st.first_side]
     if planar_w is not None:
         orders = orders[:1]               # a plane is symmetric: both orders give one plan
-    candidates = []
-    errors: list[PlanError] = []
-    for reverse in orders:
-        pts, nrm = (sc.points[::-1], sc.normals[::-1]) if reverse else (sc.points, sc.normals)
-        try:
-            passes = _sweeps(pl, surface.name, pts, nrm, planar_w)
-        except PlanError as e:          # "best" keeps the order that works
-            errors.append(e)
-            continue
-        candidates.append((_predicted_worst(passes), reverse, passes))
-    if not candidates:
-        raise errors[0]
+    candidates = _plan_orders(pl, surface.name, sc, orders, planar_w, axis_turn_fails_fast)
     _, reversed_start, passes = min(candidates, key=lambda c: c[0])
     bad = [f"pass {p.side}: {p.info['feedback_mismatch']}" for p in passes.values()
            if "feedback_mismatch" in p.info]
@@ -132,15 +126,52 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
 
 
 
+def _plan_orders(pl: _Planner, name: str, sc: Any, orders: list[bool], planar_w: Any,
+                 axis_turn_fails_fast: bool) -> list[tuple[float, bool, dict[int, _PassGeom]]]:
+    """(predicted worst σ/μ [%], reversed start, passes) of each start order (`orders`: the start
+    curve reversed or not) that plans, in the order given; raises the first order's PlanError
+    when none does. The orders advance one pass at a time in turn (`_sweeps` steps): each
+    order's passes are what it plans alone (the planner's caches hold values, not order), but
+    an order that fails does so after as many passes as it took, not after the whole other
+    order: crs_cowling_creases at the "auto" scale failed on the left-first order's pass 3
+    only after the right-first order's 39 passes (~20 s), when `axis_turn_fails_fast` makes
+    an `AxisTurnError` end both (`plan_coverage` then plans at the next scale)."""
+    steps = {}
+    for reverse in orders:
+        pts, nrm = (sc.points[::-1], sc.normals[::-1]) if reverse else (sc.points, sc.normals)
+        steps[reverse] = _sweeps(pl, name, pts, nrm, planar_w)
+    done: dict[bool, dict[int, _PassGeom]] = {}
+    errors: dict[bool, PlanError] = {}
+    while len(done) + len(errors) < len(orders):
+        for reverse in orders:
+            if reverse in done or reverse in errors:
+                continue
+            try:
+                next(steps[reverse])
+            except StopIteration as stop:
+                done[reverse] = stop.value
+            except AxisTurnError as e:
+                if axis_turn_fails_fast:
+                    raise
+                errors[reverse] = e
+            except PlanError as e:      # "best" keeps the order that works
+                errors[reverse] = e
+    if not done:
+        raise errors[orders[0]]
+    return [(_predicted_worst(done[r]), r, done[r]) for r in orders if r in done]
+
+
 def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarray,
-            planar_w: Any) -> dict[int, _PassGeom]:
+            planar_w: Any) -> Generator[None, None, dict[int, _PassGeom]]:
     """Algorithm 1's two loops from the start curve: offsets to the right (s > 0 along the
-    indexing curves, T × n), then to the left, until an offset lies completely outside."""
+    indexing curves, T × n), then to the left, until an offset lies completely outside. A
+    generator that yields after each pass it adds and returns the passes {side: pass}."""
     st = pl.st
     start = _PassGeom(start_pts, start_nrm, np.ones(len(start_pts), bool), 0, float("nan"))
     start.info = {"rule": "start curve"}
     _time_pass(pl, start, pl.nominal_width)      # Algorithm 1: optimize the start curve's speed
     passes: dict[int, _PassGeom] = {0: start}
+    yield
     right_widths: list[float] = []
     for sign in (1, -1):
         cur = start
@@ -195,6 +226,7 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                     edge.source = (curves, sign * w0)
                     _time_pass(pl, edge, w0)
                     passes[side] = edge
+                    yield
                 break
             foot, normals, on_part = pl.build_pass(pts, nrm, inside)
             new = _PassGeom(foot, normals, on_part, side, w0)
@@ -209,6 +241,7 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
             passes[side] = new
             widths_this_side.append(w0)
             cur = new
+            yield
         else:
             raise PlanError(f"Algorithm 1 did not leave the surface after {st.max_passes} passes; "
                             "raise w_min_m or max_passes")
