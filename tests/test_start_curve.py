@@ -292,7 +292,8 @@ def test_section_components_are_ordered_chains_of_the_whole_component() -> None:
                 sorted(map(sorted, expect))
             for order, closed in got:
                 assert len(set(order.tolist())) == len(order)
-                assert all(faces_of[a] & faces_of[b] for a, b in zip(order[:-1], order[1:]))
+                assert all(faces_of[a] & faces_of[b]
+                           for a, b in zip(order[:-1], order[1:], strict=True))
                 if not closed and len(order) > 1:
                     first = order[0]
                     links = sum(bool(faces_of[first] & faces_of[j]) for j in order if j != first)
