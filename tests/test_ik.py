@@ -227,6 +227,10 @@ def test_ur10_dls_path(abb):
     n = 120
     T = np.repeat(T0[None], n, axis=0)
     T[:, :3, 3] += np.linspace(-0.3, 0.3, n)[:, None] * T0[:3, 0]   # along the tool x (travel)
+    res = solve_path(ur, T)                 # its closed form (paintcell.robots.ur_ik) + DLS
+    assert res.method == "closed-form+dls" and 0 <= res.branch < 8
+    _assert_good_path(ur, res, T)
+    ur.closed_form = None                   # an arm with no closed form: DLS alone
     res = solve_path(ur, T)
     assert res.method == "dls" and res.branch == -1
     _assert_good_path(ur, res, T)

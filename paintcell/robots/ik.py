@@ -25,7 +25,6 @@ import pinocchio as pin
 
 from paintcell.planning.transforms import check_poses
 from paintcell.robots.errors import RobotError
-from paintcell.robots.opw import inverse
 from paintcell.robots.reachability import ReachabilityReport, ReachabilityThresholds
 from paintcell.robots.robot import Robot
 
@@ -185,7 +184,7 @@ def opw_branches(robot: Robot, T_world_tcp: npt.ArrayLike, q_ref: npt.ArrayLike
     Returns Q (8, M, 6) [rad] (unwrapped along the pass, shifted into the limits near q_ref where
     possible), reach (8, M) (closed form exists) and within (8, M) (reach and inside the limits).
     """
-    if robot.opw is None:
+    if not robot.has_closed_form:
         raise RobotError(f"{robot.name} has no closed-form IK; use DLS (solve_path does)")
     return opw_branches_flange(robot, robot.flange_poses(T_world_tcp), q_ref)
 
@@ -193,8 +192,7 @@ def opw_branches(robot: Robot, T_world_tcp: npt.ArrayLike, q_ref: npt.ArrayLike
 def opw_branches_flange(robot: Robot, T_base_flange: np.ndarray, q_ref: npt.ArrayLike
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """`opw_branches` for flange poses in the base frame, T_base_flange (M, 4, 4)."""
-    assert robot.opw is not None
-    Q, reach = inverse(robot.opw, T_base_flange)
+    Q, reach = robot.closed_form_inverse(T_base_flange)
     return continuous_branches(robot, Q, reach, q_ref)
 
 
@@ -324,7 +322,7 @@ def solve_path(robot: Robot, T_world_tcp: npt.ArrayLike, q_seed: npt.ArrayLike |
     M, n = len(T), robot.nq
     q = np.empty((M, n))
     branch = -1
-    if robot.opw is not None:
+    if robot.has_closed_form:
         ref = q_seed if q_seed is not None else robot.q_home
         Qc, _, within = opw_branches(robot, T, ref)
         branch = choose_branch(robot, Qc, within, q_seed, s)
@@ -341,7 +339,7 @@ def solve_path(robot: Robot, T_world_tcp: npt.ArrayLike, q_seed: npt.ArrayLike |
                     qi, conv = dls(robot, T[i], Qb[i], free_spin=free_spin,
                                    max_iters=s.warm_iters, settings=s)
             q[i] = q_prev = qi
-        method = "opw+dls"
+        method = "opw+dls" if robot.opw is not None else "closed-form+dls"
     else:
         q_prev, _ = cold_start(robot, T[0], q_seed, free_spin=free_spin, settings=s)
         q[0] = q_prev

@@ -30,7 +30,6 @@ from paintcell.robots.ik import (
     combined_report,
     continuous_branches,
 )
-from paintcell.robots.opw import inverse
 from paintcell.robots.paths import solve_paths
 from paintcell.robots.reachability import ReachabilityReport
 from paintcell.robots.robot import Robot
@@ -227,10 +226,10 @@ def _score(robot: Robot, C: np.ndarray, sub: list[tuple[np.ndarray, float]], fre
     # disable=None: a bar only on a terminal (CI logs and pipes stay clean)
     for c, T_base in enumerate(tqdm(C, desc="placement", unit="base", leave=False,
                                     disable=None if len(C) > 50 else True)):
-        if robot.opw is not None and not free_spin:
+        if robot.has_closed_form and not free_spin:
             # One closed-form call for all paths of the candidate, then path by path.
             flange = np.linalg.inv(T_base) @ allp @ T_tcp_flange
-            Q, reach = inverse(robot.opw, flange)
+            Q, reach = robot.closed_form_inverse(flange)
             posed = np.asarray(reach.any(axis=1), bool)
             scores[c], first = _worst_margin(robot, Q, reach, posed, starts, strides, s, first)
             fallback[c] = 1.0 if np.isfinite(scores[c]) else posed.mean()

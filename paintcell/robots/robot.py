@@ -102,6 +102,9 @@ class Robot:
     pin_data: Any
     tcp_frame_id: int
     opw: OPWParameters | None = None   # closed-form IK parameters when the arm is ortho-parallel
+    # closed-form IK of another geometry (the UR arms: `paintcell.robots.ur_ik`): T_base_flange
+    # (M, 4, 4) -> (Q (M, 8, n) [rad], reach (M, 8)), as `paintcell.robots.opw.inverse` gives
+    closed_form: Any = field(default=None, repr=False)
     wrist_joint_index: int | None = 4  # joint whose sin is 0 at the wrist singularity (J5)
     # `paintcell.robots.rail.RailAxis` when joint 0 is a linear rail carrying the arm
     rail: Any = None
@@ -223,6 +226,24 @@ class Robot:
         return r
 
     # --- kinematics ---------------------------------------------------------------------------
+    @property
+    def has_closed_form(self) -> bool:
+        """All eight IK solutions of a pose in closed form (`closed_form_inverse`)."""
+        return self.opw is not None or self.closed_form is not None
+
+    def closed_form_inverse(self, T_base_flange: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """(Q (M, 8, n) [rad], reach (M, 8)) of flange poses T_base_flange (M, 4, 4) in the base
+        frame: `paintcell.robots.opw.inverse` for an ortho-parallel arm, else `closed_form`."""
+        T = np.asarray(T_base_flange, float)
+        if self.opw is not None:
+            from paintcell.robots.opw import inverse
+
+            return inverse(self.opw, T)
+        if self.closed_form is None:
+            raise RobotError(f"{self.name} has no closed-form IK; use DLS (solve_path does)")
+        Q, reach = self.closed_form(T)
+        return Q, reach
+
     @property
     def nq(self) -> int:
         """Number of joints."""

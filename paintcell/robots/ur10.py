@@ -115,5 +115,9 @@ def ur10_mjcf(tcp_offset: npt.ArrayLike | None = None) -> Path:
 def load_ur10(T_world_base: npt.ArrayLike | None = None,
               tcp_offset: npt.ArrayLike | None = None) -> Robot:
     """The UR10 with a bell atomizer (default tool offset: `bell_tool_offset()`)."""
-    return Robot.from_mjcf("ur10", ur10_mjcf(tcp_offset), v_max=UR10_V_MAX, a_max=UR10_A_MAX,
-                           T_world_base=T_world_base, opw=None)
+    from paintcell.robots.ur_ik import ur_closed_form
+
+    robot = Robot.from_mjcf("ur10", ur10_mjcf(tcp_offset), v_max=UR10_V_MAX, a_max=UR10_A_MAX,
+                            T_world_base=T_world_base, opw=None)
+    robot.closed_form = ur_closed_form(robot)        # all eight solutions (Hawkins 2013)
+    return robot
