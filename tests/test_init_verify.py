@@ -27,6 +27,7 @@ from paintcell.sim.app.pipeline import (
 )
 from paintcell.sim.app.scenario_files import load_scenario
 from paintcell.sim.execution.cell import build_cell
+from paintcell.sim.motion.joint_trajectory import PAINT, JointTrajectory
 
 PANEL = Path(__file__).resolve().parents[1] / "scenarios" / "panel.toml"
 
@@ -161,3 +162,45 @@ def test_a_program_the_time_law_cannot_follow_is_refused(panel) -> None:
     assert why is not None and why.startswith("its time law and joint path lose ")
     assert "slowed > 10 %" in why and "\n" not in why
     assert _check(scn, plan, surf)("abb_paint", scn.base.matrix) is None
+
+
+def _held_program(robot, q_path: np.ndarray, dt: float = 1e-3) -> JointTrajectory:
+    """A joint program through the poses q_path (K, n), one a millisecond (a replay needs no
+    smooth derivatives: the kinematic mode sets the positions), with FK TCP."""
+    T = robot.fk_many(q_path)
+    K = len(q_path)
+    z = np.zeros_like(q_path)
+    return JointTrajectory(t_s=np.arange(K) * dt, q=q_path, qd=z, qdd=z,
+                           tcp_pos_world=T[:, :3, 3], tcp_rot_world=T[:, :3, :3],
+                           v_tcp_planned=np.zeros(K), paint_on=np.zeros(K, bool),
+                           pass_index=np.full(K, -1), segment=np.full(K, PAINT),
+                           s_pass_m=np.full(K, np.nan), robot_name=robot.name,
+                           joint_names=robot.joint_names)
+
+
+def test_a_program_that_folds_the_arm_into_itself_is_refused() -> None:
+    """The part sweep sees only the part; the replay in `run`'s cell sees the arm itself. A UR10
+    pose from a cell init once wrote (noether_wavy_with_hole): its wrist_2 link is inside its
+    forearm — MuJoCo's own collision pass at that pose says so (the truth here) — and a program
+    through it is refused naming both links; the same program held at home is not."""
+    from paintcell.robots.catalog import load_robot
+    from paintcell.sim.app.init_verify import _replay
+
+    ur = load_robot("ur10")
+    q_bad = np.array([-0.649, -1.537, 1.116, 1.125, -5.551, -3.723])
+    m = mujoco.MjModel.from_xml_path(str(ur.mjcf_path))
+    d = mujoco.MjData(m)
+    d.qpos[:6] = q_bad
+    mujoco.mj_forward(m, d)
+    pairs = {frozenset((mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, m.geom_bodyid[c.geom1]),
+                        mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, m.geom_bodyid[c.geom2])))
+             for c in d.contact[:d.ncon] if c.dist < 0}
+    assert frozenset(("forearm_link", "wrist_2_link")) in pairs
+    far = np.eye(4)
+    far[:3, 3] = [5.0, 5.0, 1.0]                   # the part well out of the arm's way
+    part = plane(0.3, 0.3, 0.05)
+    q_home = np.asarray(ur.q_home, float)
+    through = np.vstack([q_home + (q_bad - q_home) * s for s in np.linspace(0, 1, 200)])
+    why = _replay(ur, part, far, _held_program(ur, np.vstack([through, through[::-1]])))
+    assert why is not None and "wrist_2_link" in why and "forearm_link" in why
+    assert _replay(ur, part, far, _held_program(ur, np.repeat(q_home[None], 200, 0))) is None

@@ -14,6 +14,9 @@ body).
   there because `init` checks the fast plan and a full run plans at 10 mm: on reach_hood_panel
   the fast program's move home passed 81 mm from the part and the full one's went 54 mm into it;
   folded, both kept ≥ 195 mm (`init` wrote no `fold_moves` then: a user added it by hand).
+- A program that keeps clear of the part is replayed kinematically in the cell `run` builds
+  (robot, part, floor, booth): one that collides there — the arm into itself, the floor — is
+  refused like one that meets the part (`_replay`).
 - A program that does not build is refused as it is (folding was tried there too: on the shared
   meshes it never made one build, and it cost noether_scan_with_holes 7 s).
 - A program that builds but loses more than `MAX_LOST_SHARE` (20 %) of the plan's poses to the
@@ -92,7 +95,11 @@ class ProgramCheck:
             probe = probe or BodyProbe(robot, self._surface, scn.part_placement.matrix,
                                        np.zeros(len(self._surface.vertices), int))
             gap, hit = _sweep(probe, traj)
-            if hit is None:
+            bump = None if hit is not None else _replay(robot, self._surface,
+                                                         scn.part_placement.matrix, traj)
+            if bump is not None:
+                failed.append(bump)
+            elif hit is None:
                 if best is None or gap > best[0]:
                     best = (gap, table)
             else:
@@ -124,6 +131,26 @@ def _lost(plan: Any, traj: Any) -> str | None:
         return None
     why = h["verdict"].split(" (", 1)[-1].rstrip(")")
     return f"its time law and joint path lose {h['n_lost']} of {h['n_poses']} poses ({why})"
+
+
+def _replay(robot: Any, surface: Any, T_world_part: np.ndarray, traj: Any) -> str | None:
+    """The program replayed kinematically in the cell `run` builds (robot, part, floor and booth:
+    `execution.cell.build_cell`): why it collides (the first event: bodies, depth, time), or None.
+    The part sweep above keeps the arm clear of the part; this catches what it does not see — an
+    arm folding into itself (a UR10 cell on noether_wavy_with_hole: wrist_2 in the forearm,
+    4 mm, 4 events in its run) or the floor."""
+    from paintcell.sim.execution.cell import build_cell
+    from paintcell.sim.execution.execute import execute
+    from paintcell.sim.validation.validate_motion import collision_events
+
+    events = collision_events(execute(build_cell(robot, surface, T_world_part), traj,
+                                      mode="kinematic"))
+    if not events:
+        return None
+    e = events[0]
+    return (f"its program collides ({e['body1'].split('/')[-1]} with "
+            f"{e['body2'].split('/')[-1]}, {e['max_depth_m'] * 1e3:.0f} mm, at t = "
+            f"{e['t_start_s']:.1f} s; {len(events)} events)")
 
 
 def _sweep(probe: Any, traj: Any) -> tuple[float, Any]:
