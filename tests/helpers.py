@@ -133,3 +133,30 @@ SPEED_FOLLOW_RTOL = 0.01
 # Executed film from 5 ms bins vs every 1 ms step (midpoint rule, travel per bin ≪ footprint σ):
 # measured < 1e-5 of the peak film on the door; 1e-4 leaves room for faster passes.
 BINNED_FILM_RTOL = 1e-4
+
+
+def stand_in_program(passes, slow: dict[int, tuple[float, float, float]], first_index: int = 0,
+                     dt: float = 0.002):
+    """A stand-in joint program for the robot-aware speed tests: each of `passes` followed at its
+    planned speed (pass indices from first_index on), except where slow {position in `passes`:
+    (s0, s1, factor)} scales the speed down over the arc [s0, s1] [m] of the pass as run.
+    Only what the speed feedback reads: t_s, s_pass_m, pass_index, meta."""
+    from types import SimpleNamespace
+
+    t_all, s_all, i_all, t0 = [], [], [], 0.0
+    for k, p in enumerate(passes):
+        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                                 axis=1))])
+        s_fine = np.linspace(0.0, s_plan[-1], 4000)
+        v = np.interp(s_fine, s_plan, p.speeds_m_s)
+        if k in slow:
+            s0, s1, f = slow[k]
+            v = np.where((s_fine >= s0) & (s_fine <= s1), f * v, v)
+        t = np.concatenate([[0.0], np.cumsum(2 * np.diff(s_fine) / (v[1:] + v[:-1]))])
+        tq = np.arange(0.0, t[-1], dt)
+        t_all.append(t0 + tq)
+        s_all.append(np.interp(tq, t, s_fine))
+        i_all.append(np.full(len(tq), first_index + k))
+        t0 += t[-1] + 1.0
+    return SimpleNamespace(t_s=np.concatenate(t_all), s_pass_m=np.concatenate(s_all),
+                           pass_index=np.concatenate(i_all), meta={})

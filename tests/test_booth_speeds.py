@@ -4,8 +4,6 @@ are in space — through a part run backwards and a robot with two jobs."""
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import numpy as np
 
 from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
@@ -15,6 +13,7 @@ from paintcell.sim.booth.booth import Job
 from paintcell.sim.booth.booth_build import reversed_plan
 from paintcell.sim.booth.booth_speeds import part_speeds, planner_order, stored_caps
 from paintcell.sim.motion.speed_feedback import caps_from_speeds
+from tests.helpers import stand_in_program
 
 APP = Applicator.default()
 ST = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=8, film_guard=False)
@@ -25,28 +24,6 @@ def _arc(p) -> np.ndarray:
                                                            axis=1))])
 
 
-def _program(passes, first_index: int, slow: dict[int, tuple[float, float, float]],
-             dt: float = 0.002) -> SimpleNamespace:
-    """A stand-in chained joint program running `passes` (pass indices from first_index on),
-    each at its planned speed except where slow {position in `passes`: (s0, s1, factor)} scales
-    it over the arc [s0, s1] [m] of the pass as run."""
-    t_all, s_all, i_all, t0 = [], [], [], 0.0
-    for k, p in enumerate(passes):
-        s_fine = np.linspace(0.0, _arc(p)[-1], 4000)
-        v = np.interp(s_fine, _arc(p), p.speeds_m_s)
-        if k in slow:
-            s0, s1, f = slow[k]
-            v = np.where((s_fine >= s0) & (s_fine <= s1), f * v, v)
-        t = np.concatenate([[0.0], np.cumsum(2 * np.diff(s_fine) / (v[1:] + v[:-1]))])
-        tq = np.arange(0.0, t[-1], dt)
-        t_all.append(t0 + tq)
-        s_all.append(np.interp(tq, t, s_fine))
-        i_all.append(np.full(len(tq), first_index + k))
-        t0 += t[-1] + 1.0
-    return SimpleNamespace(t_s=np.concatenate(t_all), s_pass_m=np.concatenate(s_all),
-                           pass_index=np.concatenate(i_all), meta={})
-
-
 def test_a_slowdown_in_a_reversed_part_is_capped_where_it_happened() -> None:
     plan0 = plan_coverage(parts.panel(0.04), APP, ST)       # the planner's own plan
     n = len(plan0.passes)
@@ -55,8 +32,8 @@ def test_a_slowdown_in_a_reversed_part_is_capped_where_it_happened() -> None:
     # robot 0 runs passes 0-1 of the finished plan; robot 1 chains two jobs: passes 2-2 and
     # 3..n, its second job slowed to 70 % over 0.3-0.5 m of its first pass (finished pass 3)
     jobs = {0: (Job(0, 0, 2),), 1: (Job(0, 2, 3), Job(0, 3, n))}
-    prog0 = _program(fin.passes[0:2], 0, {})
-    prog1 = _program(fin.passes[2:n], 0, {1: (0.3, 0.5, 0.7)})
+    prog0 = stand_in_program(fin.passes[0:2], {})
+    prog1 = stand_in_program(fin.passes[2:n], {1: (0.3, 0.5, 0.7)})
     prog1.meta["job_first_pass_index"] = [0, 1]
     v_act = part_speeds([fin], jobs, [prog0, prog1])
     asked = [p.speeds_m_s for p in fin.passes]
@@ -81,7 +58,7 @@ def test_a_slowdown_in_a_reversed_part_is_capped_where_it_happened() -> None:
     assert np.all(back[3][core] < 0.75 * p3.speeds_m_s[core])
     assert np.all(np.isinf(back[3][(s3 < 0.2) | (s3 > 0.6)]))
     # nothing slowed: nothing capped
-    free = [_program(fin.passes[0:2], 0, {}), _program(fin.passes[2:n], 0, {})]
+    free = [stand_in_program(fin.passes[0:2], {}), stand_in_program(fin.passes[2:n], {})]
     free[1].meta["job_first_pass_index"] = [0, 1]
     v_free = part_speeds([fin], jobs, free)
     caps, n_new, _ = caps_from_speeds(plan0, planner_order(v_free[0], True),

@@ -5,7 +5,6 @@ onto the plan's samples in each pass's generation direction, and obeyed by the r
 from __future__ import annotations
 
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -19,32 +18,15 @@ from paintcell.sim.motion.speed_feedback import (
     tool_axes,
     with_targets,
 )
+from tests.helpers import stand_in_program
 
 APP = Applicator.default()
 ST = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=8, film_guard=False)
 
 
 def _program(plan, slow: dict[int, tuple[float, float, float]], dt: float = 0.002):
-    """A stand-in joint program: each pass followed at its planned speed, except where `slow`
-    {pass: (s0, s1, factor)} scales the speed down over the arc [s0, s1] [m]."""
-    t_all, s_all, i_all = [], [], []
-    t0 = 0.0
-    for i, p in enumerate(plan.passes):
-        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
-                                                                 axis=1))])
-        s_fine = np.linspace(0.0, s_plan[-1], 4000)
-        v = np.interp(s_fine, s_plan, p.speeds_m_s)
-        if i in slow:
-            s0, s1, f = slow[i]
-            v = np.where((s_fine >= s0) & (s_fine <= s1), f * v, v)
-        t = np.concatenate([[0.0], np.cumsum(2 * np.diff(s_fine) / (v[1:] + v[:-1]))])
-        tq = np.arange(0.0, t[-1], dt)
-        t_all.append(t0 + tq)
-        s_all.append(np.interp(tq, t, s_fine))
-        i_all.append(np.full(len(tq), i))
-        t0 += t[-1] + 1.0
-    return SimpleNamespace(t_s=np.concatenate(t_all), s_pass_m=np.concatenate(s_all),
-                           pass_index=np.concatenate(i_all))
+    """A stand-in joint program of the whole plan (`tests.helpers.stand_in_program`)."""
+    return stand_in_program(plan.passes, slow, dt=dt)
 
 
 def test_caps_follow_the_slowdown_in_generation_direction_and_the_replan_obeys_them() -> None:
