@@ -623,3 +623,21 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
     assert h["n_poses"] == s0.meta["reachability"]["n_poses"] + rep["n_poses"]
     assert h["n_unreachable"] == 1 and h["n_contact_poses"] == 1
     assert h["n_lost"] == 1 and h["per_pose"]
+
+
+def test_a_fixed_allocation_that_fails_says_so(monkeypatch):
+    """A booth whose [allocation] is fixed and cannot be built is told to check its pass ranges
+    (they name passes of the plan at that resolution), not to move its robots."""
+    from paintcell.sim.booth import booth_programs as bp
+
+    def unreachable(*args, **kwargs):
+        raise BoothError("irb5500_rail: UNREACHABLE 75/145 poses")
+
+    monkeypatch.setattr(bp, "robot_programs", unreachable)
+    fixed = dataclasses.replace(ROOF_BOOTH, allocation={"roof_l": (0, 0, 2),
+                                                        "roof_r": (0, 2, 5)})
+    jobs = {0: (Job(0, 0, 2),), 1: (Job(0, 2, 5),)}
+    for booth, words in ((fixed, "fixed [allocation]"), (ROOF_BOOTH, "move the robots")):
+        with pytest.raises(BoothError, match=re.escape(words)) as exc:
+            bp._choose(booth, [None, None], [], [jobs], np.eye(4), [np.eye(4)], 0.0)
+        assert "UNREACHABLE 75/145" in str(exc.value)

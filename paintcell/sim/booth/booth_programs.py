@@ -209,6 +209,10 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     if best is None:
         why = "; ".join(f"#{t['rank']}: {t['rejected'].split('; ')[0]}" for t in tried
                         if not t.get("known_failure"))
+        if booth.allocation is not None:     # the user's pass ranges: say so, not "move"
+            raise BoothError(f"the fixed [allocation] does not work ({why}); its pass ranges "
+                             "name passes of the plan at this resolution (`--fast` plans at "
+                             "fast_resolution_m): check them, or drop [allocation]")
         raise BoothError(f"none of the {len(tried)} best allocations works ({why}); move the "
                          "robots")
     _, jobs, trajs0, delays = best
