@@ -22,31 +22,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from paintcell.robots.ur_kinematics import UR10_DH, ur_dh_fk
+from paintcell.planning.transforms import inverse_pose
+from paintcell.robots.ur_kinematics import UR10_DH, ur_dh_fk, ur_dh_link
 
 __all__ = ["ur_closed_form", "ur_inverse"]
-
-
-def _dh(theta: np.ndarray, d: float, a: float, alpha: float) -> np.ndarray:
-    """(K, 4, 4) DH link transforms of angles theta (K,)."""
-    c, s = np.cos(theta), np.sin(theta)
-    ca, sa = np.cos(alpha), np.sin(alpha)
-    A = np.zeros((len(theta), 4, 4))
-    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = c, -s * ca, s * sa, a * c
-    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = s, c * ca, -c * sa, a * s
-    A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
-    A[:, 3, 3] = 1.0
-    return A
-
-
-def _inv(T: np.ndarray) -> np.ndarray:
-    """Inverse of rigid transforms (K, 4, 4)."""
-    R = np.swapaxes(T[:, :3, :3], 1, 2)
-    out = np.zeros_like(T)
-    out[:, :3, :3] = R
-    out[:, :3, 3] = -np.einsum("kij,kj->ki", R, T[:, :3, 3])
-    out[:, 3, 3] = 1.0
-    return out
 
 
 def ur_inverse(T_base_flange: npt.ArrayLike, dh: Mapping[str, tuple[float, ...]] = UR10_DH,
@@ -82,9 +61,9 @@ def ur_inverse(T_base_flange: npt.ArrayLike, dh: Mapping[str, tuple[float, ...]]
             q6 = np.arctan2(-(T[:, 0, 1] * s1 - T[:, 1, 1] * c1) / s5s,
                             (T[:, 0, 0] * s1 - T[:, 1, 0] * c1) / s5s)
             # frame 1 → frame 4: T14 = A1⁻¹ · T06 · (A5 A6)⁻¹
-            A1 = _dh(q1, d1, 0.0, dh["alpha"][0])
-            A56 = _dh(q5, d5, 0.0, dh["alpha"][4]) @ _dh(q6, d6, 0.0, dh["alpha"][5])
-            T14 = _inv(A1) @ T @ _inv(A56)
+            A1 = ur_dh_link(q1, d1, 0.0, dh["alpha"][0])
+            A56 = ur_dh_link(q5, d5, 0.0, dh["alpha"][4]) @ ur_dh_link(q6, d6, 0.0, dh["alpha"][5])
+            T14 = inverse_pose(A1) @ T @ inverse_pose(A56)
             p13 = T14[:, :3, 3] - d4 * T14[:, :3, 1]
             n13 = np.linalg.norm(p13, axis=1)
             c3 = (n13 ** 2 - a2 ** 2 - a3 ** 2) / (2 * a2 * a3)
@@ -93,8 +72,9 @@ def ur_inverse(T_base_flange: npt.ArrayLike, dh: Mapping[str, tuple[float, ...]]
                 q3 = s3sign * np.arccos(np.clip(c3, -1.0, 1.0))
                 q2 = -np.arctan2(p13[:, 1], -p13[:, 0]) + np.arcsin(
                     np.clip(a3 * np.sin(q3) / np.where(n13 > 0, n13, 1.0), -1.0, 1.0))
-                A23 = _dh(q2, 0.0, a2, dh["alpha"][1]) @ _dh(q3, 0.0, a3, dh["alpha"][2])
-                T34 = _inv(A23) @ T14
+                A23 = (ur_dh_link(q2, 0.0, a2, dh["alpha"][1])
+                       @ ur_dh_link(q3, 0.0, a3, dh["alpha"][2]))
+                T34 = inverse_pose(A23) @ T14
                 q4 = np.arctan2(T34[:, 1, 0], T34[:, 0, 0])
                 b = 4 * sh + 2 * wr + el
                 sol = np.column_stack([q1, q2, q3, q4, q5, q6])

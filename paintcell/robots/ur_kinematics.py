@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from paintcell.robots.errors import RobotError
 
-__all__ = ["UR10_DH", "ur_configuration_signs", "ur_dh_fk"]
+__all__ = ["UR10_DH", "ur_configuration_signs", "ur_dh_fk", "ur_dh_link"]
 
 #: UR10 standard DH parameters (d [m], a [m], alpha [rad]) of joints 1..6 (Universal Robots).
 UR10_DH: dict[str, tuple[float, ...]] = {
@@ -32,6 +32,19 @@ UR10_DH: dict[str, tuple[float, ...]] = {
 }
 
 
+def ur_dh_link(theta: np.ndarray, d: float, a: float, alpha: float) -> np.ndarray:
+    """(K, 4, 4) standard DH link transforms of joint angles theta (K,) [rad] (d, a [m], alpha
+    [rad] of the link)."""
+    c, s = np.cos(theta), np.sin(theta)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    A = np.zeros((len(theta), 4, 4))
+    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = c, -s * ca, s * sa, a * c
+    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = s, c * ca, -c * sa, a * s
+    A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
+    A[:, 3, 3] = 1.0
+    return A
+
+
 def ur_dh_fk(Q: npt.ArrayLike, dh: Mapping[str, tuple[float, ...]] = UR10_DH) -> np.ndarray:
     """(K, 4, 4) T_base_flange of joint angles Q (K, 6) [rad] in the DH base frame [m]."""
     Q = np.atleast_2d(np.asarray(Q, float))
@@ -39,14 +52,7 @@ def ur_dh_fk(Q: npt.ArrayLike, dh: Mapping[str, tuple[float, ...]] = UR10_DH) ->
         raise RobotError(f"UR forward kinematics needs (K, 6) joint angles, got {Q.shape}")
     T = np.tile(np.eye(4), (len(Q), 1, 1))
     for j in range(6):
-        c, s = np.cos(Q[:, j]), np.sin(Q[:, j])
-        ca, sa = np.cos(dh["alpha"][j]), np.sin(dh["alpha"][j])
-        A = np.zeros((len(Q), 4, 4))
-        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = c, -s * ca, s * sa, dh["a"][j] * c
-        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = s, c * ca, -c * sa, dh["a"][j] * s
-        A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, dh["d"][j]
-        A[:, 3, 3] = 1.0
-        T = T @ A
+        T = T @ ur_dh_link(Q[:, j], dh["d"][j], dh["a"][j], dh["alpha"][j])
     return T
 
 
