@@ -15,7 +15,7 @@ import pytest
 from paintcell.planning.paint.applicator import Applicator
 from paintcell.planning.paint.deposition import thickness
 from paintcell.robots import load_robot
-from paintcell.sim.booth.booth import Job, estimate_s, rank_allocations
+from paintcell.sim.booth.booth import BoothError, Job, estimate_s, rank_allocations
 from paintcell.sim.booth.booth_build import scaled_applicator
 from paintcell.sim.booth.booth_chain import chain_programs, job_windows
 from paintcell.sim.booth.booth_film import gun_in_body, job_paint
@@ -66,6 +66,61 @@ def test_multi_job_allocation_is_the_brute_force_optimum():
     # no robot gets both pieces of one part (the whole part is the same passes, estimated
     # APPROACH_RETRACT_S - TURN_S shorter), and the brute force above, which allows it, agrees
     assert ranked and all(len({j.part for j in js}) == len(js) for c in ranked for js in c.values())
+
+
+def test_patch_part_wings_to_robots_is_the_brute_force_optimum():
+    """A part of two patches (5 + 4 passes, as a body and a tongue band painted one after the
+    other) where robot 0 reaches only each patch's first passes (one wing) and robot 1 only its
+    last ones: no cut in two pieces serves them, one wing of each patch per robot does. Against
+    an independent enumeration of every partition of the passes into contiguous pieces with at
+    most one cut inside each patch (the seam cut or not), each piece to a robot that reaches it,
+    1–3 pieces per robot and no robot two touching pieces (their union is a partition too)."""
+    counts = [5, 4]
+    n = sum(counts)
+    rng = np.random.default_rng(3)
+    durations = [rng.uniform(2, 5, n), rng.uniform(2, 5, 3)]
+    wing0 = np.array([1, 1, 1, 0, 0, 1, 1, 0, 0], bool)        # robot 0's side of each patch
+    reach = {(0, 0): wing0, (1, 0): ~wing0 | np.array([0, 0, 1, 0, 0, 0, 0, 0, 0], bool),
+             (0, 1): np.ones(3, bool), (1, 1): np.ones(3, bool)}
+
+    def reachable(r: int, job: Job) -> bool:
+        return bool(reach[(r, job.part)][job.first:job.end].all())
+
+    with pytest.raises(BoothError):          # whole or two pieces: nothing works
+        rank_allocations(2, [n, 3], durations, reachable, max_jobs_per_robot=3)
+    ranked, record = rank_allocations(2, [n, 3], durations, reachable, max_jobs_per_robot=3,
+                                      patches=[counts, None])
+    best = None
+    seam = counts[0]
+    for mask in itertools.product((0, 1), repeat=n - 1):       # every cut set of part 0
+        cuts = [k + 1 for k, m in enumerate(mask) if m]
+        if sum(1 for c in cuts if c < seam) > 1 or sum(1 for c in cuts if c > seam) > 1:
+            continue
+        edges = [0, *cuts, n]
+        pieces0 = list(zip(edges[:-1], edges[1:], strict=True))
+        for cut1 in [[(0, 3)]] + [[(0, k), (k, 3)] for k in (1, 2)]:
+            jobs = [(0, a, b) for a, b in pieces0] + [(1, a, b) for a, b in cut1]
+            if len(jobs) > 6:
+                continue
+            for owners in itertools.product(range(2), repeat=len(jobs)):
+                load, count, ok = [0.0, 0.0], [0, 0], True
+                for (p, a, b), r in zip(jobs, owners, strict=True):
+                    ok &= reachable(r, Job(p, a, b))
+                    load[r] += estimate_s(durations[p][a:b])
+                    count[r] += 1
+                touching = any(o1 == o2 and p1 == p2 and (b1 == a2 or b2 == a1)
+                               for (p1, a1, b1), o1 in zip(jobs, owners, strict=True)
+                               for (p2, a2, b2), o2 in zip(jobs, owners, strict=True))
+                if ok and not touching and all(1 <= c <= 3 for c in count):
+                    key = tuple(sorted(load, reverse=True))
+                    best = key if best is None or key < best else best
+    assert best is not None
+    assert record["estimated_programs_s"] == pytest.approx(list(best), rel=1e-12)
+    top = ranked[0]
+    covered = sorted((j.part, i) for js in top.values() for j in js for i in range(j.first, j.end))
+    assert covered == sorted((p, i) for p, m in enumerate([n, 3]) for i in range(m))
+    assert any(len({j.part for j in js}) < len(js) for js in top.values())   # two wings
+    assert all(reachable(r, j) for r, js in top.items() for j in js)
 
 
 def _program(robot, q0: np.ndarray, q1: np.ndarray, paint_frac: tuple[float, float],

@@ -8,7 +8,8 @@ base — a rail robot's base is its rail frame —, home), the conveyor and the 
 like any scenario script (`SCENARIO = Booth(...)`).
 
 Allocation (`allocate`): the jobs are whole parts or two pieces of a part (its passes split at
-a pass boundary). Every assignment of one job per robot — each part whole or split, one robot
+a pass boundary); a part planned in patches may also be cut once inside each patch and at its
+seams, so that one robot takes a wing of every patch (`job_options`). Every assignment of one job per robot — each part whole or split, one robot
 per job — is enumerated (≤ a few hundred for four robots) and the one chosen:
 1. every job is reachable by its robot (closed-form IK feasibility of every pass: inside the
    limits, off the wrist singularity; a rail robot at its best rail position per pass);
@@ -216,20 +217,54 @@ class Job:
     end: int
 
 
-def job_options(n_passes: list[int]) -> list[list[list[Job]]]:
-    """Per part, its ways of being cut into jobs: whole, or two pieces at any pass boundary."""
+def job_options(n_passes: list[int], patches: list[list[int] | None] | None = None
+                ) -> list[list[list[Job]]]:
+    """Per part, its ways of being cut into jobs: whole, or two pieces at any pass boundary.
+
+    patches: per part, the pass counts of its patches in execution order (`patch_pass_counts`;
+    None: one pass family). A part of several patches may also be cut once inside each patch
+    and at any of the seams between patches (a robot can then take one wing of every patch). The
+    options are closed under dropping a cut, so two adjacent pieces on one robot are always
+    dominated by their union (`booth_chain.assign_job_lists` skips them)."""
     out = []
     for p, n in enumerate(n_passes):
-        out.append([[Job(p, 0, n)]] + [[Job(p, 0, k), Job(p, k, n)] for k in range(1, n)])
+        opts = [[Job(p, 0, n)]] + [[Job(p, 0, k), Job(p, k, n)] for k in range(1, n)]
+        counts = None if patches is None else patches[p]
+        if counts is not None and len(counts) > 1:
+            ends = np.cumsum(counts)
+            starts = ends - np.asarray(counts)
+            inside = [[()] + [(int(k),) for k in range(a + 1, b)]
+                      for a, b in zip(starts, ends, strict=True)]
+            seams = [((), (int(k),)) for k in ends[:-1]]
+            seen = {tuple((j.first, j.end) for j in o) for o in opts}
+            for pick in itertools.product(*inside, *seams):     # tens to hundreds
+                cuts = [0, *sorted(k for c in pick for k in c), n]
+                key = tuple(zip(cuts[:-1], cuts[1:], strict=True))
+                if key not in seen:
+                    seen.add(key)
+                    opts.append([Job(p, a, b) for a, b in key])
+        out.append(opts)
     return out
 
 
+def patch_pass_counts(plan: Any) -> list[int] | None:
+    """The pass counts of a patch plan's patches in execution order
+    (`paintcell.planning.coverage.patches`' report), or None for one pass family."""
+    rep = (plan.settings or {}).get("report", {}) if isinstance(plan.settings, dict) else {}
+    if "patches" not in rep or "order" not in rep:
+        return None
+    counts = [int(rep["patches"][k]["passes"]) for k in rep["order"]]
+    return counts if len(counts) > 1 and sum(counts) == len(plan.passes) else None
+
+
 def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndarray],
-                     reachable: Any, max_jobs_per_robot: int = 1
+                     reachable: Any, max_jobs_per_robot: int = 1,
+                     patches: list[list[int] | None] | None = None
                      ) -> tuple[list[dict[int, tuple[Job, ...]]], dict[str, Any]]:
     """Every feasible allocation of the module doc, best first.
 
-    n_passes: per part, its number of passes; durations: per part, (P,) planned pass times [s];
+    n_passes: per part, its number of passes; patches: per part, its patches' pass counts
+    (`job_options`; None: whole or two pieces only); durations: per part, (P,) planned pass times [s];
     reachable(robot, job) -> bool; max_jobs_per_robot: jobs one robot may run one after the
     other (its program: `paintcell.sim.booth.booth_chain.chain_programs`). Returns the
     allocations ({robot index: its jobs in part order}), best first by lexicographic min-max of
@@ -243,7 +278,7 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
     est_of: dict[Job, float] = {}
     serial = itertools.count()
     heap: list[Any] = []                      # the multi-job search's best kept
-    for cut in itertools.product(*job_options(n_passes)):
+    for cut in itertools.product(*job_options(n_passes, patches)):
         jobs = [j for part_jobs in cut for j in part_jobs]
         for j in jobs:
             if j not in est_of:

@@ -110,7 +110,8 @@ def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
     `heap` (a heapq of (negated key, negated serial, entry): the worst kept on top) while it
     holds fewer than KEEP_RANKED, else replaces the worst when better (a partial assignment
     whose longest program already exceeds the worst kept is not completed). A robot never gets
-    both pieces of one part (dominated by the whole part: APPROACH_RETRACT_S − TURN_S more).
+    two adjacent pieces of one part (dominated by their union, which `job_options` also offers:
+    APPROACH_RETRACT_S − TURN_S more); pieces apart (one wing of each patch) it may.
     Returns the number of complete assignments considered."""
     import heapq
 
@@ -141,10 +142,11 @@ def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
         for r in range(n_robots):
             if len(got[r]) >= max_jobs or load[r] + est_of[j] > bound():
                 continue
-            # Both pieces of a split part to one robot: the whole part as one job (enumerated
+            # Two adjacent pieces of a part to one robot: their union as one job (enumerated
             # too) has the same passes with one turn-around instead of a retract and an
             # approach, so its estimate is always the smaller; not worth building.
-            if any(g.part == j.part for g in got[r]):
+            if any(g.part == j.part and (g.end == j.first or j.end == g.first)
+                   for g in got[r]):
                 continue
             if not reachable(r, j):
                 continue

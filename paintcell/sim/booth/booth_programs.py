@@ -24,6 +24,7 @@ from paintcell.sim.booth.booth import (
     arm_points,
     estimate_s,
     pass_feasible,
+    patch_pass_counts,
     rank_allocations,
 )
 from paintcell.sim.booth.booth_chain import job_record
@@ -293,7 +294,8 @@ def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: 
 
     durations = [np.array([ps.duration_s for ps in pl.passes]) for pl in plans]
     return rank_allocations(len(robots), [len(pl.passes) for pl in plans], durations,
-                            reachable, booth.max_jobs_per_robot)
+                            reachable, booth.max_jobs_per_robot,
+                            [patch_pass_counts(pl) for pl in plans])
 
 
 def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> list[int]:
