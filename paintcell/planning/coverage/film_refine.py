@@ -27,7 +27,7 @@ robot can follow.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -158,13 +158,16 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
     fit = np.arange(0, len(V), stride)
     M = _film_matrix(app, passes, basis, V[fit], N[fit])
     info.update(knots=int(n_k), fit_vertices=int(len(fit)))
+    problem = _FitProblem(app=app, passes=passes, basis=basis, tops=tops, areas=a, fit=fit,
+                          interior=interior, mu=mu, M=M, lo=lo_a, hi=hi_a,
+                          v_min_m_s=v_min_m_s, pass_time_weight=pass_time_weight,
+                          vertices=V, normals=N)
     # Fitted with the interior weighted 1×; if the result lowers σ/μ on the whole part but not
     # on its interior, fitted again with the interior weighted more (INTERIOR_WEIGHTS): the fit
     # trades some of the edge's gain for the interior, and the first that lowers both is kept.
     tried = []
     for w_int in INTERIOR_WEIGHTS:
-        out, film, s, res, dt = _fit(app, passes, basis, tops, a, fit, interior, w_int, mu, M,
-                                     lo_a, hi_a, n_k, v_min_m_s, pass_time_weight, V, N)
+        out, film, s, res, dt = _fit(problem, w_int)
         after = (nsd(film), nsd(film, interior))
         tried.append({"interior_weight": w_int, "nsd_pct": after[0], "interior_pct": after[1]})
         if after[0] < before[0] and after[1] <= before[1]:
@@ -184,17 +187,42 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
     return out, info
 
 
-def _fit(app: Applicator, passes: list[PassPlan], basis: list[sp.csr_matrix],
-         tops: list[np.ndarray], a: np.ndarray, fit: np.ndarray, interior: np.ndarray,
-         w_int: float, mu: float, M: np.ndarray, lo_a: np.ndarray, hi_a: np.ndarray, n_k: int,
-         v_min_m_s: float, pass_time_weight: float, V: np.ndarray, N: np.ndarray
+@dataclass(frozen=True)
+class _FitProblem:
+    """What every fit of `refine_speeds` shares: the passes (execution order) and their knot
+    bases, each sample's top speed [m/s], the vertices' areas [m²], the fitted vertices' indices
+    `fit` and film matrix `M` (film [m] per unit knot slowness), the interior mask, the mean
+    film mu [m], the knots' slowness bounds lo / hi, v_min_m_s [m/s], the pass-time weight and
+    the part's vertices and normals (the film judged on all of them)."""
+
+    app: Applicator
+    passes: list[PassPlan]
+    basis: list[sp.csr_matrix]
+    tops: list[np.ndarray]
+    areas: np.ndarray
+    fit: np.ndarray
+    interior: np.ndarray
+    mu: float
+    M: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    v_min_m_s: float
+    pass_time_weight: float
+    vertices: np.ndarray
+    normals: np.ndarray
+
+
+def _fit(pb: _FitProblem, w_int: float
          ) -> tuple[list[PassPlan], np.ndarray, np.ndarray, Any, float]:
     """One bounded least-squares fit of the knot slownesses (module doc) with the interior
     vertices' area weights multiplied by w_int: the re-timed passes, their film on every vertex
     [m], the slownesses, the solver's result and the cycle change [s]."""
-    wa = a[fit] * np.where(interior[fit], w_int, 1.0)
+    passes, basis, fit, mu, pass_time_weight = pb.passes, pb.basis, pb.fit, pb.mu, \
+        pb.pass_time_weight
+    n_k = len(pb.lo)
+    wa = pb.areas[fit] * np.where(pb.interior[fit], w_int, 1.0)
     rw = np.sqrt(wa / wa.sum()) / mu
-    blocks = [M * rw[:, None]]
+    blocks = [pb.M * rw[:, None]]
     col = 0
     for b in basis:
         k = b.shape[1]
@@ -220,19 +248,19 @@ def _fit(app: Applicator, passes: list[PassPlan], basis: list[sp.csr_matrix],
     # ‖A s − b‖² = ‖R s − Qᵀ b‖² + const (A = QR): the bounded-variable solver runs on the
     # K × K triangle instead of the (N + K) × K system (a few hundred knots: exact and fast)
     Q_, R_ = np.linalg.qr(A_ls)
-    res = lsq_linear(R_, Q_.T @ rhs, bounds=(lo_a, hi_a), method="bvls")
-    s = np.clip(res.x, lo_a, hi_a)
+    res = lsq_linear(R_, Q_.T @ rhs, bounds=(pb.lo, pb.hi), method="bvls")
+    s = np.clip(res.x, pb.lo, pb.hi)
     out, dt = [], 0.0
     col = 0
-    for p, b, top in zip(passes, basis, tops, strict=True):
+    for p, b, top in zip(passes, basis, pb.tops, strict=True):
         k = b.shape[1]
         q = _retimed(p, np.clip(p.speeds_m_s / (b @ s[col:col + k]),
-                                np.minimum(v_min_m_s, top), top))
+                                np.minimum(pb.v_min_m_s, top), top))
         col += k
         dt += float(q.times_s[-1] - p.times_s[-1])
         out.append(q)
     # the rebuilt timing (trapezoid dwell, clipped speeds) judged by the film itself
-    return out, _plan_film(app, out, V, N), s, res, dt
+    return out, _plan_film(pb.app, out, pb.vertices, pb.normals), s, res, dt
 
 
 def _top(p: PassPlan, cap: np.ndarray | None, v_max_m_s: float) -> np.ndarray:
