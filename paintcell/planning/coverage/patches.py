@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -138,7 +139,10 @@ def segment(surface: Surface, max_cone_rad: float = np.radians(30.0),
             for _ in range(k - 1):
                 d = np.min(nf @ nf[seeds].T, axis=1)
                 seeds.append(int(np.argmin(d)))
-            _, labels = kmeans2(nf, nf[seeds], minit="matrix", iter=20)
+            with warnings.catch_warnings():
+                # an emptied cluster only means fewer patches; the cone test below judges them
+                warnings.filterwarnings("ignore", "One of the clusters is empty", UserWarning)
+                _, labels = kmeans2(nf, nf[seeds], minit="matrix", iter=20)
         if all(_cone(nf[labels == c], af[labels == c]) <= max_cone_rad
                for c in np.unique(labels)):
             break
