@@ -19,7 +19,7 @@ spline (no toppra parametrizer, whose spline fit overshoots acceleration limits 
 Between grid points the constraints are not enforced, so `parameterize_pass` re-measures the
 sampled joint velocity and acceleration and TCP acceleration at the control rate and tightens the
 limits it hands to TOPP-RA until the sampled output respects the real limits (`PassTimeLaw`
-records the shrink factor it needed).
+records the shrink factor it needed); where tightening does not, the grid is halved.
 """
 
 from __future__ import annotations
@@ -46,8 +46,7 @@ TOPPRA_VERSION = importlib.metadata.version("toppra")
 # toppra logs a warning for every uncontrollable start velocity we probe; we handle those.
 logging.getLogger("toppra").setLevel(logging.ERROR)
 
-# Sides of the polygon inscribed in the TCP-acceleration circle: cos(π/16) = 0.981, so the
-# polygon gives up < 2 % of the disc radius.
+# the polygon inscribed in the TCP-acceleration circle: cos(π/16) = 0.981, < 2 % of its radius
 _TCP_POLYGON_SIDES = 16
 # Step of the central differences of the FK position along s [m]: truncation O(h²·p''') is
 # ~1e-8 relative, round-off ~1e-16/h² · |p| ≈ 1e-8 m/m² on 1 m coordinates.
@@ -59,6 +58,7 @@ _SAMPLED_RTOL = 1e-9
 # A pass longer than this many control periods is a broken joint path, not a paint pass
 # (1e6 samples = 1000 s at 1 kHz).
 _MAX_CHECK_SAMPLES = 1e6
+GRID_HALVINGS = 3    #: halvings of a TOPP-RA grid whose pass still fails (0.01 m → 1.25 mm)
 
 FkPositions = Callable[[np.ndarray], np.ndarray]
 
@@ -259,7 +259,8 @@ def parameterize_pass(path: JointPath, fk_pos: FkPositions, v_planned_knots_m_s:
     v_max_rad_s, a_max_rad_s2: (n,) joint limits to respect [rad/s], [rad/s²] (margins already
         applied by the caller).
     tcp_a_max_m_s2: TCP acceleration limit [m/s²].
-    grid_spacing_m: largest TOPP-RA grid interval [m] (every knot is also a grid point).
+    grid_spacing_m: largest TOPP-RA grid interval [m] (every knot is also a grid point); halved
+        up to GRID_HALVINGS times where the limits, tightened max_tightenings times, still fail.
     sd_start_m_s / sd_end_m_s: requested TCP speed at the ends [m/s] (None: the planned speed);
         lowered to the nearest reachable value when the limits do not allow it.
     check_dt_s: time step of the sampled re-measurement [s] (the control period).
@@ -281,54 +282,56 @@ def parameterize_pass(path: JointPath, fk_pos: FkPositions, v_planned_knots_m_s:
     if not grid_spacing_m > 0:
         raise TrajectoryError("grid_spacing_m must be positive [m]")
 
-    grid = make_grid(s_knots, grid_spacing_m)
-    v2_grid = np.interp(grid, s_knots, v_knots**2)
-    q1 = path(grid, 1)
-    q2 = path(grid, 2)
-    p1, p2 = tcp_path_derivatives(path, fk_pos, grid)
-    scale = np.linalg.norm(p1, axis=1)
-    if np.any(scale < 1e-6):
-        raise TrajectoryError("the TCP does not move along the joint path (|dp/ds| ≈ 0); the "
-                              "IK samples do not follow the planned TCP path")
-    x_tcp = v2_grid / scale**2
-    v_start = np.sqrt(x_tcp[0]) if sd_start_m_s is None else sd_start_m_s / scale[0]
-    v_end = np.sqrt(x_tcp[-1]) if sd_end_m_s is None else sd_end_m_s / scale[-1]
+    # limits hold at the grid points: a path bending faster than the grid resolves, finer grids
+    for spacing in grid_spacing_m / 2.0 ** np.arange(1 + GRID_HALVINGS):
+        grid = make_grid(s_knots, spacing)
+        v2_grid = np.interp(grid, s_knots, v_knots**2)
+        q1, q2 = path(grid, 1), path(grid, 2)
+        p1, p2 = tcp_path_derivatives(path, fk_pos, grid)
+        scale = np.linalg.norm(p1, axis=1)
+        if np.any(scale < 1e-6):
+            raise TrajectoryError("the TCP does not move along the joint path (|dp/ds| ≈ 0); the "
+                                  "IK samples do not follow the planned TCP path")
+        x_tcp = v2_grid / scale**2
+        v_start = np.sqrt(x_tcp[0]) if sd_start_m_s is None else sd_start_m_s / scale[0]
+        v_end = np.sqrt(x_tcp[-1]) if sd_end_m_s is None else sd_end_m_s / scale[-1]
 
-    shrink = 1.0
-    for _ in range(max_tightenings + 1):
-        with np.errstate(divide="ignore"):
-            x_joint = np.min((shrink * v_lim)**2 / np.maximum(q1**2, 1e-300), axis=1)
-        xmax = np.minimum(x_joint, x_tcp)
-        constraints = [_PathVelocityBound(xmax, path.dof),
-                       _AccelerationBound(q1, q2, p1, p2, shrink * a_lim,
-                                          shrink * tcp_a_max_m_s2)]
-        algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid,
-                                       solver_wrapper="seidel")
-        sd_end, K = _reachable_end(algo, min(v_end, np.sqrt(max(xmax[-1], 0.0))), v_start)
-        sd_start = min(v_start, np.sqrt(max(K[0, 1], 0.0)) * (1 - 1e-9))
-        sdd, sd, _, _ = algo.compute_parameterization(sd_start, sd_end, return_data=True)
-        if sdd is None or np.any(~np.isfinite(sd)):
-            raise TrajectoryError("TOPP-RA failed on a pass; check the joint limits and that "
-                                  "the IK path is smooth")
-        sd = np.maximum(sd, 0.0)
-        ds = np.diff(grid)
-        sdd = (sd[1:]**2 - sd[:-1]**2) / (2 * ds)
-        vsum = sd[1:] + sd[:-1]
-        if np.any(vsum <= 0):
-            raise TrajectoryError("TOPP-RA stopped inside a pass (zero speed over an interval); "
-                                  "the path is not traversable under the limits")
-        t_grid = np.concatenate([[0.0], np.cumsum(2 * ds / vsum)])
-        law = PassTimeLaw(path=path, s_grid=grid, sd_grid=sd, sdd=sdd, t_grid=t_grid,
-                          v_planned_grid=np.sqrt(v2_grid), tcp_speed_scale_grid=scale,
-                          limit_shrink=shrink,
-                          sd_start_clipped=bool(sd_start < v_start * (1 - 1e-6)),
-                          sd_end_clipped=bool(sd_end < v_end * (1 - 1e-6)))
-        excess = _sampled_excess(law, fk_pos, v_lim, a_lim, tcp_a_max_m_s2, check_dt_s)
-        if excess <= 1.0 + _SAMPLED_RTOL:
-            return law
-        shrink = shrink / excess * (1 - 1e-3)
+        shrink = 1.0
+        for _ in range(max_tightenings + 1):
+            with np.errstate(divide="ignore"):
+                x_joint = np.min((shrink * v_lim)**2 / np.maximum(q1**2, 1e-300), axis=1)
+            xmax = np.minimum(x_joint, x_tcp)
+            constraints = [_PathVelocityBound(xmax, path.dof),
+                           _AccelerationBound(q1, q2, p1, p2, shrink * a_lim,
+                                              shrink * tcp_a_max_m_s2)]
+            algo = toppra.algorithm.TOPPRA(constraints, path, gridpoints=grid,
+                                           solver_wrapper="seidel")
+            sd_end, K = _reachable_end(algo, min(v_end, np.sqrt(max(xmax[-1], 0.0))), v_start)
+            sd_start = min(v_start, np.sqrt(max(K[0, 1], 0.0)) * (1 - 1e-9))
+            sdd, sd, _, _ = algo.compute_parameterization(sd_start, sd_end, return_data=True)
+            if sdd is None or np.any(~np.isfinite(sd)):
+                raise TrajectoryError("TOPP-RA failed on a pass; check the joint limits and that "
+                                      "the IK path is smooth")
+            sd = np.maximum(sd, 0.0)
+            ds = np.diff(grid)
+            sdd = (sd[1:]**2 - sd[:-1]**2) / (2 * ds)
+            vsum = sd[1:] + sd[:-1]
+            if np.any(vsum <= 0):
+                raise TrajectoryError("TOPP-RA stopped inside a pass (zero speed over an "
+                                      "interval); the path is not traversable under the limits")
+            t_grid = np.concatenate([[0.0], np.cumsum(2 * ds / vsum)])
+            law = PassTimeLaw(path=path, s_grid=grid, sd_grid=sd, sdd=sdd, t_grid=t_grid,
+                              v_planned_grid=np.sqrt(v2_grid), tcp_speed_scale_grid=scale,
+                              limit_shrink=shrink,
+                              sd_start_clipped=bool(sd_start < v_start * (1 - 1e-6)),
+                              sd_end_clipped=bool(sd_end < v_end * (1 - 1e-6)))
+            excess = _sampled_excess(law, fk_pos, v_lim, a_lim, tcp_a_max_m_s2, check_dt_s)
+            if excess <= 1.0 + _SAMPLED_RTOL:
+                return law
+            shrink = shrink / excess * (1 - 1e-3)
     raise TrajectoryError(f"the sampled pass still exceeds a limit by {100 * (excess - 1):.2f} % "
-                          f"after {max_tightenings} tightenings; use a finer grid_spacing_m")
+                          f"after {max_tightenings} tightenings on grids down to "
+                          f"{1e3 * spacing:.2f} mm; lower the part's v_max_m_s")
 
 
 def _reachable_end(algo: toppra.algorithm.TOPPRA, sd_end: float,
