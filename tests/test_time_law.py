@@ -3,6 +3,8 @@ form."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -125,7 +127,7 @@ def test_a_pass_tightening_cannot_fix_gets_a_finer_grid(monkeypatch) -> None:
     from paintcell.robots.rail import RailSpec, load_rail_robot
     from paintcell.sim.motion import time_law
 
-    d = np.load("tests/data/time_law_coarse_grid_pass.npz")
+    d = np.load(Path(__file__).parent / "data" / "time_law_coarse_grid_pass.npz")
     robot = load_rail_robot("irb5500", T_world_rail=d["T_world_rail"],
                             rail=RailSpec(lower_m=-0.6, upper_m=0.6))
 
