@@ -47,23 +47,96 @@ class Opening:
 
 
 def boundary_loops(faces: np.ndarray, n_vertices: int) -> list[np.ndarray]:
-    """Ordered vertex loops of the mesh boundary (each directed as the faces' edges run)."""
-    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
-    key = e[:, 0] * n_vertices + e[:, 1]
-    rkey = e[:, 1] * n_vertices + e[:, 0]
-    bnd = e[~np.isin(key, rkey)]
+    """Ordered vertex loops of the mesh boundary (each directed as the faces' edges run): every
+    consecutive pair, last to first included, is a boundary edge of the mesh.
+
+    A boundary edge's successor is the boundary edge leaving its end vertex in the same fan of
+    faces (found by turning about that vertex across interior edges), not any boundary edge that
+    leaves it: where a boundary touches itself at a vertex (a pinch, which a fine remesh of a
+    scanned rim leaves now and then), a walk by vertices alone has two ways on, and the loop it
+    gave jumped across the hole (crs_cowling_3_holes at 10 mm: two 0.23 m chords, the fill fan
+    folded over itself and a pass offset across it left the surface by 55 mm). A pinch vertex
+    belongs to each loop that passes through it."""
+    F = np.asarray(faces, np.int64)
+    if len(F) == 0:
+        return []
+    n = int(n_vertices)
+    # half-edge h = 3·face + k runs F[f, k] → F[f, k+1]
+    tail = F.ravel()
+    head = F[:, [1, 2, 0]].ravel()
+    key = tail * n + head
+    order = np.argsort(key, kind="stable")
+    skey = key[order]
+
+    def twin(h: np.ndarray) -> np.ndarray:
+        """The half-edge running the other way along h's edge, −1 for none."""
+        k = head[h] * n + tail[h]
+        i = np.minimum(np.searchsorted(skey, k), len(skey) - 1)
+        return np.where(skey[i] == k, order[i], -1)
+
+    bnd = np.flatnonzero(twin(np.arange(len(key))) < 0)
     if len(bnd) == 0:
         return []
-    g = sp.coo_matrix((np.ones(len(bnd)), (bnd[:, 0], bnd[:, 1])),
-                      shape=(n_vertices, n_vertices)).tocsr()
-    n_comp, labels = connected_components(g, directed=True, connection="weak")
-    used = np.unique(bnd.ravel())
+
+    def next_in_face(h: np.ndarray) -> np.ndarray:
+        return 3 * (h // 3) + (h % 3 + 1) % 3
+
+    # from each boundary edge a → b, turn about b through its fan: the edge leaving b in the
+    # same face, and while that edge has a twin, the edge leaving b in the twin's face
+    cur = next_in_face(bnd)
+    nxt = np.full(len(bnd), -1)
+    todo = np.arange(len(bnd))
+    for _ in range(int(np.bincount(F.ravel()).max()) + 1):    # ≤ the valence of b steps
+        tw = twin(cur[todo])
+        done = tw < 0
+        nxt[todo[done]] = cur[todo[done]]
+        todo, cur_t = todo[~done], next_in_face(tw[~done])
+        if len(todo) == 0:
+            break
+        cur[todo] = cur_t
+    pos = np.full(len(key), -1)
+    pos[bnd] = np.arange(len(bnd))
+    succ = np.where(nxt >= 0, pos[np.maximum(nxt, 0)], -1)    # index among the boundary edges
+    lost = np.flatnonzero(succ < 0)
+    if len(lost):
+        # a fan that never reaches a boundary edge (faces wound against their neighbours, which
+        # a scan's repair can leave): any boundary edge leaving the vertex, if there is one
+        by_tail = np.argsort(tail[bnd], kind="stable")
+        bt = tail[bnd][by_tail]
+        i = np.minimum(np.searchsorted(bt, head[bnd[lost]]), len(bt) - 1)
+        succ[lost] = np.where(bt[i] == head[bnd[lost]], by_tail[i], -1)
+    has = succ >= 0
+    g = sp.coo_matrix((np.ones(int(has.sum())), (np.flatnonzero(has), succ[has])),
+                      shape=(len(bnd), len(bnd))).tocsr()
+    _, labels = connected_components(g, directed=True, connection="weak")
+    # walk each loop from an edge nothing leads to, if any (an open chain), else from any
+    heads_of_chains = np.flatnonzero(np.bincount(succ[has], minlength=len(bnd)) == 0)
+    first = np.unique(labels, return_index=True)[1]
+    chain_start = np.full(labels.max() + 1, -1)
+    chain_start[labels[heads_of_chains[::-1]]] = heads_of_chains[::-1]
+    first = np.where(chain_start >= 0, chain_start, first)
     loops = []
-    for c in np.unique(labels[used]):     # one entry per boundary loop
-        start = int(used[labels[used] == c][0])
-        order = depth_first_order(g, start, directed=True, return_predecessors=False)
-        loops.append(np.asarray(order))
+    for start in first:                   # one entry per boundary loop
+        # each boundary edge has exactly one successor: the walk is the loop in order
+        chain = depth_first_order(g, int(start), directed=True, return_predecessors=False)
+        loops.extend(_simple_loops(tail[bnd[np.asarray(chain)]]))
     return loops
+
+
+def _simple_loops(loop: np.ndarray) -> list[np.ndarray]:
+    """A boundary loop that passes a vertex twice (two holes touching at a pinch: one boundary
+    curve, a figure eight) cut there into loops that pass each vertex once: each is filled by a
+    fan of its own (one fan over the eight folds over the surface between its lobes)."""
+    out, todo = [], [loop]
+    while todo:                          # one round per pinch; pinches are rare
+        lp = todo.pop()
+        u, cnt = np.unique(lp, return_counts=True)
+        if len(lp) == 0 or cnt.max() < 2:
+            out.append(lp)
+            continue
+        i, j = np.flatnonzero(lp == u[np.argmax(cnt > 1)])[:2]
+        todo += [lp[i:j], np.concatenate([lp[j:], lp[:i]])]
+    return out
 
 
 def find_openings(surface: Surface) -> list[Opening]:
