@@ -112,3 +112,41 @@ def test_home_on_the_other_wrist_branch_is_the_same_pose():
     assert abs(h[3] - HOME[3]) == pytest.approx(np.pi)
     assert abs(h[5] - HOME[5]) == pytest.approx(np.pi)
     assert wrist_flipped_home(robot, HOME, HOME) is None
+
+
+def test_a_back_off_rung_out_of_reach_does_not_end_the_ladder(monkeypatch):
+    """`booth_job_programs._clear_program` climbs its ladder (as set, folded moves, farther
+    back-offs) until a program keeps clear of the body. A rung whose program cannot be built (a
+    2x back-off's via pose out of reach raises) must not end the climb: the 3x rung that keeps
+    clear is returned, and the tries record the programs that were measured."""
+    from types import SimpleNamespace
+
+    from paintcell.sim.booth import booth_job_programs as bjp
+    from paintcell.sim.booth.booth_clearance import CLEAR_FACTORS, Clearance
+    from paintcell.sim.motion import trajectory
+    from paintcell.sim.motion.joint_trajectory import TrajectoryError
+    from paintcell.sim.motion.trajectory_settings import TrajectorySettings
+
+    built = []
+
+    def fake_build(robot, plan, T, st, ik_results=None):
+        built.append(st)
+        if len(built) == 3:                                 # the 2x back-off rung
+            raise TrajectoryError("a backed-off via pose is not reachable within the limits")
+        return SimpleNamespace(q=np.zeros((2, 6)), t_s=np.array([0.0, 1.0]), meta={},
+                               rung=len(built))
+
+    def fake_clearance(q, t, margin):
+        clear = len(built) == 4
+        return Clearance(margin if clear else 0.004, 0 if clear else 3,
+                         None if clear else 0.5, () if clear else ("link4",), ())
+
+    monkeypatch.setattr(trajectory, "build_program", fake_build)
+    robot = SimpleNamespace(q_home=HOME, rail=None)
+    booth = SimpleNamespace(body_clearance_m=0.01, parts=[])
+    probe = SimpleNamespace(clearance=fake_clearance)
+    traj = bjp._clear_program(booth, "r", robot, None, np.eye(4), TrajectorySettings(), probe)
+    assert traj.rung == 4 and len(built) == 4 and CLEAR_FACTORS[:2] == (2.0, 3.0)
+    tries = traj.meta["body_clearance"]["tries"]
+    assert [t["backoff_factor"] for t in tries] == [1.0, 1.0, 3.0]
+    assert tries[-1]["min_distance_m"] == 0.01 and tries[0]["min_distance_m"] == 0.004

@@ -116,17 +116,24 @@ def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
     last = len(homes) - 1
     ladder = [(1.0, False, 0), (1.0, True, 0)] + [(1.0, True, 1)] * last \
         + [(f, True, last) for f in bc.CLEAR_FACTORS]
-    tries = []
+    tries: list[dict[str, Any]] = []
+    failed: list[PaintcellError] = []
     for factor, fold, k in ladder:
         st = settings if factor == 1.0 else bc.clear_settings(settings, factor)
         st = dataclasses.replace(st, q_home=tuple(homes[k]), fold_moves=fold)
-        traj = build_program(robot, plan, T_world_part, st, ik_results=ik)
+        try:
+            traj = build_program(robot, plan, T_world_part, st, ik_results=ik)
+        except PaintcellError as exc:     # a rung out of reach (a farther back-off): the next
+            failed.append(exc)
+            continue
         c = probe.clearance(traj.q, traj.t_s, margin)
         tries.append({"backoff_factor": factor, "fold_moves": fold,
                       "home_wrist_flipped": k == 1, **c.to_dict()})
         if c.clear:
             traj.meta["body_clearance"] = {"margin_m": margin, "tries": tries}
             return traj
+    if not tries:                  # no rung could be built at all: the first one's reason
+        raise failed[0]
     best = max(tries, key=lambda t: t["min_distance_m"])       # the closest call, said
     c = bc.Clearance(best["min_distance_m"], best["n_close"], best["first_t_s"],
                      tuple(best["bodies"]), tuple(best["parts"]))
@@ -134,4 +141,6 @@ def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
     near = "touch" if c.min_distance_m <= 0 else f"come within {c.min_distance_m * 1e3:.0f} mm of"
     raise BoothError(f"robot {name!r}'s {', '.join(c.bodies[:2])} {near} the body ({parts}) "
                      f"at t = {c.first_t_s:.2f} s of its program, even with folded moves and "
-                     f"{bc.CLEAR_FACTORS[-1]:g}x back-offs")
+                     f"{bc.CLEAR_FACTORS[-1]:g}x back-offs"
+                     + (f" ({len(failed)} of those programs could not be built: {failed[0]})"
+                        if failed else ""))
