@@ -170,3 +170,28 @@ def test_coarse_scores_stop_at_the_first_infeasible_path_without_changing_any_sc
     feasible = np.isfinite(scores)
     assert 0 < feasible.sum() < len(C)                      # both kinds of base in the grid
     assert (reached[~feasible] < 1.0).any()                 # and bases with poses out of reach
+
+
+def test_an_infeasible_search_can_skip_the_dls_walk(abb):
+    """check_infeasible=False (what `paintcell init` asks when it only quotes the refusal): with no
+    feasible candidate the chosen base is the same, the verdict still says so, and the closed-form
+    branch's count is an honest one — every pose it calls reached the damped-least-squares full
+    check (an independent, iterative solver) reaches too, and every pose farther from the base's
+    shoulder than the arm's stretched length (links + the tool, the geometric truth) is
+    unreached in both."""
+    T_part = np.eye(4)
+    T_part[:3, 3] = [0.0, 0.0, 0.9]
+    paths = _panel_raster(T_part, width=5.0, height=1.0, n_pass=3, step=0.05)  # 5 m: too wide
+    cands = facing_grid([0, 0, 0.9], dx=[-1.5, -1.0], dy=[0.0], heights=[0.0])
+    T_full, full = find_base_pose(abb, paths, candidates=cands)
+    T_fast, fast = find_base_pose(abb, paths, candidates=cands, check_infeasible=False)
+    assert np.array_equal(T_full, T_fast) and not fast.feasible
+    assert "NO fully reachable base" in fast.verdict
+    dls, cf = full.reachability.reachable, fast.reachability.reachable
+    assert cf.any() and not cf.all() and np.all(dls[cf])
+    opw = abb.opw
+    shoulder = T_fast @ np.array([0.0, 0.0, opw.c1, 1.0])      # on J1's axis, J2's height
+    stretch = (abs(opw.a1) + opw.c2 + np.hypot(opw.a2, opw.c3) + opw.c4
+               + np.linalg.norm(abb.T_flange_tcp[:3, 3]))
+    far = np.linalg.norm(np.concatenate(paths)[:, :3, 3] - shoulder[:3], axis=1) > stretch
+    assert far.any() and not cf[far].any() and not dls[far].any()

@@ -27,8 +27,10 @@ from paintcell.robots.errors import RobotError
 from paintcell.robots.ik import (
     IKSettings,
     branch_feasibility,
+    choose_branch,
     combined_report,
     continuous_branches,
+    opw_branches,
 )
 from paintcell.robots.paths import solve_paths
 from paintcell.robots.reachability import ReachabilityReport
@@ -128,8 +130,8 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
                    settings: IKSettings | None = None, score: str = "motion",
                    speeds_m_s: Sequence[npt.ArrayLike] | None = None,
                    part_points_world: npt.ArrayLike | None = None,
-                   floor_z_m: float | None = None, q_home: npt.ArrayLike | None = None
-                   ) -> tuple[np.ndarray, PlacementReport]:
+                   floor_z_m: float | None = None, q_home: npt.ArrayLike | None = None,
+                   check_infeasible: bool = True) -> tuple[np.ndarray, PlacementReport]:
     """Best base pose T_world_base (4,4) for `paths` (list of (M,4,4) T_world_tcp, part placed).
 
     candidates: (C,4,4) base poses; default `facing_grid` around the centroid of the paths.
@@ -142,6 +144,11 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
     margin alone (the earlier rule). speeds_m_s: per path (M,) planned TCP speeds [m/s]
     (default 0.5 m/s everywhere). q_home: (n,) the program's home [rad] (default the robot's):
     the motion score also checks the clearance along the moves from and to it.
+    check_infeasible: False skips the full (damped least squares) check when no candidate is
+    feasible — the report is then that of the closed-form branch each pass would start on
+    (`_branch_report`): the same verdict ("NO fully reachable base"), counted without the DLS's
+    best-effort walk through every unreachable pose (4–5 s per arm on crs_cowling_creases, whose
+    `init` refusal quotes only the counts).
     Returns (T_world_base, PlacementReport); the report says when no candidate is feasible (the
     one with the most reachable poses is returned then).
     """
@@ -175,10 +182,34 @@ def find_base_pose(robot: Robot, paths: Sequence[npt.ArrayLike],
         if ok:
             best = min(ok, key=lambda c: ok[c].cost)
     placed = robot.placed(C[best])
-    rep = combined_report(solve_paths(placed, P, free_spin=free_spin, settings=s))
+    if not check_infeasible and not np.isfinite(scores).any() and placed.has_closed_form \
+            and not free_spin:
+        rep = _branch_report(placed, P, s)
+    else:
+        rep = combined_report(solve_paths(placed, P, free_spin=free_spin, settings=s))
     report = PlacementReport(candidates=C, scores=scores, best=best, reachability=rep,
                              motion=motion)
     return C[best].copy(), report
+
+
+def _branch_report(robot: Robot, P: list[np.ndarray], s: IKSettings) -> ReachabilityReport:
+    """Reachability of `paths` on the closed-form branch `solve_path` starts each pass on (its
+    `choose_branch`, seeded by the previous pass's end), measured as it is: joints clipped to
+    their limits, a pose no branch solves holding the pass's last solved one (the first
+    solved one before any)."""
+    reports, seed = [], None
+    for T in P:
+        Qc, _, within = opw_branches(robot, T, seed if seed is not None else robot.q_home)
+        q = np.clip(Qc[choose_branch(robot, Qc, within, seed, s)], robot.q_lower, robot.q_upper)
+        fin = np.all(np.isfinite(q), axis=1)
+        if fin.any():
+            last = np.maximum.accumulate(np.where(fin, np.arange(len(q)), -1))
+            q = q[np.where(last >= 0, last, int(np.argmax(fin)))]
+        else:
+            q = np.broadcast_to(robot.q_home, q.shape).copy()
+        reports.append(ReachabilityReport.measure(robot, q, T, thresholds=s.thresholds()))
+        seed = q[-1]
+    return ReachabilityReport.concatenate(reports)
 
 
 def _motion_ranked(robot: Robot, C: np.ndarray, idx: np.ndarray, P: list[np.ndarray],

@@ -83,7 +83,8 @@ def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
                 continue
         else:
             T, rep = find_base_pose(robot, paths, speeds_m_s=list(speeds_m_s),
-                                    part_points_world=part_points_world, floor_z_m=floor_z_m)
+                                    part_points_world=part_points_world, floor_z_m=floor_z_m,
+                                    check_infeasible=False)
             ok, verdict = rep.feasible, rep.verdict
             verify_here = True
         if ok and verify is not None and verify_here:
