@@ -204,3 +204,40 @@ def test_a_program_that_folds_the_arm_into_itself_is_refused() -> None:
     why = _replay(ur, part, far, _held_program(ur, np.vstack([through, through[::-1]])))
     assert why is not None and "wrist_2_link" in why and "forearm_link" in why
     assert _replay(ur, part, far, _held_program(ur, np.repeat(q_home[None], 200, 0))) is None
+
+
+def test_a_program_whose_run_still_slows_after_robot_aware_speeds_is_refused(panel) -> None:
+    """The panel planned at 4× its speeds (2 m/s nominal): init's program slows 4 of its poses,
+    under `MAX_LOST_SHARE` (the old check wrote the cell), and `run` cannot fix them: its
+    robot-aware program (`pipeline.robot_aware_run`, what `run` executes) still runs some
+    brush-on samples on the part more than 10 % below the planned speed — re-measured here by
+    finite differences of its TCP positions (the truth) — so the run would fail the
+    `reachability_pct = 100` init writes. init refuses the cell in one line, naming the pass;
+    at the plan's own speeds it does not."""
+    from paintcell.sim.app.pipeline import robot_aware_run
+
+    scn0, surf, plan0 = panel
+    k = 4.0
+    scn = replace(scn0, planner={**scn0.planner, "v_nominal_m_s": 0.5 * k, "v_min_m_s": 0.2 * k,
+                                 "v_max_m_s": 1.0 * k, "a_max_m_s2": 5.0 * k * k})
+    plan = make_plan(scn, surf, fast=True)
+    robot = load_robot_for(scn)
+    run_plan, run_traj = robot_aware_run(scn, surf, robot, plan,
+                                         make_trajectory(scn, robot, plan), fast=True)
+    on = run_traj.segment == PAINT
+    v = np.linalg.norm(np.gradient(run_traj.tcp_pos_world, run_traj.t_s, axis=0), axis=1)
+    on_part = np.zeros(len(on), bool)            # brush-on samples over the part's poses
+    for i, p in enumerate(run_plan.passes):
+        sel = np.flatnonzero(on & (run_traj.pass_index == i))
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
+                                                            axis=1))])
+        k_pose = np.clip(np.searchsorted(0.5 * (s[1:] + s[:-1]), run_traj.s_pass_m[sel]), 0,
+                         len(s) - 1)
+        on_part[sel] = np.asarray(p.on_part, bool)[k_pose]
+    slowed = on_part & (v < 0.9 * run_traj.v_tcp_planned)
+    assert slowed.any()                                         # truth: the run slows poses
+    why = _check(scn, plan, surf)("abb_paint", scn.base.matrix)
+    assert why is not None and why.startswith("its run slows ") and "\n" not in why
+    worst = int(np.argmax(np.bincount(run_traj.pass_index[slowed])))
+    assert f"pass {worst} " in why
+    assert _check(scn0, plan0, surf)("abb_paint", scn0.base.matrix) is None
