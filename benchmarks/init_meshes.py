@@ -15,6 +15,7 @@ line).
     PYTHONPATH=$PWD .venv/bin/python benchmarks/init_meshes.py                 # every shared mesh
     PYTHONPATH=$PWD .venv/bin/python benchmarks/init_meshes.py ../shared/meshes/reach_hood_panel.ply
     PYTHONPATH=$PWD .venv/bin/python benchmarks/init_meshes.py --baseline /tmp/base
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/init_meshes.py --keep /tmp/cells   # then run them
 
 Columns: wall time [s]; CPU time of the init process (user + system) [s]; the result.
 """
@@ -64,6 +65,8 @@ def main() -> None:
                     help="skip the uncounted warm-up init (numba kernels already compiled)")
     ap.add_argument("--baseline", type=Path, default=None,
                     help="another paintcell checkout, run on each mesh before this one")
+    ap.add_argument("--keep", type=Path, default=None,
+                    help="copy this tree's scenario files here (to `paintcell run` them)")
     args = ap.parse_args()
     base: Path | None = args.baseline
     if base is not None and not (base / "paintcell" / "__main__.py").is_file():
@@ -90,6 +93,12 @@ def main() -> None:
                              result0, result)
                 row += f" {cpu0:8.1f} {cpu0 / cpu:6.2f} {'yes' if same else 'NO':>4s}"
             print(f"{row}  {result[:160]}", flush=True)
+            if args.keep is not None and (out / f"{mesh.stem}.toml").exists():
+                args.keep.mkdir(parents=True, exist_ok=True)
+                text = (out / f"{mesh.stem}.toml").read_text()   # part path relative to --keep
+                (args.keep / f"{mesh.stem}.toml").write_text(text.replace(
+                    f'file = "{os.path.relpath(mesh.resolve(), out.resolve())}"',
+                    f'file = "{os.path.relpath(mesh.resolve(), args.keep.resolve())}"'))
 
 
 def _same(toml0: Path, toml1: Path, result0: str, result1: str) -> bool:
