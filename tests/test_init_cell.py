@@ -90,6 +90,9 @@ def test_a_robot_whose_program_fails_is_skipped_with_the_reason() -> None:
     assert cell.robot == "irb5500" and np.array_equal(cell.T_base, calls[-1][1])
     assert "abb_paint reaches every pose but a move between passes would leave the joint " \
            "limits" in cell.why and "\n" not in cell.why
+    # and the line says why each of the next bases failed too: one reason per base verified
+    assert "(the next " in cell.why
+    assert cell.why.count("a move between passes") == len(names) - 1
 
 
 def test_a_base_whose_program_fails_gives_way_to_the_next_base() -> None:

@@ -90,9 +90,10 @@ def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
         if ok and verify is not None and verify_here:
             problem = verify(name, T)
             if problem is not None:             # the next bases of the motion ranking
-                found = _next_base(robot, rep, paths, partial(verify, name))
+                found, others = _next_base(robot, rep, paths, partial(verify, name))
                 if found is None:
-                    tried.append(f"{name} reaches every pose but {problem}")
+                    tried.append(f"{name} reaches every pose but {problem}" + (
+                        f" (the next {len(others)} bases: {'; '.join(others)})" if others else ""))
                     continue
                 T, verdict = found
                 verdict += f" (the best-ranked base's program: {problem})"
@@ -111,10 +112,11 @@ def choose_cell(robots: Sequence[str], paths: Sequence[np.ndarray],
 
 
 def _next_base(robot: Any, rep: Any, paths: Sequence[np.ndarray],
-               verify: Callable[[np.ndarray], str | None]) -> tuple[np.ndarray, str] | None:
-    """(T_base, its verdict) of the first of the next `BASES_VERIFIED` − 1 feasible bases of
+               verify: Callable[[np.ndarray], str | None]
+               ) -> tuple[tuple[np.ndarray, str] | None, list[str]]:
+    """((T_base, its verdict) of the first of the next `BASES_VERIFIED` − 1 feasible bases of
     `find_base_pose`'s motion ranking (`rep`, its `PlacementReport`) where every pose is reached
-    (full IK) and `verify` passes; None when none is."""
+    (full IK) and `verify` passes, or None when none is; why each base before it failed)."""
     from dataclasses import replace
 
     from paintcell.robots.ik import combined_report
@@ -122,12 +124,15 @@ def _next_base(robot: Any, rep: Any, paths: Sequence[np.ndarray],
 
     ranked = sorted((m.cost, c) for c, m in (rep.motion or {}).items()
                     if m.feasible and c != rep.best)
+    why: list[str] = []
     for _, c in ranked[:BASES_VERIFIED - 1]:
         T = rep.candidates[c]
         reach = combined_report(solve_paths(robot.placed(T), list(paths)))
-        if reach.all_reachable and verify(T) is None:
-            return T.copy(), replace(rep, best=c, reachability=reach).verdict
-    return None
+        problem = verify(T) if reach.all_reachable else "it does not reach every pose"
+        if problem is None:
+            return (T.copy(), replace(rep, best=c, reachability=reach).verdict), why
+        why.append(problem)
+    return None, why
 
 
 def _short(verdict: str) -> str:
