@@ -62,7 +62,9 @@ def plan_coverage(surface: Surface, applicator: Applicator,
         that pass in its generation direction (`plan.passes[i]` reversed when i is odd): the speed
         QP re-plans under them (robot-aware speeds, `paintcell.sim.motion.speed_feedback`). A
         re-plan with the same
-        part and settings reproduces the same passes, so caps taken from a plan fit its re-plan;
+        part and settings reproduces the same passes, so caps taken from a plan fit its re-plan
+        (it re-times the passes kept from that plan: `paintcell.planning.coverage.
+        family_geometry`, byte-identical to planning them again);
     tool_x: optional per-pass bell x axes {side: (M, 3)} in the part frame, same sample order as
         the caps: the orientation the robot will hold about the spray axis (a robot that frees
         the bell's spin); the deposition model (QP, film) then uses it as the travel axis.

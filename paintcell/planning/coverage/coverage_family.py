@@ -14,6 +14,12 @@ from paintcell.planning.coverage.back_fill import back_fill
 from paintcell.planning.coverage.coverage_planner import _mirror, _PassGeom, _Planner
 from paintcell.planning.coverage.coverage_settings import PlannerSettings
 from paintcell.planning.coverage.coverage_timing import _time_pass, _time_passes
+from paintcell.planning.coverage.family_geometry import (
+    FamilyGeometry,
+    geometry_key,
+    keep,
+    kept,
+)
 from paintcell.planning.coverage.film_refine import refine_speeds
 from paintcell.planning.coverage.index_width import planar_index_width
 from paintcell.planning.coverage.offset import arc_length, check_offset_order, walk
@@ -52,45 +58,37 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
     (`_plan_orders`); axis_turn_fails_fast: an `AxisTurnError` in either order is raised at
     once (`plan_coverage` does when it has a larger "auto" smoothing scale left to try), else
     the order that meets it drops out and the other plans on."""
-    real_surface = surface            # the film is judged on it; the passes on its smoothing
-    openings = find_openings(surface) if st.plan_across_openings else []
-    surface = filled_surface(surface, openings)
-    smooth_scale = smoothing_scale_m(surface, applicator.footprint_radius_m, st.smoothing_m)
-    surface = smoothed_surface(surface, smooth_scale)
-    pl = _Planner(surface, applicator, st)
-    pl.smooth_scale = smooth_scale
-    for side, cap in (speed_caps_m_s or {}).items():
-        cap = np.asarray(cap, dtype=float).reshape(-1)
+    caps = {int(side): np.asarray(cap, dtype=float).reshape(-1)
+            for side, cap in (speed_caps_m_s or {}).items()}
+    for side, cap in caps.items():
         if not np.all(np.isfinite(cap)) or np.any(cap <= 0):
             raise PlanError(f"speed caps of pass {side} must be finite speeds > 0 [m/s]")
-        pl.speed_caps[int(side)] = cap
-    for side, xs in (tool_x or {}).items():
-        xs = np.asarray(xs, dtype=float)
+    axes_x = {int(side): np.asarray(xs, dtype=float) for side, xs in (tool_x or {}).items()}
+    for side, xs in axes_x.items():
         if xs.ndim != 2 or xs.shape[1] != 3 or not np.all(np.isfinite(xs)):
             raise PlanError(f"tool_x of pass {side} must be finite (M, 3) directions")
-        pl.tool_x[int(side)] = xs
-    sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
-                            geom=pl.geom)
-    planar = _is_planar(surface)
-    planar_w = None
-    if planar:
-        pw = planar_index_width(applicator, st.w_min_m, st.w_max_m, st.w_res_m, st.u_max,
-                                st.width_tolerance_m)
-        planar_w = pw
-    # Algorithm 1 does not say which side is offset first, and the semi-global width search
-    # (known passes on one side, free future passes on the other) depends on it: "best" runs
-    # both and keeps the one whose largest predicted optimization-profile σ/μ is smaller.
-    orders = {"right": [False], "left": [True], "best": [False, True]}[st.first_side]
-    if planar_w is not None:
-        orders = orders[:1]               # a plane is symmetric: both orders give one plan
-    candidates = _plan_orders(pl, surface.name, sc, orders, planar_w, axis_turn_fails_fast)
-    _, reversed_start, passes = min(candidates, key=lambda c: c[0])
+    real_surface = surface            # the film is judged on it; the passes on its smoothing
+    # the pass geometry does not depend on caps or bell axes: a re-plan re-times the one kept
+    # from the last plan without them (or raises the PlanError that plan raised)
+    key = geometry_key(surface, applicator, st, axis_turn_fails_fast)
+    geo = kept(key, applicator)
+    if geo is None:
+        try:
+            geo = _geometry(surface, applicator, st, caps, axes_x, axis_turn_fails_fast)
+        except PlanError as e:
+            if not caps and not axes_x:
+                keep(key, e)
+            raise
+        if not caps and not axes_x:
+            keep(key, geo)
+    pl, passes, openings = geo.pl, geo.passes, geo.openings
+    pl.speed_caps, pl.tool_x = caps, axes_x
+    plan_passes = _time_passes(pl, passes, st)     # the passes not timed yet (a kept geometry)
     bad = [f"pass {p.side}: {p.info['feedback_mismatch']}" for p in passes.values()
            if "feedback_mismatch" in p.info]
     if bad:
         raise PlanError("speed caps / bell axes do not fit this plan (" + "; ".join(bad) + "); "
                         "they must come from a plan of the same part and settings")
-    plan_passes = _time_passes(pl, passes, st)
     n_brush_off = 0
     if openings:
         plan_passes, n_brush_off = brush_off_openings(
@@ -105,24 +103,62 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
     report = {
         "film_refine": refine,
         "film_guard": guard,
-        "start_rule": sc.rule,
-        "first_side": ("left" if reversed_start else "right") + f" ({st.first_side})",
-        "predicted_worst_nsd_pct": [c[0] for c in candidates],
-        "planar": planar,
-        "smoothing_scale_m": smooth_scale,
-        "smoothing_max_shift_m": float(np.max(np.linalg.norm(
-            surface.vertices[:len(real_surface.vertices)] - real_surface.vertices, axis=1))),
+        "start_rule": geo.start_rule,
+        "first_side": ("left" if geo.reversed_start else "right") + f" ({st.first_side})",
+        "predicted_worst_nsd_pct": list(geo.candidates),
+        "planar": geo.planar,
+        "smoothing_scale_m": geo.smooth_scale_m,
+        "smoothing_max_shift_m": geo.smoothing_max_shift_m,
         "openings": [{"perimeter_m": o.perimeter_m, "area_m2": o.area_m2} for o in openings],
         "samples_brushed_off_over_openings": n_brush_off,
-        "planar_width_m": None if planar_w is None else planar_w.width_m,
-        "cross_profiles_computed": len(pl.cache),
-        "cross_profile_cache_hits": pl.cache_hits,
+        "planar_width_m": geo.planar_width_m,
+        "cross_profiles_computed": geo.profiles[0],
+        "cross_profile_cache_hits": geo.profiles[1],
         "passes": [dict(side=p.side, **_jsonable(passes[p.side].info)) for p in plan_passes],
     }
     settings_dict = st.to_dict()
     settings_dict["report"] = report
     return CoveragePlan(surface_name=surface.name, applicator=applicator,
-                        passes=tuple(plan_passes), start_rule=sc.rule, settings=settings_dict)
+                        passes=tuple(plan_passes), start_rule=geo.start_rule,
+                        settings=settings_dict)
+
+
+def _geometry(surface: Surface, applicator: Applicator, st: PlannerSettings,
+              caps: dict[int, np.ndarray], axes_x: dict[int, np.ndarray],
+              axis_turn_fails_fast: bool) -> FamilyGeometry:
+    """Openings, smoothing, start curve and the sweeps of each start order (`_plan_orders`,
+    the passes timed under `caps` / `axes_x` as Algorithm 1 generates them); the order kept."""
+    real_surface = surface
+    openings = find_openings(surface) if st.plan_across_openings else []
+    surface = filled_surface(surface, openings)
+    smooth_scale = smoothing_scale_m(surface, applicator.footprint_radius_m, st.smoothing_m)
+    surface = smoothed_surface(surface, smooth_scale)
+    pl = _Planner(surface, applicator, st)
+    pl.smooth_scale = smooth_scale
+    pl.speed_caps, pl.tool_x = caps, axes_x
+    sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
+                            geom=pl.geom)
+    planar = _is_planar(surface)
+    planar_w = None
+    if planar:
+        planar_w = planar_index_width(applicator, st.w_min_m, st.w_max_m, st.w_res_m, st.u_max,
+                                      st.width_tolerance_m)
+    # Algorithm 1 does not say which side is offset first, and the semi-global width search
+    # (known passes on one side, free future passes on the other) depends on it: "best" runs
+    # both and keeps the one whose largest predicted optimization-profile σ/μ is smaller.
+    orders = {"right": [False], "left": [True], "best": [False, True]}[st.first_side]
+    if planar_w is not None:
+        orders = orders[:1]               # a plane is symmetric: both orders give one plan
+    candidates = _plan_orders(pl, surface.name, sc, orders, planar_w, axis_turn_fails_fast)
+    _, reversed_start, passes = min(candidates, key=lambda c: c[0])
+    return FamilyGeometry(
+        pl=pl, passes=passes, reversed_start=reversed_start,
+        candidates=[c[0] for c in candidates], start_rule=sc.rule, planar=planar,
+        planar_width_m=None if planar_w is None else planar_w.width_m,
+        smooth_scale_m=smooth_scale,
+        smoothing_max_shift_m=float(np.max(np.linalg.norm(
+            surface.vertices[:len(real_surface.vertices)] - real_surface.vertices, axis=1))),
+        openings=openings, profiles=(len(pl.cache), pl.cache_hits))
 
 
 

@@ -314,7 +314,9 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
 
 #: the last part's patch plans without caps: a robot-aware re-plan of the same part and
 #: settings (`paintcell.sim.motion.speed_feedback`, `paintcell.sim.booth.booth_speeds`) needs
-#: their passes and order, which caps do not move, and planning them is most of its time.
+#: their passes and order, which caps do not move, and planning them is most of its time. The
+#: capped re-plan of each patch (`plan_family` under its caps) likewise re-times the pass
+#: geometry its uncapped plan kept (`paintcell.planning.coverage.family_geometry`).
 _LAST: dict[str, Any] = {}
 
 
