@@ -10,7 +10,8 @@ Prints one row per scenario: passes, capped samples, identical or not, CPU s of 
 and the width searches each ran. For a booth, each part as its booth plans it, under caps at
 0.9 × its planned speeds (no program: a booth's is built for all its robots together).
 
-    python benchmarks/replan_cache.py scenarios/reach_hood_panel.toml scenarios/door.toml
+    python benchmarks/replan_cache.py               # reach_hood_panel and roof
+    python benchmarks/replan_cache.py scenarios/door.toml scenarios/cad_hood.toml
     python benchmarks/replan_cache.py --all        # every scenario in scenarios/ (booths too)
 """
 
@@ -129,7 +130,8 @@ def _files(plan: object) -> list[bytes]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("scenarios", nargs="*", type=Path, help="scenario TOML files")
+    ap.add_argument("scenarios", nargs="*", type=Path,
+                    help="scenario TOML files (default: reach_hood_panel and roof)")
     ap.add_argument("--all", action="store_true",
                     help="every scenario in scenarios/ (booths: each part, caps at 0.9 × "
                     "its planned speeds)")
@@ -138,8 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     paths = list(a.scenarios)
     if a.all:
         paths += sorted((ROOT / "scenarios").glob("*.toml"))
-    if not paths:
-        ap.error("name scenario files or --all")
+    if not paths:               # `make bench`: a scanned part with slowdowns, a spin fed back
+        paths = [ROOT / "scenarios" / "reach_hood_panel.toml", ROOT / "scenarios" / "roof.toml"]
     n = _count_searches()
     bad = 0
     print(f"{'scenario':24s} {'passes':>6s} {'capped':>7s} {'identical':>9s} {'Δv m/s':>7s} "
