@@ -140,15 +140,17 @@ def stand_in_program(passes, slow: dict[int, tuple[float, float, float]], first_
     """A stand-in joint program for the robot-aware speed tests: each of `passes` followed at its
     planned speed (pass indices from first_index on), except where slow {position in `passes`:
     (s0, s1, factor)} scales the speed down over the arc [s0, s1] [m] of the pass as run.
-    Only what the speed feedback reads: t_s, s_pass_m, pass_index, meta."""
+    Only what the speed feedback reads: t_s, s_pass_m, pass_index, tcp_pos_world (on the plan's
+    polyline), v_tcp_planned (v² linear in arc length between samples, as the real program's),
+    meta."""
     from types import SimpleNamespace
 
-    t_all, s_all, i_all, t0 = [], [], [], 0.0
+    t_all, s_all, i_all, x_all, v_all, t0 = [], [], [], [], [], 0.0
     for k, p in enumerate(passes):
         s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
                                                                  axis=1))])
         s_fine = np.linspace(0.0, s_plan[-1], 4000)
-        v = np.interp(s_fine, s_plan, p.speeds_m_s)
+        v = np.sqrt(np.interp(s_fine, s_plan, np.asarray(p.speeds_m_s) ** 2))
         if k in slow:
             s0, s1, f = slow[k]
             v = np.where((s_fine >= s0) & (s_fine <= s1), f * v, v)
@@ -157,6 +159,10 @@ def stand_in_program(passes, slow: dict[int, tuple[float, float, float]], first_
         t_all.append(t0 + tq)
         s_all.append(np.interp(tq, t, s_fine))
         i_all.append(np.full(len(tq), first_index + k))
+        x_all.append(np.stack([np.interp(s_all[-1], s_plan, p.positions[:, c]) for c in range(3)],
+                              axis=1))
+        v_all.append(np.sqrt(np.interp(s_all[-1], s_plan, np.asarray(p.speeds_m_s) ** 2)))
         t0 += t[-1] + 1.0
     return SimpleNamespace(t_s=np.concatenate(t_all), s_pass_m=np.concatenate(s_all),
-                           pass_index=np.concatenate(i_all), meta={})
+                           pass_index=np.concatenate(i_all), tcp_pos_world=np.concatenate(x_all),
+                           v_tcp_planned=np.concatenate(v_all), meta={})

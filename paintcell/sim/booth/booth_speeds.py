@@ -6,7 +6,9 @@ Each part is planned knowing nothing of the robots. Along a robot's IK path its 
 acceleration limits can make the time law slower than planned (a wing of an arched part with the
 arm stretched: J3's acceleration), and the film then differs from the plan. So, as a one-robot
 run does: each robot's program is measured on the passes it runs (the TCP speed it reached at
-every plan sample), the samples it ran slower than asked are capped at that speed less a margin,
+every plan sample), the samples it ran slower than asked are capped at that speed less a margin
+(and, as there, the faster end of an interval it lagged across between samples:
+`speed_feedback.lag_caps`),
 the part is planned again with the caps as upper bounds of its speed QP (the same pass geometry:
 the planner is deterministic), the plans are finished as before (`booth_plans.finish_plans`: the
 refinement keeps under the caps too) and the same allocation is built again. A round whose
@@ -28,7 +30,7 @@ from paintcell.planning.errors import PaintcellError
 from paintcell.sim.booth.booth import Booth, Job
 from paintcell.sim.booth.booth_plans import FinishedPlans, PartPlans, finish_plans
 from paintcell.sim.motion.joint_trajectory import JointTrajectory
-from paintcell.sim.motion.speed_feedback import caps_from_speeds, pass_speeds
+from paintcell.sim.motion.speed_feedback import caps_from_speeds, lag_caps, pass_speeds
 
 #: re-plans at most.
 ROUNDS = 2
@@ -53,18 +55,21 @@ class Built:
 
 
 def part_speeds(plans: list[CoveragePlan], jobs: dict[int, tuple[Job, ...]],
-                static: list[JointTrajectory]) -> list[list[np.ndarray]]:
+                static: list[JointTrajectory], lags: bool = False) -> list[list[np.ndarray]]:
     """Per part, per pass of its plan, the TCP speed its robot reaches at each sample [m/s]
     (`speed_feedback.pass_speeds` on the robot's program; a robot's jobs run on in its chained
-    program from `meta["job_first_pass_index"]`); the plan's own speeds for a pass no robot runs."""
-    out = [[np.asarray(p.speeds_m_s, float) for p in pl.passes] for pl in plans]
+    program from `meta["job_first_pass_index"]`); the plan's own speeds for a pass no robot runs.
+    lags: instead, the caps between samples (`speed_feedback.lag_caps`; inf where none) [m/s]."""
+    out = [[np.full(len(p.speeds_m_s), np.inf) if lags else np.asarray(p.speeds_m_s, float)
+            for p in pl.passes] for pl in plans]
     for r, js in jobs.items():
         traj = static[r]
         firsts = traj.meta.get("job_first_pass_index", [0])
         for k, job in enumerate(js):
             for m in range(job.end - job.first):
                 p = plans[job.part].passes[job.first + m]
-                out[job.part][job.first + m] = pass_speeds(p, traj, firsts[k] + m)
+                out[job.part][job.first + m] = (lag_caps if lags else pass_speeds)(
+                    p, traj, firsts[k] + m)
     return out
 
 
@@ -96,16 +101,19 @@ def robot_aware_booth(booth: Booth, pp: PartPlans, fin: FinishedPlans, built: Bu
     plans0 = list(pp.plans)
     caps: list[dict[int, np.ndarray]] = [{} for _ in plans0]
     cycle0 = built.cycle_s
-    rec: dict[str, Any] = {"rule": f"caps where a robot ran > 0.5 % slower than asked, re-planned "
-                                   f"at most {rounds}×, kept if the cycle grows ≤ "
+    rec: dict[str, Any] = {"rule": f"caps where a robot ran > 0.5 % slower than asked (at or "
+                                   f"between samples), re-planned at most {rounds}×, kept if "
+                                   f"the cycle grows ≤ "
                                    f"{MAX_CYCLE_GROWTH:.0%}", "rounds": []}
     for _ in range(rounds + 1):
         v_act = part_speeds(fin.plans, built.jobs, built.static)
+        lags = part_speeds(fin.plans, built.jobs, built.static, lags=True)
         new_caps, counts, worst = [], [], 0.0
         for i, bp in enumerate(booth.parts):
             asked = [np.asarray(p.speeds_m_s, float) for p in fin.plans[i].passes]
             c, n, w = caps_from_speeds(plans0[i], planner_order(v_act[i], bp.reverse),
-                                       planner_order(asked, bp.reverse), caps[i])
+                                       planner_order(asked, bp.reverse), caps[i],
+                                       lags=planner_order(lags[i], bp.reverse))
             new_caps.append(c)
             counts.append(n)
             worst = max(worst, w)
