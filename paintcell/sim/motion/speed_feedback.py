@@ -101,8 +101,10 @@ def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
     plan by more than `lag_rel`, a fraction μ of the way from the interval's slower end (planned
     speed v_l) to its faster end: if v ≥ v_l the faster end is capped at c with
     v_l² + μ (c² − v_l²) = v_l² + (1 − margin)² (v² − v_l²) (the planned v² line then rises
-    under what the robot reached); else both ends are capped at v (1 − margin).
-    Caps in the pass's own (execution) sample order.
+    under what the robot reached); else both ends are capped at v (1 − margin). A control
+    sample whose nearest plan pose is off the part (`on_part`) is not looked at (honest reach
+    does not count it: capping the rest-to-rest ends of hood's passes made its re-plan 28 %
+    longer). Caps in the pass's own (execution) sample order.
     """
     s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
                                                              axis=1))])
@@ -114,6 +116,10 @@ def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
     v_p = np.asarray(traj.v_tcp_planned, float)[idx]
     s = traj.s_pass_m[idx]
     lag = np.isfinite(s) & (v_p > 1e-9) & (v_a < (1.0 - lag_rel) * v_p)
+    # as honest reach judges them: a control sample counts for its nearest plan pose, and the
+    # overspray ends off the part do not count (a pass may start and end there at rest)
+    near = np.searchsorted(0.5 * (s_plan[1:] + s_plan[:-1]), np.where(np.isfinite(s), s, 0.0))
+    lag &= np.asarray(getattr(p, "on_part", np.ones(len(s_plan), bool)), bool)[near]
     if not lag.any():
         return caps
     s, v_a = s[lag], v_a[lag]
