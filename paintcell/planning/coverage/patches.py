@@ -23,7 +23,6 @@ the nearest to the last pass's end.
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -312,27 +311,16 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
                         start_rule="patches", settings=sd)
 
 
-#: the last part's patch plans without caps: a robot-aware re-plan of the same part and
-#: settings (`paintcell.sim.motion.speed_feedback`, `paintcell.sim.booth.booth_speeds`) needs
-#: their passes and order, which caps do not move, and planning them is most of its time. The
-#: capped re-plan of each patch (`plan_family` under its caps) likewise re-times the pass
-#: geometry its uncapped plan kept (`paintcell.planning.coverage.family_geometry`).
-_LAST: dict[str, Any] = {}
-
-
 def _uncapped_plans(pts: list[Patch], app: Applicator, st: PlannerSettings
                     ) -> list[list[PassPlan]]:
+    """Each patch's plan without caps: a robot-aware re-plan of the same part and settings
+    (`paintcell.sim.motion.speed_feedback`, `paintcell.sim.booth.booth_speeds`) needs their
+    passes and order, which caps do not move; `plan_family` re-times the pass geometry kept
+    from the first plan (`paintcell.planning.coverage.family_geometry`), so asking again is
+    cheap."""
     from paintcell.planning.coverage.coverage_family import plan_family
 
-    h = hashlib.sha1(repr(st.to_dict()).encode())
-    for pt in pts:                          # a few patches
-        h.update(pt.surface.vertices.tobytes())
-        h.update(pt.surface.faces.tobytes())
-    if _LAST.get("key") != h.hexdigest() or _LAST.get("app") is not app:
-        _LAST.clear()
-        _LAST.update(key=h.hexdigest(), app=app,
-                     raw=[list(plan_family(pt.surface, app, st).passes) for pt in pts])
-    return [list(r) for r in _LAST["raw"]]
+    return [list(plan_family(pt.surface, app, st).passes) for pt in pts]
 
 
 def _local(by_pass: dict[int, np.ndarray] | None, patch_passes: list[PassPlan],
