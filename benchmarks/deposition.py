@@ -22,24 +22,24 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import GunSamples, deposition_rate_reference, thickness
-from paintcell.planning.paint.deposition_kernel import (
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import GunSamples, deposition_rate_reference, thickness
+from paintcell.paint.deposition_kernel import (
     BLOCK_POINTS,
     CHUNK_SAMPLES,
     _candidate_blocks,
     _make_blocks,
 )
-from paintcell.planning.paint.deposition_samples import _tool_axes
+from paintcell.paint.deposition_samples import _tool_axes
 
 
 def door_points() -> tuple[str, np.ndarray, np.ndarray]:
     """The door part at 5 mm, or an equivalent 1.1 × 0.8 m grid when
-    `paintcell.planning.surface.parts` is absent."""
+    `paintcell.surface.parts` is absent."""
     try:
-        from paintcell.planning.surface.parts import door
+        from paintcell.surface.parts import door
         s = door()
-        return "paintcell.planning.surface.parts.door()", s.vertices, s.normals
+        return "paintcell.surface.parts.door()", s.vertices, s.normals
     except ImportError:
         x, y = np.meshgrid(np.linspace(-0.55, 0.55, 221), np.linspace(-0.4, 0.4, 161),
                            indexing="ij")

@@ -1,11 +1,11 @@
 """Benchmark of MuJoCo execution and validation on the door program: compiled loops vs Python.
 
 Builds the door scenario's plan and 1 kHz joint program (`scenarios/door.toml` through
-`paintcell.sim.app.pipeline`: the ABB-style arm, the door upright in front of it), then times, in
+`paintcell.app.pipeline`: the ABB-style arm, the door upright in front of it), then times, in
 one process, each step three ways: with the Python loops (`PAINTCELL_COMPILED_STEPS=0`: the
 per-sample `mj_inverse` loop, `mujoco.rollout` chunks of latency + 1 steps, the per-sample replay
 loop) on the cell with the part's collision slabs on the part body — the baseline; with the
-compiled per-step loops (`paintcell.sim.execution.execute_compiled`, the default) on that cell;
+compiled per-step loops (`paintcell.execution.execute_compiled`, the default) on that cell;
 and with the compiled loops on the default cell, the slabs on MuJoCo's world body
 (`build_cell(part_slabs_on_world=True)`: the broadphase no longer bounds them every step).
 Timed, best of `--repeat`, wall
@@ -51,17 +51,17 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.sim.app.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.execution import execute_compiled
-from paintcell.sim.execution.cell import build_cell
-from paintcell.sim.execution.execute import ServoSettings, execute
-from paintcell.sim.execution.execute_models import (
+from paintcell.app.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
+from paintcell.app.scenario_files import load_scenario
+from paintcell.execution import execute_compiled
+from paintcell.execution.cell import build_cell
+from paintcell.execution.execute import ServoSettings, execute
+from paintcell.execution.execute_models import (
     _controller_model,
     _set_torque_actuators,
     inverse_dynamics,
 )
-from paintcell.sim.validation.validate import start_program_films, validate
+from paintcell.validation.validate import start_program_films, validate
 
 DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
 #: (name, compiled loops?, part's collision slabs on the world body?), the first the baseline.
@@ -104,7 +104,7 @@ def once(fn: Callable[..., Any], *args: Any, **kw: Any) -> tuple[float, float, f
 
 
 def pipelined(cell: Any, plan: Any, surface: Any, traj: Any, T: np.ndarray) -> Any:
-    """Execute + validate as `paintcell.sim.app.pipeline` runs them: the films that do not depend
+    """Execute + validate as `paintcell.app.pipeline` runs them: the films that do not depend
     on the execution (planned, time-law) start on a background thread before `execute`."""
     films = start_program_films(plan, surface, traj, T)
     trace = execute(cell, traj, mode="servo")

@@ -4,7 +4,7 @@ The car is built from library parts (a two-door coupé's skin): hood, roof, trun
 panel), two doors and two front fenders, 8.0 m² together, laid out side by side 0.3 m apart,
 painted side up. Each part is planned with the default planner (at 25 mm, the plan's gun path
 does not need the fine mesh), its program moved with it, and all programs joined into one (the
-full program), sampled every 5 ms as `paintcell.sim.validation.validate` bins an executed trace. The
+full program), sampled every 5 ms as `paintcell.validation.validate` bins an executed trace. The
 film map is then
 computed on every 5 mm vertex of every part from every gun sample (overspray from a part's
 program onto its neighbours included) with the compiled kernel and, for the baseline, today's
@@ -21,10 +21,10 @@ import time
 
 import numpy as np
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import GunSamples, thickness
-from paintcell.planning.surface import parts
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import GunSamples, thickness
+from paintcell.surface import parts
 
 #: (part, copies) of the coupé's skin.
 CAR = (("hood", 1), ("roof", 1), ("panel", 1), ("door", 2), ("fender", 2))
@@ -34,7 +34,7 @@ GAP_M = 0.3
 def resample(plan: object, dt_s: float) -> GunSamples:
     """The plan's paint-on path at a fixed time step dt_s [s] (linear interpolation of
     positions and axes in time, dwell dt_s each): the density of an executed trace's samples as
-    `paintcell.sim.validation.validate` bins them (5 ms)."""
+    `paintcell.validation.validate` bins them (5 ms)."""
     out = []
     for p in plan.passes:  # type: ignore[attr-defined]
         on = np.asarray(p.paint_on, bool)

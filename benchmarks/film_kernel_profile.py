@@ -1,6 +1,6 @@
 """Where the compiled film kernel's time goes, in one process.
 
-Variants of `paintcell.planning.paint.deposition_cpu` are compiled from its own source with one
+Variants of `paintcell.paint.deposition_cpu` are compiled from its own source with one
 change each (cache off) and timed on the door problem of `benchmarks/deposition.py` (door at
 5 mm under a raster of 2,140 gun samples, the same evaluated pairs for every variant), one
 thread, round-robin, best CPU time of --rounds rounds (other jobs share this machine: CPU time,
@@ -27,10 +27,10 @@ import types
 
 import numpy as np
 
-from paintcell.planning.paint import deposition as dep
-from paintcell.planning.paint import deposition_cpu as cpu
-from paintcell.planning.paint import deposition_jit as jit
-from paintcell.planning.paint.applicator import Applicator
+from paintcell.paint import deposition as dep
+from paintcell.paint import deposition_cpu as cpu
+from paintcell.paint import deposition_jit as jit
+from paintcell.paint.applicator import Applicator
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from deposition import door_points, evaluated_pairs, raster  # noqa: E402
@@ -52,7 +52,7 @@ VARIANTS: dict[str, list[tuple[str, str]]] = {
 
 
 def compile_variant(name: str, subs: list[tuple[str, str]]) -> types.ModuleType:
-    """`paintcell.planning.paint.deposition_cpu` from its source with `subs` applied (no on-disk
+    """`paintcell.paint.deposition_cpu` from its source with `subs` applied (no on-disk
     cache)."""
     src = inspect.getsource(cpu).replace("cache=True", "cache=False")
     for old, new in subs:

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from paintcell.planning.coverage.plan import tcp_frames
+from paintcell.coverage.plan import tcp_frames
 from paintcell.robots import load_robot
 from paintcell.robots.ik import dls, opw_branches, solve_path
 from paintcell.robots.opw import inverse

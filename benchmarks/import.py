@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from paintcell.planning.surface.mesh_io import read_part_file
-from paintcell.planning.surface.mesh_repair import remesh, repair
-from paintcell.planning.surface.part_import import split_pieces
-from paintcell.planning.surface.regions import face_areas
+from paintcell.surface.mesh_io import read_part_file
+from paintcell.surface.mesh_repair import remesh, repair
+from paintcell.surface.part_import import split_pieces
+from paintcell.surface.regions import face_areas
 
 MESH = Path(__file__).resolve().parents[1] / ".." / "shared" / "meshes" / \
     "bezier_part_scan_12_pieces.ply"

@@ -2,9 +2,9 @@
 
 Run: `.venv/bin/python benchmarks/paper_tables.py [--fig5 results/fig5.png] [--resolution 0.01]`
 
-Every row plans a library part with `paintcell.planning.coverage.coverage.plan_coverage`, simulates
+Every row plans a library part with `paintcell.coverage.coverage.plan_coverage`, simulates
 the film of the
-whole plan with `paintcell.planning.paint.deposition.thickness` on the part's vertices and reports
+whole plan with `paintcell.paint.deposition.thickness` on the part's vertices and reports
 σ/μ (the
 paper's normalized standard deviation, area-weighted) over two regions: the whole part, and the
 interior (vertices farther than `--band` from the part boundary, which leaves out the boundary
@@ -25,13 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
-from paintcell.planning.atomic_io import atomic_path
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.index_width import nsd_vs_index_width, planar_index_width
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import thickness
-from paintcell.planning.paint.metrics import boundary_band_mask, boundary_vertices, uniformity
-from paintcell.planning.surface import parts
+from paintcell.core.atomic_io import atomic_path
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.index_width import nsd_vs_index_width, planar_index_width
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import thickness
+from paintcell.paint.metrics import boundary_band_mask, boundary_vertices, uniformity
+from paintcell.surface import parts
 
 
 def evaluate(surface, app: Applicator, settings: PlannerSettings, band_m: float
@@ -59,7 +59,7 @@ def main() -> None:
     app = Applicator.default()
     base = PlannerSettings()
     res = args.resolution
-    print(f"bell: {app.name} (paintcell/planning/paint/data/default_bell.toml) "
+    print(f"bell: {app.name} (paintcell/paint/data/default_bell.toml) "
           f"{app.to_dict()}; footprint radius "
           f"{app.footprint_radius_m:.3f} m; standoff {app.standoff_m:.3f} m")
     print(f"parts at {res * 1000:.0f} mm; sigma/mu over the whole part and over the interior "

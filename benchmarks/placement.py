@@ -13,17 +13,17 @@ import time
 
 import numpy as np
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface.parts import get_part
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.paint.applicator import Applicator
 from paintcell.robots import load_robot
 from paintcell.robots.placement import facing_grid, find_base_pose
+from paintcell.surface.parts import get_part
 
 
 def main() -> None:
     from pathlib import Path
 
-    from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.app.scenario_files import load_scenario
 
     SCENARIO = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "door.toml")
 

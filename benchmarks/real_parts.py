@@ -11,7 +11,7 @@ figures are exactly the ones a user gets from `paintcell run`.
 
 Columns: planned and executed σ/μ over the judged skin [%]; loss = executed − planned σ/μ [pp];
 area of the judged skin whose executed film lies within ±10 % of its mean [%]; executed cycle
-time [s]; honest reachability [%] (`paintcell.sim.validation.honest_reach`: IK reached, no jump or
+time [s]; honest reachability [%] (`paintcell.validation.honest_reach`: IK reached, no jump or
 flip into the pose,
 no contact, time law ≥ 90 % of the planned speed); poses reached through a joint jump or a
 configuration flip; collision events; and the PASS/FAIL of the scenario's own thresholds.

@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 
-from paintcell.planning.surface.parts import get_part
-from paintcell.sim.output import render
+from paintcell.output import render
+from paintcell.surface.parts import get_part
 
 
 def _time_frames(r: render.SceneRenderer, camera: object, qs: np.ndarray | None,
@@ -38,7 +38,7 @@ def _time_frames(r: render.SceneRenderer, camera: object, qs: np.ndarray | None,
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--part", default="door",
-                    help="library part (paintcell.planning.surface.parts)")
+                    help="library part (paintcell.surface.parts)")
     ap.add_argument("--resolution", type=float, default=0.01, help="part mesh resolution [m]")
     ap.add_argument("--size", default="640x480", help="frame size WxH [px]")
     ap.add_argument("--frames", type=int, default=30, help="timed frames per case")
@@ -51,8 +51,8 @@ def main() -> None:
     th = (10.0 + 40.0 * (x - x.min()) / np.ptp(x)) * 1e-6  # 10 → 50 µm ramp
     print(f"part: {args.part}, {len(surface.vertices)} vertices, {len(surface.faces)} faces")
 
+    from paintcell.execution.cell import build_cell
     from paintcell.robots import load_robot
-    from paintcell.sim.execution.cell import build_cell
 
     T = np.eye(4)
     T[:3, 3] = [1.4, 0.0, 0.9]

@@ -1,8 +1,8 @@
 """Robot-aware re-plans with and without the kept pass geometry
-(`paintcell.planning.coverage.family_geometry`): byte-identical plans, and the time saved.
+(`paintcell.coverage.family_geometry`): byte-identical plans, and the time saved.
 
 For each single-robot scenario: the --fast (or full) plan, its joint program, the program's
-speed caps (`paintcell.sim.motion.speed_feedback.speed_caps`; where the program slows no pose,
+speed caps (`paintcell.motion.speed_feedback.speed_caps`; where the program slows no pose,
 0.9 × the speeds it reaches, so the caps still bind) and bell x axes (`tool_axes`); then the
 capped re-plan twice — with the geometry kept from the first plan, and planned anew (kept geometry
 dropped) — both saved with `CoveragePlan.save` and compared file by file (plan.json, plan.npz).
@@ -30,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _count_searches() -> list[int]:
     """Count calls of the eq. 3 width search (patched where the planner looks it up)."""
-    import paintcell.planning.coverage.coverage_planner as cp
+    import paintcell.coverage.coverage_planner as cp
 
     n = [0]
     orig = cp.search_widths
@@ -44,9 +44,7 @@ def _count_searches() -> list[int]:
 
 
 def check(path: Path, fast: bool, n: list[int]) -> dict[str, object]:
-    from paintcell.planning.coverage import family_geometry
-    from paintcell.planning.coverage.coverage import plan_coverage
-    from paintcell.sim.app.pipeline import (
+    from paintcell.app.pipeline import (
         load_applicator,
         load_robot_for,
         load_surface,
@@ -54,8 +52,10 @@ def check(path: Path, fast: bool, n: list[int]) -> dict[str, object]:
         make_trajectory,
         planner_settings,
     )
-    from paintcell.sim.app.scenario_files import load_scenario
-    from paintcell.sim.motion.speed_feedback import achieved_speeds, speed_caps, tool_axes
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.coverage import family_geometry
+    from paintcell.coverage.coverage import plan_coverage
+    from paintcell.motion.speed_feedback import achieved_speeds, speed_caps, tool_axes
 
     scn = load_scenario(path)
     surface = load_surface(scn, fast)
@@ -88,13 +88,13 @@ def check(path: Path, fast: bool, n: list[int]) -> dict[str, object]:
 
 
 def check_booth(path: Path, fast: bool, n: list[int]) -> list[dict[str, object]]:
-    """The booth's parts as `paintcell.sim.booth.booth_plans.plan_parts` plans them, each
+    """The booth's parts as `paintcell.booth.booth_plans.plan_parts` plans them, each
     re-planned under caps at 0.9 × its planned speeds (a booth's program is built for all its
     robots together: left out here), kept vs anew."""
-    from paintcell.planning.coverage import family_geometry
-    from paintcell.planning.coverage.coverage import plan_coverage
-    from paintcell.sim.app.scenario_files import load_scenario
-    from paintcell.sim.booth.booth_plans import plan_parts
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth_plans import plan_parts
+    from paintcell.coverage import family_geometry
+    from paintcell.coverage.coverage import plan_coverage
 
     booth = load_scenario(path)
     pp = plan_parts(booth, fast)
@@ -146,8 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     bad = 0
     print(f"{'scenario':24s} {'passes':>6s} {'capped':>7s} {'identical':>9s} {'Δv m/s':>7s} "
           f"{'kept s':>7s} {'anew s':>7s} {'searches kept/anew':>18s}  caps")
-    from paintcell.sim.app.scenario import Scenario
-    from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.app.scenario import Scenario
+    from paintcell.app.scenario_files import load_scenario
 
     for p in paths:
         one = isinstance(load_scenario(p), Scenario)

@@ -19,9 +19,9 @@ import time
 
 import numpy as np
 
-from paintcell.planning.coverage.speed_qp import SpeedSettings, SubOffsetBand, optimize_pass_speed
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface.parts import door
+from paintcell.coverage.speed_qp import SpeedSettings, SubOffsetBand, optimize_pass_speed
+from paintcell.paint.applicator import Applicator
+from paintcell.surface.parts import door
 
 
 def plane_pass(app: Applicator, over_m: float, panel_m: float = 1.0, ds_m: float = 0.005,

@@ -9,9 +9,9 @@ import time
 
 import numpy as np
 
-from paintcell.planning.surface.curvature import discrete_curvature
-from paintcell.planning.surface.parts import PART_NAMES, get_part
-from paintcell.planning.surface.surface import Surface
+from paintcell.surface.curvature import discrete_curvature
+from paintcell.surface.parts import PART_NAMES, get_part
+from paintcell.surface.surface import Surface
 
 
 def best_of(fn, repeats: int = 3) -> float:

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.sweeps.sweep import run_sweep
-from paintcell.sim.sweeps.sweep_spec import spec_from_scenario
+from paintcell.app.scenario_files import load_scenario
+from paintcell.sweeps.sweep import run_sweep
+from paintcell.sweeps.sweep_spec import spec_from_scenario
 
 BOOTH = Path(__file__).resolve().parent.parent / "scenarios" / "booth.toml"
 

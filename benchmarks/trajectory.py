@@ -1,8 +1,8 @@
-"""Benchmark of `paintcell.sim.motion.trajectory.build_program` on the whole door program (ABB-style
+"""Benchmark of `paintcell.motion.trajectory.build_program` on the whole door program (ABB-style
 arm).
 
 The door plan comes from
-`paintcell.planning.coverage.coverage.plan_coverage(paintcell.planning.surface.parts.door(), default
+`paintcell.coverage.coverage.plan_coverage(paintcell.surface.parts.door(), default
 bell, default PlannerSettings())` (its planning time is printed but is not part of the trajectory
 build). The door stands upright 1.55 m in front of the arm's base, centre 1.1 m high, painted
 side toward the robot, passes horizontal (the placement of benchmarks/execution.py). Prints the
@@ -19,11 +19,11 @@ import time
 
 import numpy as np
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface import parts
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.motion.trajectory import TrajectorySettings, build_program
+from paintcell.paint.applicator import Applicator
 from paintcell.robots import load_robot
-from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
+from paintcell.surface import parts
 
 # The door placement of benchmarks/execution.py: standing, painted side (part +z) toward the
 # robot (world −x), part x (extrusion, the pass direction) horizontal along world −y, centre

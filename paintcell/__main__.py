@@ -1,5 +1,5 @@
 """`python -m paintcell …` is the `paintcell` command."""
 
-from paintcell.sim.app.cli import main
+from paintcell.cli.main import main
 
 raise SystemExit(main())

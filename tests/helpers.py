@@ -28,10 +28,10 @@ def assert_unit(vectors: np.ndarray, atol: float = UNIT_NORM_ATOL) -> None:
     assert np.allclose(norms, 1.0, atol=atol), f"max |norm - 1| = {np.abs(norms - 1).max():.3g}"
 
 
-# --- speed QP (paintcell.planning.coverage.speed_qp)
+# --- speed QP (paintcell.coverage.speed_qp)
 # ----------------------------------------------------------------
 # Re-measured constraints of an accepted QP solution, relative to each bound: the module's own
-# acceptance tolerance (paintcell.planning.coverage.speed_qp.CONSTRAINT_RTOL); polished OSQP
+# acceptance tolerance (paintcell.coverage.speed_qp.CONSTRAINT_RTOL); polished OSQP
 # solutions meet ~1e-10.
 QP_CONSTRAINT_RTOL = 1e-6
 # Central finite differences of a quadratic objective at step 1e-5 on O(1) variables: exact up to
@@ -56,8 +56,8 @@ IK_ROT_TOL_RAD = 1e-5
 JACOBIAN_FD_ATOL = 1e-7
 
 
-# --- deposition model (paintcell.planning.paint.applicator, paintcell.planning.paint.deposition,
-# paintcell.planning.paint.calibration) ---------
+# --- deposition model (paintcell.paint.applicator, paintcell.paint.deposition,
+# paintcell.paint.calibration) ---------
 # Flat-plane reduction rate = f(q): the projection and magnification cancel exactly up to
 # float64 round-off of O(1) geometry (observed ~1e-15 relative).
 DEPOSITION_EXACT_RTOL = 1e-12
@@ -71,9 +71,9 @@ KERNEL_CULL_RTOL = 1e-4
 CALIBRATION_PARAM_RTOL = 0.03
 
 
-# --- coverage planner (paintcell.planning.coverage.start_curve, offset, index_width, coverage)
+# --- coverage planner (paintcell.coverage.start_curve, offset, index_width, coverage)
 # -----------------------
-# Line integral of Gaussians over travel sampled at σ/2.5 (paintcell.planning.coverage.index_width):
+# Line integral of Gaussians over travel sampled at σ/2.5 (paintcell.coverage.index_width):
 # the plain sum is
 # spectrally accurate (~1e-21); what remains is the footprint truncation at f < 1e-4·peak.
 LINE_INTEGRAL_RTOL = 1e-6
@@ -90,7 +90,7 @@ MESH_ARC_RTOL = 1e-3
 FLAT_GEOMETRY_ATOL_M = 1e-9
 
 
-# --- rendering and plots (paintcell.sim.output.render, paintcell.sim.output.plots)
+# --- rendering and plots (paintcell.output.render, paintcell.output.plots)
 # --------------------------------------------------
 # A blank or single-colour frame has a per-channel pixel std of 0; any lit scene with a part and a
 # floor has tens of grey levels. 5 levels (of 255) separates the two with a wide margin.
@@ -100,8 +100,8 @@ RENDER_MIN_PIXEL_STD = 5.0
 RENDER_RAMP_MIN_LEVEL_GAP = 0.5
 
 
-# --- execution and validation (paintcell.sim.execution.cell, paintcell.sim.execution.execute,
-# paintcell.sim.validation.validate) ------------------------------
+# --- execution and validation (paintcell.execution.cell, paintcell.execution.execute,
+# paintcell.validation.validate) ------------------------------
 # Kinematic replay vs the plan it came from: the bound; what remains is the plan's 10 ms
 # sampling and trapezoid dwell against the trace's 1 ms samples (measured ≈ 0.01 pp).
 KINEMATIC_REPLAY_LOSS_PP = 0.05
@@ -117,8 +117,8 @@ SERVO_TRACKING_MAX_MM = 1.0
 LOSS_RESOLUTION_PP = 1e-4
 
 
-# --- joint trajectories (paintcell.sim.motion.time_law, paintcell.sim.motion.moves,
-# paintcell.sim.motion.trajectory) --------------------------------
+# --- joint trajectories (paintcell.motion.time_law, paintcell.motion.moves,
+# paintcell.motion.trajectory) --------------------------------
 # Finite differences of analytically sampled trajectories average the next derivative over the
 # stencil, so they never exceed its maximum; only float64 round-off (~1e-10 relative) remains.
 FD_LIMIT_RTOL = 1e-6

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from paintcell.planning.errors import ApplicatorError
-from paintcell.planning.paint.applicator import FOOTPRINT_REL, Applicator
-from paintcell.planning.paint.deposition import deposition_rate_reference
+from paintcell.core.errors import ApplicatorError
+from paintcell.paint.applicator import FOOTPRINT_REL, Applicator
+from paintcell.paint.deposition import deposition_rate_reference
 
 from .helpers import DEPOSITION_EXACT_RTOL
 
@@ -117,7 +117,7 @@ def test_arrays_are_read_only() -> None:
 
 
 def test_default_bell_matches_its_documented_properties() -> None:
-    """The TOML's claims, re-measured independently of paintcell.planning.coverage.index_width: the
+    """The TOML's claims, re-measured independently of paintcell.coverage.index_width: the
     stripe from the
     quadrature of f over x, the raster σ/μ by periodic summation of that stripe."""
     app = Applicator.default()

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.planning.atomic_io import atomic_path, atomic_write_npz, atomic_write_text
+from paintcell.core.atomic_io import atomic_path, atomic_write_npz, atomic_write_text
 
 
 def test_failed_write_leaves_no_file(tmp_path: Path) -> None:

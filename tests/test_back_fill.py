@@ -1,5 +1,5 @@
 """A part whose boundary is not parallel to the start curve: the strip along that edge gets the
-same film as the interior (`paintcell.planning.coverage.back_fill` and the offsets kept past the
+same film as the interior (`paintcell.coverage.back_fill` and the offsets kept past the
 boundary), judged against the closed form Q / (v w) of parallel passes with the dense
 deposition model."""
 
@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.index_width import planar_index_width
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import thickness
-from paintcell.planning.paint.metrics import uniformity
-from paintcell.planning.surface.surface import Surface
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.index_width import planar_index_width
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import thickness
+from paintcell.paint.metrics import uniformity
+from paintcell.surface.surface import Surface
 
 APP = Applicator.default()
 H = 0.025                 # mesh step and pass sample spacing [m]

@@ -1,5 +1,5 @@
-"""The booth (paintcell.sim.booth.booth, paintcell.sim.booth.booth_run,
-paintcell.sim.booth.booth_rapid): superposition of the robots' films,
+"""The booth (paintcell.booth.booth, paintcell.booth.booth_run,
+paintcell.booth.booth_rapid): superposition of the robots' films,
 allocation and staggering against brute force, RAPID modules per robot.
 
 (`paintcell check scenarios/ --fast` runs the four-robot scenarios/booth.toml end to end in CI.)
@@ -16,9 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.planning.paint.deposition import GunSamples, thickness
-from paintcell.sim.app.scenario import Placement
-from paintcell.sim.booth.booth import (
+from paintcell.app.scenario import Placement
+from paintcell.booth.booth import (
     BodyPart,
     Booth,
     BoothError,
@@ -28,12 +27,13 @@ from paintcell.sim.booth.booth import (
     allocate,
     estimate_s,
 )
-from paintcell.sim.booth.booth_film import gun_in_body, plan_gun_in_body
-from paintcell.sim.booth.booth_programs import _load_robots
-from paintcell.sim.booth.booth_rapid import booth_rapid_modules
-from paintcell.sim.booth.booth_run import run_booth
-from paintcell.sim.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagger_starts
-from paintcell.sim.booth.conveyor import Conveyor
+from paintcell.booth.booth_film import gun_in_body, plan_gun_in_body
+from paintcell.booth.booth_programs import _load_robots
+from paintcell.booth.booth_rapid import booth_rapid_modules
+from paintcell.booth.booth_run import run_booth
+from paintcell.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagger_starts
+from paintcell.booth.conveyor import Conveyor
+from paintcell.paint.deposition import GunSamples, thickness
 
 HOME = (0.0, 0.0, -0.6, 0.3, 0.0, 0.9, 0.0)
 #: relative round-off of a sum of O(10^4) positive deposition terms in float64.
@@ -139,8 +139,8 @@ def test_allocation_skip_keeps_the_real_optimum(roof_booth, monkeypatch):
     none has a shorter real cycle than the one taken, so the taken one is the shortest real
     cycle of every ranked candidate (the fixture built the others). Cheap: the fixture's plans
     are reused, only the skipped candidates are built."""
-    from paintcell.planning.surface import parts
-    from paintcell.sim.booth import booth_programs as bp
+    from paintcell.booth import booth_programs as bp
+    from paintcell.surface import parts
 
     a = roof_booth.report.metrics["allocation"]
     skipped = [t["jobs"] for t in a["tried"] if "skipped" in t]
@@ -175,7 +175,7 @@ def test_allocation_skip_keeps_the_real_optimum(roof_booth, monkeypatch):
 
 def _part_plans(surfaces, plans, booth):
     """`booth_plans.PartPlans` of given surfaces and plans (a stand-in for planning the parts)."""
-    from paintcell.sim.booth.booth_plans import PartPlans
+    from paintcell.booth.booth_plans import PartPlans
 
     return PartPlans(list(surfaces), list(plans), [p.placement.matrix for p in booth.parts],
                      list(surfaces), [None] * len(plans), plans[0].applicator)
@@ -185,9 +185,9 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
     """`film_refine_pace = true` refines every part with its pace held except one whose planner
     sets `film_refine = false` (booth [planner] or the part's own): the user's false wins. The
     refinement is stubbed to record which parts it got; the run stops after it."""
-    from paintcell.planning.surface import parts
-    from paintcell.sim.booth import booth_plans, booth_refine
-    from paintcell.sim.booth import booth_programs as bp
+    from paintcell.booth import booth_plans, booth_refine
+    from paintcell.booth import booth_programs as bp
+    from paintcell.surface import parts
 
     class Stop(Exception):
         pass
@@ -347,7 +347,7 @@ def test_stagger_refuses_an_impossible_booth_at_once(monkeypatch):
     (the plain search took ~10 s for 4 robots and ×81 per extra one): a pair kept apart at no
     delay difference before any search node, and a robot left without a free delay by the first
     robot's delay (forward checking) at the root. Search nodes are counted."""
-    from paintcell.sim.booth import booth_stagger
+    from paintcell.booth import booth_stagger
 
     nodes = []
     place = booth_stagger._place
@@ -390,8 +390,8 @@ def test_pair_offsets_match_the_clock_replay():
 def test_booth_toml_is_read_and_checked(tmp_path):
     """scenarios/booth.toml loads as a Booth through the scenario loader; unknown keys and a
     malformed rail are refused with one line naming the file and the valid keys."""
-    from paintcell.sim.app.scenario_files import load_scenario
-    from paintcell.sim.booth.booth_data import BoothDataError
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth_data import BoothDataError
 
     b = load_scenario("scenarios/booth.toml")
     assert isinstance(b, Booth) and [r.name for r in b.robots] == ["side_a", "side_b", "roof_l",
@@ -422,7 +422,7 @@ def test_booth_toml_is_read_and_checked(tmp_path):
 def test_booth_figure_is_written(roof_booth, tmp_path):
     from PIL import Image
 
-    from paintcell.sim.booth.booth_plots import booth_figure
+    from paintcell.booth.booth_plots import booth_figure
 
     path = booth_figure(roof_booth, tmp_path / "booth.png")
     with Image.open(path) as im:
@@ -437,8 +437,8 @@ def test_booth_report_in_a_browser(roof_booth, tmp_path):
 
     from PIL import Image
 
-    from paintcell.sim.booth.booth_report import _ZONE_COLOURS
-    from paintcell.sim.booth.booth_results import write_booth_results
+    from paintcell.booth.booth_report import _ZONE_COLOURS
+    from paintcell.booth.booth_results import write_booth_results
 
     write_booth_results(roof_booth, tmp_path, _load_robots(ROOF_BOOTH))
     m = json.loads((tmp_path / "metrics.json").read_text())
@@ -486,7 +486,7 @@ def test_programs_are_chosen_again_with_the_rail_the_tracking_needs():
     Checked: a margin was used (the first plan had none), every paint sample of roof_r's own
     program stays that margin inside its rail, every pose is reachable, and the tracked programs
     re-measured stay inside every joint's limits, the rail's included."""
-    from paintcell.sim.booth.booth_programs import booth_programs
+    from paintcell.booth.booth_programs import booth_programs
 
     lo, hi = -0.3, 2.0
     roof_r = BoothRobot("roof_r", "irb5500_rail", Placement((0.0, -2.2, 2.6), (0, 0, math.pi / 2)),
@@ -519,7 +519,7 @@ def _arm_sample(tracked, static, j: int) -> int:
 def _held_first(traj, n: int):
     """`traj` started n samples later on the booth clock (its first pose held, as a start delay
     of the stagger holds it)."""
-    from paintcell.sim.motion.joint_trajectory import JointTrajectory
+    from paintcell.motion.joint_trajectory import JointTrajectory
 
     arrays = {name: np.concatenate([np.repeat(getattr(traj, name)[:1], n, axis=0),
                                     getattr(traj, name)])
@@ -536,8 +536,8 @@ def test_booth_reachability_is_honest(roof_booth):
     during a pass takes exactly that pass's pose, one during a move the two poses it links, on
     the robot's own clock however late it started in the booth (here 2.5 s later than in the
     run: its program's first pose held, as a start delay holds it)."""
-    from paintcell.sim.booth.booth_reach import clock_offset_s, robot_honest_reach
-    from paintcell.sim.execution.trace import Contact
+    from paintcell.booth.booth_reach import clock_offset_s, robot_honest_reach
+    from paintcell.execution.trace import Contact
 
     res = roof_booth
     m = res.report.metrics
@@ -574,8 +574,8 @@ def test_booth_reachability_is_honest(roof_booth):
 def test_booth_thresholds_are_checked_at_load(tmp_path, key, value, words):
     """A booth limit no run can meet, one that cannot fail, or a wrong type is refused when the
     file loads, in one line naming the key (as a one-robot scenario's), not after the run."""
-    from paintcell.sim.app.scenario_checks import ScenarioDataError
-    from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.app.scenario_checks import ScenarioDataError
+    from paintcell.app.scenario_files import load_scenario
 
     src = (Path(__file__).resolve().parents[1] / "scenarios" / "booth.toml").read_text()
     lines = [ln for ln in src.splitlines() if not ln.startswith(f"{key} = ")]
@@ -596,9 +596,9 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
     job, a pass or the clock makes them two)."""
     import copy
 
-    from paintcell.sim.booth.booth_chain import chain_programs
-    from paintcell.sim.booth.booth_reach import robot_honest_reach
-    from paintcell.sim.execution.trace import Contact
+    from paintcell.booth.booth_chain import chain_programs
+    from paintcell.booth.booth_reach import robot_honest_reach
+    from paintcell.execution.trace import Contact
 
     res = roof_booth
     robot = _load_robots(ROOF_BOOTH)[0]
@@ -628,7 +628,7 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
 def test_a_fixed_allocation_that_fails_says_so(monkeypatch):
     """A booth whose [allocation] is fixed and cannot be built is told to check its pass ranges
     (they name passes of the plan at that resolution), not to move its robots."""
-    from paintcell.sim.booth import booth_programs as bp
+    from paintcell.booth import booth_programs as bp
 
     def unreachable(*args, **kwargs):
         raise BoothError("irb5500_rail: UNREACHABLE 75/145 poses")

@@ -1,4 +1,4 @@
-"""One film build over the body (paintcell.sim.booth.booth_build): each part's planned mean
+"""One film build over the body (paintcell.booth.booth_build): each part's planned mean
 re-measured on its
 own surface equals the target, the film scales pointwise by one factor per part (the ESRB model
 is linear in its rates), each part's σ/μ is unchanged, the default target keeps the paint on the
@@ -11,12 +11,12 @@ import dataclasses
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import thickness
-from paintcell.planning.surface import parts
-from paintcell.sim.booth.booth import BoothError
-from paintcell.sim.booth.booth_build import common_film_build
+from paintcell.booth.booth import BoothError
+from paintcell.booth.booth_build import common_film_build
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import thickness
+from paintcell.surface import parts
 
 RES_M = 0.03
 
@@ -77,8 +77,8 @@ def test_an_unreachable_film_build_is_refused_in_one_line(two_parts):
 
 
 def test_booth_toml_film_build_keys(tmp_path):
-    from paintcell.sim.app.scenario_files import load_scenario
-    from paintcell.sim.booth.booth_data import BoothDataError
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth_data import BoothDataError
 
     head = 'name = "b"\n{}\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\n'
     f = tmp_path / "b.toml"
@@ -97,7 +97,7 @@ def test_booth_toml_film_build_keys(tmp_path):
 
 def _panels(gap_m: float):
     """Two library panels (1 m × 0.8 m, +z painted) side by side along x, `gap_m` apart."""
-    from paintcell.sim.booth.booth_film import merge_surfaces
+    from paintcell.booth.booth_film import merge_surfaces
 
     s = parts.get_part("panel", resolution_m=RES_M)
     plan = plan_coverage(s, Applicator.default(), PlannerSettings())
@@ -110,7 +110,7 @@ def _panels(gap_m: float):
 
 
 def _body_film(body, plans, Ts):
-    from paintcell.sim.booth.booth_film import plan_gun_in_body
+    from paintcell.booth.booth_film import plan_gun_in_body
 
     return sum(thickness(p.applicator, plan_gun_in_body(p, T), body.vertices, body.normals)
                for p, T in zip(plans, Ts, strict=True))
@@ -121,8 +121,8 @@ def test_seams_between_adjacent_parts_are_blended():
     blend switches paint off only (the motion is unchanged), the chosen share is the best of
     SEAM_SHARES re-measured by brute force, and the body's σ/μ falls well below the unblended
     one; panels 1 m apart have no seam and nothing is switched off."""
-    from paintcell.planning.coverage.patches import SEAM_SHARES, ownership_brush_off, seam_volumes
-    from paintcell.sim.booth.booth_seams import blend_part_seams, pass_in_body
+    from paintcell.booth.booth_seams import blend_part_seams, pass_in_body
+    from paintcell.coverage.patches import SEAM_SHARES, ownership_brush_off, seam_volumes
 
     body, plans, Ts, counts = _panels(0.02)
     a = body.vertex_areas
@@ -164,9 +164,9 @@ def test_booth_refinement_evens_the_film_and_keeps_every_pass_duration():
     the part is more even than the plan's, every pass's duration (re-measured from its times)
     stays within 0.5 % of the plan's, while the free refinement (no duration term) moves some
     pass by more — the term is what holds the pace."""
-    from paintcell.planning.coverage.film_refine import refine_speeds
-    from paintcell.planning.paint.metrics import boundary_band_mask, boundary_vertices
-    from paintcell.sim.booth.booth_refine import refine_parts
+    from paintcell.booth.booth_refine import refine_parts
+    from paintcell.coverage.film_refine import refine_speeds
+    from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
 
     s = parts.get_part("door", resolution_m=0.05)           # coarse: the test's time
     st = PlannerSettings(film_refine=False)

@@ -1,5 +1,5 @@
-"""A booth robot with more than one job (`paintcell.sim.booth.booth_chain`,
-`paintcell.sim.booth.booth.rank_allocations` with max_jobs_per_robot > 1), against independent
+"""A booth robot with more than one job (`paintcell.booth.booth_chain`,
+`paintcell.booth.booth.rank_allocations` with max_jobs_per_robot > 1), against independent
 truth: a brute-force enumeration of the allocations, the chained program re-measured (its pieces
 verbatim, the joining move inside the joint, velocity and acceleration limits by finite
 differences, its TCP by forward kinematics), and the film of a two-job robot equal to the sum of
@@ -12,17 +12,17 @@ import itertools
 import numpy as np
 import pytest
 
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import thickness
+from paintcell.booth.booth import BoothError, Job, estimate_s, rank_allocations
+from paintcell.booth.booth_build import scaled_applicator
+from paintcell.booth.booth_chain import chain_programs, job_windows
+from paintcell.booth.booth_film import gun_in_body, job_paint
+from paintcell.booth.booth_hold import delayed
+from paintcell.booth.booth_programs import _longest_program_s
+from paintcell.motion.joint_trajectory import PAINT, RETRACT, JointTrajectory
+from paintcell.motion.moves import plan_move
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import thickness
 from paintcell.robots import load_robot
-from paintcell.sim.booth.booth import BoothError, Job, estimate_s, rank_allocations
-from paintcell.sim.booth.booth_build import scaled_applicator
-from paintcell.sim.booth.booth_chain import chain_programs, job_windows
-from paintcell.sim.booth.booth_film import gun_in_body, job_paint
-from paintcell.sim.booth.booth_hold import delayed
-from paintcell.sim.booth.booth_programs import _longest_program_s
-from paintcell.sim.motion.joint_trajectory import PAINT, RETRACT, JointTrajectory
-from paintcell.sim.motion.moves import plan_move
 
 DT = 0.004
 
@@ -211,8 +211,8 @@ def test_two_jobs_chain_and_film_superposition():
 def test_jobs_per_robot_and_part_robots_keys(tmp_path):
     """TOML `max_jobs_per_robot`, `[[parts]] robots` and a two-job `[allocation]` are read;
     bad values are refused with one line."""
-    from paintcell.sim.app.scenario_files import load_scenario
-    from paintcell.sim.booth.booth_data import BoothDataError
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth_data import BoothDataError
 
     f = tmp_path / "b.toml"
     head = 'name = "b"\nmax_jobs_per_robot = {m}\n[[parts]]\npart = "door"\nrobots = {r}\n'

@@ -1,4 +1,4 @@
-"""The booth's clearance to the whole body (paintcell.sim.booth.booth_clearance), the reversed
+"""The booth's clearance to the whole body (paintcell.booth.booth_clearance), the reversed
 pass order of a part (BodyPart.reverse) and the home on the other wrist branch, against
 independent truth: capsule-to-plane distances in closed form, the film of the same samples, the
 forward kinematics of both homes."""
@@ -8,18 +8,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import thickness
-from paintcell.planning.surface import parts
+from paintcell.booth.booth_build import reversed_plan
+from paintcell.booth.booth_clearance import BodyProbe, wrist_flipped_home
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import thickness
 from paintcell.robots import load_robot
-from paintcell.sim.booth.booth_build import reversed_plan
-from paintcell.sim.booth.booth_clearance import BodyProbe, wrist_flipped_home
+from paintcell.surface import parts
 
 HOME = np.array([0.0, -0.6, 0.3, 0.0, 0.9, 0.0])
 #: the arm reaching forward, its spray axis ≈ +x (the whole arm behind a plane across it).
 REACH = np.array([0.0, 0.3, 0.0, 0.0, -1.0, 0.0])
-#: half the thickness of the part's collision slabs (paintcell.sim.execution.cell_part) [m].
+#: half the thickness of the part's collision slabs (paintcell.execution.cell_part) [m].
 HALF_SHELL_M = 0.001
 
 
@@ -121,11 +121,11 @@ def test_a_back_off_rung_out_of_reach_does_not_end_the_ladder(monkeypatch):
     clear is returned, and the tries record the programs that were measured."""
     from types import SimpleNamespace
 
-    from paintcell.sim.booth import booth_job_programs as bjp
-    from paintcell.sim.booth.booth_clearance import CLEAR_FACTORS, Clearance
-    from paintcell.sim.motion import trajectory
-    from paintcell.sim.motion.joint_trajectory import TrajectoryError
-    from paintcell.sim.motion.trajectory_settings import TrajectorySettings
+    from paintcell.booth import booth_job_programs as bjp
+    from paintcell.booth.booth_clearance import CLEAR_FACTORS, Clearance
+    from paintcell.motion import trajectory
+    from paintcell.motion.joint_trajectory import TrajectoryError
+    from paintcell.motion.trajectory_settings import TrajectorySettings
 
     built = []
 

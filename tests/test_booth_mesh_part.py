@@ -1,5 +1,5 @@
 """A booth part read from a mesh file: the `[parts.part]` table is a scenario's `[part]` table,
-read by the same loader (`MeshPart.from_dict`, `paintcell.sim.app.pipeline.part_surface`), so the
+read by the same loader (`MeshPart.from_dict`, `paintcell.app.pipeline.part_surface`), so the
 booth plans exactly the surface and passes a one-robot scenario of that file plans."""
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.sim.app.pipeline import load_surface, make_plan
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.booth.booth import Booth
-from paintcell.sim.booth.booth_data import BoothDataError
-from paintcell.sim.booth.booth_plans import plan_parts
+from paintcell.app.pipeline import load_surface, make_plan
+from paintcell.app.scenario_files import load_scenario
+from paintcell.booth.booth import Booth
+from paintcell.booth.booth_data import BoothDataError
+from paintcell.booth.booth_plans import plan_parts
 
 PART = '''[parts.part]
 file = "parts/bent_plate.stl"
@@ -96,8 +96,8 @@ def test_booth_judges_a_mesh_part_on_its_skin():
     part without regions."""
     import dataclasses
 
-    from paintcell.planning.paint.metrics import uniformity
-    from paintcell.sim.booth.booth_film import judged_body_mask
+    from paintcell.booth.booth_film import judged_body_mask
+    from paintcell.paint.metrics import uniformity
 
     root = Path(__file__).resolve().parents[1]
     door = load_surface(load_scenario(root / "scenarios" / "cad_door.toml"), fast=True)
@@ -115,9 +115,9 @@ def test_booth_judges_a_mesh_part_on_its_skin():
     assert a.within_tolerance_fraction == pytest.approx(b.within_tolerance_fraction, rel=1e-12)
     # the common film build scales a part's flow by its planned mean on the skin alone: one
     # straight pass 0.25 m off the door's skin centroid, along the door (a plan's duck type)
-    from paintcell.planning.paint.applicator import Applicator
-    from paintcell.planning.paint.deposition import GunSamples, thickness
-    from paintcell.sim.booth.booth_build import planned_mean_m
+    from paintcell.booth.booth_build import planned_mean_m
+    from paintcell.paint.applicator import Applicator
+    from paintcell.paint.deposition import GunSamples, thickness
 
     c = door.vertices[own].mean(axis=0)
     n = door.normals[own].mean(axis=0)

@@ -1,4 +1,4 @@
-"""Robot-aware speeds in a booth (paintcell.sim.booth.booth_speeds): a robot's slowdown, measured
+"""Robot-aware speeds in a booth (paintcell.booth.booth_speeds): a robot's slowdown, measured
 on its chained program, lands as caps on the very samples it ran slow — found again by where they
 are in space — through a part run backwards and a robot with two jobs."""
 
@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface import parts
-from paintcell.sim.booth.booth import Job
-from paintcell.sim.booth.booth_build import reversed_plan
-from paintcell.sim.booth.booth_speeds import part_speeds, planner_order, stored_caps
-from paintcell.sim.motion.speed_feedback import caps_from_speeds
+from paintcell.booth.booth import Job
+from paintcell.booth.booth_build import reversed_plan
+from paintcell.booth.booth_speeds import part_speeds, planner_order, stored_caps
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.motion.speed_feedback import caps_from_speeds
+from paintcell.paint.applicator import Applicator
+from paintcell.surface import parts
 from tests.helpers import stand_in_program
 
 APP = Applicator.default()

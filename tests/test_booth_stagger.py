@@ -1,5 +1,5 @@
 """The booth's staggered starts split into independent groups of robots
-(`paintcell.sim.booth.booth_stagger`): the delays against a brute-force search over every
+(`paintcell.booth.booth_stagger`): the delays against a brute-force search over every
 combination, re-measured on one clock, and a group that cannot be placed refused without
 trying the delays of robots that meet nobody."""
 
@@ -10,9 +10,9 @@ import itertools
 import numpy as np
 import pytest
 
-from paintcell.sim.booth import booth_stagger
-from paintcell.sim.booth.booth import BoothError
-from paintcell.sim.booth.booth_stagger import stagger_starts
+from paintcell.booth import booth_stagger
+from paintcell.booth.booth import BoothError
+from paintcell.booth.booth_stagger import stagger_starts
 
 
 def _apart(p: np.ndarray, q: np.ndarray, dp: int, dq: int, d_m: float) -> bool:

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from paintcell.planning.errors import ApplicatorError
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.calibration import (
+from paintcell.core.errors import ApplicatorError
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.calibration import (
     fit_applicator_from_crossing_stripes,
     fit_applicator_from_grid,
     fit_applicator_from_stripe,

@@ -1,4 +1,4 @@
-"""paintcell.sim.execution.cell: the MuJoCo paint cell compiles, holds what execution needs, and
+"""paintcell.execution.cell: the MuJoCo paint cell compiles, holds what execution needs, and
 runs warning-free."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from paintcell.planning.surface.surface import plane
-from paintcell.sim.execution.cell import CameraSpec, Cell, CellError, build_cell
+from paintcell.execution.cell import CameraSpec, Cell, CellError, build_cell
+from paintcell.surface.surface import plane
 from tests.test_execute import make_case, make_cell
 
 
@@ -25,7 +25,7 @@ def test_cell_indexes_robot_part_booth_and_sensors() -> None:
     assert len(cell.qpos_adr) == len(cell.actuator_ids) == case.robot.nq
     assert cell.part_body_name == "part" and cell.booth_body_name == "booth"
     # No preset cameras in the model: renders frame the part with
-    # paintcell.sim.output.render.part_cameras.
+    # paintcell.output.render.part_cameras.
     assert cell.camera_names == () and m.ncam == 0
     assert m.nlight >= 1
     # The part's visual mesh is the surface itself, placed at T_world_part.
@@ -80,7 +80,7 @@ def _one_robot_cell(robot: Any, case: Any) -> Cell:
 
 
 def _booth_cell(robot: Any, case: Any) -> Cell:
-    from paintcell.sim.booth.booth_cell import build_booth_cell
+    from paintcell.booth.booth_cell import build_booth_cell
 
     return build_booth_cell([robot], case.surface, case.T_world_part).cell
 
@@ -249,5 +249,5 @@ def test_cell_compiles_without_attach_or_compiler_warnings() -> None:
 def test_surface_type_is_checked_at_entry(surface) -> None:
     from paintcell.robots import load_robot
 
-    with pytest.raises(CellError, match=r"surface must be a Surface \(paintcell.planning.surface"):
+    with pytest.raises(CellError, match=r"surface must be a Surface \(paintcell.surface"):
         build_cell(load_robot("abb_paint"), surface, np.eye(4))

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.sim.app.cli import EXIT_USAGE, build_parser, main, write_junit
+from paintcell.cli.main import EXIT_USAGE, build_parser, main, write_junit
 
 COMMANDS = ["run", "check", "plan", "validate", "export", "report"]
 
@@ -82,13 +82,13 @@ def test_junit_xml_is_valid_with_one_case_per_scenario(tmp_path: Path) -> None:
 
 BROKEN = {
     "typo.py": '''
-from paintcell.sim.app.scenario import Placement, Scenario
+from paintcell.app.scenario import Placement, Scenario
 SCENARIO = Scenario(name="typo", part="panel", part_placement=Placement(),
                     planner={"v_nominl_m_s": 0.4})
 ''',
     "syntax.py": "SCENARIO = Scenario(\n",
     "badvalue.py": '''
-from paintcell.sim.app.scenario import Placement, Scenario
+from paintcell.app.scenario import Placement, Scenario
 SCENARIO = Scenario(name="badvalue", part="panel", part_placement=Placement(),
                     fast_resolution_m=-0.01)
 ''',

@@ -1,5 +1,5 @@
-"""Conveyor tracking (paintcell.sim.booth.conveyor) and the booth cell's carrier
-(paintcell.sim.booth.booth_cell): programs that
+"""Conveyor tracking (paintcell.booth.conveyor) and the booth cell's carrier
+(paintcell.booth.booth_cell): programs that
 follow the moving part (FK round trip), exact rail tracking, and a conveyor at speed 0 that is
 the static cell."""
 
@@ -8,19 +8,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.planning.paint.deposition import thickness
+from paintcell.app.scenario import pose
+from paintcell.app.scenario_files import load_scenario
+from paintcell.booth.booth_cell import build_booth_cell
+from paintcell.booth.booth_film import gun_in_body
+from paintcell.booth.booth_run import combined_program
+from paintcell.booth.conveyor import Conveyor, ConveyorError, track_program
+from paintcell.execution.cell import build_cell
+from paintcell.execution.execute import execute
+from paintcell.motion.joint_trajectory import PAINT, JointTrajectory
+from paintcell.paint.deposition import thickness
 from paintcell.robots import load_robot
 from paintcell.robots.rail import load_rail_robot
-from paintcell.sim.app.scenario import pose
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.booth.booth_cell import build_booth_cell
-from paintcell.sim.booth.booth_film import gun_in_body
-from paintcell.sim.booth.booth_run import combined_program
-from paintcell.sim.booth.conveyor import Conveyor, ConveyorError, track_program
-from paintcell.sim.execution.cell import build_cell
-from paintcell.sim.execution.execute import execute
-from paintcell.sim.motion.joint_trajectory import PAINT, JointTrajectory
-from paintcell.sim.validation.validate_samples import executed_gun_samples
+from paintcell.validation.validate_samples import executed_gun_samples
 from tests.helpers import FK_AGREEMENT_ATOL_M
 
 
@@ -101,7 +101,7 @@ def test_tracking_refuses_out_of_range_programs_and_bad_conveyors():
 
 @pytest.fixture(scope="module")
 def door_program():
-    from paintcell.sim.app.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
+    from paintcell.app.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
 
     scn = load_scenario("scenarios/door.toml")
     surface = load_surface(scn, fast=True)
@@ -113,7 +113,7 @@ def door_program():
 @pytest.mark.parametrize("mode", ["kinematic", "servo"])
 def test_conveyor_at_speed_zero_is_the_static_cell(door_program, mode):
     """The booth cell with the part on a carrier at speed 0 executes the door program as the
-    static `paintcell.sim.execution.cell` does: the same TCP trace and the same film in the part
+    static `paintcell.execution.cell` does: the same TCP trace and the same film in the part
     frame."""
     scn, surface, plan, robot, traj = door_program
     T_wp = scn.part_placement.matrix

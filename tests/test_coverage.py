@@ -7,15 +7,15 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.index_width import nsd_vs_index_width, planar_index_width
-from paintcell.planning.coverage.plan import CoveragePlan
-from paintcell.planning.errors import PlanError
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import deposition_rate_reference, thickness
-from paintcell.planning.paint.metrics import boundary_band_mask, boundary_vertices, uniformity
-from paintcell.planning.surface import parts
-from paintcell.planning.surface.surface import Surface
+from paintcell.core.errors import PlanError
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.index_width import nsd_vs_index_width, planar_index_width
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import deposition_rate_reference, thickness
+from paintcell.paint.metrics import boundary_band_mask, boundary_vertices, uniformity
+from paintcell.surface import parts
+from paintcell.surface.surface import Surface
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, KERNEL_CULL_RTOL, MESH_ARC_RTOL
 
 RES = 0.025
@@ -65,11 +65,11 @@ def test_settings_reject_bools_for_numbers(field: str) -> None:
 
 def test_plan_coverage_checks_its_inputs() -> None:
     s = parts.panel(0.1)
-    with pytest.raises(PlanError, match="needs a paintcell.planning.surface.surface.Surface, "
+    with pytest.raises(PlanError, match="needs a paintcell.surface.surface.Surface, "
                                          "got NoneType"):
         plan_coverage(None, APP)  # type: ignore[arg-type]
     with pytest.raises(PlanError,
-                       match=r"needs an Applicator \(paintcell.planning.paint.applicator\), "
+                       match=r"needs an Applicator \(paintcell.paint.applicator\), "
                              "got dict"):
         plan_coverage(s, APP.to_dict())  # type: ignore[arg-type]
     with pytest.raises(PlanError, match="PlannerSettings or None, got dict"):
@@ -198,7 +198,7 @@ FIG5_NSD_RTOL = 2e-3
 
 def test_plane_interior_nsd_matches_fig5_closed_form(panel_plan: CoveragePlan) -> None:
     # independent truth: parallel straight passes at width w on a plane give the Fig. 5 σ/μ(w)
-    # (paintcell.planning.coverage.index_width, 1-D profile sums) in the interior, one period
+    # (paintcell.coverage.index_width, 1-D profile sums) in the interior, one period
     # between two passes
     w = panel_plan.passes[-2].index_width_m
     centre = int(np.flatnonzero([p.side == 0 for p in panel_plan.passes])[0])
@@ -358,7 +358,7 @@ def test_sphere_cap_offsets_are_small_circles_with_closed_form_geodesic_curvatur
     # lies R sin(w/R) from the centre and κ_g = tan(w/R)/R (closed forms)
     import trimesh
 
-    from paintcell.planning.surface.surface import Surface
+    from paintcell.surface.surface import Surface
 
     radius = 0.6
     ico = trimesh.creation.icosphere(subdivisions=5, radius=radius)     # edges ≈ 24 mm
@@ -402,7 +402,7 @@ def test_offset_past_a_focal_point_is_refused() -> None:
     # its offsets toward the small circle's pole shrink and then pass through it (a cusp)
     import trimesh
 
-    from paintcell.planning.surface.surface import Surface
+    from paintcell.surface.surface import Surface
 
     ico = trimesh.creation.icosphere(subdivisions=4, radius=0.5)
     keep = ico.triangles_center[:, 2] > 0.02
@@ -416,7 +416,7 @@ def test_offset_past_a_focal_point_is_refused() -> None:
     with pytest.raises(PlanError, match="self-intersects"):
         plan_coverage(s, APP, st)
     # With the fallback (the default) the walked offset that reverses is replaced by a level set
-    # of the heat-method geodesic distance (paintcell.planning.coverage.geodesic), which cannot
+    # of the heat-method geodesic distance (paintcell.coverage.geodesic), which cannot
     # self-intersect.
     plan = plan_coverage(s, APP, replace(st, geodesic_fallback=True))
     assert any(r.get("offset") == "heat-method level set"
@@ -495,9 +495,9 @@ def arc_length_m(points: np.ndarray) -> float:
 def test_door_from_a_mesh_file_gives_a_robot_program(tmp_path) -> None:
     # the trajectory stage used to fail on the mesh door's kinked edge pass ("TOPP-RA failed on
     # a pass"); the placement of scenarios/door.toml
+    from paintcell.app.scenario import Placement, facing_robot
+    from paintcell.motion.trajectory import TrajectorySettings, build_program
     from paintcell.robots import load_robot
-    from paintcell.sim.app.scenario import Placement, facing_robot
-    from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
 
     path = tmp_path / "door.stl"
     parts.door(MESH_RES).mesh.export(path)

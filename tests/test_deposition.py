@@ -12,8 +12,8 @@ import pytest
 import trimesh
 from scipy import integrate
 
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import (
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import (
     DepositionError,
     GunSamples,
     deposition_rate,
@@ -112,7 +112,7 @@ def test_raster_conserves_paint(app: Applicator) -> None:
 
 
 def _line_integral(app: Applicator, y: float) -> float:
-    """∫ f(x, y) dx by adaptive quadrature (independent of paintcell.planning.paint.calibration)."""
+    """∫ f(x, y) dx by adaptive quadrature (independent of paintcell.paint.calibration)."""
     gauss = app.a0_m_s * app.sigma_x_m * math.sqrt(2 * math.pi) * math.exp(
         -y * y / (2 * app.sigma_y_m**2))
     rings = sum(integrate.quad(lambda x, a=a, m=m, s=s: a * math.exp(
@@ -247,7 +247,7 @@ def test_bad_gun_samples_raise() -> None:
 
 def test_self_occlusion_of_a_convex_side_is_none(app: Applicator) -> None:
     # a Surface as its own occluder: points on its painted side are never hidden by themselves
-    from paintcell.planning.surface.surface import plane
+    from paintcell.surface.surface import plane
     surf = plane(0.6, 0.6, resolution_m=0.03)
     gun = GunSamples.straight_pass([-0.2, 0, 0.25], [0.2, 0, 0.25], [0, 0, -1], 0.5, 0.02)
     free = thickness(app, gun, surf.vertices, surf.normals)

@@ -1,4 +1,4 @@
-"""The compiled film kernel (paintcell.planning.paint.deposition_jit) against the numpy kernel and
+"""The compiled film kernel (paintcell.paint.deposition_jit) against the numpy kernel and
 the literal DESIGN.md formula.
 
 - numba vs the numpy kernel (same culling, an independent implementation of the arithmetic) on a
@@ -19,10 +19,10 @@ import math
 import numpy as np
 import pytest
 
-from paintcell.planning.paint import deposition_cpu as cpu
-from paintcell.planning.paint import deposition_jit as jit
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import (
+from paintcell.paint import deposition_cpu as cpu
+from paintcell.paint import deposition_jit as jit
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import (
     DepositionError,
     GunSamples,
     deposition_rate_reference,
@@ -105,13 +105,13 @@ def test_zero_amplitudes_and_a_partial_last_group_of_samples() -> None:
     samples (the kernel takes four at a time, padding the last group with zero dwell): same film
     as the numpy kernel, and the pairs it reports evaluated are the culling's (padding not
     counted), checked against the numpy kernel's candidate blocks."""
-    from paintcell.planning.paint.deposition_kernel import (
+    from paintcell.paint.deposition_kernel import (
         BLOCK_POINTS,
         CHUNK_SAMPLES,
         _candidate_blocks,
         _make_blocks,
     )
-    from paintcell.planning.paint.deposition_samples import _tool_axes
+    from paintcell.paint.deposition_samples import _tool_axes
 
     base = Applicator.default()
     app = Applicator(base.standoff_m, 0.0, base.sigma_x_m, base.sigma_y_m,
@@ -151,7 +151,7 @@ def test_thread_count_does_not_change_the_film() -> None:
 _CONCURRENT = """
 import sys, threading
 import numpy as np, numba
-from paintcell.planning.paint import deposition_jit as jit
+from paintcell.paint import deposition_jit as jit
 rng = np.random.default_rng(0); N, S = 6000, 1500
 p = np.c_[rng.uniform(0, 1, N), rng.uniform(0, 1, N), np.zeros(N)]; n = np.tile([0, 0, 1.0], (N, 1))
 g = np.c_[rng.uniform(0, 1, S), rng.uniform(0, 1, S), np.full(S, 0.2)]

@@ -1,4 +1,4 @@
-"""paintcell.sim.execution.execute: servo and kinematic execution of a joint trajectory on the
+"""paintcell.execution.execute: servo and kinematic execution of a joint trajectory on the
 MuJoCo cell.
 
 The test case (shared with tests/test_validate.py): the ABB-style arm paints a small plane with two
@@ -16,20 +16,20 @@ from typing import Any
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.plan import CoveragePlan, PassPlan
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface.surface import Surface, plane
-from paintcell.robots.catalog import load_robot
-from paintcell.sim.execution.cell import Cell, build_cell
-from paintcell.sim.execution.execute import (
+from paintcell.coverage.plan import CoveragePlan, PassPlan
+from paintcell.execution.cell import Cell, build_cell
+from paintcell.execution.execute import (
     SETTLE_MAX_S,
     Disturbances,
     ExecutionError,
     ServoSettings,
     execute,
 )
-from paintcell.sim.execution.trace import ExecutedTrace, TraceError
-from paintcell.sim.motion.joint_trajectory import APPROACH, PAINT, JointTrajectory
+from paintcell.execution.trace import ExecutedTrace, TraceError
+from paintcell.motion.joint_trajectory import APPROACH, PAINT, JointTrajectory
+from paintcell.paint.applicator import Applicator
+from paintcell.robots.catalog import load_robot
+from paintcell.surface.surface import Surface, plane
 from tests.helpers import REPLAY_TCP_ATOL_MM, SERVO_TRACKING_MAX_MM
 
 DT_S = 1e-3

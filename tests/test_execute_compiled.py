@@ -1,4 +1,4 @@
-"""paintcell.sim.execution.execute_compiled: the compiled per-step loops give what the per-sample
+"""paintcell.execution.execute_compiled: the compiled per-step loops give what the per-sample
 Python computations gave, on the real two-pass program of tests/test_execute.py (3.7 s at 1 kHz).
 
 - Inverse dynamics (the servo's feed-forward, and the kinematic replay's torque): equal bit for bit
@@ -20,14 +20,14 @@ import mujoco
 import numpy as np
 import pytest
 
-from paintcell.sim.execution import execute_compiled, execute_models
-from paintcell.sim.execution.execute import ServoSettings, execute
-from paintcell.sim.execution.execute_models import (
+from paintcell.execution import execute_compiled, execute_models
+from paintcell.execution.execute import ServoSettings, execute
+from paintcell.execution.execute_models import (
     _controller_model,
     _set_torque_actuators,
     inverse_dynamics,
 )
-from paintcell.sim.execution.trace import ExecutedTrace
+from paintcell.execution.trace import ExecutedTrace
 from tests.test_execute import make_case, make_cell
 
 # The Linux wheels of mujoco ship libmujoco.so next to the package: there the loops must be
@@ -132,7 +132,7 @@ _OVERFLOW = r'''
 import sys
 import mujoco
 import numpy as np
-from paintcell.sim.execution.execute_compiled import inverse_dynamics_steps, mujoco_c
+from paintcell.execution.execute_compiled import inverse_dynamics_steps, mujoco_c
 
 spheres = "".join(f'<geom type="sphere" size="0.05" pos="{0.01 * i} 0 0"/>' for i in range(40))
 boxes = spheres.replace('type="sphere" size="0.05"', 'type="box" size="0.05 0.05 0.05"')

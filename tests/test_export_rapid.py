@@ -8,15 +8,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from paintcell.planning.transforms import quat_wxyz_from_matrix
-from paintcell.sim.motion.joint_trajectory import (
+from paintcell.core.transforms import quat_wxyz_from_matrix
+from paintcell.motion.joint_trajectory import (
     APPROACH,
     PAINT,
     RETRACT,
     TURNAROUND,
     JointTrajectory,
 )
-from paintcell.sim.output.export_rapid import confdata, rapid_module
+from paintcell.output.export_rapid import confdata, rapid_module
 
 DT = 1e-3
 
@@ -147,8 +147,8 @@ def test_tool_data_carries_the_tcp_and_the_load() -> None:
 
 
 def test_tool_load_comes_from_the_robot_model() -> None:
+    from paintcell.output.export_rapid import tool_load
     from paintcell.robots import load_robot
-    from paintcell.sim.output.export_rapid import tool_load
 
     mass, cog = tool_load(load_robot("abb_paint"))
     # abb_paint.xml: the bell (7 kg, centre of mass 120 mm out along the flange axis).

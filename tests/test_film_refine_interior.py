@@ -1,4 +1,4 @@
-"""The film refinement's interior rule (paintcell.planning.coverage.film_refine): a fit that evens
+"""The film refinement's interior rule (paintcell.coverage.film_refine): a fit that evens
 the whole part but leaves its interior a little less even is fitted again with the interior
 weighted more, and what is kept is re-measured here with the deposition model, sample by sample:
 lower σ/μ on the whole part and on the interior than the plan it started from."""
@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.film_refine import refine_speeds
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import deposition_rate
-from paintcell.planning.paint.metrics import boundary_band_mask, boundary_vertices
-from paintcell.planning.surface import parts
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.film_refine import refine_speeds
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import deposition_rate
+from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
+from paintcell.surface import parts
 
 ISSUE3_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "issue3_bell.toml"
 

@@ -1,6 +1,6 @@
 """The generated CAD-like meshes the real-part scenarios paint (scenarios/parts/cad_*.ply) are the
 generator's output for seed 0 (`paintcell generate KIND --out scenarios/parts/cad_KIND.ply`):
-re-generated here and compared face by face, so a change to paintcell/planning/surface/cad_like.py
+re-generated here and compared face by face, so a change to paintcell/surface/cad_like.py
 cannot leave
 the scenarios painting a stale file."""
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.planning.surface.cad_like import PART_KINDS, make_part
+from paintcell.surface.cad_like import PART_KINDS, make_part
 
 PARTS = Path(__file__).resolve().parents[1] / "scenarios" / "parts"
 

@@ -1,4 +1,4 @@
-"""Heat-method geodesic offsets (paintcell.planning.coverage.geodesic) and the planner's fallback to
+"""Heat-method geodesic offsets (paintcell.coverage.geodesic) and the planner's fallback to
 them.
 
 Independent truths: the distance from a straight line on a plane is |y|, on a cylinder the arc
@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.geodesic import HeatGeodesics, _dense, despike
-from paintcell.planning.coverage.offset import SurfaceGeometry
-from paintcell.planning.coverage.plan import CoveragePlan
-from paintcell.planning.errors import PlanError
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface.surface import Surface, cylinder, plane
+from paintcell.core.errors import PlanError
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.geodesic import HeatGeodesics, _dense, despike
+from paintcell.coverage.offset import SurfaceGeometry
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.paint.applicator import Applicator
+from paintcell.surface.surface import Surface, cylinder, plane
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 RES_M = 0.01

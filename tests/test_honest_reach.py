@@ -1,8 +1,8 @@
-"""Honest reachability (paintcell.sim.validation.honest_reach): jumps, wrist flips, contacts and
+"""Honest reachability (paintcell.validation.honest_reach): jumps, wrist flips, contacts and
 slowdowns count
 against reachability, in the verdict and in the check row; a run with any of them is below 100 %.
 
-The program is the real one (paintcell.robots.ik → paintcell.sim.motion.trajectory.build_program) on
+The program is the real one (paintcell.robots.ik → paintcell.motion.trajectory.build_program) on
 straight passes in front
 of the ABB-style arm; the faults are real ones: a 2π turn of J6 inside a pass (same TCP pose, so
 IK calls it reachable, but the arm must spin the wrist a full turn between two samples), and a
@@ -18,16 +18,16 @@ from typing import Any
 import numpy as np
 import pytest
 
-from paintcell.planning.surface.surface import plane
+from paintcell.execution.trace import Contact, ExecutedTrace
+from paintcell.motion.joint_trajectory import PAINT, JointTrajectory
+from paintcell.motion.trajectory import build_program
 from paintcell.robots.catalog import load_robot
 from paintcell.robots.ik import IKPathResult
 from paintcell.robots.paths import solve_paths
 from paintcell.robots.reachability import ReachabilityReport
-from paintcell.sim.execution.trace import Contact, ExecutedTrace
-from paintcell.sim.motion.joint_trajectory import PAINT, JointTrajectory
-from paintcell.sim.motion.trajectory import build_program
-from paintcell.sim.validation.honest_reach import honest_reachability
-from paintcell.sim.validation.validate import Thresholds, validate
+from paintcell.surface.surface import plane
+from paintcell.validation.honest_reach import honest_reachability
+from paintcell.validation.validate import Thresholds, validate
 from tests.test_trajectory import N_PASSES, _plan
 
 

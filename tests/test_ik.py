@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.plan import tcp_frames
+from paintcell.coverage.plan import tcp_frames
 from paintcell.robots import RobotError, load_robot
 from paintcell.robots.ik import (
     IKSettings,
@@ -264,9 +264,9 @@ def test_seed_selects_the_nearest_comfortable_branch(abb):
 
 @pytest.fixture(scope="module")
 def door_plan():
-    from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-    from paintcell.planning.paint.applicator import Applicator
-    from paintcell.planning.surface.parts import get_part
+    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.paint.applicator import Applicator
+    from paintcell.surface.parts import get_part
 
     surface = get_part("door", resolution_m=0.02)
     return plan_coverage(surface, Applicator.default(), PlannerSettings(optimize_speed=False))

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.index_width import (
+from paintcell.core.errors import PlanError
+from paintcell.coverage.index_width import (
     WidthSearch,
     choose_constant_width,
     cross_profiles,
@@ -16,9 +17,8 @@ from paintcell.planning.coverage.index_width import (
     search_widths,
     single_pass_profile,
 )
-from paintcell.planning.coverage.offset import IndexingCurve
-from paintcell.planning.errors import PlanError
-from paintcell.planning.paint.applicator import Applicator
+from paintcell.coverage.offset import IndexingCurve
+from paintcell.paint.applicator import Applicator
 from tests.helpers import LINE_INTEGRAL_RTOL, NSD_TRUNCATION_ATOL, PAINT_CONSERVATION_RTOL
 
 
@@ -61,7 +61,7 @@ def test_fig5_curve_matches_poisson_summation(sigma_y: float) -> None:
 
 def _brute_force_nsd(app: Applicator, w: float) -> float:
     """σ/μ of the film of parallel straight passes w apart on a plane, by direct 2-D quadrature of
-    the applicator's f(x, y) (independent of paintcell.planning.coverage.index_width): each pass
+    the applicator's f(x, y) (independent of paintcell.coverage.index_width): each pass
     contributes
     ∫ f(x, y − k w) dx, summed over every pass that reaches the profile."""
     x = np.linspace(-0.6, 0.6, 1201)

@@ -1,4 +1,4 @@
-"""`paintcell init`'s robot choice (`paintcell.sim.app.init_cell`): a pass no floor-standing
+"""`paintcell init`'s robot choice (`paintcell.app.init_cell`): a pass no floor-standing
 base reaches gets the next robot model that does — its joints re-measured by forward
 kinematics — and a part no robot reaches is refused in one line with a fix."""
 
@@ -10,16 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.planning.errors import PaintcellError
-from paintcell.robots import load_robot
-from paintcell.robots.rail import solve_rail_paths
-from paintcell.sim.app.init_cell import (
+from paintcell.app.init_cell import (
     AUTO_ROBOTS,
     BASES_VERIFIED,
     RAIL_VERIFIED,
     _place_rail,
     choose_cell,
 )
+from paintcell.core.errors import PaintcellError
+from paintcell.robots import load_robot
+from paintcell.robots.rail import solve_rail_paths
 
 
 def _vertical_pass(z0_m: float, z1_m: float, y_m: float, n: int = 30) -> np.ndarray:

@@ -1,9 +1,9 @@
-"""`paintcell init`'s program check (`paintcell.sim.app.init_verify.ProgramCheck`): a cell whose
+"""`paintcell init`'s program check (`paintcell.app.init_verify.ProgramCheck`): a cell whose
 program meets the part is refused — and the run's own MuJoCo cell, replayed pose by pose,
 touches it; a cell whose default moves pass through the part but whose folded moves do not gets
 `fold_moves` — and the replay of the folded program touches nothing.
 
-Independent truth: the execution's MuJoCo model (`paintcell.sim.execution.cell.build_cell`) and
+Independent truth: the execution's MuJoCo model (`paintcell.execution.cell.build_cell`) and
 its own collision detection (`mj_forward` contacts), not the clearance sweep's
 `mj_geomDistance`."""
 
@@ -16,18 +16,18 @@ import mujoco
 import numpy as np
 import pytest
 
-from paintcell.planning.surface.surface import plane
-from paintcell.planning.surface.surface_data import surface_from_triangles
-from paintcell.sim.app.init_verify import FOLD_BELOW_M, ProgramCheck
-from paintcell.sim.app.pipeline import (
+from paintcell.app.init_verify import FOLD_BELOW_M, ProgramCheck
+from paintcell.app.pipeline import (
     load_robot_for,
     load_surface,
     make_plan,
     make_trajectory,
 )
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.execution.cell import build_cell
-from paintcell.sim.motion.joint_trajectory import PAINT, JointTrajectory
+from paintcell.app.scenario_files import load_scenario
+from paintcell.execution.cell import build_cell
+from paintcell.motion.joint_trajectory import PAINT, JointTrajectory
+from paintcell.surface.surface import plane
+from paintcell.surface.surface_data import surface_from_triangles
 
 PANEL = Path(__file__).resolve().parents[1] / "scenarios" / "panel.toml"
 
@@ -148,8 +148,8 @@ def test_a_program_the_time_law_cannot_follow_is_refused(panel) -> None:
     lays a different film: init refuses such a cell before it writes it. Truth: the TCP speed of the
     built program, re-measured by finite differences, is below 90 % of the planned one on more
     than MAX_LOST_SHARE of the brush-on samples; at the plan's own speeds the check passes."""
-    from paintcell.sim.app.init_verify import MAX_LOST_SHARE
-    from paintcell.sim.motion.joint_trajectory import PAINT
+    from paintcell.app.init_verify import MAX_LOST_SHARE
+    from paintcell.motion.joint_trajectory import PAINT
 
     scn, surf, plan = panel
     fast = replace(plan, passes=tuple(
@@ -183,8 +183,8 @@ def test_a_program_that_folds_the_arm_into_itself_is_refused() -> None:
     pose from a cell init once wrote (noether_wavy_with_hole): its wrist_2 link is inside its
     forearm — MuJoCo's own collision pass at that pose says so (the truth here) — and a program
     through it is refused naming both links; the same program held at home is not."""
+    from paintcell.app.init_verify import _replay
     from paintcell.robots.catalog import load_robot
-    from paintcell.sim.app.init_verify import _replay
 
     ur = load_robot("ur10")
     q_bad = np.array([-0.649, -1.537, 1.116, 1.125, -5.551, -3.723])
@@ -214,7 +214,7 @@ def test_a_program_whose_run_still_slows_after_robot_aware_speeds_is_refused(pan
     finite differences of its TCP positions (the truth) — so the run would fail the
     `reachability_pct = 100` init writes. init refuses the cell in one line, naming the pass;
     at the plan's own speeds it does not."""
-    from paintcell.sim.app.pipeline import robot_aware_run
+    from paintcell.app.pipeline import robot_aware_run
 
     scn0, surf, plan0 = panel
     k = 4.0

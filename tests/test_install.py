@@ -52,7 +52,7 @@ def test_the_wheel_holds_one_top_level_name_and_the_data(wheel: Path) -> None:
                              text=True, check=True).stdout.split()
     assert tracked, "git ls-files found no modules"
     assert sorted(n for n in names if n.endswith(".py")) == sorted(tracked)
-    for data in ("paintcell/planning/paint/data/default_bell.toml",
+    for data in ("paintcell/paint/data/default_bell.toml",
                  "paintcell/robots/abb_paint/abb_paint.xml",
                  "paintcell/robots/abb_irb5500/abb_irb5500.xml"):
         assert data in names, data
@@ -76,7 +76,7 @@ def test_installed_paintcell_imports_and_runs_outside_the_repository(wheel: Path
     # the wheel must not be found in the repository through this environment's editable install.
     code = ("import importlib, pkgutil, sys, paintcell\n"
             "from paintcell.robots import load_robot\n"
-            "from paintcell.planning.paint.applicator import Applicator\n"
+            "from paintcell.paint.applicator import Applicator\n"
             "for m in pkgutil.walk_packages(paintcell.__path__, 'paintcell.'):\n"
             "    if m.name != 'paintcell.__main__':\n"
             "        importlib.import_module(m.name)\n"

@@ -10,7 +10,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from paintcell.planning.coverage.plan import tcp_frames
+from paintcell.coverage.plan import tcp_frames
 from paintcell.robots import load_robot
 from paintcell.robots.ik import solve_path
 from paintcell.robots.opw import forward, inverse, wrap_pi

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from paintcell.planning.paint.metrics import (
+from paintcell.paint.metrics import (
     MetricsError,
     boundary_band_mask,
     boundary_vertices,

@@ -1,4 +1,4 @@
-"""paintcell.sim.motion.moves: ruckig moves re-measured — boundary states, limits, agreement with
+"""paintcell.motion.moves: ruckig moves re-measured — boundary states, limits, agreement with
 ruckig itself."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import ruckig
 
-from paintcell.sim.motion.joint_trajectory import TrajectoryError
-from paintcell.sim.motion.moves import JointMove, plan_move
+from paintcell.motion.joint_trajectory import TrajectoryError
+from paintcell.motion.moves import JointMove, plan_move
 from tests.helpers import FD_LIMIT_RTOL, RUCKIG_STATE_ATOL
 
 N = 6
@@ -88,7 +88,7 @@ def test_move_rejects_bad_input() -> None:
 def test_phase_tables_cover_brake_and_hold() -> None:
     """One phase-table helper for every joint: brake phases (when ruckig brakes first), the seven
     constant-jerk phases, then the hold (jerk 0); start times are the running phase durations."""
-    from paintcell.sim.motion.moves import _phase_table
+    from paintcell.motion.moves import _phase_table
 
     rng = np.random.default_rng(7)
     a, b = _random_state(rng, 1.0), _random_state(rng, 0.3)  # at the limits: a brake phase

@@ -1,10 +1,10 @@
-"""Openings (paintcell.planning.coverage.openings): passes run straight across holes, the brush goes
+"""Openings (paintcell.coverage.openings): passes run straight across holes, the brush goes
 off only where most of the spray would go through.
 
 The part: a 1.0 m × 0.8 m plate (10 mm grid) with a 0.40 m × 0.24 m window and a 0.12 m service
 hole cut out (the grid faces inside them removed). Independent truth for the re-measurement: the
 removed faces themselves (the exact opening area), sampled densely with trimesh, and the
-deposition model's rate matrix (paintcell.planning.paint.deposition.deposition_rate) — not the fill
+deposition model's rate matrix (paintcell.paint.deposition.deposition_rate) — not the fill
 fans the planner used.
 """
 
@@ -18,12 +18,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.openings import boundary_loops, filled_surface, find_openings
-from paintcell.planning.coverage.plan import CoveragePlan
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import deposition_rate
-from paintcell.planning.surface.surface import Surface, plane, surface_from_triangles
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.openings import boundary_loops, filled_surface, find_openings
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import deposition_rate
+from paintcell.surface.surface import Surface, plane, surface_from_triangles
 
 WINDOW = (-0.3, 0.1, -0.12, 0.12)      # x0, x1, y0, y1 [m]
 HOLE_C, HOLE_R = (0.3, 0.15), 0.06     # service hole centre (x, y), radius [m]
@@ -120,8 +120,8 @@ def test_a_scan_with_slits_and_pinches_gets_only_real_openings() -> None:
     """noether_scan_with_holes leaves boundary loops of 1–2 vertices after repair; they are not
     openings. Re-measured: every opening has ≥ 3 distinct vertices and a fan of positive area,
     and the filled surface builds (it failed with 'vertices have no incident face area')."""
-    from paintcell.planning.surface.part_import import import_part
-    from paintcell.planning.surface.part_spec import MeshPart
+    from paintcell.surface.part_import import import_part
+    from paintcell.surface.part_spec import MeshPart
 
     surf, _ = import_part(MeshPart(file=str(SHARED / "noether_scan_with_holes.ply")),
                           resolution_m=0.025)
@@ -197,8 +197,8 @@ def test_refined_speeds_keep_under_the_robots_caps() -> None:
     — is no less even than the capped timing the robot would otherwise paint."""
     from dataclasses import replace
 
-    from paintcell.planning.coverage.film_refine import refine_speeds
-    from paintcell.planning.coverage.plan import times_from_speeds
+    from paintcell.coverage.film_refine import refine_speeds
+    from paintcell.coverage.plan import times_from_speeds
 
     part, _, plan = _case()
     passes = list(plan.passes)
@@ -230,7 +230,7 @@ def test_refinement_of_a_large_part_fits_a_vertex_subset_and_still_evens_the_fil
     strided subset of its vertices (memory bounded): forced here with a small limit, the fit uses
     under a third of the plate's vertices and the refined timing — re-measured on every vertex
     with the dense deposition model — is still well more even than the unrefined plan."""
-    from paintcell.planning.coverage import film_refine
+    from paintcell.coverage import film_refine
 
     part, _, _ = _case()
     plain = plan_coverage(part, _case()[2].applicator, PlannerSettings(

@@ -18,11 +18,11 @@ import functools
 
 import numpy as np
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.openings import boundary_loops, find_openings
-from paintcell.planning.coverage.plan import CoveragePlan
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface.surface import Surface, cylinder, plane, surface_from_triangles
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.openings import boundary_loops, find_openings
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.paint.applicator import Applicator
+from paintcell.surface.surface import Surface, cylinder, plane, surface_from_triangles
 
 R_M = 1.0                       # cylinder radius
 HOLE_C, HOLE_R = (0.05, 0.0), 0.11    # hole centre (x, y) and radius [m]

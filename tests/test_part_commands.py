@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from paintcell.planning.paint.metrics import uniformity
-from paintcell.sim.app.cli import EXIT_USAGE, build_parser, main
+from paintcell.cli.main import EXIT_USAGE, build_parser, main
+from paintcell.paint.metrics import uniformity
 
 
 @pytest.mark.parametrize("cmd", ["inspect", "init", "generate"])
@@ -51,7 +51,7 @@ def test_init_refuses_an_unknown_robot_before_it_imports_the_part(
         tmp_path: Path, capsys: pytest.CaptureFixture[str],
         monkeypatch: pytest.MonkeyPatch) -> None:
     """A typo in --robot is refused at once, not after the part's import and fast plan."""
-    import paintcell.planning.surface.part_import as part_import
+    import paintcell.surface.part_import as part_import
 
     def no_import(*a: object, **k: object) -> None:
         raise AssertionError("init imported the part before checking --robot")
@@ -81,8 +81,8 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     """generate → init → run --fast on a fender: the scenario runs as written, and the film is
     judged on the skin — the hem faces away from the bell and gets almost no paint, so the
     same film over every vertex would be far less uniform."""
-    from paintcell.sim.app.pipeline import run_scenario
-    from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.app.pipeline import run_scenario
+    from paintcell.app.scenario_files import load_scenario
 
     part = tmp_path / "parts" / "fender.stl"
     assert main(["generate", "fender", "--out", str(part)]) == 0
@@ -97,7 +97,7 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     scn = load_scenario(toml)
     res = run_scenario(scn, tmp_path / "run", fast=True, mode="kinematic", report=False)
     # the init base reaches every plan pose (IK); the honest figure also counts slowdowns and
-    # contacts (paintcell.sim.validation.honest_reach) and says which
+    # contacts (paintcell.validation.honest_reach) and says which
     m = res.report.metrics
     assert m["ik_reachability_pct"] == 100.0
     # init swept its program through the part (init_verify): the run's own contact count agrees

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.planning.errors import SurfaceError
-from paintcell.planning.surface.cad_like import PART_KINDS, make_part
-from paintcell.planning.surface.mesh_repair import repair
-from paintcell.planning.surface.part_import import import_part
-from paintcell.planning.surface.part_spec import MeshPart, PartSpecError
-from paintcell.planning.surface.regions import HEM, SKIN, face_areas
-from paintcell.planning.surface.surface import Surface
+from paintcell.core.errors import SurfaceError
+from paintcell.surface.cad_like import PART_KINDS, make_part
+from paintcell.surface.mesh_repair import repair
+from paintcell.surface.part_import import import_part
+from paintcell.surface.part_spec import MeshPart, PartSpecError
+from paintcell.surface.regions import HEM, SKIN, face_areas
+from paintcell.surface.surface import Surface
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "meshes"
 needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/meshes/ is absent")
@@ -326,8 +326,8 @@ def _median_edge_m(s: Surface) -> float:
 
 def test_resolution_and_fast_work_for_mesh_parts(parts):
     """`resolution_m` and `--fast` remesh a mesh part, given as a bare path or a [part] table."""
-    from paintcell.sim.app.pipeline import load_surface
-    from paintcell.sim.app.scenario import Placement, Scenario
+    from paintcell.app.pipeline import load_surface
+    from paintcell.app.scenario import Placement, Scenario
 
     path, truth = parts["fender"]
     for part in (str(path), {"file": str(path), "units": "mm"}):

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.planning.errors import SurfaceError
-from paintcell.planning.surface.curvature import discrete_curvature
-from paintcell.planning.surface.parts import PART_NAMES, door_profile, get_part
+from paintcell.core.errors import SurfaceError
+from paintcell.surface.curvature import discrete_curvature
+from paintcell.surface.parts import PART_NAMES, door_profile, get_part
 from tests.helpers import assert_unit
 
 # name: (extent along x [m], extent along y [m] (planform or profile chord), area [m²]) as the

@@ -1,10 +1,10 @@
-"""Patches (paintcell.planning.coverage.patches): segmentation, per-patch plans, blended seams,
+"""Patches (paintcell.coverage.patches): segmentation, per-patch plans, blended seams,
 order.
 
 The part: a bracket folded 90° (two 0.8 m × 0.5 m faces, a convex edge between them). Its normals
 are all perpendicular to the fold (pseudo-extruded: residual 0), so an extrusion criterion would
 keep it as one patch; the normal-cone segmentation splits it at the fold. Independent truth: the
-film of the produced passes on the real mesh (paintcell.planning.paint.deposition.thickness),
+film of the produced passes on the real mesh (paintcell.paint.deposition.thickness),
 measured in a band
 across the seam and in the patches' interiors, and the one-family plan of the same part.
 """
@@ -17,18 +17,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.patches import (
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.patches import (
     extrusion_residual,
     face_normals_areas,
     plan_patches,
     segment,
 )
-from paintcell.planning.coverage.plan import CoveragePlan
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import thickness
-from paintcell.planning.paint.metrics import uniformity
-from paintcell.planning.surface.surface import Surface, grid_faces, surface_from_triangles
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import thickness
+from paintcell.paint.metrics import uniformity
+from paintcell.surface.surface import Surface, grid_faces, surface_from_triangles
 
 # The bracket's 0.5 m faces were sized for the bell of issue 3 (kept as
 # scenarios/bells/issue3_bell.toml, 160 mm widths: 4 passes a face). With the issue-16 default bell

@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.plan import CoveragePlan
-from paintcell.sim.execution.trace import ExecutedTrace
-from paintcell.sim.motion.joint_trajectory import JointTrajectory
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.execution.trace import ExecutedTrace
+from paintcell.motion.joint_trajectory import JointTrajectory
 
 SCENARIO = '''
-from paintcell.sim.app.cli import run_script
-from paintcell.sim.app.scenario import Placement, Scenario, Thresholds, facing_robot
+from paintcell.cli.main import run_script
+from paintcell.app.scenario import Placement, Scenario, Thresholds, facing_robot
 
 SCENARIO = Scenario(
     name="{name}",
@@ -94,7 +94,7 @@ def test_validate_export_and_report_on_the_results(run_dir: Path) -> None:
     assert len(out.stderr.strip().splitlines()) == 1
     out = _cli("report", "res", cwd=run_dir)
     assert out.returncode == 0, out.stderr
-    from paintcell.sim.output.report import format_value
+    from paintcell.output.report import format_value
 
     html = (res / "report.html").read_text()
     assert "small_panel" in html and format_value(after["executed_nsd_pct"]) in html

@@ -1,6 +1,6 @@
 """Placement scored by what the run suffers (paintcell.robots.placement_score), checked against the
 real time law: TOPP-RA on the program built at the chosen base
-(paintcell.sim.motion.trajectory.build_program), not
+(paintcell.motion.trajectory.build_program), not
 the score's own finite differences.
 """
 
@@ -12,10 +12,10 @@ from typing import Any
 import numpy as np
 import pytest
 
+from paintcell.motion.trajectory import build_program
 from paintcell.robots.catalog import load_robot
 from paintcell.robots.placement import facing_grid, find_base_pose
 from paintcell.robots.placement_score import motion_score
-from paintcell.sim.motion.trajectory import build_program
 from tests.test_trajectory import _plan
 
 

@@ -9,9 +9,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.plan import TIMING_RTOL, CoveragePlan, PassPlan, times_from_speeds
-from paintcell.planning.errors import PlanError
-from paintcell.planning.paint.applicator import Applicator
+from paintcell.core.errors import PlanError
+from paintcell.coverage.plan import TIMING_RTOL, CoveragePlan, PassPlan, times_from_speeds
+from paintcell.paint.applicator import Applicator
 
 M = 6
 

@@ -1,4 +1,4 @@
-"""paintcell.sim.output.plots: every figure is a non-blank PNG; bad inputs raise PlotError."""
+"""paintcell.output.plots: every figure is a non-blank PNG; bad inputs raise PlotError."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from paintcell.planning.surface.surface import plane
-from paintcell.sim.output import plots
+from paintcell.output import plots
+from paintcell.surface.surface import plane
 from tests.helpers import RENDER_MIN_PIXEL_STD
 
 

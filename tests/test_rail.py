@@ -12,16 +12,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.planning.surface.parts import get_part
+from paintcell.app.scenario import pose
+from paintcell.app.scenario_files import load_scenario
+from paintcell.execution.cell import build_cell
+from paintcell.execution.execute import execute
+from paintcell.motion.joint_trajectory import PAINT
+from paintcell.motion.trajectory import TrajectorySettings, build_program
 from paintcell.robots import load_robot
 from paintcell.robots.ik import IKSettings
 from paintcell.robots.rail import RailSpec, best_rail_position, load_rail_robot, rail_cost
-from paintcell.sim.app.scenario import pose
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.execution.cell import build_cell
-from paintcell.sim.execution.execute import execute
-from paintcell.sim.motion.joint_trajectory import PAINT
-from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
+from paintcell.surface.parts import get_part
 from tests.helpers import FK_AGREEMENT_ATOL_M
 
 T_RAIL = pose((-0.5, 0.2, 1.0), (0.0, 0.0, 0.3))
@@ -65,7 +65,7 @@ def test_rail_spec_rejects_bad_values():
 
 @pytest.fixture(scope="module")
 def roof_case():
-    from paintcell.sim.app.pipeline import load_robot_for, load_surface, make_plan
+    from paintcell.app.pipeline import load_robot_for, load_surface, make_plan
 
     scn = load_scenario(ROOF_RAIL)
     surface = load_surface(scn, fast=True)
@@ -125,7 +125,7 @@ def test_rail_and_fixed_cells_execute_the_same_tcp_path(roof_case):
                           TrajectorySettings(q_home=(0.0, -0.6, 0.3, 0.0, 0.9, 0.0),
                                              approach_clearance_m=0.15,
                                              retract_clearance_m=0.3))
-    from paintcell.sim.motion.joint_trajectory import JointTrajectory
+    from paintcell.motion.joint_trajectory import JointTrajectory
 
     K = 6000   # the approach and the first pass (6 s) keep the test short
     arrays = {name: getattr(traj6, name)[:K] for name in JointTrajectory._ARRAYS}
@@ -149,8 +149,8 @@ def test_refined_pass_keeps_the_carriage_still(roof_case):
     placement put it for the pass). Every 8th IK sample of a roof pass leaves the spline
     centimetres off the path, so knots are inserted; re-measured: the rail column is exactly
     constant, and the inserted knots are on the path."""
+    from paintcell.motion.trajectory_paths import _refined_path
     from paintcell.robots.paths import solve_paths
-    from paintcell.sim.motion.trajectory_paths import _refined_path
 
     scn, _, plan, robot = roof_case
     T = scn.part_placement.matrix @ plan.tcp_frames(1)

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.plan import tcp_frames
+from paintcell.coverage.plan import tcp_frames
 from paintcell.robots import load_robot
 from paintcell.robots.ik import combined_report
 from paintcell.robots.paths import solve_paths

@@ -1,4 +1,4 @@
-"""Hem and flange film reported apart (paintcell.sim.validation.region_film): closed-form films on a
+"""Hem and flange film reported apart (paintcell.validation.region_film): closed-form films on a
 plate whose
 strips are labelled hem and edge."""
 
@@ -9,9 +9,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from paintcell.planning.surface.regions import REGION_NAMES, PartRegions
-from paintcell.planning.surface.surface import plane
-from paintcell.sim.validation.region_film import region_film
+from paintcell.surface.regions import REGION_NAMES, PartRegions
+from paintcell.surface.surface import plane
+from paintcell.validation.region_film import region_film
 
 
 def test_region_means_are_the_closed_form_averages() -> None:

@@ -1,4 +1,4 @@
-"""paintcell.sim.output.render: backend choice, film colour map, compositing over a compiled model,
+"""paintcell.output.render: backend choice, film colour map, compositing over a compiled model,
 writers."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from paintcell.planning.surface.surface import plane
-from paintcell.sim.output import render, render_backend
+from paintcell.output import render, render_backend
+from paintcell.surface.surface import plane
 from tests.helpers import RENDER_MIN_PIXEL_STD, RENDER_RAMP_MIN_LEVEL_GAP
 
 VMIN_UM, VMAX_UM = 10.0, 50.0
@@ -45,7 +45,7 @@ def test_backend_is_chosen():
 
 
 def test_no_backend_is_a_clear_error(monkeypatch):
-    # The backend choice lives in paintcell.sim.output.render_backend (render re-exports it): patch
+    # The backend choice lives in paintcell.output.render_backend (render re-exports it): patch
     # it there.
     monkeypatch.setattr(render_backend, "_backend", None)
     monkeypatch.delenv("MUJOCO_GL", raising=False)

@@ -1,4 +1,4 @@
-"""A robot-aware re-plan re-times the kept pass geometry (`paintcell.planning.coverage.
+"""A robot-aware re-plan re-times the kept pass geometry (`paintcell.coverage.
 family_geometry`) instead of planning the passes again: the same plan, array by array, as a
 re-plan from scratch, without a single width search, and within its caps."""
 
@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import paintcell.planning.coverage.coverage_planner as cp
-from paintcell.planning.coverage import family_geometry
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface import parts
+import paintcell.coverage.coverage_planner as cp
+from paintcell.coverage import family_geometry
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.paint.applicator import Applicator
+from paintcell.surface import parts
 
 # a curved part (width searches on markers) and both start orders planned
 ST = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=8, first_side="best")

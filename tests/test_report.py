@@ -1,4 +1,4 @@
-"""paintcell.sim.output.report: a self-contained HTML report built from files only; make_figures end
+"""paintcell.output.report: a self-contained HTML report built from files only; make_figures end
 to end."""
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from paintcell.planning.surface.surface import plane
-from paintcell.sim.motion.joint_trajectory import JointTrajectory
-from paintcell.sim.output import report
-from paintcell.sim.output.render_images import write_png, write_video
+from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.output import report
+from paintcell.output.render_images import write_png, write_video
+from paintcell.surface.surface import plane
 
 METRICS = {
     "planned_nsd_pct": 3.21,
@@ -198,8 +198,8 @@ def test_make_figures_without_cell(tmp_path):
 
 def test_make_figures_with_cell_robot_and_video(tmp_path):
     """The real paint cell: robot renders at three moments and an execution GIF."""
+    from paintcell.execution.cell import build_cell
     from paintcell.robots import load_robot
-    from paintcell.sim.execution.cell import build_cell
 
     s = plane(0.6, 0.4, resolution_m=0.05)
     T = np.eye(4)
@@ -227,7 +227,7 @@ def test_make_figures_with_cell_robot_and_video(tmp_path):
 
 
 def test_no_gl_backend_skips_renders_but_keeps_plots(tmp_path, monkeypatch):
-    from paintcell.sim.output import render
+    from paintcell.output import render
 
     def no_backend() -> str:
         raise render.RenderBackendError("no offscreen OpenGL backend: install libosmesa6")

@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from paintcell.planning.paint.metrics import uniformity
-from paintcell.planning.surface.surface import plane
-from paintcell.sim.motion.joint_trajectory import JointTrajectory
-from paintcell.sim.output import report
-from paintcell.sim.output.report_film import FilmFileError, histogram_png, load_film, save_film
-from paintcell.sim.output.report_names import check_reason, headline_rows, number, with_unit
-from paintcell.sim.output.report_sections import pass_rows
+from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.output import report
+from paintcell.output.report_film import FilmFileError, histogram_png, load_film, save_film
+from paintcell.output.report_names import check_reason, headline_rows, number, with_unit
+from paintcell.output.report_sections import pass_rows
+from paintcell.paint.metrics import uniformity
+from paintcell.surface.surface import plane
 
 
 def _film(tmp_path, planned, executed, areas, judged, target, tol):
@@ -44,7 +44,7 @@ def test_inside_share_by_construction(tmp_path):
 
 def test_save_film_matches_planning_metrics(tmp_path):
     """film.npz written from a surface and a report agrees with
-    paintcell.planning.paint.metrics.uniformity."""
+    paintcell.paint.metrics.uniformity."""
     s = plane(0.6, 0.4, resolution_m=0.05)
     x = s.vertices[:, 0]
     planned = 20e-6 + 3e-6 * np.cos(9 * x)

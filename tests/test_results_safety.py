@@ -22,8 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.sim.app.cli import EXIT_INTERRUPTED, EXIT_USAGE, main
-from paintcell.sim.output.results_dir import MARKER, new_results
+from paintcell.cli.main import EXIT_INTERRUPTED, EXIT_USAGE, main
+from paintcell.core.results_dir import MARKER, new_results
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -126,7 +126,7 @@ def test_python_scenario_with_a_nan_threshold_is_refused(tmp_path: Path,
                                                          capsys: pytest.CaptureFixture[str]) \
         -> None:
     script = tmp_path / "nan.py"
-    script.write_text("from paintcell.sim.app.scenario import Placement, Scenario, Thresholds\n"
+    script.write_text("from paintcell.app.scenario import Placement, Scenario, Thresholds\n"
                       "SCENARIO = Scenario(name='nan', part='panel', part_placement=Placement(),"
                       " thresholds=Thresholds(max_loss_pp=float('nan')))\n")
     assert main(["run", str(script), "--fast", "--out", str(tmp_path / "o")]) == EXIT_USAGE
@@ -227,9 +227,9 @@ def test_a_signal_a_library_swallows_still_interrupts(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # trimesh imports optional modules inside `except BaseException`: a Ctrl-C that lands there
     # is swallowed. Replay it with a real SIGINT raised inside such a block during the plan.
-    import paintcell.sim.app.pipeline
+    import paintcell.app.pipeline
 
-    real = paintcell.sim.app.pipeline.load_surface
+    real = paintcell.app.pipeline.load_surface
 
     def swallowing_load(*args: object, **kw: object) -> object:
         try:
@@ -239,7 +239,7 @@ def test_a_signal_a_library_swallows_still_interrupts(
             pass
         return real(*args, **kw)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(paintcell.sim.app.pipeline, "load_surface", swallowing_load)
+    monkeypatch.setattr(paintcell.app.pipeline, "load_surface", swallowing_load)
     with new_results(tmp_path / "res", "run") as tmp:
         (tmp / "plan.json").write_text('{"old": 1}')  # type: ignore[operator]
     before = _snapshot(tmp_path / "res")
@@ -378,7 +378,7 @@ def test_check_survives_exits_exceptions_crashes_and_memory_hogs(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     d = tmp_path / "scn"
     d.mkdir()
-    head = ("from paintcell.sim.app.scenario import Placement, Scenario\n"
+    head = ("from paintcell.app.scenario import Placement, Scenario\n"
             "SCENARIO = Scenario(name='{n}', part='panel', part_placement=Placement())\n")
     (d / "a_exit.py").write_text("import sys\nsys.exit(0)\n")
     (d / "b_memory.py").write_text(head.format(n="b") + "raise MemoryError('planted')\n")

@@ -157,7 +157,7 @@ def test_placed_robot_moves_fk_and_jacobian_with_the_base():
 
 
 def test_generated_mjcf_write_leaves_no_temp_file_on_failure(tmp_path, monkeypatch):
-    """`write_generated_mjcf` writes through `paintcell.planning.atomic_io`: a failed rename removes
+    """`write_generated_mjcf` writes through `paintcell.core.atomic_io`: a failed rename removes
     the
     temp file instead of leaking it."""
     import os

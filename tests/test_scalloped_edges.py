@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.patches import extrusion_residual, face_normals_areas, segment
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import thickness
-from paintcell.planning.surface.surface import Surface, grid_faces, surface_from_triangles
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.patches import extrusion_residual, face_normals_areas, segment
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import thickness
+from paintcell.surface.surface import Surface, grid_faces, surface_from_triangles
 
 #: the plate's tongues: one every PERIOD_M along x, tips at TIP_M, notches down to NOTCH_M [m]
 PERIOD_M, TIP_M, NOTCH_M = 0.25, 0.9, 0.6

@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.sim.app.pipeline import settings_from
-from paintcell.sim.app.scenario_checks import ScenarioDataError, _settings_classes
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.booth.booth import Booth
+from paintcell.app.pipeline import settings_from
+from paintcell.app.scenario_checks import ScenarioDataError, _settings_classes
+from paintcell.app.scenario_files import load_scenario
+from paintcell.booth.booth import Booth
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[1] / "scenarios").glob("*.toml"))
 

@@ -10,10 +10,10 @@ import mujoco
 import numpy as np
 import pytest
 
-from paintcell.planning.surface import parts
+from paintcell.execution.cell import build_cell
+from paintcell.execution.execute_settings import ExecutionError, ServoSettings
 from paintcell.robots.rail import load_rail_robot
-from paintcell.sim.execution.cell import build_cell
-from paintcell.sim.execution.execute_settings import ExecutionError, ServoSettings
+from paintcell.surface import parts
 
 
 def test_effective_inertia_gains_are_what_a_unit_torque_accelerates():

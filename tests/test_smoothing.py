@@ -1,4 +1,4 @@
-"""Plan on a smooth approximation, paint the real part (paintcell.planning.coverage.smoothing).
+"""Plan on a smooth approximation, paint the real part (paintcell.coverage.smoothing).
 
 Independent truths: a flat sheet is a fixed point of the heat flow; over a generated crease (two
 planes folded 30°, a discrete curvature of ~25 1/m on the crease line) the bell axis of the
@@ -13,19 +13,19 @@ import functools
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.coverage.smoothing import (
+from paintcell.core.errors import AxisTurnError, PlanError
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.smoothing import (
     limit_turn_rate,
     smooth_along,
     smoothed_surface,
     turn_rate_rad_m,
 )
-from paintcell.planning.errors import AxisTurnError, PlanError
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface.surface import Surface, grid_faces, plane, surface_from_triangles
+from paintcell.motion.joint_trajectory import PAINT
+from paintcell.motion.trajectory import build_program
+from paintcell.paint.applicator import Applicator
 from paintcell.robots.catalog import load_robot
-from paintcell.sim.motion.joint_trajectory import PAINT
-from paintcell.sim.motion.trajectory import build_program
+from paintcell.surface.surface import Surface, grid_faces, plane, surface_from_triangles
 
 BOUND_RAD_M = 4.0
 
@@ -122,8 +122,8 @@ def test_auto_smoothing_plans_again_at_a_larger_scale_when_the_axis_cannot_follo
     4.04; the planner plans again at 2× then 4× and says so. Re-measured here on the plan's own
     samples (angle between consecutive spray axes over the path length between them), every pass
     turns under the bound; the same scale given as a number is not retried."""
-    from paintcell.planning.coverage.coverage import AUTO_SMOOTHING_RETRIES
-    from paintcell.planning.coverage.smoothing import FOOTPRINT_FRACTION
+    from paintcell.coverage.coverage import AUTO_SMOOTHING_RETRIES
+    from paintcell.coverage.smoothing import FOOTPRINT_FRACTION
 
     app = Applicator.default()
     sheet = creased_sheet(fold_deg=60.0)
@@ -148,7 +148,7 @@ def test_auto_smoothing_plans_again_at_a_larger_scale_when_the_axis_cannot_follo
 def test_limiter_window_is_the_distance_to_the_nearest_fast_segment() -> None:
     """The limiter's window (how far each sample is from the nearest segment still too fast)
     against a brute-force table of every distance."""
-    from paintcell.planning.coverage.smoothing import _near
+    from paintcell.coverage.smoothing import _near
 
     rng = np.random.default_rng(3)
     for m in (1, 2, 7, 300):
@@ -165,7 +165,7 @@ def test_start_orders_advance_in_turn_and_an_axis_failure_ends_both(monkeypatch)
     fourth: with a larger "auto" scale left (axis_turn_fails_fast) the error ends the plan
     after 4 passes of the right order, not all 30 as one order after the other did; without it the
     left order drops out and the right one's plan is kept, the same as planned alone."""
-    import paintcell.planning.coverage.coverage_family as cf
+    import paintcell.coverage.coverage_family as cf
 
     steps = {False: 0, True: 0}
 

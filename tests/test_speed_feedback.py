@@ -1,4 +1,4 @@
-"""Robot-aware speeds (paintcell.sim.motion.speed_feedback): caps measured from a joint program's
+"""Robot-aware speeds (paintcell.motion.speed_feedback): caps measured from a joint program's
 TCP speeds, mapped
 onto the plan's samples in each pass's generation direction, and obeyed by the re-plan."""
 
@@ -8,16 +8,16 @@ from dataclasses import replace
 
 import numpy as np
 
-from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.surface import parts
-from paintcell.sim.motion.speed_feedback import (
+from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.motion.speed_feedback import (
     SLOW_REL,
     achieved_speeds,
     speed_caps,
     tool_axes,
     with_targets,
 )
+from paintcell.paint.applicator import Applicator
+from paintcell.surface import parts
 from tests.helpers import stand_in_program
 
 APP = Applicator.default()

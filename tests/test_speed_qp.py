@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.plan import times_from_speeds
-from paintcell.planning.coverage.speed_qp import (
+from paintcell.core.errors import PaintcellError
+from paintcell.coverage.plan import times_from_speeds
+from paintcell.coverage.speed_qp import (
     SpeedQPError,
     SpeedSettings,
     SubOffsetBand,
@@ -17,8 +18,7 @@ from paintcell.planning.coverage.speed_qp import (
     optimize_pass_speed,
     optimize_speed_from_rates,
 )
-from paintcell.planning.errors import PaintcellError
-from paintcell.planning.paint.applicator import Applicator
+from paintcell.paint.applicator import Applicator
 from tests.helpers import FD_GRADIENT_RTOL, QP_CONSTRAINT_RTOL
 
 H = 0.25  # standoff of the straight test pass [m]
@@ -52,7 +52,7 @@ def _plane_pass(panel_m: float = 0.8, over_m: float = 0.1, ds_m: float = 0.005,
 
 def _gaussian_rates(centres: np.ndarray, band: SubOffsetBand, a0: float = 2e-5,
                     sx: float = 0.06, sy: float = 0.08) -> list[np.ndarray]:
-    """Local closed-form rate model, independent of paintcell.planning.paint.deposition: a bivariate
+    """Local closed-form rate model, independent of paintcell.paint.deposition: a bivariate
     Gaussian of
     the in-plane offset between gun and point (valid for a gun normal to a flat panel)."""
     out = []

@@ -1,12 +1,13 @@
 """Start curve (paper §2.3) and the in-surface curve geometry it is built from
-(paintcell.planning.coverage.offset)."""
+(paintcell.coverage.offset)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.offset import (
+from paintcell.core.errors import PlanError
+from paintcell.coverage.offset import (
     IndexingCurve,
     SurfaceGeometry,
     arc_length,
@@ -18,15 +19,14 @@ from paintcell.planning.coverage.offset import (
     resample,
     walk,
 )
-from paintcell.planning.coverage.start_curve import (
+from paintcell.coverage.start_curve import (
     altitude_sweep,
     average_normal,
     divider_offset,
     select_start_curve,
 )
-from paintcell.planning.errors import PlanError
-from paintcell.planning.surface import parts
-from paintcell.planning.surface.surface import plane
+from paintcell.surface import parts
+from paintcell.surface.surface import plane
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
 
 RES = 0.025
@@ -226,7 +226,7 @@ def test_sphere_cap_start_curve_is_a_great_circle_through_the_axis() -> None:
     icosphere edges, 1.2e-4 m) in a plane through the centre."""
     import trimesh
 
-    from paintcell.planning.surface.surface import Surface
+    from paintcell.surface.surface import Surface
 
     radius = 0.6
     ico = trimesh.creation.icosphere(subdivisions=5, radius=radius)
@@ -272,7 +272,7 @@ def test_section_components_are_ordered_chains_of_the_whole_component() -> None:
     ordering returns (all of them, or the one holding a wanted crossing, as an indexing curve
     asks) is exactly a connected component found by brute force, every consecutive pair of its
     crossings shares a face, and an open chain starts at one of its ends."""
-    from paintcell.planning.coverage.offset_sections import _crossings, _order_components
+    from paintcell.coverage.offset_sections import _crossings, _order_components
 
     geom = SurfaceGeometry.from_surface(parts.get_part("hood", 0.05))
     rng = np.random.default_rng(7)

@@ -20,9 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "paintcell"
 
 #: The stages of the data flow and the folder each lives in (docs/architecture.md).
-STAGE_FOLDERS = ["planning/surface", "planning/paint", "planning/coverage", "robots",
-                 "sim/motion", "sim/execution", "sim/validation", "sim/output", "sim/booth",
-                 "sim/sweeps", "sim/app"]
+STAGE_FOLDERS = ["core", "surface", "paint", "coverage", "robots", "motion", "execution",
+                 "validation", "output", "booth", "sweeps", "app", "cli"]
 
 
 def test_no_module_over_the_line_limit() -> None:
@@ -38,15 +37,15 @@ def test_no_import_cycles() -> None:
 
 
 #: The stages in data-flow order; a module may import its own stage and the ones before it.
-#: booth, sweeps and app sit on top of the chain (they use every stage and each other,
+#: booth, sweeps, app and cli sit on top of the chain (they use every stage and each other,
 #: without cycles).
-STAGE_ORDER = ["planning", "planning.surface", "planning.paint", "planning.coverage", "robots",
-               "sim.motion", "sim.execution", "sim.validation", "sim.output"]
-ON_TOP = ("paintcell.sim.booth", "paintcell.sim.sweeps", "paintcell.sim.app")
+STAGE_ORDER = ["core", "surface", "paint", "coverage", "robots", "motion", "execution",
+               "validation", "output"]
+ON_TOP = ("paintcell.booth", "paintcell.sweeps", "paintcell.app", "paintcell.cli")
 
 
 def _stage(mod: str) -> int | None:
-    """Index in STAGE_ORDER of the longest stage prefix of `mod` (planning's own modules, such as
+    """Index in STAGE_ORDER of the longest stage prefix of `mod` (`core`'s modules, such as
     `errors`, are stage 0, shared by every stage after it)."""
     rest = mod.removeprefix("paintcell.")
     found = None
@@ -57,9 +56,9 @@ def _stage(mod: str) -> int | None:
 
 
 def test_every_module_lives_in_a_stage() -> None:
-    """No module outside the stage folders (a new `paintcell/sim/x.py` would dodge the data-flow
+    """No module outside the stage folders (a new `paintcell/x.py` would dodge the data-flow
     check): only the package roots and `paintcell/__main__.py` sit above them."""
-    roots = {"paintcell", "paintcell.__main__", "paintcell.sim"}
+    roots = {"paintcell", "paintcell.__main__"}
     stray = sorted(m for m in import_graph(PKG)
                    if m not in roots and _stage(m) is None and not m.startswith(ON_TOP))
     assert not stray, f"modules outside every stage folder: {stray}"
@@ -86,7 +85,7 @@ def test_every_stage_has_its_folder_and_every_folder_is_a_stage() -> None:
         assert (PKG / f / "__init__.py").is_file(), f"{f} has modules but no __init__.py"
     for stage in STAGE_FOLDERS:
         assert (PKG / stage / "__init__.py").is_file(), stage
-    extra = set(folders) - set(STAGE_FOLDERS) - {"planning", "sim"}
+    extra = set(folders) - set(STAGE_FOLDERS)
     assert not extra, f"package folders not in the stage list: {sorted(extra)}"
 
 
@@ -138,13 +137,13 @@ def test_checker_finds_a_lazy_cycle_and_ignores_type_checking(tmp_path: Path) ->
 
 
 def test_stage_of_a_module() -> None:
-    assert _stage("paintcell.planning.errors") == 0
-    assert _stage("paintcell.planning.surface.surface") == 1
-    assert _stage("paintcell.planning.coverage.plan") == 3
+    assert _stage("paintcell.core.errors") == 0
+    assert _stage("paintcell.surface.surface") == 1
+    assert _stage("paintcell.coverage.plan") == 3
     assert _stage("paintcell.robots.ik") == 4
-    assert _stage("paintcell.sim.validation.validate") == 7
+    assert _stage("paintcell.validation.validate") == 7
     assert _stage("paintcell.sim.foo") is None
-    assert _stage("paintcell.sim.app.cli") is None
+    assert _stage("paintcell.cli.main") is None
 
 
 def test_checker_finds_a_long_module(tmp_path: Path) -> None:

@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.planning.coverage.offset import SurfaceGeometry
-from paintcell.planning.errors import SurfaceError
-from paintcell.planning.surface.curvature import (
+from paintcell.core.errors import SurfaceError
+from paintcell.coverage.offset import SurfaceGeometry
+from paintcell.surface.curvature import (
     boundary_vertex_mask,
     discrete_curvature,
     mixed_voronoi_areas,
     vertex_normals,
 )
-from paintcell.planning.surface.surface import (
+from paintcell.surface.surface import (
     Surface,
     bspline_patch,
     cylinder,

@@ -19,12 +19,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from paintcell.sim.app.cli import main
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.execution.execute_settings import Disturbances
-from paintcell.sim.sweeps.sweep import run_sweep, sample_path
-from paintcell.sim.sweeps.sweep_spec import SweepError, spec_from_scenario
-from paintcell.sim.sweeps.sweep_worker import RUN_KEYS
+from paintcell.app.scenario_files import load_scenario
+from paintcell.cli.main import main
+from paintcell.execution.execute_settings import Disturbances
+from paintcell.sweeps.sweep import run_sweep, sample_path
+from paintcell.sweeps.sweep_spec import SweepError, spec_from_scenario
+from paintcell.sweeps.sweep_worker import RUN_KEYS
 from tests.sweep_cases import plate_scenario
 
 pytestmark = pytest.mark.slow

@@ -1,5 +1,5 @@
 """Booth sweeps over the conveyor's speed error and the body's placement on the skid
-(`paintcell.sim.sweeps.sweep_booth`).
+(`paintcell.sweeps.sweep_booth`).
 
 The slow test sends a small sweep of the two-robot roof booth through a real Dask cluster
 (a `dask scheduler` and two `dask worker` processes on 127.0.0.1, started by the fixture of
@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from paintcell.sim.sweeps.sweep import run_sweep
-from paintcell.sim.sweeps.sweep_spec import SweepError, SweepSpec
-from paintcell.sim.sweeps.sweep_worker import RUN_KEYS
+from paintcell.sweeps.sweep import run_sweep
+from paintcell.sweeps.sweep_spec import SweepError, SweepSpec
+from paintcell.sweeps.sweep_worker import RUN_KEYS
 from tests.sweep_cases import plate_scenario
 from tests.test_booth import ROOF_BOOTH
 from tests.test_sweep_dask import cluster  # noqa: F401 - the loopback cluster fixture
@@ -36,8 +36,8 @@ SPEC = SweepSpec.from_strings(["conveyor_speed_error_m_s=uniform(-0.01, 0.01)"],
 @pytest.fixture(scope="module")
 def roof_payload() -> Any:
     """The roof booth's programs and reference films for SPEC, kinematic (built once: ~5 s)."""
-    from paintcell.sim.sweeps.sweep import spec_digest
-    from paintcell.sim.sweeps.sweep_booth import prepare_booth_payload
+    from paintcell.sweeps.sweep import spec_digest
+    from paintcell.sweeps.sweep_booth import prepare_booth_payload
 
     return prepare_booth_payload(ROOF_BOOTH, SPEC.names,
                                  spec_digest(ROOF_BOOTH, SPEC, True, "kinematic"), True,
@@ -47,7 +47,7 @@ def roof_payload() -> Any:
 def test_factors_that_do_not_fit_the_scenario_are_refused(tmp_path: Path) -> None:
     """A line-speed error on the single-robot cell, a single-robot factor on a booth: one-line
     errors naming the fix, before anything is planned or written."""
-    from paintcell.sim.app.scenario_files import load_scenario
+    from paintcell.app.scenario_files import load_scenario
 
     plate = load_scenario(plate_scenario(tmp_path / "case"))
     with pytest.raises(SweepError, match="no conveyor; sweep a booth scenario"):
@@ -63,8 +63,8 @@ def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
 
     import tomli_w
 
-    from paintcell.sim.app.scenario_files import load_scenario
-    from paintcell.sim.booth.booth_data import BoothDataError
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth_data import BoothDataError
 
     b = load_scenario("scenarios/booth.toml")
     assert b.sweep["factors"] == {"conveyor_speed_error_m_s": "normal(0, 0.0025)"}
@@ -80,9 +80,9 @@ def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
 def test_conveyor_speed_sweep_on_a_loopback_cluster(
         tmp_path: Path, cluster: tuple[str, list[subprocess.Popen[bytes]]],  # noqa: F811
         roof_payload: Any) -> None:
-    from paintcell.planning.paint.deposition import thickness
-    from paintcell.sim.booth.booth_film import body_uniformity, gun_in_body
-    from paintcell.sim.sweeps.sweep_booth import run_booth_sample
+    from paintcell.booth.booth_film import body_uniformity, gun_in_body
+    from paintcell.paint.deposition import thickness
+    from paintcell.sweeps.sweep_booth import run_booth_sample
 
     address, _ = cluster
     res = run_sweep(ROOF_BOOTH, SPEC, tmp_path / "remote", fast=True, mode="kinematic",
@@ -133,9 +133,9 @@ def test_part_offset_on_the_skid_moves_the_body_the_films_see(roof_payload: Any)
     the sample's seed, normalized, in the part frame) times |x|. The servo film is the
     nominal body's (the TCPs did not change), so the loss it counts as the body's misplacement
     (executed − servo) is exactly the executed film's change."""
-    from paintcell.planning.paint.deposition import thickness
-    from paintcell.sim.booth.booth_film import body_uniformity, gun_in_body
-    from paintcell.sim.sweeps.sweep_booth import run_booth_sample
+    from paintcell.booth.booth_film import body_uniformity, gun_in_body
+    from paintcell.paint.deposition import thickness
+    from paintcell.sweeps.sweep_booth import run_booth_sample
 
     # the same programs and reference films (no factor changes them), another factor
     payload = dataclasses.replace(roof_payload, names=("part_offset_m",),

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.sim.app.cli import EXIT_USAGE, build_parser, main
+from paintcell.cli.main import EXIT_USAGE, build_parser, main
 
 ROOT = Path(__file__).resolve().parent.parent
 

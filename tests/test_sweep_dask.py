@@ -25,10 +25,10 @@ from typing import Any
 
 import pytest
 
-from paintcell.sim.app.scenario_files import load_scenario
-from paintcell.sim.sweeps.sweep import run_sweep
-from paintcell.sim.sweeps.sweep_spec import spec_from_scenario
-from paintcell.sim.sweeps.sweep_worker import RUN_KEYS
+from paintcell.app.scenario_files import load_scenario
+from paintcell.sweeps.sweep import run_sweep
+from paintcell.sweeps.sweep_spec import spec_from_scenario
+from paintcell.sweeps.sweep_worker import RUN_KEYS
 from tests.sweep_cases import plate_scenario
 
 pytestmark = pytest.mark.slow
@@ -183,7 +183,7 @@ def test_samples_whose_inputs_the_scheduler_lost_are_sent_again(
                 fresh.append(_start_worker(address, log, tmp_path))
                 workers.append(fresh[0])   # stopped with the cluster
 
-        with caplog.at_level(logging.WARNING, logger="paintcell.sim.sweeps.sweep"):
+        with caplog.at_level(logging.WARNING, logger="paintcell.sweeps.sweep"):
             res = run_sweep(scn, spec, tmp_path / "lost", fast=True, mode="kinematic",
                             scheduler=address, progress=False, report=False,
                             on_sample=kill_the_holder)

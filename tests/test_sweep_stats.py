@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from paintcell.sim.sweeps.sweep_spec import Distribution, SweepError, SweepSpec, spec_from_scenario
-from paintcell.sim.sweeps.sweep_stats import (
+from paintcell.sweeps.sweep_spec import Distribution, SweepError, SweepSpec, spec_from_scenario
+from paintcell.sweeps.sweep_stats import (
     check_limits,
     limit_checks,
     quantiles,
@@ -127,7 +127,7 @@ def test_scenario_files_check_their_sweep_table_on_load(tmp_path: object) -> Non
 
     import tomli_w
 
-    from paintcell.sim.app.scenario_data import ScenarioDataError, load_toml_scenario
+    from paintcell.app.scenario_data import ScenarioDataError, load_toml_scenario
     from tests.sweep_cases import SCENARIO
 
     folder = Path(str(tmp_path))

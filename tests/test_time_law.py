@@ -1,4 +1,4 @@
-"""paintcell.sim.motion.time_law on a Cartesian robot (TCP = q), where every bound has a closed
+"""paintcell.motion.time_law on a Cartesian robot (TCP = q), where every bound has a closed
 form."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.sim.motion.joint_trajectory import TrajectoryError
-from paintcell.sim.motion.time_law import JointPath, make_grid, parameterize_pass
+from paintcell.motion.joint_trajectory import TrajectoryError
+from paintcell.motion.time_law import JointPath, make_grid, parameterize_pass
 from tests.helpers import FD_LIMIT_RTOL, SPEED_FOLLOW_RTOL
 
 DT = 1e-3
@@ -96,7 +96,7 @@ def test_boundary_speed_is_clipped_when_unreachable() -> None:
     assert law.sd_end_clipped
     assert law.sd_grid[0] == 0.0
     # Within the 0.1 % step back from the feasibility edge
-    # (paintcell.sim.motion.time_law._reachable_end).
+    # (paintcell.motion.time_law._reachable_end).
     assert law.sd_grid[-1] == pytest.approx(np.sqrt(2 * 1.0 * 0.1), rel=2e-3)
 
 
@@ -124,8 +124,8 @@ def test_a_pass_tightening_cannot_fix_gets_a_finer_grid(monkeypatch) -> None:
     grid halvings the law exists, and its samples, re-measured by finite differences of q(t)
     and of the TCP's forward kinematics, keep every joint velocity and acceleration and the TCP
     acceleration within the limits."""
+    from paintcell.motion import time_law
     from paintcell.robots.rail import RailSpec, load_rail_robot
-    from paintcell.sim.motion import time_law
 
     d = np.load(Path(__file__).parent / "data" / "time_law_coarse_grid_pass.npz")
     robot = load_rail_robot("irb5500", T_world_rail=d["T_world_rail"],

@@ -1,4 +1,4 @@
-"""paintcell.sim.motion.trajectory: the whole program re-measured by finite differences of its 1 kHz
+"""paintcell.motion.trajectory: the whole program re-measured by finite differences of its 1 kHz
 samples."""
 
 from __future__ import annotations
@@ -9,11 +9,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from paintcell.planning.coverage.plan import CoveragePlan, PassPlan
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.robots import load_robot
-from paintcell.robots.errors import UnreachableError
-from paintcell.sim.motion.joint_trajectory import (
+from paintcell.coverage.plan import CoveragePlan, PassPlan
+from paintcell.motion.joint_trajectory import (
     APPROACH,
     PAINT,
     RETRACT,
@@ -21,7 +18,10 @@ from paintcell.sim.motion.joint_trajectory import (
     JointTrajectory,
     TrajectoryError,
 )
-from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
+from paintcell.motion.trajectory import TrajectorySettings, build_program
+from paintcell.paint.applicator import Applicator
+from paintcell.robots import load_robot
+from paintcell.robots.errors import UnreachableError
 from tests.helpers import FD_LIMIT_RTOL, SPEED_FOLLOW_RTOL, TCP_PATH_ATOL_M
 
 # Straight passes 1 m long, 20 mm samples (the planner's default spacing), spray straight down,

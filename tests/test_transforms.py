@@ -1,4 +1,4 @@
-"""paintcell.planning.transforms: the one rigid-pose check, pose inverse and rotation conversions,
+"""paintcell.core.transforms: the one rigid-pose check, pose inverse and rotation conversions,
 held to
 scipy's `Rotation` and MuJoCo's own conversions."""
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from paintcell.planning.errors import PaintcellError
-from paintcell.planning.transforms import (
+from paintcell.core.errors import PaintcellError
+from paintcell.core.transforms import (
     TransformError,
     check_pose,
     check_poses,

@@ -1,4 +1,4 @@
-"""paintcell.sim.validation.validate: plan-vs-executed thickness, the uniformity loss and the
+"""paintcell.validation.validate: plan-vs-executed thickness, the uniformity loss and the
 threshold checks."""
 
 from __future__ import annotations
@@ -11,12 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.planning.coverage.plan import CoveragePlan, times_from_speeds
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import thickness
-from paintcell.sim.execution.execute import Disturbances, execute
-from paintcell.sim.execution.trace import Contact, ExecutedTrace
-from paintcell.sim.validation.validate import (
+from paintcell.coverage.plan import CoveragePlan, times_from_speeds
+from paintcell.execution.execute import Disturbances, execute
+from paintcell.execution.trace import Contact, ExecutedTrace
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import thickness
+from paintcell.validation.validate import (
     Thresholds,
     ValidationError,
     ValidationReport,
@@ -285,12 +285,12 @@ def test_binned_executed_samples_match_every_step() -> None:
 @pytest.mark.slow
 def test_door_program_end_to_end() -> None:
     """Door plan → 1 kHz program → servo execution → validation, on the real pipeline."""
-    from paintcell.planning.coverage.coverage import PlannerSettings, plan_coverage
-    from paintcell.planning.surface.parts import get_part
+    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.execution.cell import build_cell
+    from paintcell.execution.execute import execute
+    from paintcell.motion.trajectory import TrajectorySettings, build_program
     from paintcell.robots.catalog import load_robot
-    from paintcell.sim.execution.cell import build_cell
-    from paintcell.sim.execution.execute import execute
-    from paintcell.sim.motion.trajectory import TrajectorySettings, build_program
+    from paintcell.surface.parts import get_part
 
     T_world_part = np.array([[0.0, 0.0, -1.0, 1.55], [-1.0, 0.0, 0.0, 0.0],
                              [0.0, 1.0, 0.0, 1.1], [0.0, 0.0, 0.0, 1.0]])

@@ -1,4 +1,4 @@
-"""Re-run the design of the default bell (`paintcell/planning/paint/data/default_bell.toml`).
+"""Re-run the design of the default bell (`paintcell/paint/data/default_bell.toml`).
 
 The bell's eight shape parameters (σx, σy, the two rings' amplitude ratios to A0, radii and
 widths) are searched by Nelder-Mead (scipy) with the emitted flow held at the start bell's. The
@@ -7,8 +7,8 @@ axis, bell at standoff along the normal), of the smallest "robust" σ/μ of equa
 the largest σ/μ over a ±25 mm window of index widths (the planner's `width_tolerance_m`),
 minimised over window centres ≥ --min-centre; the plane's figure is weighted by --plane-weight,
 and a footprint radius above --max-footprint costs 10 per metre. The film of one pass on a
-cylinder is the line integral of `paintcell.planning.paint.deposition.deposition_rate` along the
-pass (on the plane: `paintcell.planning.coverage.index_width.nsd_vs_index_width`).
+cylinder is the line integral of `paintcell.paint.deposition.deposition_rate` along the
+pass (on the plane: `paintcell.coverage.index_width.nsd_vs_index_width`).
 
 The shipped bell: `--radii 1.0,0.5,0.38 --widths 0.20,0.45 --min-centre 0.30 --plane-weight 1.5
 --max-footprint 0.46 --iterations 1500`, started from the result of the same search with
@@ -23,9 +23,9 @@ import argparse
 import numpy as np
 from scipy.optimize import minimize
 
-from paintcell.planning.coverage.index_width import nsd_vs_index_width
-from paintcell.planning.paint.applicator import Applicator
-from paintcell.planning.paint.deposition import deposition_rate
+from paintcell.coverage.index_width import nsd_vs_index_width
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import deposition_rate
 
 
 def cylinder_pass_film(app: Applicator, radius_m: float, arc_m: np.ndarray) -> np.ndarray:

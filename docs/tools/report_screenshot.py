@@ -23,7 +23,7 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[2]
 VIEWPORT = (1280, 800)
-#: elements of the first screen (paintcell.sim.output.report_sections ids).
+#: elements of the first screen (paintcell.output.report_sections ids).
 FIRST_SCREEN = ("#verdict", "#film-map", "#film-histogram", "#pass-table")
 
 

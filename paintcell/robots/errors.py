@@ -1,6 +1,6 @@
 """Project exceptions for robots. Each message is one line naming the problem and the fix."""
 
-from paintcell.planning.errors import PaintcellError
+from paintcell.core.errors import PaintcellError
 
 
 class RobotError(PaintcellError):

@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from paintcell.planning.transforms import check_poses
+from paintcell.core.transforms import check_poses
 from paintcell.robots.errors import RobotError
 from paintcell.robots.reachability import ReachabilityReport, ReachabilityThresholds
 from paintcell.robots.robot import Robot

@@ -41,7 +41,7 @@ from paintcell.robots.paths import solve_paths
 from paintcell.robots.robot import Robot
 
 #: the time law uses this share of the joint speed / acceleration limits
-#: (paintcell.sim.motion.trajectory default).
+#: (paintcell.motion.trajectory default).
 VELOCITY_MARGIN = 0.95
 #: weight of a margin shortfall below the comfort margin, per rad, in the cost's % units.
 MARGIN_WEIGHT = 10.0

@@ -13,7 +13,7 @@ configuration along the pass, on the best closed-form branch — over the rail p
 whole pass is feasible (inside the limits, off the wrist singularity, with a comfort margin):
 a coarse scan of the rail, then a bounded scalar minimization (Brent) around the best scan
 point (an optional penalty — e.g. the arm's clearance to the parts around it,
-`paintcell.sim.booth.booth_clearance` — is added where the plain cost could still lose to it).
+`paintcell.booth.booth_clearance` — is added where the plain cost could still lose to it).
 The arm's 6-axis IK (`paintcell.robots.ik.solve_path`: closed form + DLS refinement) then
 runs at that rail position, and the 7-axis result is re-measured on the 7-axis model.
 """
@@ -283,7 +283,7 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
     """Rail position [m] for one pass (see the module doc) and whether the pass is feasible
     there. The pass is subsampled to `n_sub` poses for the search. penalty(s_m, Q): an extra
     cost of the feasible branch Q (M, 6) [rad] at carriage position s_m [m] (e.g. how close the
-    arm comes to things around it: `paintcell.sim.booth.booth_clearance`)."""
+    arm comes to things around it: `paintcell.booth.booth_clearance`)."""
     spec = placed_rail(robot).spec
     keep = np.unique(np.linspace(0, len(T_world_tcp) - 1, n_sub).astype(int))
     sub = T_world_tcp[keep]

@@ -20,8 +20,8 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
-from paintcell.planning.atomic_io import atomic_write_text
-from paintcell.planning.transforms import check_pose, quat_wxyz_from_matrix
+from paintcell.core.atomic_io import atomic_write_text
+from paintcell.core.transforms import check_pose, quat_wxyz_from_matrix
 from paintcell.robots.errors import RobotError
 from paintcell.robots.opw import OPWParameters
 
@@ -29,7 +29,7 @@ ROBOTS_DIR = Path(__file__).resolve().parent
 
 
 def _as_pose(T: npt.ArrayLike | None, what: str) -> np.ndarray:
-    """(4,4) float64 rigid transform, checked (`paintcell.planning.transforms.check_pose`); identity
+    """(4,4) float64 rigid transform, checked (`paintcell.core.transforms.check_pose`); identity
     when
     None."""
     if T is None:

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from paintcell.planning.transforms import inverse_pose
+from paintcell.core.transforms import inverse_pose
 from paintcell.robots.ur_kinematics import UR10_DH, ur_dh_fk, ur_dh_link
 
 __all__ = ["ur_closed_form", "ur_inverse"]

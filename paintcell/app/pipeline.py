@@ -1,0 +1,384 @@
+"""The end-to-end run of one scenario: surface → plan → IK + trajectory → MuJoCo → validation.
+
+Every stage's output is written into a temporary sibling of the results folder, which replaces the
+results folder only when the run finished (`paintcell.core.results_dir`: ownership marker,
+writer lock, atomic swap): a run that fails or is interrupted never leaves a half-written folder.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from tqdm import tqdm
+
+from paintcell.app.scenario import Scenario, ScenarioError
+from paintcell.app.scenario_checks import check_types
+from paintcell.core.atomic_io import atomic_write_text
+from paintcell.core.errors import PaintcellError
+from paintcell.core.interrupts import raise_if_interrupted
+from paintcell.core.results_dir import new_results
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.paint.applicator import Applicator
+from paintcell.surface.part_spec import CAD_SUFFIXES, MESH_SUFFIXES, MeshPart
+from paintcell.surface.surface import Surface
+
+STAGES = ("surface", "plan", "trajectory", "execute", "validate", "report")
+
+
+@dataclass
+class RunResult:
+    """What a scenario run produced (objects in memory and the folder they were written to)."""
+
+    scenario: Scenario
+    out_dir: Path | None
+    surface: Surface
+    plan: CoveragePlan
+    trajectory: Any
+    trace: Any
+    report: Any
+    timings_s: dict[str, float] = field(default_factory=dict)
+    fast: bool = False
+    mode: str = "servo"
+
+    @property
+    def passed(self) -> bool:
+        """True when every threshold of the scenario is met."""
+        return bool(self.report.passed)
+
+
+def load_surface(scn: Scenario, fast: bool = False) -> Surface:
+    """The scenario's part surface in the part frame, at the full or fast resolution."""
+    return part_surface(scn.part, scn.fast_resolution_m if fast else scn.resolution_m,
+                        scn.source, "fast_resolution_m" if fast else "resolution_m")
+
+
+def part_surface(part: str | MeshPart, res: float, source: str | None = None,
+                 res_key: str = "resolution_m") -> Surface:
+    """A part's surface in its own frame at remesh edge length res [m]: a library part name, a
+    mesh/CAD `MeshPart` (a scenario's or a booth's `[part]` table) or a bare path (every [part]
+    setting at its default); a relative file is relative to `source` (the scenario file).
+    res_key names the setting in the budget's error."""
+    from paintcell.surface import parts
+
+    if isinstance(part, str) and part in parts.PART_NAMES:
+        from paintcell.app.budget import check_surface_budget
+
+        # The area from a coarse build (~40 ms) sizes the real one before it allocates.
+        area = parts.get_part(part, resolution_m=max(res, 0.05)).area
+        check_surface_budget(area, res, res_key)
+        return parts.get_part(part, resolution_m=res)
+    # A mesh/CAD file: a [part] table, or a bare path (every [part] setting at its default).
+    if isinstance(part, MeshPart):
+        spec = part
+    elif Path(part).suffix.lower() in MESH_SUFFIXES + CAD_SUFFIXES:
+        spec = MeshPart(file=part)
+    else:
+        raise PaintcellError(f"part {part!r} is neither a library part "
+                             f"({', '.join(parts.PART_NAMES)}) nor a mesh/CAD file")
+    from paintcell.surface.part_import import import_part
+
+    path = Path(spec.file)
+    if not path.is_absolute() and source:
+        path = Path(source).parent / path
+    if path.is_file() and path.suffix.lower() in MESH_SUFFIXES:
+        sniff_mesh(path)
+    return import_part(replace(spec, file=str(path)), resolution_m=res)[0]
+
+
+def sniff_mesh(path: Path) -> None:
+    """Refuse a mesh file whose bytes cannot be the format its suffix says, in one line.
+
+    Binary STL: 84-byte header + 50 bytes per triangle (a truncated file does not add up); ASCII
+    STL, OBJ and ASCII PLY must be UTF-8 text (random bytes would otherwise reach trimesh's
+    text-encoding guesser and come back as an unrelated import error).
+    """
+    suffix = path.suffix.lower()
+    data = path.read_bytes()
+    what = f"mesh {path}"
+    if not data:
+        raise PaintcellError(f"{what} is empty; export the part surface again")
+
+    def is_text() -> bool:
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError:
+            return False
+        return True
+
+    if suffix == ".stl":
+        if len(data) >= 84:
+            n = int.from_bytes(data[80:84], "little")
+            if len(data) == 84 + 50 * n:
+                return
+        if data.lstrip()[:5].lower() == b"solid" and is_text():
+            return
+        n_hint = int.from_bytes(data[80:84], "little") if len(data) >= 84 else 0
+        raise PaintcellError(f"{what} is neither a binary STL ({len(data)} bytes, the header's "
+                             f"{n_hint} triangles need {84 + 50 * n_hint}) nor an ASCII STL; the "
+                             "file is truncated or not an STL — export it again")
+    if suffix == ".obj" and not is_text():
+        raise PaintcellError(f"{what} is not a text OBJ file (it holds non-UTF-8 bytes); the "
+                             "file is corrupt or not an OBJ — export it again")
+    if suffix == ".ply" and not data.startswith(b"ply"):
+        raise PaintcellError(f"{what} does not start with the PLY magic 'ply'; the file is "
+                             "corrupt or not a PLY — export it again")
+
+
+def load_applicator(scn: Scenario) -> Applicator:
+    """The scenario's applicator (TOML path relative to the scenario file) or the default bell."""
+    if scn.applicator is None:
+        return Applicator.default()
+    path = Path(scn.applicator)
+    if not path.is_absolute() and scn.source:
+        path = Path(scn.source).parent / path
+    try:
+        return Applicator.from_toml(path)
+    except UnicodeDecodeError as exc:
+        raise PaintcellError(f"applicator {path} is not a UTF-8 TOML file ({exc.reason})") \
+            from exc
+    except PaintcellError as exc:
+        msg = str(exc)
+        raise type(exc)(msg if str(path) in msg else f"applicator {path}: {msg}") from exc
+
+
+def settings_from(cls: type, values: dict[str, Any], what: str) -> Any:
+    """An instance of the settings dataclass `cls` from a scenario's dict, with a clear error
+    naming the valid keys when one is misspelt or a value is not of its field's type."""
+    names = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise ScenarioError(f"unknown {what} setting(s) {unknown}; valid: {sorted(names)}")
+    check_types(cls, values, f"[{what}]")
+    return cls(**values)
+
+
+def planner_settings(scn: Scenario, fast: bool = False) -> Any:
+    """`PlannerSettings` of the scenario (with the fast overrides when `fast`)."""
+    from paintcell.coverage.coverage import PlannerSettings
+
+    kw = dict(scn.planner)
+    if fast:
+        kw.update(scn.fast_planner)
+    return settings_from(PlannerSettings, kw, "planner")
+
+
+def make_plan(scn: Scenario, surface: Surface, fast: bool = False) -> CoveragePlan:
+    """Run the coverage planner for the scenario."""
+    from paintcell.app.budget import check_profile_budget
+    from paintcell.coverage.coverage import plan_coverage
+
+    app = load_applicator(scn)
+    check_profile_budget(app, scn.applicator or "the default bell")
+    # A real part's planner covers its skin (hems, inner panels stay in the surface for the film).
+    return plan_coverage(surface.region_surface(("skin",)), app, planner_settings(scn, fast))
+
+
+def load_robot_for(scn: Scenario) -> Any:
+    """The scenario's robot at its base pose."""
+    from paintcell.robots import load_robot
+
+    return load_robot(scn.robot, T_world_base=scn.base.matrix)
+
+
+def make_trajectory(scn: Scenario, robot: Any, plan: CoveragePlan) -> Any:
+    """IK + TOPP-RA + ruckig: the joint program for the plan at the scenario placement."""
+    from paintcell.motion.trajectory import TrajectorySettings, build_program
+
+    return build_program(robot, plan, scn.part_placement.matrix,
+                         settings_from(TrajectorySettings, scn.trajectory, "trajectory"))
+
+
+def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool = False,
+                 mode: Literal["servo", "kinematic"] = "servo", report: bool = True,
+                 progress: bool = True, video: bool = False) -> RunResult:
+    """Run the scenario end to end; write its results into `out_dir` (atomically) if given.
+
+    fast: coarse resolution and the scenario's fast planner overrides (CI checks).
+    mode: "servo" (PD + inverse dynamics) or "kinematic" (ideal replay) execution.
+    report: also write plots, renders and `report.html`.
+    video: with `report`, also render the execution GIF and embed it in `report.html` (MBs).
+    A `paintcell.booth.booth.Booth` (several robots) runs through
+    `paintcell.booth.booth_run.run_booth` instead; the
+    command line (`paintcell run`) picks the one that fits.
+    """
+    if not isinstance(scn, Scenario):
+        raise ScenarioError(f"run_scenario runs one robot's Scenario, got {type(scn).__name__}; "
+                            "run a booth with paintcell.booth.booth_run.run_booth "
+                            "(or `paintcell run`)")
+    timings: dict[str, float] = {}
+    # disable=None: tqdm draws only on a terminal, so CI logs and pipes stay clean.
+    bar = tqdm(total=len(STAGES), desc=f"{scn.name}", unit="stage",
+               disable=None if progress else True, leave=False)
+    try:
+        return _run(scn, out_dir, fast, mode, report, bar, timings, video)
+    finally:
+        bar.close()
+
+
+def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
+         mode: Literal["servo", "kinematic"], report: bool,
+         bar: tqdm, timings: dict[str, float], video: bool = False) -> RunResult:
+    from paintcell.execution.cell import build_cell
+    from paintcell.execution.execute import execute
+    from paintcell.validation.validate import start_program_films, validate
+
+    def stage(name: str) -> None:
+        raise_if_interrupted()
+        bar.set_postfix_str(name)
+
+    def done(name: str, t0: float) -> None:
+        timings[name] = time.perf_counter() - t0
+        bar.update(1)
+
+    with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
+        t0 = time.perf_counter()
+        stage("surface")
+        surface = load_surface(scn, fast)
+        done("surface", t0)
+
+        t0 = time.perf_counter()
+        stage("plan")
+        plan = make_plan(scn, surface, fast)
+        done("plan", t0)
+
+        t0 = time.perf_counter()
+        stage("trajectory")
+        robot = load_robot_for(scn)
+        traj = make_trajectory(scn, robot, plan)
+        plan, traj = robot_aware_run(scn, surface, robot, plan, traj, fast)
+        traj.meta["plan_digest"] = plan.content_digest()
+        done("trajectory", t0)
+
+        t0 = time.perf_counter()
+        stage("execute")
+        from paintcell.app.budget import check_validation_budget
+
+        # the validation's film maps are refused before any of them starts
+        check_validation_budget(len(surface.vertices), int((traj.t_s[-1] - traj.t_s[0]) / 0.005),
+                                "fast_resolution_m" if fast else "resolution_m")
+        T_world_part = scn.part_placement.matrix
+        # The planned and time-law films do not depend on the execution: computed meanwhile, on
+        # the core MuJoCo's single-threaded stepping leaves idle.
+        films = start_program_films(plan, surface, traj, T_world_part)
+        cell = build_cell(robot, surface, T_world_part)
+        trace = execute(cell, traj, mode=mode, servo=_servo(scn),
+                        disturbances=_disturbances(scn))
+        trace.meta["plan_digest"] = traj.meta["plan_digest"]
+        done("execute", t0)
+
+        t0 = time.perf_counter()
+        stage("validate")
+        rep = validate(plan, surface, traj, trace, T_world_part, scn.thresholds,
+                       reachability=traj.meta.get("reachability"), films=films.result())
+        done("validate", t0)
+
+        result = RunResult(scn, None, surface, plan, traj, trace, rep, timings, fast, mode)
+        if tmp is not None:
+            t0 = time.perf_counter()
+            stage("report")
+            write_results(result, tmp, cell=cell if report else None, video=video)
+            done("report", t0)
+            result.out_dir = Path(out_dir)  # type: ignore[arg-type]
+        else:
+            bar.update(1)
+    return result
+
+
+def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, traj: Any,
+                    fast: bool = False) -> tuple[CoveragePlan, Any]:
+    """Robot-aware speeds (`paintcell.motion.speed_feedback.robot_aware_plan`) with the
+    scenario's applicator,
+    planner settings and trajectory builder; the rounds are recorded in the program's
+    meta["speed_feedback"]."""
+    from paintcell.motion.speed_feedback import robot_aware_plan
+
+    # the planner covers a real part's skin (as `paintcell.app.pipeline.make_plan` does)
+    res = robot_aware_plan(surface.region_surface(("skin",)), load_applicator(scn),
+                           planner_settings(scn, fast), plan, traj,
+                           lambda p: make_trajectory(scn, robot, p),
+                           T_world_part=scn.part_placement.matrix)
+    res.trajectory.meta["speed_feedback"] = {
+        "rounds": res.rounds,
+        "capped_passes": sorted(int(k) for k in res.caps_m_s),
+        "capped_samples": int(sum(int(np.sum(v < np.inf)) for v in res.caps_m_s.values())),
+    }
+    return res.plan, res.trajectory
+
+
+def _servo(scn: Scenario) -> Any:
+    from paintcell.execution.execute_settings import ServoSettings
+
+    return settings_from(ServoSettings, scn.servo, "servo")
+
+
+def _disturbances(scn: Scenario) -> Any:
+    from paintcell.execution.execute_settings import Disturbances
+
+    return settings_from(Disturbances, scn.disturbances, "disturbances") \
+        if scn.disturbances else None
+
+
+def scenario_json(scn: Scenario, fast: bool, mode: str) -> str:
+    """`scenario.json`: the scenario as data (a snapshot that `validate`, `export` and `report`
+    read instead of the scenario file, which may have changed or gone) and how it was run."""
+    from paintcell.app.scenario_data import snapshot_dict
+
+    return json.dumps({**snapshot_dict(scn), "run": {"fast": fast, "mode": mode}}, indent=2,
+                      default=json_default)
+
+
+def metrics_dict(result: RunResult) -> dict[str, Any]:
+    """`metrics.json` content: the validation report plus scenario, plan and timing context."""
+    d = dict(result.report.to_dict())
+    plan = result.plan
+    part = result.scenario.part
+    d["scenario"] = {"name": result.scenario.name,
+                     "part": part.to_dict() if isinstance(part, MeshPart) else part,
+                     "robot": result.scenario.robot, "source": result.scenario.source}
+    d["plan_summary"] = {
+        "passes": len(plan.passes),
+        "start_rule": plan.start_rule,
+        "index_widths_m": [None if not np.isfinite(w) else float(w)
+                           for w in plan.index_widths_m],
+        "paint_time_s": plan.paint_time_s,
+        "settings": plan.settings,
+    }
+    d["stage_times_s"] = dict(result.timings_s)
+    d["run"] = {"fast": result.fast, "mode": result.mode}
+    return d
+
+
+def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = False) -> None:
+    """Write plan, trajectory, trace, metrics, film (and report files when `cell` is given; the
+    execution GIF too with `video`) into `out`."""
+    from paintcell.output.report_film import FILM_NAME, save_film
+
+    result.plan.save(out / "plan.json")
+    result.trajectory.save_npz(out / "trajectory.npz")
+    result.trajectory.save_csv(out / "trajectory.csv")
+    result.trace.save_npz(out / "trace.npz")
+    atomic_write_text(out / "scenario.json", scenario_json(result.scenario, result.fast,
+                                                           result.mode))
+    atomic_write_text(out / "metrics.json", json.dumps(metrics_dict(result), indent=2,
+                                                       default=json_default))
+    save_film(out / FILM_NAME, result.surface, result.report)
+    if cell is not None:
+        from paintcell.output.report import make_figures, write_report
+
+        make_figures(out, surface=result.surface, plan=result.plan, trajectory=result.trajectory,
+                     trace=result.trace, report=result.report, cell=cell, video=video)
+        write_report(out, video=video)
+
+
+def json_default(o: Any) -> Any:
+    """`json.dumps` default for numpy scalars and arrays."""
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serializable: {type(o).__name__}")

@@ -1,0 +1,154 @@
+"""`Scenario`: everything that defines one car-part painting job, declared once per part.
+
+Scenarios are data: a TOML file (`scenarios/door.toml`, format in docs/interfaces.md and
+`paintcell.app.scenario_data`) maps one-to-one onto the `Scenario` fields and is read without
+running any
+code. A Python script that builds one `Scenario` named `SCENARIO` is still accepted for users who
+want code (and `raise SystemExit(run_script(SCENARIO))`, with `run_script` from
+`paintcell.cli.main`, lets
+`python script.py` run it); only scenario files the user names on the command line are ever
+imported, never a file named in a results folder (`paintcell.app.scenario_files` loads them).
+`paintcell check scenarios/` loads every `*.toml` and `*.py` file of the folder.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from paintcell.app.scenario_checks import check_thresholds
+from paintcell.core.errors import PaintcellError
+from paintcell.surface.part_spec import MeshPart
+from paintcell.validation.validate_report import Thresholds
+
+__all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "pose"]
+
+
+class ScenarioError(PaintcellError):
+    """A scenario cannot be found, loaded or is inconsistent."""
+
+
+def pose(xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+         rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+    """(4, 4) transform from a position [m] and roll-pitch-yaw (fixed XYZ axes) [rad]."""
+    r, p, y = rpy_rad
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    T = np.eye(4)
+    T[:3, :3] = np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+    T[:3, 3] = xyz_m
+    return T
+
+
+def facing_robot() -> tuple[float, float, float]:
+    """Roll-pitch-yaw [rad] that stands a part upright facing a robot at the world origin.
+
+    The part frame's painted side (+z) faces −x (toward a robot base at the origin looking along
+    +x), the part's y axis points up (+z) and its x axis runs along −y.
+    """
+    return (np.pi / 2, 0.0, -np.pi / 2)
+
+
+@dataclass(frozen=True)
+class Placement:
+    """A rigid placement in the cell: position [m] and roll-pitch-yaw [rad] (fixed XYZ axes)."""
+
+    xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        for name in ("xyz_m", "rpy_rad"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ScenarioError(f"Placement.{name} = {getattr(self, name)!r} must be three "
+                                    "finite numbers")
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(4, 4) homogeneous transform."""
+        return pose(self.xyz_m, self.rpy_rad)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One painting job: part, placement, robot, applicator, settings and thresholds.
+
+    name: short identifier (used for output folders and CI rows).
+    part: a library part name (`paintcell.surface.parts.PART_NAMES`), a path to an
+    STL/OBJ/PLY mesh
+        (relative paths are relative to the scenario file; read with every `[part]` setting at
+        its default: units auto, largest piece, side auto), or a mesh/CAD part
+        (`paintcell.surface.part_spec.MeshPart`, or its TOML `[part]` table as a dict,
+        converted on construction).
+    resolution_m: mesh resolution for a full run [m]; fast_resolution_m for `--fast` runs.
+    part_placement: where the part frame sits in the world.
+    robot: robot name for `paintcell.robots.load_robot`; base: robot base placement in the world.
+    applicator: path to an Applicator TOML file, or None for the default bell.
+    planner: keyword arguments for `paintcell.coverage.coverage.PlannerSettings` (only what
+    differs). fast_planner: planner overrides applied on top of `planner` for `--fast` runs.
+    trajectory: keyword arguments for `paintcell.motion.trajectory.TrajectorySettings`.
+    servo: keyword arguments for `paintcell.execution.execute.ServoSettings`.
+    disturbances: keyword arguments for `paintcell.execution.execute.Disturbances` (seeded part
+    placement error,
+        TCP calibration offset, gain scaling) to study robustness; empty: the nominal cell.
+    thresholds: what `paintcell check` holds the run to
+    (`paintcell.validation.validate.Thresholds`: reachability,
+        collisions, executed σ/μ, loss, cycle time, and optionally tracking error, speed error,
+        torque and joint-range utilization).
+    sweep: the robustness sweep of `paintcell sweep`
+    (`paintcell.sweeps.sweep_spec.spec_from_scenario`):
+        factors {disturbance name: distribution string}, samples, fast_samples, method
+        ("lhs" | "mc"), seed, workers (local Dask processes; 0: in-process), and limits on
+        quantiles and yield that `paintcell check` holds the scenario to
+        (`paintcell.sweeps.sweep_stats`),
+        e.g. {"max_p95_executed_nsd_pct": 12.0}.
+    source: the file the scenario was declared in (filled in by `load_scenario`).
+    """
+
+    name: str
+    part: str | MeshPart
+    part_placement: Placement
+    base: Placement = Placement()
+    robot: str = "abb_paint"
+    resolution_m: float = 0.01
+    fast_resolution_m: float = 0.025
+    applicator: str | None = None
+    planner: dict[str, Any] = field(default_factory=dict)
+    fast_planner: dict[str, Any] = field(default_factory=dict)
+    trajectory: dict[str, Any] = field(default_factory=dict)
+    servo: dict[str, Any] = field(default_factory=dict)
+    disturbances: dict[str, Any] = field(default_factory=dict)
+    thresholds: Thresholds = Thresholds()
+    sweep: dict[str, Any] = field(default_factory=dict)
+    source: str | None = None
+
+    def __post_init__(self) -> None:
+        if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
+            raise ScenarioError(f"scenario name {self.name!r} must be non-empty letters, digits, "
+                                "'_' or '-' (it names the results folder)")
+        if isinstance(self.part, dict):
+            object.__setattr__(self, "part", MeshPart.from_dict(self.part))
+        if not self.part or not isinstance(self.part, str | MeshPart):
+            raise ScenarioError("scenario part is empty; give a library part name, a mesh path "
+                                "or a [part] table")
+        for name in ("resolution_m", "fast_resolution_m"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v) \
+                    or v <= 0:
+                raise ScenarioError(f"Scenario.{name} = {v!r} must be a positive length [m]")
+        for name in ("planner", "fast_planner", "trajectory", "servo", "disturbances", "sweep"):
+            if not isinstance(getattr(self, name), dict):
+                raise ScenarioError(f"Scenario.{name} must be a dict of setting names to values")
+        if not isinstance(self.thresholds, Thresholds):
+            raise ScenarioError("Scenario.thresholds must be a Thresholds "
+                                "(paintcell.app.scenario)")
+        check_thresholds(self.thresholds)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe description of the scenario (for reports); `scenario_from_dict` inverts it."""
+        return asdict(self)

@@ -1,0 +1,187 @@
+"""Scenarios as data: the TOML scenario format, the results-folder snapshot, and validation.
+
+A TOML scenario maps one-to-one onto `paintcell.app.scenario.Scenario` (docs/interfaces.md):
+
+    name = "door"                      # results-folder name (default: the file's stem)
+    part = "door"                      # library part, mesh path, or a [part] table
+    robot = "abb_paint"
+    resolution_m = 0.01
+    fast_resolution_m = 0.025
+    applicator = "bells/my_bell.toml"  # optional
+    [part_placement]  xyz_m = [..], rpy_rad = [..]
+    [base]            xyz_m = [..], rpy_rad = [..]
+    [planner] [fast_planner] [trajectory] [servo] [disturbances] [thresholds]
+
+Relative paths are relative to the scenario file. Every key is checked on load: unknown names,
+non-finite numbers and values out of range are refused with one line naming the file, the key and
+what is valid. The same reader turns a results folder's `scenario.json` snapshot back into a
+`Scenario`, so `validate`, `export` and `report` never execute code named in a results folder.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import fields, replace
+from pathlib import Path
+from typing import Any
+
+from paintcell.app.scenario_checks import (
+    _SETTINGS,
+    ScenarioDataError,
+    check_settings,
+    check_thresholds,
+)
+from paintcell.core.errors import PaintcellError
+
+__all__ = ["SNAPSHOT_VERSION", "check_settings", "check_thresholds", "load_toml_scenario",
+           "scenario_from_dict", "snapshot_dict"]
+
+#: Version of the `scenario.json` snapshot written into results folders.
+SNAPSHOT_VERSION = 1
+
+_SCALARS = ("name", "part", "robot", "resolution_m", "fast_resolution_m", "applicator")
+_PLACEMENTS = ("part_placement", "base")
+_TABLES = (*_PLACEMENTS, *_SETTINGS, "thresholds", "sweep")
+_KEYS = (*_SCALARS, *_TABLES)
+
+def _tuples(v: Any) -> Any:
+    """Lists (TOML/JSON arrays) as tuples, recursively (settings classes are frozen)."""
+    if isinstance(v, list | tuple):
+        return tuple(_tuples(x) for x in v)
+    return v
+
+
+def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = None,
+                       source: str | None = None) -> Any:
+    """A validated `Scenario` from a TOML table or a snapshot dict.
+
+    where: the file, named in every error. base_dir: folder that relative paths (a mesh part,
+    `[part] file`, `applicator`) are resolved against (None: keep them as written).
+    """
+    from paintcell.app.scenario import Placement, Scenario, Thresholds
+
+    if not isinstance(d, dict):
+        raise ScenarioDataError(f"{where}: a scenario must be a table of keys")
+    unknown = sorted(set(d) - set(_KEYS))
+    if unknown:
+        raise ScenarioDataError(f"{where}: unknown key(s) {unknown}; valid: {', '.join(_KEYS)}")
+    if "part" not in d:
+        raise ScenarioDataError(f"{where}: no part; add part = \"door\" (a library part), a mesh "
+                                "path, or a [part] table")
+    if "part_placement" not in d:
+        raise ScenarioDataError(f"{where}: no [part_placement]; add xyz_m = [x, y, z] and "
+                                "rpy_rad = [r, p, y] for the part frame in the world")
+    kw: dict[str, Any] = {}
+    for key in _SCALARS:
+        if key in d:
+            kw[key] = d[key]
+    for key in ("name", "robot"):
+        if key in kw and not isinstance(kw[key], str):
+            raise ScenarioDataError(f"{where}: {key} = {kw[key]!r} must be a string")
+    for key in ("resolution_m", "fast_resolution_m"):
+        v = kw.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
+                              or not math.isfinite(v) or not 0.0005 <= v <= 0.5):
+            raise ScenarioDataError(f"{where}: {key} = {v!r} is out of range; valid: "
+                                    "[0.0005, 0.5] m")
+    if isinstance(kw.get("part"), dict):
+        kw["part"] = dict(kw["part"])
+        if base_dir is not None and isinstance(kw["part"].get("file"), str):
+            kw["part"]["file"] = str((base_dir / kw["part"]["file"]).resolve())
+    elif not isinstance(kw.get("part"), str):
+        raise ScenarioDataError(f"{where}: part = {kw.get('part')!r} must be a part name, a mesh "
+                                "path or a [part] table")
+    elif base_dir is not None and _is_path(kw["part"]):
+        kw["part"] = str((base_dir / kw["part"]).resolve())
+    if kw.get("applicator") is not None:
+        if not isinstance(kw["applicator"], str):
+            raise ScenarioDataError(f"{where}: applicator = {kw['applicator']!r} must be a path "
+                                    "to an applicator TOML file")
+        if base_dir is not None:
+            kw["applicator"] = str((base_dir / kw["applicator"]).resolve())
+    for key in _PLACEMENTS:
+        if key not in d:
+            continue
+        t = d[key]
+        bad = sorted(set(t) - {"xyz_m", "rpy_rad"}) if isinstance(t, dict) else ["?"]
+        if bad:
+            raise ScenarioDataError(f"{where}: [{key}] unknown key(s) {bad}; valid: xyz_m, rpy_rad")
+        try:
+            kw[key] = Placement(**{k: tuple(v) for k, v in t.items()})
+        except (PaintcellError, TypeError) as exc:
+            raise ScenarioDataError(f"{where}: [{key}] {exc}") from exc
+    for key in _SETTINGS:
+        t = d.get(key, {})
+        if not isinstance(t, dict):
+            raise ScenarioDataError(f"{where}: {key} must be a table [{key}]")
+        kw[key] = {k: _tuples(v) for k, v in t.items()}
+    sw = d.get("sweep", {})
+    if sw:  # [sweep], [sweep.factors], [sweep.limits]: checked now, not when a sweep starts
+        from paintcell.sweeps.sweep_spec import SweepError, check_sweep_table
+
+        try:
+            check_sweep_table(sw)
+        except SweepError as exc:
+            raise ScenarioDataError(f"{where}: [sweep] {exc}") from exc
+        kw["sweep"] = {k: dict(v) if isinstance(v, dict) else v for k, v in sw.items()}
+    th = d.get("thresholds", {})
+    if not isinstance(th, dict):
+        raise ScenarioDataError(f"{where}: thresholds must be a table [thresholds]")
+    names = {f.name for f in fields(Thresholds)}
+    unknown = sorted(set(th) - names)
+    if unknown:
+        raise ScenarioDataError(f"{where}: unknown [thresholds] key(s) {unknown}; valid: "
+                                f"{', '.join(sorted(names))}")
+    try:
+        thresholds = Thresholds.__new__(Thresholds)
+        # Range-check before Thresholds' own checks so the message names the file and range.
+        for f in fields(Thresholds):
+            object.__setattr__(thresholds, f.name, th.get(f.name, f.default))
+        check_thresholds(thresholds, f"{where} [thresholds]")
+        kw["thresholds"] = Thresholds(**th)
+        kw["source"] = source
+        scn = Scenario(**kw)
+    except ScenarioDataError:
+        raise
+    except (PaintcellError, TypeError, ValueError) as exc:
+        raise ScenarioDataError(f"{where}: {exc}") from exc
+    check_settings(scn, where)
+    return scn
+
+
+def _is_path(part: str) -> bool:
+    from paintcell.surface.parts import PART_NAMES
+
+    return part not in PART_NAMES
+
+
+def load_toml_scenario(path: str | Path) -> Any:
+    """Read a TOML scenario file (no code runs); relative paths are relative to the file."""
+    path = Path(path)
+    try:
+        d = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioDataError(f"{path}: not valid TOML ({exc}); fix the line named") from exc
+    except UnicodeDecodeError as exc:
+        raise ScenarioDataError(f"{path}: not a UTF-8 text file ({exc.reason})") from exc
+    d.setdefault("name", path.stem)
+    return scenario_from_dict(d, str(path), base_dir=path.resolve().parent,
+                              source=str(path.resolve()))
+
+
+def snapshot_dict(scn: Any) -> dict[str, Any]:
+    """The scenario as JSON-safe data for a results folder (paths already absolute)."""
+    d = scn.to_dict()
+    d["snapshot_version"] = SNAPSHOT_VERSION
+    return d
+
+
+def scenario_from_snapshot(d: Any, where: str) -> Any:
+    """The `Scenario` recorded in a results folder's `scenario.json` (never imports its source)."""
+    if not isinstance(d, dict) or d.get("snapshot_version") != SNAPSHOT_VERSION:
+        raise ScenarioDataError(f"{where} holds no scenario snapshot of this paintcell version "
+                                f"(snapshot_version {SNAPSHOT_VERSION}); re-run `paintcell run`")
+    body = {k: v for k, v in d.items() if k in _KEYS}
+    scn = scenario_from_dict(body, where, base_dir=None, source=d.get("source"))
+    return replace(scn, source=d.get("source"))

@@ -1,0 +1,222 @@
+"""Booths as data: the TOML booth format (the scenario format of docs/interfaces.md, extended).
+
+    name = "booth"
+    resolution_m = 0.01
+    fast_resolution_m = 0.025
+    applicator = "bells/my_bell.toml"                  # optional; relative to the booth file
+    [body_placement]  xyz_m = [..], rpy_rad = [..]     # the body frame at conveyor position 0
+    [conveyor]        speed_m_s = 0.05, direction = [1, 0, 0]   (+ mass_kg, force_max_n, ...)
+    [[parts]]         part = "door", xyz_m = [..], rpy_rad = [..]   (+ [parts.planner])
+                      or a mesh/CAD part: [parts.part] file = "..", units, pieces, side, judge
+                      (the `[part]` table of a scenario; file relative to the booth file)
+    [[robots]]        name = "side_a", model = "irb5500", home = [..], rail = [-1.2, 1.2]
+                      [robots.base] xyz_m = [..], rpy_rad = [..]
+    [planner] [trajectory] [servo] [thresholds]
+
+A `[[robots]]` table with `rail` puts the arm on a linear rail with that carriage travel [m]
+(the base is then the rail frame, `paintcell.robots.rail`). `allocation` (optional table: robot name
+→
+[part index, first pass, end pass], or a list of them) fixes the jobs; `max_jobs_per_robot`
+(default 1) lets the automatic allocation give a robot up to that many jobs, run one after the
+other (`paintcell.booth.booth_chain`). Every key is checked: unknown names are refused
+with one line naming the file, the table and the valid keys. A TOML file is a booth when it has
+`[[robots]]` tables. `common_film_build` (default true) and `film_target_um` (default: the body's
+area-weighted planned mean) set one film build over the parts (`paintcell.booth.booth_build`);
+`blend_seams` (default true) blends the seams between parts (`paintcell.booth.booth_seams`).
+`film_refine_pace` (default false) refines each part's film with every pass's duration held
+(`paintcell.booth.booth_refine`). `robot_aware_speeds` (default true) re-plans the parts'
+speeds under what the robots' programs reach (`paintcell.booth.booth_speeds`).
+`body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
+the whole body (`paintcell.booth.booth_clearance`).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+from paintcell.app.scenario import Placement
+from paintcell.app.scenario_checks import check_thresholds
+from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
+from paintcell.booth.conveyor import Conveyor
+from paintcell.core.errors import PaintcellError
+from paintcell.surface.part_spec import MeshPart
+
+_TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
+        "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
+        "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
+        "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds")
+_PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse", "robots")
+_ROBOT = ("name", "model", "base", "home", "rail")
+_PLACEMENT = ("xyz_m", "rpy_rad")
+
+
+class BoothDataError(PaintcellError):
+    """A booth file holds an unknown key or an invalid value."""
+
+
+def _jobs_per_robot(v: Any, where: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 3:
+        raise BoothDataError(f"{where} = {v!r} must be 1, 2 or 3 (jobs one robot runs one after "
+                             "the other)")
+    return v
+
+
+def _check_keys(d: Any, valid: tuple[str, ...], where: str) -> dict[str, Any]:
+    if not isinstance(d, dict):
+        raise BoothDataError(f"{where} must be a table of keys, got {type(d).__name__}")
+    unknown = sorted(set(d) - set(valid))
+    if unknown:
+        raise BoothDataError(f"{where}: unknown key(s) {unknown}; valid: {sorted(valid)}")
+    return d
+
+
+def _placement(d: Any, where: str) -> Placement:
+    d = _check_keys(d, _PLACEMENT, where)
+    try:
+        return Placement(tuple(d.get("xyz_m", (0.0, 0.0, 0.0))),   # type: ignore[arg-type]
+                         tuple(d.get("rpy_rad", (0.0, 0.0, 0.0))))  # type: ignore[arg-type]
+    except (PaintcellError, TypeError, ValueError) as exc:
+        raise BoothDataError(f"{where}: {exc}") from exc
+
+
+def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) -> Booth:
+    """A `Booth` from the TOML's dict (`where` names the file in errors)."""
+    d = _check_keys(d, _TOP, where)
+    parts = []
+    for i, p in enumerate(d.get("parts", [])):
+        p = _check_keys(p, _PART, f"{where} [[parts]] #{i}")
+        if "part" not in p:
+            raise BoothDataError(f"{where} [[parts]] #{i}: give `part` (a library part name or "
+                                 "a [parts.part] table with file = \"...\")")
+        mesh = _mesh_part(p["part"], f"{where} [[parts]] #{i}", source)
+        pl = _placement({k: p[k] for k in _PLACEMENT if k in p}, f"{where} [[parts]] #{i}")
+        who = p.get("robots")
+        if who is not None and (not isinstance(who, list) or not who
+                                or not all(isinstance(x, str) for x in who)):
+            raise BoothDataError(f"{where} [[parts]] #{i}: robots = {who!r} must be a list of "
+                                 "robot names, e.g. [\"roof_l\", \"roof_r\"]")
+        parts.append(BodyPart(str(p["part"]) if mesh is None else mesh.stem, pl,
+                              dict(p.get("planner", {})),
+                              _bool(p.get("reverse", False), f"{where} [[parts]] #{i} reverse"),
+                              None if who is None else tuple(who), mesh))
+    robots = []
+    for i, r in enumerate(d.get("robots", [])):
+        r = _check_keys(r, _ROBOT, f"{where} [[robots]] #{i}")
+        if "name" not in r:
+            raise BoothDataError(f"{where} [[robots]] #{i}: give `name`")
+        model = str(r.get("model", "irb5500"))
+        rail = r.get("rail")
+        if rail is not None:
+            if not (isinstance(rail, list) and len(rail) == 2):
+                raise BoothDataError(f"{where} [[robots]] {r['name']}: rail = [lower, upper] "
+                                     "carriage travel [m], e.g. [-1.2, 1.2]")
+            model, rail = f"{model}_rail", (float(rail[0]), float(rail[1]))
+        home = r.get("home")
+        robots.append(BoothRobot(str(r["name"]), model,
+                                 _placement(r.get("base", {}), f"{where} [[robots]] "
+                                            f"{r['name']} base"),
+                                 None if home is None else tuple(float(x) for x in home),
+                                 rail))
+    conv = _check_keys(d.get("conveyor", {}), tuple(f.name for f in fields(Conveyor)),
+                       f"{where} [conveyor]")
+    th = _check_keys(d.get("thresholds", {}), tuple(f.name for f in fields(BoothThresholds)),
+                     f"{where} [thresholds]")
+    # the one-robot scenario's ranges: a limit no run can meet, or one that cannot fail, refused
+    check_thresholds(BoothThresholds(**th), f"{where} [thresholds]")
+    alloc = d.get("allocation")
+    sweep = d.get("sweep", {})
+    app = d.get("applicator")
+    if app is not None:
+        if not isinstance(app, str):
+            raise BoothDataError(f"{where}: applicator = {app!r} must be a path to an applicator "
+                                 "TOML file, e.g. \"bells/my_bell.toml\"")
+        app = str((Path(where).parent / app).resolve())
+    try:
+        if sweep:
+            from paintcell.sweeps.sweep_booth import check_booth_factors
+            from paintcell.sweeps.sweep_spec import check_sweep_table
+
+            check_sweep_table(sweep)
+            check_booth_factors(tuple(sweep.get("factors", {})))
+        conv_kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
+                                   for k, v in conv.items()}
+        conveyor = Conveyor(**conv_kw)
+        return Booth(
+            name=str(d.get("name", Path(where).stem)), parts=tuple(parts), robots=tuple(robots),
+            body_placement=_placement(d.get("body_placement", {}), f"{where} [body_placement]"),
+            conveyor=conveyor,
+            resolution_m=float(d.get("resolution_m", 0.01)),
+            fast_resolution_m=float(d.get("fast_resolution_m", 0.025)),
+            planner=dict(d.get("planner", {})),
+            trajectory={k: tuple(v) if isinstance(v, list) else v
+                        for k, v in d.get("trajectory", {}).items()},
+            servo=dict(d.get("servo", {})), thresholds=BoothThresholds(**th),
+            allocation=None if alloc is None else {
+                k: tuple(tuple(x) for x in v) if v and isinstance(v[0], list) else tuple(v)
+                for k, v in alloc.items()},
+            max_jobs_per_robot=_jobs_per_robot(d.get("max_jobs_per_robot", 1),
+                                               f"{where} max_jobs_per_robot"),
+            common_film_build=_bool(d.get("common_film_build", True),
+                                    f"{where} common_film_build"),
+            blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
+            robot_aware_speeds=_bool(d.get("robot_aware_speeds", True),
+                                     f"{where} robot_aware_speeds"),
+            film_refine_pace=_bool(d.get("film_refine_pace", False),
+                                   f"{where} film_refine_pace"),
+            body_clearance_m=_clearance(d.get("body_clearance_m", 0.01),
+                                        f"{where} body_clearance_m"),
+            film_target_um=(None if d.get("film_target_um") is None
+                            else _positive(d["film_target_um"], f"{where} film_target_um")),
+            source=source, sweep=dict(sweep), applicator=app)
+    except PaintcellError as exc:
+        raise BoothDataError(f"{where}: {exc}") from exc
+
+
+def _mesh_part(v: Any, where: str, source: str | None) -> MeshPart | None:
+    """None for a library part name; the `MeshPart` of a `[parts.part]` table (the `[part]`
+    table of a scenario, checked by the same loader; `file` relative to the booth file)."""
+    if not isinstance(v, dict):
+        return None
+    try:
+        mp = MeshPart.from_dict(v, base_dir=None if source is None else Path(source).parent)
+    except PaintcellError as exc:
+        raise BoothDataError(f"{where}: {str(exc).replace('[part]', '[parts.part]')}") from exc
+    if source is not None and not Path(mp.file).is_file():
+        raise BoothDataError(f"{where} [parts.part]: file {mp.file} does not exist; check file "
+                             "(relative to the booth file)")
+    return mp
+
+
+def _bool(v: Any, where: str) -> bool:
+    if not isinstance(v, bool):
+        raise BoothDataError(f"{where} must be true or false, got {v!r}")
+    return v
+
+
+def _positive(v: Any, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0:
+        raise BoothDataError(f"{where} must be a number > 0 [µm], got {v!r}")
+    return float(v)
+
+
+def _clearance(v: Any, where: str) -> float | None:
+    if v is False:
+        return None
+    if isinstance(v, bool) or not isinstance(v, int | float) or not v >= 0:
+        raise BoothDataError(f"{where} must be a distance ≥ 0 [m] or false (no check), "
+                             f"got {v!r}")
+    return float(v)
+
+
+def load_toml_booth(path: str | Path) -> Booth:
+    """The `Booth` of a booth TOML file (module doc)."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            d = tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise BoothDataError(f"{path}: not valid TOML ({exc})") from exc
+    return booth_from_dict(d, str(path), source=str(path.resolve()))

@@ -1,0 +1,135 @@
+"""Films of a booth on the merged body surface, in the body frame (`paintcell.booth.booth_run`
+uses them).
+
+The body's film is the sum of the robots' films. Kinds: plan (each robot's passes at planned
+timing), trajectory (its tracked reference TCP against the nominal body position), servo (the
+executed TCP against the nominal body position) and executed (the executed TCP against where the
+carrier really was): see `paintcell.booth.booth_run` for the loss split they give.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from paintcell.booth.booth import Booth, Job
+from paintcell.booth.booth_cell import BoothCell
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.execution.trace import ExecutedTrace
+from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.paint.deposition import GunSamples, thickness
+from paintcell.paint.metrics import uniformity
+from paintcell.surface.surface import Surface
+from paintcell.validation.validate_samples import executed_gun_samples
+
+#: a point is in an overlap band when at least two robots each lay this share of its film.
+OVERLAP_SHARE = 0.10
+
+
+def merge_surfaces(parts: list[Surface], T_body_part: list[np.ndarray], name: str) -> Surface:
+    """One surface in the body frame from parts (each moved by its (4, 4) placement)."""
+    moved = [s.transformed(T) for s, T in zip(parts, T_body_part, strict=True)]
+    offs = np.cumsum([0] + [len(s.vertices) for s in moved[:-1]])
+    cat = {f: np.concatenate([getattr(s, f) for s in moved])
+           for f in ("vertices", "normals", "vertex_areas", "gaussian_curvature",
+                     "mean_curvature", "principal_curvatures", "principal_directions")}
+    faces = np.concatenate([s.faces + o for s, o in zip(moved, offs, strict=True)])
+    return Surface(name=name, vertices=cat["vertices"], faces=faces, normals=cat["normals"],
+                   vertex_areas=cat["vertex_areas"], gaussian_curvature=cat["gaussian_curvature"],
+                   mean_curvature=cat["mean_curvature"],
+                   principal_curvatures=cat["principal_curvatures"],
+                   principal_directions=cat["principal_directions"])
+
+
+def judged_body_mask(parts: list[Surface]) -> np.ndarray:
+    """(N,) bool over `merge_surfaces(parts, …)`'s vertices: a mesh part's judged regions
+    (`Surface.judged_vertex_mask`, its skin), every vertex of a part without regions."""
+    masks = [s.judged_vertex_mask() for s in parts]
+    return np.concatenate([np.ones(len(s.vertices), bool) if m is None else np.asarray(m, bool)
+                           for s, m in zip(parts, masks, strict=True)])
+
+
+def plan_gun_in_body(plan: CoveragePlan, T_body_part: np.ndarray) -> GunSamples:
+    """A plan's paint-on gun samples moved from its part frame into the body frame."""
+    g = plan.gun_samples()
+    R, t = T_body_part[:3, :3], T_body_part[:3, 3]
+    return GunSamples(positions=g.positions @ R.T + t, spray_axes=g.spray_axes @ R.T,
+                      travel_dirs=g.travel_dirs @ R.T, dwell_s=g.dwell_s)
+
+
+def gun_in_body(t_s: np.ndarray, pos: np.ndarray, rot: np.ndarray, paint_on: np.ndarray,
+                 T_world_body0: np.ndarray, carrier_m: np.ndarray, unit: np.ndarray
+                 ) -> GunSamples:
+    """Binned paint-on gun samples of a TCP trace (K,) in the body frame, the body at
+    T_world_body0 shifted by carrier_m (K,) [m] along unit (3,)."""
+    R, t0 = T_world_body0[:3, :3], T_world_body0[:3, 3]
+    p_body = (pos - t0 - carrier_m[:, None] * unit) @ R
+    rot_body = np.einsum("ji,kjl->kil", R, rot)
+    body_trace = ExecutedTrace(t_s=t_s, q=np.zeros((len(t_s), 1)), qd=np.zeros((len(t_s), 1)),
+                               tau=np.zeros((len(t_s), 1)), tcp_pos_world=p_body,
+                               tcp_rot_world=rot_body, paint_on=paint_on,
+                               pass_index=np.zeros(len(t_s), int), mode="kinematic")
+    return executed_gun_samples(body_trace, np.eye(4))
+
+
+def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[CoveragePlan],
+           jobs: dict[int, tuple[Job, ...]], T_bp: list[np.ndarray], trajs: list[JointTrajectory],
+           traces: list[ExecutedTrace], trace: ExecutedTrace, t_ref: float
+           ) -> dict[str, np.ndarray]:
+    """Per robot and kind (plan, trajectory, servo, executed): film (R, N) [m]."""
+    pts, nrm = body.vertices, body.normals
+    t = trace.t_s
+    unit = booth.conveyor.unit
+    nominal = booth.conveyor.position_m(t, t_ref)
+    actual = trace.q[:, bcell.carrier_column] if bcell.carrier_column is not None else nominal
+    T0 = bcell.T_world_part
+    out = {k: np.zeros((bcell.n_robots, len(pts))) for k in ("plan", "trajectory", "servo",
+                                                             "executed")}
+    for i, (tr, ex) in enumerate(zip(trajs, traces, strict=True)):
+        out["plan"][i] = planned_film(plans, jobs[i], T_bp, pts, nrm)
+        for key, p, r, x in (("trajectory", tr.tcp_pos_world, tr.tcp_rot_world, nominal),
+                             ("servo", ex.tcp_pos_world, ex.tcp_rot_world, nominal),
+                             ("executed", ex.tcp_pos_world, ex.tcp_rot_world, actual)):
+            for app, on in job_paint(plans, jobs[i], tr):
+                g = gun_in_body(t, p, r, on, T0, x, unit)
+                out[key][i] += thickness(app, g, pts, nrm)
+    return out
+
+
+def planned_film(plans: list[CoveragePlan], jobs: tuple[Job, ...], T_bp: list[np.ndarray],
+                 pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
+    """(N,) film [m] of one robot's jobs at planned timing, each at its part's flow
+    (`paintcell.booth.booth_build`), at body points pts (N, 3) with normals nrm (N, 3)."""
+    film = np.zeros(len(pts))
+    for job in jobs:
+        sub = dataclasses.replace(plans[job.part],
+                                  passes=plans[job.part].passes[job.first:job.end])
+        film += thickness(plans[job.part].applicator, plan_gun_in_body(sub, T_bp[job.part]),
+                          pts, nrm)
+    return film
+
+
+def job_paint(plans: list[CoveragePlan], jobs: tuple[Job, ...], traj: JointTrajectory
+              ) -> list[tuple[Any, np.ndarray]]:
+    """Per job of one robot: its part's applicator (its flow) and the (K,) brush-on samples of
+    `traj` (booth clock) that belong to the job (`paintcell.booth.booth_chain.job_windows`)."""
+    from paintcell.booth.booth_chain import job_windows
+
+    return [(plans[j.part].applicator, traj.paint_on & w)
+            for j, w in zip(jobs, job_windows(traj, len(jobs)), strict=True)]
+
+
+def body_uniformity(film_m: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None,
+                    target_m: float | None = None) -> float:
+    """σ/μ [%] of a film (N,) [m] over the body (or `mask`)."""
+    return float(uniformity(film_m, areas, mask=mask, target_m=target_m).nsd_pct)
+
+
+def overlap_mask(films_m: np.ndarray) -> np.ndarray:
+    """(N,) points where at least two robots (rows of films_m (R, N)) each lay ≥ OVERLAP_SHARE
+    of the film."""
+    total = films_m.sum(axis=0)
+    share = films_m / np.where(total > 0, total, 1.0)
+    return (share >= OVERLAP_SHARE).sum(axis=0) >= 2

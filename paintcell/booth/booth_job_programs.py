@@ -1,0 +1,146 @@
+"""Each booth robot's static program for its jobs (`booth_programs` builds them for every
+allocation it tries): a job's program kept clear of the whole body
+(`paintcell.booth.booth_clearance`), a robot's jobs one after the other
+(`paintcell.booth.booth_chain`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from paintcell.booth.booth import Booth, BoothError, Job
+from paintcell.core.errors import PaintcellError
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.motion.joint_trajectory import JointTrajectory
+
+
+def robot_programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
+              jobs: dict[int, tuple[Job, ...]],
+              T_wb: np.ndarray, T_bp: list[np.ndarray],
+              cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
+              probes: list[Any] | None = None) -> list[JointTrajectory]:
+    """Each robot's static program for its jobs (cached per robot and job, failures too), kept
+    `Booth.body_clearance_m` from the whole body (`paintcell.booth.booth_clearance`); a
+    robot's jobs one after the other (`paintcell.booth.booth_chain.chain_programs`)."""
+    from paintcell.app.pipeline import settings_from
+    from paintcell.booth.booth_chain import chain_programs
+    from paintcell.motion.trajectory import TrajectorySettings
+
+    out = []
+    for i, (spec, robot) in enumerate(zip(booth.robots, robots, strict=True)):
+        kw = dict(booth.trajectory)
+        if spec.home is not None:
+            kw["q_home"] = tuple(spec.home)
+        settings = settings_from(TrajectorySettings, kw, "trajectory")
+        own = jobs.get(i)
+        if not own:
+            raise BoothError(f"robot {spec.name!r} got no job; remove it or give it one in "
+                             "Booth.allocation")
+        built = [_job_program(booth, i, spec, robot, plans, job, T_wb, T_bp, cache, probes,
+                              settings) for job in own]
+        out.append(chain_programs(built, robot))
+        if len(built) > 1 and probes is not None and booth.body_clearance_m is not None:
+            _check_transfer(booth, spec.name, probes[i], out[-1])
+    return out
+
+
+def _job_program(booth: Booth, i: int, spec: Any, robot: Any, plans: list[CoveragePlan],
+                 job: Job, T_wb: np.ndarray, T_bp: list[np.ndarray],
+                 cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
+                 probes: list[Any] | None, settings: Any) -> JointTrajectory:
+    """Robot i's program for one job (cached, failures too)."""
+    if (i, job) not in cache:
+        plan = dataclasses.replace(plans[job.part],
+                                   passes=plans[job.part].passes[job.first:job.end])
+        try:
+            cache[(i, job)] = _clear_program(booth, spec.name, robot, plan,
+                                             T_wb @ T_bp[job.part], settings,
+                                             None if probes is None else probes[i])
+        except PaintcellError as exc:
+            cache[(i, job)] = exc
+    got = cache[(i, job)]
+    if isinstance(got, PaintcellError):
+        raise got
+    return got
+
+
+def _check_transfer(booth: Booth, name: str, probe: Any, traj: JointTrajectory) -> None:
+    """A chained program's moves between jobs keep `Booth.body_clearance_m` from the body."""
+    moves = traj.meta["transfer_moves_s"]
+    if not any(moves):
+        return                                      # each piece was checked on its own
+    assert booth.body_clearance_m is not None       # a probe only with a clearance to keep
+    c = probe.clearance(traj.q, traj.t_s, float(booth.body_clearance_m))
+    if not c.clear:
+        raise BoothError(f"robot {name!r}'s move between two jobs comes within "
+                         f"{c.min_distance_m * 1e3:.0f} mm of the body at t = {c.first_t_s:.2f} "
+                         "s; give its jobs to one robot each")
+
+
+def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
+                   T_world_part: np.ndarray, settings: Any, probe: Any) -> JointTrajectory:
+    """The robot's program; with a probe (`booth_clearance.BodyProbe`), its rail positions
+    keep the arm clear of the whole body, and a program that still comes closer than
+    `Booth.body_clearance_m` is built again — approach and retract folded
+    (`TrajectorySettings.fold_moves`), its home on the passes' wrist branch
+    (`booth_clearance.wrist_flipped_home`), farther back-offs (`booth_clearance.clear_settings`)
+    — until one keeps clear, else refused with the closest call named. The tries are in
+    `meta["body_clearance"]`."""
+    from paintcell.motion.trajectory import build_program
+
+    if probe is None:
+        return build_program(robot, plan, T_world_part, settings)
+    from paintcell.booth import booth_clearance as bc
+
+    ik = None
+    q_home = np.asarray(robot.q_home if settings.q_home is None else settings.q_home, float)
+    if getattr(robot, "rail", None) is not None:
+        from paintcell.robots.rail import solve_rail_paths
+
+        ik = solve_rail_paths(robot, [T_world_part @ plan.tcp_frames(k)
+                                      for k in range(len(plan.passes))],
+                              q_seed=q_home, free_spin=settings.ik_free_spin,
+                              penalty=probe.rail_penalty(bc.PLACEMENT_MARGIN_M,
+                                                         bc.PLACEMENT_WEIGHT))
+    assert booth.body_clearance_m is not None    # a probe only with a clearance to keep
+    margin = float(booth.body_clearance_m)
+    homes = [q_home]
+    if ik is not None:   # the same home pose on the passes' wrist branch: no flip on the way
+        flipped = bc.wrist_flipped_home(robot, q_home, ik[0].q[0])
+        homes += [] if flipped is None else [flipped]
+    # The ladder: as set; approach and retract folded; + home on the passes' wrist branch;
+    # + farther back-offs.
+    last = len(homes) - 1
+    ladder = [(1.0, False, 0), (1.0, True, 0)] + [(1.0, True, 1)] * last \
+        + [(f, True, last) for f in bc.CLEAR_FACTORS]
+    tries: list[dict[str, Any]] = []
+    failed: list[PaintcellError] = []
+    for factor, fold, k in ladder:
+        st = settings if factor == 1.0 else bc.clear_settings(settings, factor)
+        st = dataclasses.replace(st, q_home=tuple(homes[k]), fold_moves=fold)
+        try:
+            traj = build_program(robot, plan, T_world_part, st, ik_results=ik)
+        except PaintcellError as exc:     # a rung out of reach (a farther back-off): the next
+            failed.append(exc)
+            continue
+        c = probe.clearance(traj.q, traj.t_s, margin)
+        tries.append({"backoff_factor": factor, "fold_moves": fold,
+                      "home_wrist_flipped": k == 1, **c.to_dict()})
+        if c.clear:
+            traj.meta["body_clearance"] = {"margin_m": margin, "tries": tries}
+            return traj
+    if not tries:                  # no rung could be built at all: the first one's reason
+        raise failed[0]
+    best = max(tries, key=lambda t: t["min_distance_m"])       # the closest call, said
+    c = bc.Clearance(best["min_distance_m"], best["n_close"], best["first_t_s"],
+                     tuple(best["bodies"]), tuple(best["parts"]))
+    parts = ", ".join(booth.parts[p].part for p in c.parts)
+    near = "touch" if c.min_distance_m <= 0 else f"come within {c.min_distance_m * 1e3:.0f} mm of"
+    raise BoothError(f"robot {name!r}'s {', '.join(c.bodies[:2])} {near} the body ({parts}) "
+                     f"at t = {c.first_t_s:.2f} s of its program, even with folded moves and "
+                     f"{bc.CLEAR_FACTORS[-1]:g}x back-offs"
+                     + (f" ({len(failed)} of those programs could not be built: {failed[0]})"
+                        if failed else ""))

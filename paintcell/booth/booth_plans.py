@@ -1,0 +1,125 @@
+"""The booth's part plans (`paintcell.booth.booth_programs` builds them first): each part's
+surface and its plan as the planner makes it (`plan_parts`), then what the booth does to the
+plans together (`finish_plans`): passes run backwards where a part says `reverse`, the film
+refined with the robots' pace held (`paintcell.booth.booth_refine`), one film build
+(`paintcell.booth.booth_build`) and blended seams (`paintcell.booth.booth_seams`).
+
+The two steps are apart so the robot-aware speeds (`paintcell.booth.booth_speeds`) can plan
+a part again under its robots' speed caps and finish the plans the same way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from paintcell.booth.booth import Booth, BoothError
+from paintcell.booth.booth_build import reversed_plan
+from paintcell.booth.booth_film import judged_body_mask, merge_surfaces
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.paint.applicator import Applicator
+from paintcell.surface.surface import Surface
+
+
+@dataclass
+class PartPlans:
+    """Each part as planned (`plan_parts`): surfaces (part frames), the planner's own plans
+    (generation order, not reversed), the placements in the body frame, the skins the planner
+    covered, its settings per part, and the bell."""
+
+    surfaces: list[Surface]
+    plans: list[CoveragePlan]
+    T_body_parts: list[np.ndarray]
+    skins: list[Surface]
+    settings: list[Any]
+    applicator: Applicator
+
+
+@dataclass
+class FinishedPlans:
+    """The plans the robots run (`finish_plans`), the body surface and the records."""
+
+    plans: list[CoveragePlan]
+    body: Surface
+    refine: dict[str, Any] = field(default_factory=dict)
+    film_build: dict[str, Any] = field(default_factory=dict)
+    seams: dict[str, Any] = field(default_factory=dict)
+
+
+def part_settings(booth: Booth) -> list[dict[str, Any]]:
+    """Each part's planner table: the booth's `[planner]` under the part's own."""
+    return [{**booth.planner, **bp.planner} for bp in booth.parts]
+
+
+def plan_parts(booth: Booth, fast: bool) -> PartPlans:
+    """Load each part (the scenario's loader: import, repair, remesh, regions) and plan its skin."""
+    from paintcell.app.pipeline import part_surface, settings_from
+    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.surface import parts
+
+    res = booth.fast_resolution_m if fast else booth.resolution_m
+    app = Applicator.default() if booth.applicator is None \
+        else Applicator.from_toml(booth.applicator)
+    out = PartPlans([], [], [], [], [], app)
+    for bp, kw in zip(booth.parts, part_settings(booth), strict=True):
+        if bp.mesh is None and bp.part not in parts.PART_NAMES:
+            raise BoothError(f"booth part {bp.part!r} is not a library part "
+                             f"({', '.join(parts.PART_NAMES)}); a mesh/CAD file goes in a "
+                             "[parts.part] table with file = \"...\"")
+        s = part_surface(bp.part if bp.mesh is None else bp.mesh, res)
+        if booth.film_refine_pace:      # refined later with the pace held (booth_refine)
+            kw = {**kw, "film_refine": False}
+        st = settings_from(PlannerSettings, kw, "planner")
+        # a real part's planner covers its skin, as a scenario's (`pipeline.make_plan`)
+        skin = s.region_surface(("skin",))
+        out.plans.append(plan_coverage(skin, app, st))
+        out.surfaces.append(s)
+        out.skins.append(skin)
+        out.settings.append(st)
+        out.T_body_parts.append(bp.placement.matrix)
+    return out
+
+
+def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
+                 caps: list[list[np.ndarray | None] | None] | None = None) -> FinishedPlans:
+    """The robots' plans from the planner's `plans` (one per part, generation order): reversed
+    where the part says so, refined with the pace held (`Booth.film_refine_pace`), one film build,
+    seams blended. caps: per part, per pass of its finished plan (execution order) the robot's
+    speed caps [m/s] the refinement keeps under (None: none)."""
+    plans = [reversed_plan(pl) if bp.reverse else pl
+             for pl, bp in zip(plans, booth.parts, strict=True)]
+    names = [f"{i}:{bp.part}" for i, bp in enumerate(booth.parts)]
+    refine: dict[str, Any] = {"rule": "off"}
+    if booth.film_refine_pace:
+        from paintcell.app.pipeline import settings_from
+        from paintcell.booth.booth_refine import refine_parts
+        from paintcell.coverage.coverage import PlannerSettings
+
+        # a part whose planner says film_refine = false (booth or part table) is not refined
+        kws = part_settings(booth)
+        on = [i for i, kw in enumerate(kws) if kw.get("film_refine") is not False]
+        refined, refine = refine_parts(
+            [pp.surfaces[i] for i in on], [plans[i] for i in on],
+            [settings_from(PlannerSettings, kws[i], "planner") for i in on],
+            [names[i] for i in on], None if caps is None else [caps[i] for i in on])
+        plans = [refined[on.index(i)] if i in on else pl for i, pl in enumerate(plans)]
+        refine["parts"].update({names[i]: {"applied": False,
+                                           "reason": "planner.film_refine = false"}
+                                for i in range(len(plans)) if i not in on})
+    build: dict[str, Any] = {"rule": "off: each part at the default bell flow"}
+    if booth.common_film_build:
+        from paintcell.booth.booth_build import common_film_build
+
+        plans, build = common_film_build(pp.surfaces, plans, names, booth.film_target_um)
+    body = merge_surfaces(pp.surfaces, pp.T_body_parts, booth.name)
+    seams: dict[str, Any] = {"rule": "off" if not booth.blend_seams else "one part: no seams"}
+    if booth.blend_seams and len(plans) > 1:
+        from paintcell.booth.booth_seams import blend_part_seams
+
+        plans, seams = blend_part_seams(body, plans, pp.T_body_parts,
+                                        [len(x.vertices) for x in pp.surfaces], names,
+                                        judged_body_mask(pp.surfaces))
+    return FinishedPlans(plans, body, refine, build, seams)
+

@@ -1,0 +1,141 @@
+"""One RAPID module per booth robot: its validated static program
+(`paintcell.output.export_rapid`), with
+MultiMove synchronisation and the conveyor tracking stated and coordinated.
+
+- Synchronisation: every module declares the booth's task list and waits for the others with
+  `WaitSyncTask` before its first move toward the part and after its program (the programs were
+  validated on one clock starting together).
+- Conveyor tracking: the pass moves (MoveL / TriggL / PaintL) are given in the conveyor work object
+  `wobjcnv1` (coordinated with mechanical unit CNV1, activated with `ActUnit`, picked up with
+  `WaitWObj`), whose zero is the part's nominal placement — the static cell the program was
+  built in — so the controller adds the line motion; the header states the speed and direction
+  it was validated at. The joint moves between passes (MoveAbsJ) are not coordinated.
+- A rail robot: the arm's targets are written in the rail frame and the carriage position goes
+  in the external axis `eax_a` [mm] of every target (the track as a coordinated external axis).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+import numpy as np
+
+from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.output.export_rapid import _segments, rapid_module
+
+_EXT_RE = r"\[9E9,9E9,9E9,9E9,9E9,9E9\]"
+
+
+def _arm_view(robot: Any, traj: JointTrajectory) -> tuple[Any, JointTrajectory]:
+    """(robot, traj) as the 6-axis exporter sees them; for a rail robot the arm alone in the rail
+    frame, and the program without its rail column."""
+    if getattr(robot, "rail", None) is None:
+        return robot, traj
+    arm = robot.rail.arm.placed(robot.T_world_base)
+    a = {n: getattr(traj, n) for n in JointTrajectory._ARRAYS}
+    a.update(q=traj.q[:, 1:], qd=traj.qd[:, 1:], qdd=traj.qdd[:, 1:])
+    return arm, JointTrajectory(**a, robot_name=arm.name, joint_names=traj.joint_names[1:])
+
+
+def _rail_values_mm(traj: JointTrajectory, via_dt_s: float) -> tuple[dict[int, float],
+                                                                    list[float]]:
+    """Carriage position [mm] per pass (constant while painting) and at each via point, in the
+    order `paintcell.output.export_rapid.rapid_module` writes them (same segment and via
+    selection)."""
+    per_pass: dict[int, float] = {}
+    vias: list[float] = []
+    for is_paint, k, idx in _segments(traj):
+        if is_paint:
+            per_pass[k] = 1000.0 * float(traj.q[idx[0], 0])
+            continue
+        t = traj.t_s[idx]
+        picks = np.unique(np.concatenate([np.searchsorted(t, np.arange(t[0] + via_dt_s, t[-1],
+                                                                        via_dt_s)),
+                                          [len(idx) - 1]]))
+        vias.extend(1000.0 * float(traj.q[idx[p], 0]) for p in picks)
+    return per_pass, vias
+
+
+def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[str],
+                 conveyor: Any, delay_s: float = 0.0, via_dt_s: float = 0.2,
+                 flow_factor: float | tuple[float | None, ...] | None = None) -> str:
+    """RAPID module text of one booth robot's static program (module doc); delay_s: its start
+    delay after the common start [s] (`paintcell.booth.booth_stagger.stagger_starts`);
+    flow_factor: its bell flow
+    relative to the applicator's (`paintcell.booth.booth_build`), stated in the header (a
+    robot with several jobs: one per job)."""
+    arm, arm_traj = _arm_view(robot, traj)
+    text = rapid_module(arm_traj, arm, module_name=name, via_dt_s=via_dt_s)
+    lines = text.splitlines()
+    if getattr(robot, "rail", None) is not None:
+        per_pass, vias = _rail_values_mm(traj, via_dt_s)
+        it = iter(vias)
+        for i, ln in enumerate(lines):
+            m = re.match(r"\s*CONST robtarget p(\d+)_\d+ :=", ln)
+            if m:
+                ext = f"[{per_pass[int(m.group(1))]:.1f},9E9,9E9,9E9,9E9,9E9]"
+                lines[i] = re.sub(_EXT_RE, ext, ln)
+            elif re.match(r"\s*CONST jointtarget j\d+ :=", ln):
+                lines[i] = re.sub(_EXT_RE, f"[{next(it):.1f},9E9,9E9,9E9,9E9,9E9]", ln)
+            elif re.match(r"\s*CONST jointtarget jHome :=", ln):
+                lines[i] = re.sub(_EXT_RE, f"[{1000.0 * traj.q[0, 0]:.1f},9E9,9E9,9E9,9E9,9E9]",
+                                  ln)
+    u = conveyor.unit
+    tasks = ",".join(f'["{t}"]' for t in task_names)
+    head = [
+        f"  ! Booth: task {name} of {len(task_names)} ({', '.join(task_names)}), synchronised "
+        "with WaitSyncTask at the start and end.",
+        f"  ! Conveyor tracking: validated at {conveyor.speed_m_s:.4f} m/s along "
+        f"[{u[0]:.3f},{u[1]:.3f},{u[2]:.3f}] (world); pass moves in the conveyor work object "
+        "wobjcnv1 (unit CNV1), zero = the part's nominal placement.",
+        f"  PERS tasks booth_tasks{{{len(task_names)}}} := [{tasks}];",
+        "  VAR syncident sync_start;",
+        "  VAR syncident sync_end;",
+        '  PERS wobjdata wobjcnv1 := [FALSE,FALSE,"CNV1",[[0,0,0],[1,0,0,0]],'
+        "[[0,0,0],[1,0,0,0]]];",
+    ]
+    if getattr(robot, "rail", None) is not None:
+        head.append("  ! Rail: the carriage is external axis eax_a [mm] of every target.")
+    if isinstance(flow_factor, tuple):        # several jobs, each at its part's flow
+        starts = traj.meta.get("job_first_pass_index", [])
+        for k, (f, p0) in enumerate(zip(flow_factor, starts, strict=True)):
+            if f is not None:
+                head.append(f"  ! Bell flow of job {k + 1} (from pass p{p0}_): {f:.3f} x the "
+                            "applicator's nominal rate (paintcell.booth.booth_build): set it "
+                            "in the brush table.")
+    elif flow_factor is not None:
+        head.append(f"  ! Bell flow: {flow_factor:.3f} x the applicator's nominal rate (the "
+                    "booth's common film build, paintcell.booth.booth_build): set it in the "
+                    "brush table.")
+    out: list[str] = []
+    for ln in lines:
+        if ln.startswith("  PERS tooldata tBell"):
+            out.extend(head)
+        if re.match(r"\s*(MoveL|TriggL|PaintL) ", ln):
+            ln = ln.replace(", tBell;", r", tBell \WObj:=wobjcnv1;")
+        out.append(ln)
+        if ln.strip() == "MoveAbsJ jHome, v1000, fine, tBell;":
+            out.append("    WaitSyncTask sync_start, booth_tasks;")
+            if delay_s > 0:
+                out.append(f"    WaitTime {delay_s:.3f};   ! staggered start: arm clearance")
+            out.extend(["    ActUnit CNV1;", "    WaitWObj wobjcnv1;"])
+    end = out.index("  ENDPROC")
+    out[end:end] = ["    DeactUnit CNV1;", "    WaitSyncTask sync_end, booth_tasks;"]
+    return "\n".join(out) + "\n"
+
+
+def booth_rapid_modules(result: Any, robots: list[Any]) -> dict[str, str]:
+    """{task name: module text} for every robot of a `BoothResult` (its static programs)."""
+    booth = result.scenario
+    names = [f"T_{r.name.upper()}" for r in booth.robots]
+    delays = result.report.metrics["allocation"].get("start_delays_s", [0.0] * len(names))
+    build = result.report.metrics.get("film_build", {}).get("parts", {})
+    flows: list[Any] = []
+    for i in range(len(names)):
+        f = tuple(build.get(f"{j.part}:{booth.parts[j.part].part}", {}).get("flow_factor")
+                  for j in result.jobs[i])
+        flows.append(f[0] if len(f) == 1 else f)
+    return {n: booth_module(rb, tr, n, names, booth.conveyor, d, flow_factor=f)
+            for n, rb, tr, d, f in zip(names, robots, result.static_trajectories, delays, flows,
+                                       strict=True)}

@@ -1,0 +1,249 @@
+"""Booth metrics, checks and results folder (`paintcell.booth.booth_run` produces the inputs).
+
+Metrics (all in `ValidationReport.metrics`, units in the names):
+- cycle: `executed_cycle_time_s` (the booth: the longest robot program, all tracked on one clock),
+  `one_robot_cycle_s` (the robots' programs back to back: one robot doing everything, ignoring
+  that it could not reach it all), `speedup`;
+- per robot: busy share (its own program time ÷ the booth cycle), paint share (brush-on time ÷
+  cycle), paint credit (its share of the film volume on the body) and coverage credit (the share
+  of the body's area where it lays most of the film);
+- film: planned / trajectory / executed σ/μ over the whole body and in the overlap bands (points
+  where two robots each lay ≥ 10 % of the film), the loss split into time law, servo and
+  conveyor tracking;
+- contacts: all collision events and the robot–robot ones; the smallest distance between two
+  bells while both paint (reference programs).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from paintcell.app.pipeline import json_default
+from paintcell.booth.booth import Booth, Job
+from paintcell.booth.booth_cell import BoothCell
+from paintcell.core.atomic_io import atomic_write_text
+from paintcell.coverage.plan import CoveragePlan
+from paintcell.execution.trace import ExecutedTrace
+from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.surface.surface import Surface
+from paintcell.validation.validate_report import Check, ValidationReport
+
+
+def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) -> float:
+    from paintcell.booth.booth_film import body_uniformity
+
+    if mask is not None and not mask.any():
+        return float("nan")
+    return body_uniformity(film, areas, mask)
+
+
+def _torque_use(trace: ExecutedTrace, tau_max: np.ndarray) -> float:
+    """Largest demanded torque ÷ limit over a robot's joints (nan for a kinematic run)."""
+    if trace.tau_demand is None:
+        return float("nan")
+    return float((np.abs(trace.tau_demand) / np.asarray(tau_max, float)).max())
+
+
+def _within(film: np.ndarray, plan: np.ndarray, areas: np.ndarray) -> float:
+    """% of the area within ±10 % of the planned film's area-weighted mean."""
+    from paintcell.paint.metrics import uniformity
+
+    target = float(plan @ areas / areas.sum())
+    return 100.0 * uniformity(film, areas, target_m=target).within_tolerance_fraction
+
+
+def _least(honest: list[dict[str, Any] | None], key: str) -> float:
+    """The least robot's figure `key` [%]; nan when a robot has none (no IK report)."""
+    if any(h is None for h in honest):
+        return float("nan")
+    return min(float(h[key]) for h in honest if h is not None)
+
+
+def min_bell_distance(trajs: list[JointTrajectory]) -> float:
+    """Smallest distance [m] between two robots' TCPs at a step where both paint (inf if never)."""
+    best = np.inf
+    for i in range(len(trajs)):
+        for j in range(i + 1, len(trajs)):
+            both = trajs[i].paint_on & trajs[j].paint_on
+            if both.any():
+                d = np.linalg.norm(trajs[i].tcp_pos_world[both] - trajs[j].tcp_pos_world[both],
+                                   axis=1)
+                best = min(best, float(d.min()))
+    return best
+
+
+def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str, np.ndarray],
+                  trajs0: list[JointTrajectory], trajs: list[JointTrajectory],
+                  traces: list[ExecutedTrace], trace: ExecutedTrace,
+                  events: list[dict[str, Any]], record: dict[str, Any],
+                  jobs: dict[int, tuple[Job, ...]], part_counts: list[int],
+                  plans: list[CoveragePlan], judged: np.ndarray | None = None
+                  ) -> ValidationReport:
+    """The booth's `ValidationReport` (module doc). trajs0: each robot's own program (static, not
+    delayed); trajs: the tracked programs on the booth clock. part_counts: the parts' vertex
+    counts, in the order `paintcell.booth.booth_film.merge_surfaces` stacked them into
+    `body`. plans: the parts' plans (the jobs' passes are slices of them). judged: (N,) bool,
+    the body's vertices the film is judged on (a mesh part's skin, as a one-robot run judges it:
+    `paintcell.booth.booth_film.judged_body_mask`); the others count with zero area in every
+    film figure. None: every vertex."""
+    from paintcell.booth.booth_film import overlap_mask
+    from paintcell.booth.booth_reach import robot_honest_reach
+
+    areas = body.vertex_areas if judged is None else body.vertex_areas * judged
+    tot = {k: v.sum(axis=0) for k, v in films.items()}
+    band = overlap_mask(films["executed"])
+    nsd = {k: _nsd(tot[k], areas) for k in tot}
+    cycle = float(trace.t_s[-1] - trace.t_s[0]) + float(trace.meta.get("settle_time_s", 0.0))
+    own = [float(tr.duration_s) for tr in trajs0]
+    vol = films["executed"] @ areas
+    lead = np.argmax(films["executed"], axis=0)
+    robots: dict[str, Any] = {}
+    honest = [robot_honest_reach(plans, jobs[i], trajs0[i], trajs[i], traces[i])
+              for i in range(len(booth.robots))]
+    for i, rspec in enumerate(booth.robots):
+        js = jobs[i]
+        robots[rspec.name] = {
+            "model": rspec.model, "part": "+".join(booth.parts[j.part].part for j in js),
+            "passes": [js[0].first, js[0].end] if len(js) == 1
+            else [[j.first, j.end] for j in js],
+            "busy_share_pct": 100.0 * own[i] / cycle,
+            "paint_share_pct": 100.0 * float(trajs[i].paint_on.mean()),
+            "paint_credit_pct": 100.0 * float(vol[i] / vol.sum()),
+            "coverage_credit_pct": 100.0 * float(areas[lead == i].sum() / areas.sum()),
+            "program_s": own[i],
+            "start_delay_s": float(trajs[i].meta.get("start_delay_s", 0.0)),
+            "conveyor": trajs[i].meta.get("conveyor"),
+            "max_torque_utilization": _torque_use(traces[i], bcell.robots[i].tau_max),
+            "honest_reachability": honest[i],
+        }
+    robot_robot = [e for e in events if bcell.robot_of_body(e["body1"]) >= 0
+                   and bcell.robot_of_body(e["body2"]) >= 0
+                   and bcell.robot_of_body(e["body1"]) != bcell.robot_of_body(e["body2"])]
+    tau_use = (np.abs(trace.tau_demand) / bcell.cell.tau_max).max() \
+        if trace.tau_demand is not None else float("nan")
+    # Per part (the body's vertices are the parts' in order): the parts' films are planned each
+    # on its own with its own mean, so the whole body's σ/μ also measures the mean mismatch.
+    offs = np.cumsum([0, *part_counts])
+    per_part = {f"{i}:{bp.part}": _nsd(tot["executed"][offs[i]:offs[i + 1]],
+                                       areas[offs[i]:offs[i + 1]])
+                for i, bp in enumerate(booth.parts)}
+    m: dict[str, Any] = {
+        "planned_nsd_pct": nsd["plan"], "trajectory_nsd_pct": nsd["trajectory"],
+        "servo_nsd_pct": nsd["servo"], "executed_nsd_pct": nsd["executed"],
+        "part_executed_nsd_pct": per_part,
+        "max_part_executed_nsd_pct": max(per_part.values()),
+        "part_executed_mean_um": {
+            k: 1e6 * float(tot["executed"][offs[i]:offs[i + 1]] @ areas[offs[i]:offs[i + 1]]
+                           / areas[offs[i]:offs[i + 1]].sum())
+            for i, k in enumerate(per_part)},
+        "loss_pp": nsd["executed"] - nsd["plan"],
+        "loss_time_law_pp": nsd["trajectory"] - nsd["plan"],
+        "loss_servo_pp": nsd["servo"] - nsd["trajectory"],
+        "loss_conveyor_pp": nsd["executed"] - nsd["servo"],
+        "abs_loss_pp": abs(nsd["executed"] - nsd["plan"]),
+        "overlap_band_area_pct": 100.0 * float(areas[band].sum() / areas.sum()),
+        "overlap_planned_nsd_pct": _nsd(tot["plan"], areas, band),
+        "overlap_executed_nsd_pct": _nsd(tot["executed"], areas, band),
+        "executed_mean_um": 1e6 * float(tot["executed"] @ areas / areas.sum()),
+        # share of the judged area within ±10 % of the planned mean film (as a one-robot run)
+        "executed_within_tolerance_pct": _within(tot["executed"], tot["plan"], areas),
+        "planned_within_tolerance_pct": _within(tot["plan"], tot["plan"], areas),
+        "executed_cycle_time_s": cycle, "one_robot_cycle_s": float(sum(own)),
+        "speedup": float(sum(own)) / cycle,
+        # the least robot's honest figure (`booth_reach`); IK alone beside it
+        "reachability_pct": _least(honest, "reachability_pct"),
+        "ik_reachability_pct": _least(honest, "ik_reachability_pct"),
+        # the robots' lost poses by cause, summed (a one-robot run's keys)
+        **{f"reach_{k}": (sum(int(h[k]) for h in honest if h) if all(honest) else None)
+           for k in ("n_lost", "n_unreachable", "n_joint_jumps", "n_config_flips",
+                     "n_contact_poses", "n_slowed_poses")},
+        "reachability_verdict": "; ".join(f"{r.name}: {h['verdict']}" for r, h
+                                          in zip(booth.robots, honest, strict=True) if h),
+        "n_collisions": len(events), "n_robot_robot_collisions": len(robot_robot),
+        "min_bell_distance_m": min_bell_distance(trajs),
+        "max_torque_utilization": float(tau_use),
+        "conveyor_speed_m_s": booth.conveyor.speed_m_s,
+        "conveyor_travel_m": booth.conveyor.speed_m_s * float(trace.t_s[-1] - trace.t_s[0]),
+        "carrier_tracking_error_max_mm": (
+            1e3 * float(np.abs(trace.q[:, bcell.carrier_column]
+                               - trajs_carrier(trace, booth, trajs)).max())
+            if bcell.carrier_column is not None else 0.0),
+        "execution_mode": trace.mode,
+        "n_mujoco_warnings": int(sum(trace.meta.get("mujoco_warnings", {}).values())),
+    }
+    th = booth.thresholds
+    spec = [("collisions", "n_collisions", th.max_collisions, "events", "max"),
+            ("robot-robot collisions", "n_robot_robot_collisions", th.max_robot_collisions,
+             "events", "max"),
+            ("executed σ/μ (worst part)", "max_part_executed_nsd_pct", th.max_executed_nsd_pct,
+             "%", "max"),
+            ("executed σ/μ (whole body)", "executed_nsd_pct", th.max_body_nsd_pct, "%", "max"),
+            ("|uniformity loss|", "abs_loss_pp", th.max_abs_loss_pp, "pp", "max"),
+            ("cycle time", "executed_cycle_time_s", th.max_cycle_time_s, "s", "max"),
+            ("bell distance", "min_bell_distance_m", th.min_bell_distance_m, "m", "min"),
+            ("torque utilization", "max_torque_utilization", th.max_torque_utilization, "-",
+             "max"),
+            ("reachability", "reachability_pct", th.reachability_pct, "%", "min")]
+    checks = []
+    for name, key, limit, unit, kind in spec:
+        if limit is None:
+            continue
+        v = float(m[key])
+        ok = (v <= limit) if kind == "max" else (v >= limit)
+        # A bell distance of inf (never two bells painting at once) passes.
+        checks.append(Check(name, v, float(limit), unit, bool(ok and not np.isnan(v)), kind))
+    m["robots"] = robots
+    m["allocation"] = record
+    return ValidationReport(metrics=m, checks=tuple(checks), reachability=None,
+                            collisions=tuple(events), joint_range_utilization=(),
+                            torque_utilization=(), planned_thickness_m=tot["plan"],
+                            executed_thickness_m=tot["executed"],
+                            trajectory_thickness_m=tot["trajectory"])
+
+
+def trajs_carrier(trace: ExecutedTrace, booth: Booth, trajs: list[JointTrajectory]
+                  ) -> np.ndarray:
+    """(K,) the carrier's commanded position [m] (the conveyor's nominal motion)."""
+    t_ref = float(trajs[0].meta.get("conveyor", {}).get("t_ref_s", 0.0))
+    return booth.conveyor.position_m(trace.t_s, t_ref)
+
+
+def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
+    """metrics.json (booth metrics, per-robot credit, allocation, film build), per-robot
+    trajectories and traces, one RAPID module per robot, `booth.png`
+    (`paintcell.booth.booth_plots`),
+    `body_film.png` and `report.html` (`paintcell.booth.booth_report`)."""
+    from paintcell.booth.booth_plots import booth_figure
+    from paintcell.booth.booth_rapid import booth_rapid_modules
+
+    d = result.report.to_dict()
+    d["scenario"] = {"name": result.scenario.name, "source": result.scenario.source}
+    d["stage_times_s"] = result.timings_s
+    atomic_write_text(out / "metrics.json", json_dump(d))
+    atomic_write_text(out / "scenario.json", json_dump(result.scenario.to_dict()))
+    for spec, tr, ex in zip(result.scenario.robots, result.trajectories, result.traces,
+                            strict=True):
+        tr.save_npz(out / f"trajectory_{spec.name}.npz")
+        ex.save_npz(out / f"trace_{spec.name}.npz")
+    for name, text in booth_rapid_modules(result, robots).items():
+        atomic_write_text(out / f"{name}.mod", text)
+    booth_figure(result, out / "booth.png")
+    from paintcell.booth.booth_film import overlap_mask
+    from paintcell.booth.booth_report import body_film_figure, write_booth_report
+
+    ex = result.films_m["executed"]
+    body_film_figure(result.surface, result.part_vertex_counts, ex,
+                     [r.name for r in result.scenario.robots], out / "body_film.png",
+                     band=overlap_mask(ex),
+                     title=f"{result.scenario.name}: executed film over the whole body "
+                           f"(σ/μ {result.report.metrics['executed_nsd_pct']:.2f} %)")
+    write_booth_report(out)
+
+
+def json_dump(d: dict[str, Any]) -> str:
+    """JSON of a metrics dict (numpy scalars made plain)."""
+    return json.dumps(d, indent=2, default=json_default)

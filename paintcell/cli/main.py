@@ -1,0 +1,150 @@
+"""The `paintcell` command line: run, check, plan, validate, export, report.
+
+Each subcommand is registered by one `add_<name>(sub)` function (its options, its help and the
+function that runs it) in its own module — `paintcell.cli.run` (run, plan),
+`paintcell.cli.check` (check),
+`paintcell.cli.results` (validate, export, report), `paintcell.cli.part_commands`,
+`paintcell.cli.sweep`; shared exit
+codes and helpers are in `paintcell.cli.common`. `build_parser` calls them in order, so a
+new subcommand is one more function and one more line there. Exit codes are in `EXIT_HELP`.
+Errors print one line; `--debug` shows the traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import traceback
+from typing import Any
+
+from paintcell.cli.check import add_check, format_table, write_junit
+from paintcell.cli.common import (
+    EXIT_FAIL,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    one_line,
+)
+from paintcell.cli.part_commands import register as add_part_commands
+from paintcell.cli.results import add_export, add_report, add_validate
+from paintcell.cli.run import add_plan, add_run
+from paintcell.core import interrupts
+from paintcell.core.errors import PaintcellError
+
+__all__ = ["EXIT_FAIL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "build_parser", "main",
+           "format_table", "one_line", "run_script", "write_junit"]
+
+EXIT_HELP = """\
+exit codes:
+  0    success (run/check/validate: every threshold met)
+  1    a threshold was not met (run, check, validate), or a check scenario errored
+  2    usage or input error (bad option, scenario, mesh, results folder; a busy folder)
+  130  interrupted (Ctrl-C or SIGTERM); nothing half-written is left behind
+
+results folders: a folder is paintcell's only if it holds the .paintcell-results marker;
+run/plan replace only such a folder (or a missing or empty one), atomically, one writer at a
+time; validate/export/report read the scenario snapshot in scenario.json, never a script."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors and exit code 2."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        sys.stderr.write(f"paintcell: error: {message} (see `paintcell --help`)\n")
+        raise SystemExit(EXIT_USAGE)
+
+
+class _Help(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
+    """Shows a default only where it tells something (not None, False or an empty list)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default in (None, False, [], argparse.SUPPRESS) or action.required:
+            return action.help
+        return super()._get_help_string(action)
+
+
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of every subcommand (its --help is the reference)."""
+    # --debug works before or after the subcommand (SUPPRESS keeps the main parser's value).
+    common = _Parser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the full traceback on errors instead of one line")
+    p = _Parser(prog="paintcell", formatter_class=_Help, epilog=EXIT_HELP, description=(
+        "Plan uniform spray-paint coverage for a car-body part, execute it on a simulated paint "
+        "robot in MuJoCo and measure the film-thickness uniformity lost from plan to execution."))
+    p.add_argument("--debug", action="store_true",
+                   help="show the full traceback on errors instead of one line")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    def add_parser(name: str, **kw: Any) -> argparse.ArgumentParser:
+        return sub.add_parser(name, parents=[common], formatter_class=_Help, epilog=EXIT_HELP,
+                              **kw)
+
+    from paintcell.cli.sweep import add_sweep_parser
+
+    for register in (add_run, add_check, add_plan, add_validate, add_export, add_report,
+                     add_part_commands,  # inspect, init, generate (issue 11)
+                     add_sweep_parser):
+        register(add_parser)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console entry point; returns the exit code."""
+    interrupts.reset()
+    previous = {s: signal.signal(s, interrupts.on_signal)
+                for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        code = _main(argv)
+        # A signal that a library swallowed (see paintcell.core.interrupts) still ends the
+        # command as one.
+        return EXIT_INTERRUPTED if interrupts.pending() is not None else code
+    except KeyboardInterrupt as exc:  # a signal while the parser was built, before the command
+        sys.stderr.write(f"paintcell: interrupted ({exc or 'SIGINT'}); nothing half-written was "
+                         "left\n")
+        return EXIT_INTERRUPTED
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _main(argv: list[str] | None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except KeyboardInterrupt as exc:
+        what = str(exc) or "SIGINT"
+        sys.stderr.write(f"paintcell: interrupted ({what}); nothing half-written was left\n")
+        return EXIT_INTERRUPTED
+    except (PaintcellError, FileNotFoundError, ValueError, OSError) as exc:
+        if args.debug:
+            traceback.print_exc()
+        sys.stderr.write(f"paintcell: error: {one_line(exc)}\n")
+        return EXIT_USAGE
+    except MemoryError:
+        if args.debug:
+            traceback.print_exc()
+        sys.stderr.write("paintcell: error: out of memory; use a coarser resolution_m or "
+                         "smaller sample settings in the scenario\n")
+        return EXIT_USAGE
+    except Exception as exc:  # a bug, not bad input: still one line unless --debug
+        if args.debug:
+            traceback.print_exc()
+        sys.stderr.write(f"paintcell: internal error: {type(exc).__name__}: {one_line(exc)} "
+                         "(rerun with --debug for the traceback)\n")
+        return EXIT_USAGE
+
+
+def run_script(scenario: Any, argv: list[str] | None = None) -> int:
+    """Entry point of a scenario script: `paintcell run <the script>` with the script's command-line
+    arguments (or `argv`). A script ends with `raise SystemExit(run_script(SCENARIO))`."""
+    src = scenario.source or sys.argv[0]
+    return main(["run", src, *(sys.argv[1:] if argv is None else argv)])
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

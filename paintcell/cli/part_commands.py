@@ -1,0 +1,373 @@
+"""`paintcell inspect`, `paintcell init` and `paintcell generate`: real part files in.
+
+- inspect PART_FILE: what the import finds (units and why, size, pieces, openings, hems, repairs,
+  curvature) and a PNG of the regions seen from the painted side.
+- init PART_FILE --out scenarios/NAME.toml: a commented TOML scenario (part, placement in front of
+  the robot, the first robot model whose base reaches the fast plan, `init_cell.choose_cell`)
+  that `paintcell run` and `plan` accept as written; none reaches it: a one-line refusal.
+- generate KIND --out FILE: a CAD-like door/hood/fender/roof mesh in mm
+(`paintcell.surface.cad_like`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from paintcell.core.errors import PaintcellError
+from paintcell.surface.part_spec import MeshPart
+
+__all__ = ["register"]
+
+_COLOURS = {"skin": "#4c9be8", "hem": "#e8894c", "inner": "#9a9a9a", "back": "#6b4ce8",
+            "edge": "#e8d24c"}
+
+
+def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
+    """Add the inspect/init/generate subcommands (`paintcell.cli.main.build_parser` calls
+    this)."""
+    i = add_parser("inspect", help="what paintcell finds in a part file",
+                   description="Read, repair and classify a mesh (STL/OBJ/PLY) or CAD (STEP/IGES) "
+                   "part file; print units chosen and why, size, pieces with areas, openings, "
+                   "hems, repairs and curvature range; write a PNG of the regions.")
+    _part_options(i)
+    i.add_argument("--png", type=Path, default=None,
+                   help="regions picture (default: <file stem>_regions.png in the current folder)")
+    i.set_defaults(func=_cmd_inspect)
+    n = add_parser("init", help="write a ready scenario for a part file",
+                   description="Write a commented TOML scenario for a part file: units, pieces, "
+                   "side, placement in front of the robot, and the first robot model whose base "
+                   "(paintcell.robots.placement.find_base_pose) or rail reaches every pose of a "
+                   "fast plan. `paintcell run` and `paintcell plan` accept it as written; when "
+                   "no robot reaches the part, init says so in one line and writes nothing.")
+    _part_options(n)
+    n.add_argument("--out", type=Path, required=True, help="scenario file to write (.toml)")
+    n.add_argument("--robot", default="auto",
+                   help="robot name (abb_paint, irb5500, ur10, abb_paint_rail, irb5500_rail), or "
+                   "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
+                   "of the part's fast plan (init says which and why; it refuses in one line "
+                   "when none does)")
+    n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
+    n.set_defaults(func=_cmd_init)
+    g = add_parser("generate", help="write a CAD-like car-part mesh (mm)",
+                   description="Write a generated CAD-like part (outer skin hemmed onto an inner "
+                   "panel, crease; a door also has a handle recess and a window) in millimetres, "
+                   "with coarse uneven tessellation and a few slivers; seeded, deterministic.")
+    g.add_argument("kind", choices=("door", "hood", "fender", "roof"), help="part kind")
+    g.add_argument("--out", type=Path, required=True, help="mesh file to write (.stl/.ply/.obj)")
+    g.add_argument("--seed", type=int, default=0, help="tessellation seed")
+    g.set_defaults(func=_cmd_generate)
+
+
+def _part_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("file", type=Path, help="part file: STL/OBJ/PLY mesh or STEP/IGES CAD")
+    p.add_argument("--units", default="auto", choices=("auto", "m", "mm", "cm", "in"),
+                   help="length unit of the file's coordinates (auto: inferred from the size)")
+    p.add_argument("--pieces", default="largest",
+                   help="pieces to keep: largest (by area), all, or indices like 0,2")
+    p.add_argument("--side", default="auto",
+                   help="painted side: auto (the convex skin) or a direction like 0,0,1")
+    p.add_argument("--resolution", type=float, default=0.025,
+                   help="remesh edge length [m] (0: keep the repaired tessellation)")
+
+
+def _spec(args: argparse.Namespace) -> MeshPart:
+    pieces: Any = args.pieces
+    if pieces not in ("largest", "all"):
+        try:
+            pieces = tuple(int(x) for x in str(pieces).split(","))
+        except ValueError:
+            raise PaintcellError(f"--pieces {args.pieces!r}: write largest, all or indices like "
+                                 "0,2") from None
+    side: Any = args.side
+    if side != "auto":
+        try:
+            side = tuple(float(x) for x in str(side).split(","))
+        except ValueError:
+            raise PaintcellError(f"--side {args.side!r}: write auto or a direction like 0,0,1") \
+                from None
+    return MeshPart(file=str(args.file), units=args.units, pieces=pieces, side=side)
+
+
+def _cmd_inspect(args: argparse.Namespace) -> int:
+    from paintcell.surface.part_import import import_part
+
+    res = args.resolution if args.resolution > 0 else None
+    surf, rep = import_part(_spec(args), resolution_m=res)
+    print(_describe(rep, surf))
+    png = args.png or Path(f"{surf.name}_regions.png")
+    _plot_regions(surf, png)
+    print(f"regions picture: {png}")
+    return 0
+
+
+def _describe(rep: Any, surf: Any) -> str:
+    ext = " × ".join(f"{x:.3f}" for x in np.array(rep.extent_m))
+    lines = [f"file: {rep.spec.file} ({rep.fmt.upper()})",
+             f"units: {rep.units.units} — {rep.units.reason}",
+             f"size: {ext} m",
+             f"pieces: {len(rep.pieces)} (kept {list(rep.selected)})"]
+    for p in rep.pieces[:10]:
+        lines.append(f"  piece {p.index}: {p.area_m2:.4f} m², {p.n_faces} faces, "
+                     f"{' × '.join(f'{x:.3f}' for x in p.extent_m)} m")
+    if len(rep.pieces) > 10:
+        lines.append(f"  … {len(rep.pieces) - 10} more pieces")
+    d = ", ".join(f"{x:.3f}" for x in rep.painted_direction)
+    lines.append(f"painted side: [{d}] — {rep.side_reason}"
+                 + ("; closed shell reduced to its skin" if rep.closed_shell else ""))
+    lines.append("regions: " + ", ".join(f"{k} {v:.4f} m²" for k, v in rep.region_areas_m2.items()))
+    ops = rep.openings
+    lines.append(f"openings: {len(ops)}" + "".join(
+        f"\n  {o.area_m2:.4f} m², Ø {o.diameter_m * 1e3:.0f} mm at "
+        f"({', '.join(f'{c:.3f}' for c in o.centre_m)}) m" for o in ops))
+    lines.append(f"repairs: {rep.repair.summary()}")
+    if rep.resolution_m:
+        lines.append(f"remesh: {len(surf.faces)} faces at {rep.resolution_m * 1e3:.0f} mm, area "
+                     f"{rep.area_before_remesh_m2:.4f} → {rep.area_after_remesh_m2:.4f} m² "
+                     f"({100 * (rep.area_after_remesh_m2 / rep.area_before_remesh_m2 - 1):+.2f} %)")
+    lo, hi = rep.mean_curvature_range_1_m
+    lines.append(f"skin mean curvature (1st–99th percentile): {lo:.2f} … {hi:.2f} 1/m")
+    return "\n".join(lines)
+
+
+def _plot_regions(surf: Any, png: Path) -> None:
+    """Orthographic views of the regions from the painted side and from behind (mirrored),
+    openings labelled with their area."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    from paintcell.core.atomic_io import atomic_path
+    from paintcell.surface.regions import REGION_NAMES
+
+    d = surf.regions.painted_direction
+    e1 = np.cross(d, [0.0, 0.0, 1.0] if abs(d[2]) < 0.9 else [1.0, 0.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(d, e1)
+    depth = surf.vertices[surf.faces].mean(1) @ d
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6), dpi=100)
+    views = ((axes[0], 1.0, "from the painted side"), (axes[1], -1.0, "from behind"))
+    for ax, sign, title in views:
+        # Behind: seen from -d, so left and right swap; far faces are drawn first.
+        xy = np.stack([sign * (surf.vertices @ e1), surf.vertices @ e2], 1)
+        order = np.argsort(sign * depth)
+        cols = [_COLOURS[REGION_NAMES[i]] for i in surf.regions.face_labels[order]]
+        ax.add_collection(PolyCollection(xy[surf.faces[order]], facecolors=cols,
+                                         edgecolors="none"))
+        ax.autoscale()
+        ax.set_aspect("equal")
+        for o in surf.regions.openings:
+            c = np.array(o.centre_m)
+            ax.annotate(f"opening {o.area_m2 * 1e4:.0f} cm²", (sign * (c @ e1), c @ e2),
+                        ha="center")
+        ax.set_title(f"{surf.name}: regions seen {title} [m]")
+    for name in REGION_NAMES:
+        axes[0].plot([], [], "s", color=_COLOURS[name], label=name)
+    axes[0].legend(loc="upper right")
+    with atomic_path(png) as tmp:
+        fig.savefig(tmp, format="png")
+    plt.close(fig)
+
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    from paintcell.core.atomic_io import atomic_path
+    from paintcell.surface.cad_like import make_part
+
+    part = make_part(args.kind, args.seed)
+    suffix = args.out.suffix.lower().lstrip(".")
+    if suffix not in ("stl", "ply", "obj"):
+        raise PaintcellError(f"--out {args.out}: write a .stl, .ply or .obj file")
+    with atomic_path(args.out) as tmp:
+        part.mesh.export(tmp, file_type=suffix)
+    t = part.truth
+    print(f"{args.kind} (seed {args.seed}): {len(part.mesh.faces)} faces in mm → {args.out}; "
+          f"truth: skin {t['skin_m2']:.4f} m², hem {t['hem_m2']:.4f} m², inner panel "
+          f"{t['inner_m2']:.4f} m², window {t['window_m2']:.4f} m²")
+    return 0
+
+
+def _rpy(R: np.ndarray) -> tuple[float, float, float]:
+    from scipy.spatial.transform import Rotation
+
+    r = Rotation.from_matrix(R).as_euler("xyz")
+    return (float(r[0]), float(r[1]), float(r[2]))
+
+
+def _placement(surf: Any) -> np.ndarray:
+    """T_world_part: painted side toward a robot at the origin (−x), the part's longest extent
+    horizontal (along y), its centre 1.4 m in front of the robot and its lower edge ≥ 0.5 m above
+    the floor (the wrist of a pass along that edge stays clear of the floor)."""
+    d = surf.regions.painted_direction
+    skin = surf.vertices[surf.regions.vertex_mask(surf.faces, ("skin",))]
+    c = skin.mean(0)
+    q = skin - c
+    q = q - np.outer(q @ d, d)
+    w, vec = np.linalg.eigh(q.T @ q)
+    long_ax = vec[:, -1]
+    # Part frame → world: d → −x, long axis → −y (right-handed: third = up).
+    up = np.cross(d, long_ax)
+    R = np.stack([-d, -long_ax, up], 0)  # rows: world x, y, z expressed in part coordinates
+    if np.linalg.det(R) < 0:
+        R[1] = -R[1]
+    z_half = float(np.ptp((surf.vertices - c) @ R[2]) / 2)
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = [1.4, 0.0, max(1.0, z_half + 0.5)] - R @ c
+    return T
+
+
+def _cmd_init(args: argparse.Namespace) -> int:
+    from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
+    from paintcell.app.init_verify import ProgramCheck
+    from paintcell.app.pipeline import make_plan
+    from paintcell.app.scenario import Placement, Scenario
+    from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.robots.catalog import ROBOT_NAMES
+    from paintcell.surface.part_import import import_part
+
+    out: Path = args.out
+    if out.suffix != ".toml":
+        raise PaintcellError(f"--out {out}: a scenario file ends in .toml")
+    if args.robot != "auto" and args.robot not in ROBOT_NAMES:  # before minutes of planning
+        raise PaintcellError(f"--robot {args.robot!r} is not a robot paintcell ships; write "
+                             f"--robot auto or one of {', '.join(ROBOT_NAMES)}")
+    spec = _spec(args)
+    spec_rel = replace(spec, file=_relpath(Path(spec.file), out.parent))
+    surf, rep = import_part(spec, resolution_m=0.025)
+    name = args.name or "".join(c if c.isalnum() or c in "_-" else "_" for c in out.stem)
+    T = _placement(surf)
+    pl = Placement(tuple(float(x) for x in T[:3, 3]), _rpy(T[:3, :3]))  # type: ignore[arg-type]
+    plan, planner, tried = None, {}, []
+    for planner in _PLANNER_TRIES:
+        scn = Scenario(name=name, part=spec_rel, part_placement=pl,
+                       robot="abb_paint" if args.robot == "auto" else args.robot,
+                       planner=dict(planner), fast_planner=dict(_INIT_PLANNER))
+        try:
+            plan = make_plan(scn, surf, fast=True)
+            break
+        except PaintcellError as exc:
+            tried.append(f"{planner or 'defaults'}: {exc}")
+    if plan is None:
+        raise PaintcellError(f"no planner setting plans {spec.file} ({len(tried)} tried; first: "
+                             f"{tried[0]}); see `paintcell inspect` for its regions")
+    paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
+    # The lowest pass (edge passes run outside the part) at least _MIN_TCP_Z_M above the floor:
+    # below that the wrist and the bell sweep the floor. The plan is in the part frame: lift both.
+    lift = _MIN_TCP_Z_M - min(float(p[:, 2, 3].min()) for p in paths)
+    if lift > 0:
+        T[2, 3] += lift
+        pl = Placement(tuple(float(x) for x in T[:3, 3]), pl.rpy_rad)  # type: ignore[arg-type]
+        paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
+    # scored by what the run suffers: the plan's speeds, clearance from the part and the floor;
+    # the first robot model that reaches every pose (`init_cell.AUTO_ROBOTS` with --robot auto)
+    part_world = surf.vertices @ pl.matrix[:3, :3].T + pl.matrix[:3, 3]
+    robots = AUTO_ROBOTS if args.robot == "auto" else (args.robot,)
+    def candidate(robot_name: str, T_cell: np.ndarray, trajectory: dict[str, Any]) -> Scenario:
+        return Scenario(name=name, part=spec_rel, part_placement=pl, robot=robot_name,
+                        base=Placement(tuple(float(x) for x in T_cell[:3, 3]),  # type: ignore[arg-type]
+                                       _rpy(T_cell[:3, :3])), trajectory=trajectory,
+                        planner=dict(planner), fast_planner=dict(_INIT_PLANNER))
+
+    # what `run` does first, the joint program, and what its execution will touch: the part
+    check = ProgramCheck(candidate, plan, surf)
+    cell = choose_cell(robots, paths, [p.speeds_m_s for p in plan.passes], part_world,
+                       str(spec.file), floor_z_m=0.0, verify=check)
+    trajectory = check.trajectory.get(cell.robot, {})
+    T_base = cell.T_base
+    base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
+    text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
+                          f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried,
+                          trajectory, check.clearance_m.get(cell.robot))
+    atomic_write_text(out, text)
+    print(_describe(rep, surf))
+    print(f"cell: {cell.why}")
+    print(f"placement: {cell.verdict}")
+    print(f"scenario written: {out}")
+    return 0
+
+
+def _relpath(p: Path, start: Path) -> str:
+    import os
+    return os.path.relpath(p.resolve(), start.resolve())
+
+
+def _v(x: Any) -> str:
+    return json.dumps(list(x) if isinstance(x, tuple) else x)
+
+
+#: Lowest TCP height of a pass `init` accepts [m]; the part is lifted until its plan clears it.
+_MIN_TCP_Z_M = 0.6
+
+#: What init's own plan leaves out (not written to the scenario): the film refinement re-times
+#: the passes along the same poses (the cell's reach, moves and clearance are those of the
+#: unrefined plan) and its bounded least squares over every knot of the part was 292 of
+#: crs_cowling_creases' 404 s plan (profiled, 2 cores under load).
+_INIT_PLANNER: dict[str, Any] = {"film_refine": False}
+
+#: Planner settings `init` tries in turn until one plans the part (the first is the defaults).
+_PLANNER_TRIES: tuple[dict[str, Any], ...] = (
+    {}, {"orientation": "zero-curvature"}, {"orientation": "max-curvature"},
+    {"orientation": "auto", "w_max_m": 0.3})
+
+
+def _scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, base: Any,
+                   verdict: str, n_passes: int, planner: dict[str, Any], tried: list[str],
+                   trajectory: dict[str, Any], clearance_m: float | None) -> str:
+    ops = rep.openings
+    pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m²" for p in rep.pieces[:6])
+    pieces += ", …" if len(rep.pieces) > 6 else ""
+    d = [round(x, 3) for x in rep.painted_direction]
+    regions = ", ".join(f"{k} {v:.3f} m²" for k, v in rep.region_areas_m2.items())
+    planner_lines = "".join(f"# failed: {t[:300]}\n" for t in tried)
+    planner_lines += "".join(f"{k} = {_v(v)}\n" for k, v in planner.items()) or \
+        "# the planner's defaults plan this part\n"
+    gap = f"at least {(clearance_m or 0.0) * 1e3:.0f} mm"   # init_verify's sweep of the program
+    traj_lines = "".join(f"{k} = {_v(v)}\n" for k, v in trajectory.items())
+    if traj_lines:
+        traj_lines = (f"# the default moves came close to the part on the fast plan; folded (the "
+                      f"arm pulls back toward its base before it turns) they keep {gap} from "
+                      "it\n" + traj_lines)
+    else:
+        traj_lines = f"# the default moves keep {gap} from the part on the fast plan\n"
+    return f"""# Written by `paintcell init {rep.spec.file}`: every choice below is editable.
+name = {_v(name)}
+robot = {_v(robot)}               # see [base] for why this robot
+resolution_m = 0.01            # remesh edge length of a full run [m]
+fast_resolution_m = 0.025      # remesh edge length of a --fast run [m]
+
+[part]
+file = {_v(spec.file)}   # relative to this file
+# units: {rep.units.units} — {rep.units.reason}
+units = {_v(spec.units)}
+# pieces: {len(rep.pieces)} found ({pieces}); "largest" paints the largest by area
+pieces = {_v(spec.pieces)}
+# side: painted direction {d} in the part frame ({rep.side_reason})
+side = {_v(spec.side)}
+# regions: {regions}; openings: {len(ops)}
+judge = ["skin"]               # film metrics judged on the skin (add "hem" to include hems)
+
+[part_placement]
+# painted side toward the robot (world −x), longest extent horizontal, centre 1.4 m in front
+xyz_m = {_v([round(x, 4) for x in pl.xyz_m])}
+rpy_rad = {_v([round(x, 6) for x in pl.rpy_rad])}
+
+[base]
+# paintcell.robots.placement.find_base_pose on the fast plan ({n_passes} passes): {verdict}
+xyz_m = {_v([round(x, 4) for x in base.xyz_m])}
+rpy_rad = {_v([round(x, 6) for x in base.rpy_rad])}
+
+[planner]
+{planner_lines}
+[trajectory]
+{traj_lines}
+[thresholds]
+reachability_pct = 100.0
+max_collisions = 0
+"""

@@ -1,0 +1,135 @@
+"""The `paintcell run` and `paintcell plan` sub-commands: a scenario in, a results folder out."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from paintcell.cli.check import format_table, row
+from paintcell.cli.common import (
+    EXIT_FAIL,
+    EXIT_OK,
+    FAST_HELP,
+    SCENARIO_HELP,
+    default_out,
+    key_values,
+)
+from paintcell.core.errors import PaintcellError
+
+# --- run ----------------------------------------------------------------------------------------
+
+def add_run(add_parser: Any) -> None:
+    r = add_parser("run", help="run one scenario end to end", description=(
+        "Plan → IK → trajectory → MuJoCo execution → validation → report for one scenario; "
+        "writes plan.json/.npz, trajectory.npz/.csv, trace.npz, metrics.json, scenario.json "
+        "(the scenario as data) and report.html into --out, atomically. Exits 1 when a "
+        "threshold is not met."))
+    r.add_argument("scenario", help=SCENARIO_HELP)
+    r.add_argument("--out", type=Path, default=None,
+                   help="results folder (default: results/<scenario name>); replaced only if "
+                   "missing, empty or an earlier paintcell results folder")
+    r.add_argument("--fast", action="store_true", help=FAST_HELP)
+    r.add_argument("--mode", choices=("servo", "kinematic"), default="servo",
+                   help="servo: PD + inverse-dynamics control at 1 kHz; kinematic: ideal replay")
+    r.add_argument("--no-report", action="store_true",
+                   help="skip renders, plots and report.html (data files only)")
+    r.add_argument("--video", action="store_true",
+                   help="also render the execution video execution.gif (tens of seconds) and embed "
+                   "it in report.html (a few MB; without it the report stays under 2 MB)")
+    r.add_argument("--disturb", action="append", default=[], metavar="KEY=VALUE",
+                   help="robustness study: a Disturbances setting (paintcell.execution) on top "
+                   "of the "
+                   "scenario's, repeatable: part_offset_m [m], part_rotation_rad [rad], "
+                   "tcp_offset_m [m], gain_scale [-], standoff_error_m [m], trigger_delay_s [s], "
+                   "flow_scale [-], flow_drift [-], seed [int]; e.g. --disturb "
+                   "part_offset_m=0.005 --disturb seed=3")
+    # Internal, for `paintcell check`: write the table row as JSON; results under a folder.
+    r.add_argument("--row-json", type=Path, default=None, help=argparse.SUPPRESS)
+    r.add_argument("--out-under", type=Path, default=None, help=argparse.SUPPRESS)
+    r.set_defaults(func=_cmd_run)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from paintcell.app.pipeline import run_scenario
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth import Booth
+    from paintcell.booth.booth_run import run_booth
+
+    scn = load_scenario(args.scenario)
+    if args.disturb and not hasattr(scn, "disturbances"):
+        raise PaintcellError("--disturb applies to single-robot scenarios, not to a booth")
+    if args.disturb:
+        scn = replace(scn, disturbances={**scn.disturbances, **key_values(args.disturb)})
+        from paintcell.app.scenario_data import check_settings
+
+        check_settings(scn, "--disturb")
+    # `paintcell check` runs each scenario as `run --row-json FILE` in its own process and
+    # writes results only when it was given --out.
+    worker = args.row_json is not None
+    out = args.out or (args.out_under / scn.name if args.out_under is not None
+                       else None if worker else default_out(scn.name))
+    if isinstance(scn, Booth):   # several robots on a conveyor
+        res: Any = run_booth(scn, out, fast=args.fast, mode=args.mode)
+    else:
+        res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
+                           report=not (args.no_report or worker), progress=not worker,
+                           video=args.video)
+    r = row(scn.name, res.report)
+    if worker:
+        from paintcell.cli.sweep import (
+            sweep_checks,  # the limits of the scenario's sweep, if any
+        )
+        from paintcell.core.atomic_io import atomic_write_text
+
+        r["checks"] += sweep_checks(scn, args.fast, args.out_under)
+        r["passed"] = bool(r["passed"]) and all(c["passed"] for c in r["checks"])
+        atomic_write_text(args.row_json, json.dumps(r))
+        return EXIT_OK if r["passed"] else EXIT_FAIL
+    print(format_table([r]))
+    if out is not None:
+        html = (out / "report.html").exists()   # a booth writes no HTML report (yet)
+        print(f"results: {out}" + (f" (report: {out / 'report.html'})" if html else ""))
+    return EXIT_OK if res.passed else EXIT_FAIL
+
+
+# --- plan ---------------------------------------------------------------------------------------
+
+def add_plan(add_parser: Any) -> None:
+    pl = add_parser("plan", help="plan only: write plan.json/.npz", description=(
+        "Run the coverage planner of a scenario and write plan.json (+ plan.npz) and "
+        "scenario.json into a fresh results folder --out (replacing an earlier one "
+        "atomically; a failed plan leaves it as it was)."))
+    pl.add_argument("scenario", help=SCENARIO_HELP)
+    pl.add_argument("--out", type=Path, default=None,
+                    help="output folder (default: results/<scenario name>); replaced only if "
+                    "missing, empty or an earlier paintcell results folder")
+    pl.add_argument("--fast", action="store_true", help=FAST_HELP)
+    pl.set_defaults(func=_cmd_plan)
+
+
+def _cmd_plan(args: argparse.Namespace) -> int:
+    from paintcell.app.pipeline import load_surface, make_plan, scenario_json
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth import Booth
+    from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.core.results_dir import new_results
+
+    scn = load_scenario(args.scenario)
+    if isinstance(scn, Booth):   # it said "part 'fender+door+…' is neither a library part …"
+        raise PaintcellError(f"{args.scenario} is a booth (several robots): `paintcell plan` "
+                             "plans a one-robot scenario; plan and run the booth with "
+                             f"`paintcell run {args.scenario}`")
+    out = args.out or default_out(scn.name)
+    with new_results(out, "plan") as tmp:
+        assert tmp is not None
+        surface = load_surface(scn, args.fast)
+        plan = make_plan(scn, surface, args.fast)
+        plan.save(tmp / "plan.json")
+        atomic_write_text(tmp / "scenario.json", scenario_json(scn, args.fast, "none"))
+    print(f"{scn.name}: {len(plan.passes)} passes, paint time {plan.paint_time_s:.1f} s, "
+          f"start curve: {plan.start_rule}")
+    print(f"plan: {out / 'plan.json'}")
+    return EXIT_OK

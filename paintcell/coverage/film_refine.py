@@ -1,0 +1,283 @@
+"""Film refinement: re-time every pass together against the simulated film on the real part.
+
+The paper's speed QP (§3) times one pass at a time on its own band of sub-offset curves, and the
+film guard (`coverage_family._film_guard`) can only blend those speeds back toward constant. Two
+things it cannot see are left thin or thick on a real part: the rim of an opening, where the brush
+goes off over the hole (`openings.brush_off_openings`) and the paint its footprint would have put on
+the rim is missing, and the stripes where neighbouring passes' films add up differently from the
+band's model (pass ends, the outer edge, a narrow strip between a window and the part's edge).
+
+Because film thickness is linear in the dwell time of each gun sample (eq. 1: film = Σ_s rate_s ·
+dwell_s), the whole plan's film on the real mesh is M · s, where s are slowness multipliers on the
+planned dwell at knots spaced `KNOT_SPACING_M` along each pass (linear between knots) and M is the
+deposition model summed over the samples each knot carries. `refine_speeds` solves the bounded
+least-squares problem
+
+    min_s  Σ_v a_v (M s − μ)_v² / (A μ²)  +  λ_smooth Σ ‖Δ² s‖²  +  λ_keep Σ (s − 1)²
+    s.t.   every sample's new speed v / s stays in [v_min, min(v_max, robot cap)]
+
+(a_v vertex areas, A their sum, μ the mean film of the start: the film is held where it is, only
+its spread shrinks) with `scipy.optimize.lsq_linear` (bounded-variable least squares), rebuilds
+speeds and times, and keeps the result only when the simulated film's σ/μ on the part is lower
+than before, on the whole part and on its interior. The start is the planned timing, slowed to
+the robot's speed caps where it exceeds them (what the robot would paint; a robot-aware re-plan,
+`paintcell.motion.speed_feedback`, passes them), so the refined speeds stay within what the
+robot can follow.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import lsq_linear
+
+from paintcell.coverage.offset_polyline import arc_length
+from paintcell.coverage.plan import PassPlan, times_from_speeds
+from paintcell.paint.applicator import Applicator
+from paintcell.paint.deposition import deposition_rate, thickness
+from paintcell.paint.deposition_samples import GunSamples
+from paintcell.surface.surface import Surface
+
+#: spacing of the slowness knots along each pass [m] (a few per footprint diameter).
+KNOT_SPACING_M = 0.08
+#: weight of the second differences of the slowness along a pass (smooth speed changes).
+SMOOTH_WEIGHT = 3e-3
+#: weight of the slowness' departure from the planned speeds (keeps the cycle time).
+KEEP_WEIGHT = 3e-4
+#: gun samples per deposition-rate block (memory: block × vertices floats).
+_BLOCK = 64
+#: most (vertex, knot) entries of the fitted film matrix: the fit holds ~3 such float64 arrays
+#: (the matrix, the stacked system, its QR factor), so 2e7 entries is ~0.5 GB at the peak. A
+#: larger part is fitted on an evenly strided subset of its vertices (area weights scaled to the
+#: part's); the result is still judged on the film of every vertex.
+MAX_FIT_ENTRIES = 20_000_000
+#: weights of the interior vertices tried in turn when a fit lowers σ/μ on the whole part but
+#: not on the interior (`refine_speeds`).
+INTERIOR_WEIGHTS = (1.0, 2.0, 4.0, 8.0)
+
+
+def _knot_basis(arc_m: np.ndarray, spacing_m: float) -> tuple[sp.csr_matrix, int]:
+    """Hat-function basis (M, K) of knots spread evenly over the arc length [m]."""
+    length = float(arc_m[-1]) if len(arc_m) else 0.0
+    k = max(2, int(np.ceil(length / spacing_m)) + 1)
+    x = arc_m / max(length, 1e-12) * (k - 1)
+    i0 = np.clip(np.floor(x).astype(int), 0, k - 2)
+    f = x - i0
+    rows = np.repeat(np.arange(len(arc_m)), 2)
+    cols = np.column_stack([i0, i0 + 1]).ravel()
+    vals = np.column_stack([1.0 - f, f]).ravel()
+    return sp.csr_matrix((vals, (rows, cols)), shape=(len(arc_m), k)), k
+
+
+def _film_matrix(app: Applicator, passes: list[PassPlan], basis: list[sp.csr_matrix],
+                 points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(N, K) film [m] at each point per unit slowness of each knot (planned dwell)."""
+    k_total = sum(b.shape[1] for b in basis)
+    out = np.zeros((len(points), k_total))
+    col = 0
+    for p, b in zip(passes, basis, strict=True):
+        on = np.flatnonzero(p.paint_on)
+        dB = sp.diags(p.dwell_s()) @ b                     # (M, K_p) dwell per knot [s]
+        for i in range(0, len(on), _BLOCK):
+            idx = on[i:i + _BLOCK]
+            rate = deposition_rate(app, p.positions[idx], p.spray_axes[idx],
+                                   p.travel_dirs[idx], points, normals)   # (s, N) [m/s]
+            out[:, col:col + b.shape[1]] += (dB[idx].T @ rate).T
+        col += b.shape[1]
+    return out
+
+
+def _second_diff(k: int) -> sp.csr_matrix:
+    if k < 3:
+        return sp.csr_matrix((0, k))
+    return sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(k - 2, k), format="csr")
+
+
+def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
+                  v_min_m_s: float, v_max_m_s: float, interior: np.ndarray,
+                  caps_m_s: list[np.ndarray | None] | None = None,
+                  pass_time_weight: float = 0.0
+                  ) -> tuple[list[PassPlan], dict[str, Any]]:
+    """Passes re-timed so the simulated film on `surface` is as even as the bounds allow.
+
+    app: the deposition model; surface: the real part (film judged on every vertex, area
+    weighted); passes: the plan's passes in execution order; v_min_m_s / v_max_m_s: speed
+    bounds [m/s]; interior: (N,) bool, the vertices away from the boundary (the result must not
+    be worse there either); caps_m_s: per pass (M,) robot speed caps [m/s] or None;
+    pass_time_weight: weight of each pass's duration staying as planned (relative squared
+    change, added to the fit; 0: free) — a booth whose robots sweep in step keeps its pace
+    (`paintcell.booth.booth_refine`).
+    Returns the passes (unchanged when refining does not lower σ/μ on both the whole part and
+    the interior) and an info dict (σ/μ before/after [%], cycle change [s], knots).
+    """
+    V, N, a = surface.vertices, surface.normals, surface.vertex_areas
+    caps = caps_m_s or [None] * len(passes)
+
+    def nsd(f: np.ndarray, m: np.ndarray | None = None) -> float:
+        w = a if m is None else a * m
+        mean = np.dot(w, f) / w.sum()
+        return 100.0 * float(np.sqrt(np.dot(w, (f - mean) ** 2) / w.sum()) / mean)
+
+    film0 = _plan_film(app, passes, V, N)
+    info: dict[str, Any] = {"nsd_before_pct": nsd(film0),
+                            "interior_before_pct": nsd(film0, interior), "applied": False}
+    # Where the planned speeds exceed the robot's caps the robot paints the capped speeds: the
+    # refinement starts from that timing and must beat its film (the plan's own is out of reach).
+    tops = [_top(p, c, v_max_m_s) for p, c in zip(passes, caps, strict=True)]
+    if any(np.any(p.speeds_m_s > t) for p, t in zip(passes, tops, strict=True)):
+        passes = [_retimed(p, np.minimum(p.speeds_m_s, t))
+                  for p, t in zip(passes, tops, strict=True)]
+        film0 = _plan_film(app, passes, V, N)
+        info.update(nsd_capped_pct=nsd(film0), interior_capped_pct=nsd(film0, interior))
+    before = (nsd(film0), nsd(film0, interior))
+    mu = float(np.dot(a, film0) / a.sum())
+    if not mu > 0:
+        info["reason"] = "no film on the part"
+        return passes, info
+    basis, lo, hi = [], [], []
+    for p, top in zip(passes, tops, strict=True):
+        b, k = _knot_basis(arc_length(p.positions), KNOT_SPACING_M)
+        basis.append(b)
+        # s ≥ v/top and s ≤ v/v_min at every sample a knot carries (s = 1 is inside: v ≤ top)
+        s_lo, s_hi = p.speeds_m_s / top, p.speeds_m_s / min(v_min_m_s, float(top.min()))
+        bc = b.tocsc()
+        for j in range(k):
+            rows = bc.indices[bc.indptr[j]:bc.indptr[j + 1]]
+            if len(rows) == 0:          # a knot between two far-apart samples: it carries none
+                lo.append(1.0 - 1e-6)
+                hi.append(1.0 + 1e-6)
+                continue
+            lo.append(float(s_lo[rows].max()))
+            hi.append(float(max(s_hi[rows].min(), lo[-1] + 1e-6)))
+    lo_a, hi_a = np.asarray(lo), np.asarray(hi)
+    n_k = sum(b.shape[1] for b in basis)
+    stride = max(1, int(np.ceil(len(V) * n_k / MAX_FIT_ENTRIES)))
+    fit = np.arange(0, len(V), stride)
+    M = _film_matrix(app, passes, basis, V[fit], N[fit])
+    info.update(knots=int(n_k), fit_vertices=int(len(fit)))
+    problem = _FitProblem(app=app, passes=passes, basis=basis, tops=tops, areas=a, fit=fit,
+                          interior=interior, mu=mu, M=M, lo=lo_a, hi=hi_a,
+                          v_min_m_s=v_min_m_s, pass_time_weight=pass_time_weight,
+                          vertices=V, normals=N)
+    # Fitted with the interior weighted 1×; if the result lowers σ/μ on the whole part but not
+    # on its interior, fitted again with the interior weighted more (INTERIOR_WEIGHTS): the fit
+    # trades some of the edge's gain for the interior, and the first that lowers both is kept.
+    tried = []
+    for w_int in INTERIOR_WEIGHTS:
+        out, film, s, res, dt = _fit(problem, w_int)
+        after = (nsd(film), nsd(film, interior))
+        tried.append({"interior_weight": w_int, "nsd_pct": after[0], "interior_pct": after[1]})
+        if after[0] < before[0] and after[1] <= before[1]:
+            break
+        if not after[0] < before[0]:       # no gain on the whole part: more weight won't help
+            break
+    info.update(nsd_after_pct=after[0], interior_after_pct=after[1], solver=int(res.status),
+                slowness_range=[float(s.min()), float(s.max())], cycle_change_s=dt,
+                interior_weights_tried=tried)
+    if not after[0] < before[0]:
+        info["reason"] = "no lower σ/μ on the whole part"
+        return passes, info
+    if not after[1] <= before[1]:
+        info["reason"] = "no lower σ/μ on the interior at any interior weight"
+        return passes, info
+    info["applied"] = True
+    return out, info
+
+
+@dataclass(frozen=True)
+class _FitProblem:
+    """What every fit of `refine_speeds` shares: the passes (execution order) and their knot
+    bases, each sample's top speed [m/s], the vertices' areas [m²], the fitted vertices' indices
+    `fit` and film matrix `M` (film [m] per unit knot slowness), the interior mask, the mean
+    film mu [m], the knots' slowness bounds lo / hi, v_min_m_s [m/s], the pass-time weight and
+    the part's vertices and normals (the film judged on all of them)."""
+
+    app: Applicator
+    passes: list[PassPlan]
+    basis: list[sp.csr_matrix]
+    tops: list[np.ndarray]
+    areas: np.ndarray
+    fit: np.ndarray
+    interior: np.ndarray
+    mu: float
+    M: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    v_min_m_s: float
+    pass_time_weight: float
+    vertices: np.ndarray
+    normals: np.ndarray
+
+
+def _fit(pb: _FitProblem, w_int: float
+         ) -> tuple[list[PassPlan], np.ndarray, np.ndarray, Any, float]:
+    """One bounded least-squares fit of the knot slownesses (module doc) with the interior
+    vertices' area weights multiplied by w_int: the re-timed passes, their film on every vertex
+    [m], the slownesses, the solver's result and the cycle change [s]."""
+    passes, basis, fit, mu, pass_time_weight = pb.passes, pb.basis, pb.fit, pb.mu, \
+        pb.pass_time_weight
+    n_k = len(pb.lo)
+    wa = pb.areas[fit] * np.where(pb.interior[fit], w_int, 1.0)
+    rw = np.sqrt(wa / wa.sum()) / mu
+    blocks = [pb.M * rw[:, None]]
+    col = 0
+    for b in basis:
+        k = b.shape[1]
+        d2 = _second_diff(k).toarray()
+        if len(d2):
+            rows = np.zeros((len(d2), n_k))
+            rows[:, col:col + k] = np.sqrt(SMOOTH_WEIGHT) * d2
+            blocks.append(rows)
+        col += k
+    blocks.append(np.sqrt(KEEP_WEIGHT) * np.eye(n_k))
+    tail = [np.sqrt(KEEP_WEIGHT) * np.ones(n_k)]
+    if pass_time_weight > 0:          # a pass's new duration is Σ dwell · slowness
+        rows, col = np.zeros((len(passes), n_k)), 0
+        for i, (p, b) in enumerate(zip(passes, basis, strict=True)):
+            rows[i, col:col + b.shape[1]] = (p.dwell_s() @ b) / max(p.times_s[-1] - p.times_s[0],
+                                                                    1e-12)
+            col += b.shape[1]
+        blocks.append(np.sqrt(pass_time_weight) * rows)
+        tail.append(np.sqrt(pass_time_weight) * np.ones(len(passes)))
+    A_ls = np.vstack(blocks)
+    n_tail = sum(len(t) for t in tail)
+    rhs = np.concatenate([rw * mu, np.zeros(len(A_ls) - len(fit) - n_tail), *tail])
+    # ‖A s − b‖² = ‖R s − Qᵀ b‖² + const (A = QR): the bounded-variable solver runs on the
+    # K × K triangle instead of the (N + K) × K system (a few hundred knots: exact and fast)
+    Q_, R_ = np.linalg.qr(A_ls)
+    res = lsq_linear(R_, Q_.T @ rhs, bounds=(pb.lo, pb.hi), method="bvls")
+    s = np.clip(res.x, pb.lo, pb.hi)
+    out, dt = [], 0.0
+    col = 0
+    for p, b, top in zip(passes, basis, pb.tops, strict=True):
+        k = b.shape[1]
+        q = _retimed(p, np.clip(p.speeds_m_s / (b @ s[col:col + k]),
+                                np.minimum(pb.v_min_m_s, top), top))
+        col += k
+        dt += float(q.times_s[-1] - p.times_s[-1])
+        out.append(q)
+    # the rebuilt timing (trapezoid dwell, clipped speeds) judged by the film itself
+    return out, _plan_film(pb.app, out, pb.vertices, pb.normals), s, res, dt
+
+
+def _top(p: PassPlan, cap: np.ndarray | None, v_max_m_s: float) -> np.ndarray:
+    """(M,) highest speed each sample of the pass may take [m/s]."""
+    return np.full(len(p.speeds_m_s), v_max_m_s) if cap is None else np.minimum(v_max_m_s, cap)
+
+
+def _retimed(p: PassPlan, speeds_m_s: np.ndarray) -> PassPlan:
+    return replace(p, speeds_m_s=speeds_m_s, times_s=times_from_speeds(p.positions, speeds_m_s))
+
+
+def _plan_film(app: Applicator, passes: list[PassPlan], points: np.ndarray,
+               normals: np.ndarray) -> np.ndarray:
+    """(N,) film [m] of the passes' brush-on samples at their planned timing."""
+    gun = GunSamples(
+        positions=np.concatenate([p.positions[p.paint_on] for p in passes]),
+        spray_axes=np.concatenate([p.spray_axes[p.paint_on] for p in passes]),
+        travel_dirs=np.concatenate([p.travel_dirs[p.paint_on] for p in passes]),
+        dwell_s=np.concatenate([p.dwell_s()[p.paint_on] for p in passes]))
+    return thickness(app, gun, points, normals)

@@ -1,0 +1,77 @@
+"""Polylines in 3-D: rows scaled to unit length, cumulative arc length [m], resampling at uniform
+arc-length spacing, tangents, and the geodesic curvature [1/m] of a curve lying in a surface.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from paintcell.core.errors import PlanError
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    """Rows of `v` (..., 3) scaled to unit length; zero rows stay zero."""
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.where(n > 0, n, 1.0)
+
+
+def arc_length(points: npt.ArrayLike) -> np.ndarray:
+    """(M,) cumulative polyline arc length from the first point [m]."""
+    p = np.asarray(points, float)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+
+
+def resample(points: npt.ArrayLike, normals: npt.ArrayLike, spacing_m: float,
+             flags: npt.ArrayLike | None = None
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Resample a polyline at (nearly) uniform arc-length spacing, keeping both ends.
+
+    points: (M, 3) [m]; normals: (M, 3) interpolated linearly and renormalized;
+    flags: (M,) bool carried by nearest neighbour (default all True).
+    Returns points (Q, 3), normals (Q, 3), flags (Q,).
+    """
+    p = np.asarray(points, float)
+    n = np.asarray(normals, float)
+    f = np.ones(len(p), bool) if flags is None else np.asarray(flags, bool)
+    s = arc_length(p)
+    if s[-1] <= 0:
+        raise PlanError("cannot resample a curve of zero length; the pass degenerated to a point")
+    q = np.linspace(0.0, s[-1], max(2, int(np.ceil(s[-1] / spacing_m - 1e-9)) + 1))
+    pts = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
+    nrm = unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
+    idx = np.clip(np.searchsorted(s, q), 0, len(s) - 1)
+    prev = np.clip(idx - 1, 0, len(s) - 1)
+    nearest = np.where(np.abs(s[prev] - q) <= np.abs(s[idx] - q), prev, idx)
+    return pts, nrm, f[nearest]
+
+
+def tangents(points: npt.ArrayLike) -> np.ndarray:
+    """(M, 3) unit tangents of a polyline by central differences (one-sided at the ends)."""
+    p = np.asarray(points, float)
+    t = np.gradient(p, axis=0)
+    return unit(t)
+
+
+def geodesic_curvature(points: npt.ArrayLike, normals: npt.ArrayLike,
+                       smoothing_m: float = 0.1) -> np.ndarray:
+    """(M,) signed geodesic curvature κ_g = (d²r/ds²) · (n × T) of a curve in the surface [1/m].
+
+    points: (M, 3) curve on the surface [m]; normals: (M, 3) surface normals there.
+    smoothing_m: second differences are taken at this arc-length step (a mesh section is faceted,
+        so point-to-point differences are noisy); positive κ_g bends toward n × T (the left).
+    """
+    p = np.asarray(points, float)
+    n = np.asarray(normals, float)
+    s = arc_length(p)
+    if len(p) < 3 or s[-1] <= 0:
+        return np.zeros(len(p))
+    m = max(3, int(np.ceil(s[-1] / smoothing_m)) + 1)
+    q = np.linspace(0.0, s[-1], m)
+    h = q[1] - q[0]
+    r = np.stack([np.interp(q, s, p[:, k]) for k in range(3)], axis=1)
+    nq = unit(np.stack([np.interp(q, s, n[:, k]) for k in range(3)], axis=1))
+    t = unit(r[2:] - r[:-2])
+    k_vec = (r[2:] - 2.0 * r[1:-1] + r[:-2]) / (h * h)
+    kg = np.einsum("ij,ij->i", k_vec, np.cross(nq[1:-1], t))
+    return np.interp(s, q[1:-1], kg)

@@ -1,0 +1,344 @@
+"""Matplotlib figures of a run: thickness maps, TCP speed and tracking, joints, σ/μ vs index width.
+
+Every function draws with the object-oriented API on the Agg canvas (no pyplot, no global
+backend switch), writes one PNG atomically and returns its path. Film thickness is shown in µm,
+speeds in mm/s, tracking errors in mm, joint positions in deg and velocities in deg/s, widths in
+mm; every axis and colour bar names its unit.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.tri import Triangulation
+
+from paintcell.core.atomic_io import atomic_path
+from paintcell.core.errors import PaintcellError
+
+# Screen/report resolution: 110 dpi keeps a 3-panel figure under ~200 kB as PNG.
+DPI = 110
+THICKNESS_CMAP = "viridis"
+DIFF_CMAP = "RdBu_r"
+
+
+class PlotError(PaintcellError):
+    """A plot cannot be drawn from the arrays given (shapes, NaN, empty)."""
+
+
+def readable(path: Path) -> Path:
+    """Give a file written through a temp file (mode 0600) the usual umask permissions (0644 for
+    umask 022), so that a report folder can be shared or served; returns the path."""
+    mask = os.umask(0)
+    os.umask(mask)
+    path.chmod(0o666 & ~mask)
+    return path
+
+
+def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
+    path = Path(path)
+    FigureCanvasAgg(fig)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=DPI, format="png")
+    return readable(path)
+
+
+def unfold(surface: Any) -> tuple[np.ndarray, tuple[str, str]]:
+    """(N, 2) flat coordinates [m] of the surface vertices and the two axis names.
+
+    The surface's (u, v) (arc length where the surface has it); else the projection on the
+    area-weighted best-fit plane (principal axes of the vertices).
+    """
+    uv = getattr(surface, "uv", None)
+    if uv is not None:
+        return np.asarray(uv, float), ("u [m]", "v [m]")
+    v = np.asarray(surface.vertices, float)
+    areas = getattr(surface, "vertex_areas", None)
+    w = np.ones(len(v)) if areas is None else np.asarray(areas, float)
+    c = (w[:, None] * v).sum(0) / w.sum()
+    cov = ((v - c) * w[:, None]).T @ (v - c)
+    _, vecs = np.linalg.eigh(cov)
+    axes = vecs[:, [2, 1]]  # largest spread first
+    return (v - c) @ axes, ("best-fit plane x [m]", "best-fit plane y [m]")
+
+
+def thickness_range_um(*thickness_m: npt.ArrayLike, lo_pct: float = 1.0,
+                       hi_pct: float = 99.0) -> tuple[float, float]:
+    """Shared colour range [µm] over several thickness arrays [m]: robust percentiles, finite
+    values only, never empty."""
+    vals = np.concatenate([np.asarray(t, float).ravel() for t in thickness_m]) * 1e6
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return 0.0, 1.0
+    lo, hi = np.percentile(vals, [lo_pct, hi_pct])
+    if hi - lo < 1e-6:
+        lo, hi = lo - 0.5, hi + 0.5
+    return float(lo), float(hi)
+
+
+def plot_thickness_maps(path: str | os.PathLike[str], surface: Any, planned_m: npt.ArrayLike,
+                        executed_m: npt.ArrayLike | None = None, vmin_um: float | None = None,
+                        vmax_um: float | None = None, title: str = "") -> Path:
+    """Planned, executed and executed − planned film thickness on the unfolded surface.
+
+    surface: `Surface` (vertices, faces, uv or None); planned_m, executed_m: (N,) per vertex [m]
+    (executed None → planned only); vmin_um/vmax_um: shared colour range [µm] (default: 1st–99th
+    percentile of both). The difference panel has its own symmetric scale [µm].
+    """
+    flat, (xl, yl) = unfold(surface)
+    faces = np.asarray(surface.faces)
+    n = len(flat)
+    maps = [("planned", np.asarray(planned_m, float).reshape(-1))]
+    if executed_m is not None:
+        maps.append(("executed", np.asarray(executed_m, float).reshape(-1)))
+    for name, t in maps:
+        if t.shape != (n,):
+            raise PlotError(f"{name} thickness has {t.size} values, the surface has {n} vertices")
+    if vmin_um is None or vmax_um is None:
+        lo, hi = thickness_range_um(*(t for _, t in maps))
+        vmin_um = lo if vmin_um is None else vmin_um
+        vmax_um = hi if vmax_um is None else vmax_um
+    tri = Triangulation(flat[:, 0], flat[:, 1], faces)
+    ncol = 3 if executed_m is not None else 1
+    fig = Figure(figsize=(5.0 * ncol, 4.2), layout="constrained")
+    axs = fig.subplots(1, ncol, squeeze=False)[0]
+    for ax, (name, t) in zip(axs, maps, strict=False):
+        pc = ax.tripcolor(tri, np.nan_to_num(t * 1e6, nan=vmin_um), shading="gouraud",
+                          cmap=THICKNESS_CMAP, vmin=vmin_um, vmax=vmax_um)
+        ax.set_title(f"{name} film thickness [µm]")
+        fig.colorbar(pc, ax=ax, label="film thickness [µm]", shrink=0.85)
+    if executed_m is not None:
+        diff = (maps[1][1] - maps[0][1]) * 1e6
+        lim = float(np.nanpercentile(np.abs(diff), 99)) if np.any(np.isfinite(diff)) else 1.0
+        lim = max(lim, 1e-3)
+        pc = axs[2].tripcolor(tri, np.nan_to_num(diff), shading="gouraud", cmap=DIFF_CMAP,
+                              vmin=-lim, vmax=lim)
+        axs[2].set_title("executed − planned [µm]")
+        fig.colorbar(pc, ax=axs[2], label="thickness difference [µm]", shrink=0.85)
+    for ax in axs:
+        ax.set_aspect("equal")
+        ax.set_xlabel(xl)
+        ax.set_ylabel(yl)
+    if title:
+        fig.suptitle(title)
+    return _save(fig, path)
+
+
+# Time series are drawn with at most this many points (a 1 kHz trace of a minute has 60,000):
+# more than a figure's pixel width, so nothing visible is lost, and savefig stays fast.
+MAX_PLOT_POINTS = 4000
+
+
+def _stride(n: int, max_points: int = MAX_PLOT_POINTS) -> slice:
+    return slice(None, None, max(1, -(-n // max_points)))
+
+
+def _speed(t_s: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """(K,) |dp/dt| [m/s] by central differences."""
+    if len(t_s) < 2:
+        return np.zeros(len(t_s))
+    return np.linalg.norm(np.gradient(pos, t_s, axis=0), axis=1)
+
+
+def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
+                   max_passes: int = 12) -> Path:
+    """Planned vs executed TCP speed [mm/s] along each pass (x: arc length along the pass [m]).
+
+    trajectory: `JointTrajectory` (t_s, v_tcp_planned, pass_index, s_pass_m, tcp_pos_world);
+    trace: `ExecutedTrace` (t_s, tcp_pos_world, pass_index) or None (planned only).
+    Passes beyond `max_passes` are left out of the figure (named in the title).
+    """
+    pidx = np.asarray(trajectory.pass_index)
+    passes = [int(p) for p in np.unique(pidx) if p >= 0]
+    if not passes:
+        raise PlotError("the trajectory has no paint pass (pass_index all -1)")
+    shown = passes[:max_passes]
+    fig = Figure(figsize=(8.0, 6.5), layout="constrained")
+    ax, ax_dev = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+    colours = [f"C{i % 10}" for i in range(len(shown))]
+    v_plan = np.asarray(trajectory.v_tcp_planned, float)
+    t_traj = np.asarray(trajectory.t_s, float)
+    v_traj = _speed(t_traj, np.asarray(trajectory.tcp_pos_world, float))
+    if trace is not None:
+        t_exe = np.asarray(trace.t_s, float)
+        p_exe = np.asarray(trace.tcp_pos_world, float)
+        v_exe = _speed(t_exe, p_exe)
+        pidx_exe = np.asarray(trace.pass_index)
+    for c, p in zip(colours, shown, strict=True):
+        m = pidx == p
+        s = np.asarray(trajectory.s_pass_m, float)[m]
+        if not np.all(np.isfinite(s)):
+            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(
+                np.asarray(trajectory.tcp_pos_world)[m], axis=0), axis=1))])
+        st = _stride(len(s), MAX_PLOT_POINTS // 4)
+        ax.plot(s[st], v_plan[m][st] * 1e3, "--", color=c, lw=1.2)
+        ax.plot(s[st], v_traj[m][st] * 1e3, ":", color=c, lw=1.0)
+        # The curves overlap at this scale: the lower panel shows the deviations from the plan.
+        ok = v_plan[m] > 0
+        dev_traj = np.where(ok, (v_traj[m] - v_plan[m]) / np.where(ok, v_plan[m], 1.0), np.nan)
+        ax_dev.plot(s[st], dev_traj[st] * 100.0, ":", color=c, lw=1.0)
+        if trace is not None and len(t_exe) >= len(t_traj):
+            # The trace is sampled at the program's steps (plus a final hold).
+            v_e = v_exe[: len(t_traj)][m]
+            dev_exe = np.where(ok, (v_e - v_plan[m]) / np.where(ok, v_plan[m], 1.0), np.nan)
+            ax_dev.plot(s[st], dev_exe[st] * 100.0, "-", color=c, lw=1.0)
+        if trace is not None:
+            me = pidx_exe == p
+            if np.count_nonzero(me) > 1:
+                pe = p_exe[me]
+                se = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pe, axis=0),
+                                                                     axis=1))])
+                st = _stride(len(se), MAX_PLOT_POINTS // 4)
+                ax.plot(se[st], v_exe[me][st] * 1e3, "-", color=c, lw=1.0, label=f"pass {p}")
+    handles = [Line2D([], [], ls="--", color="k", label="planned (coverage plan)"),
+               Line2D([], [], ls=":", color="k", label="time law (trajectory)")]
+    if trace is not None:
+        handles.append(Line2D([], [], ls="-", color="k", label="executed (MuJoCo)"))
+    ax.legend(handles=handles, loc="lower center", fontsize=8)
+    ax_dev.set_xlabel("arc length along the pass [m]")
+    ax.set_ylabel("TCP speed [mm/s]")
+    ax_dev.set_ylabel("deviation from plan [%]")
+    ax_dev.grid(alpha=0.3)
+    extra = f" (first {len(shown)} of {len(passes)} passes)" if len(shown) < len(passes) else ""
+    ax.set_title(f"TCP speed along each pass, colour = pass{extra}")
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def tracking_error_m(trajectory: Any, trace: Any) -> tuple[np.ndarray, np.ndarray]:
+    """(t_s (K,) [s], error (K,) [m]): distance between executed and commanded TCP positions,
+    the command linearly interpolated at the trace times."""
+    t_cmd = np.asarray(trajectory.t_s, float)
+    p_cmd = np.asarray(trajectory.tcp_pos_world, float)
+    t = np.asarray(trace.t_s, float)
+    p = np.asarray(trace.tcp_pos_world, float)
+    cmd = np.column_stack([np.interp(t, t_cmd, p_cmd[:, k]) for k in range(3)])
+    return t, np.linalg.norm(p - cmd, axis=1)
+
+
+def _rms_max_mm(err_m: np.ndarray, on: np.ndarray) -> tuple[float, float]:
+    if not np.any(on):
+        return float("nan"), float("nan")
+    return float(np.sqrt(np.mean(err_m[on] ** 2))) * 1e3, float(err_m[on].max()) * 1e3
+
+
+def plot_tracking_error(path: str | os.PathLike[str], trajectory: Any, trace: Any) -> Path:
+    """TCP tracking error [mm] over time [s], paint-on intervals shaded, RMS/max on paint."""
+    t, err = tracking_error_m(trajectory, trace)
+    on = np.asarray(trace.paint_on, bool)
+    rms_max = _rms_max_mm(err, on)
+    k = _stride(len(t)).step or 1
+    if k > 1:  # keep each bin's peak so the plotted maximum is the true one
+        n = len(t) // k * k
+        t = t[:n:k]
+        err = err[:n].reshape(-1, k).max(1)
+        on = np.asarray(on[:n].reshape(-1, k).any(1))
+    fig = Figure(figsize=(8.0, 3.6), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(t, err * 1e3, lw=0.8, color="C3", label="|executed − commanded| TCP")
+    if np.any(on):
+        lo, hi = float(np.nanmin(err * 1e3)), float(np.nanmax(err * 1e3))
+        ax.fill_between(t, lo, hi if hi > lo else lo + 1, where=on, color="C2", alpha=0.12,
+                        step="mid", label="brush on")
+        ax.set_title(f"TCP tracking error (brush on: RMS {rms_max[0]:.3g} mm, "
+                     f"max {rms_max[1]:.3g} mm)")
+    else:
+        ax.set_title("TCP tracking error")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("tracking error [mm]")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.grid(alpha=0.3)
+    return _save(fig, path)
+
+
+def plot_joints(path: str | os.PathLike[str], t_s: npt.ArrayLike, q: npt.ArrayLike,
+                qd: npt.ArrayLike, q_lower: npt.ArrayLike, q_upper: npt.ArrayLike,
+                v_max: npt.ArrayLike, joint_names: Sequence[str] | None = None,
+                t_planned_s: npt.ArrayLike | None = None,
+                q_planned: npt.ArrayLike | None = None) -> Path:
+    """Joint positions [deg] and velocities [deg/s] against their limits, one row per joint.
+
+    t_s: (K,) [s]; q, qd: (K, n) executed [rad], [rad/s]; q_lower, q_upper: (n,) [rad];
+    v_max: (n,) [rad/s]; t_planned_s, q_planned: optional commanded (K', n) overlay [rad].
+    """
+    t = np.asarray(t_s, float)
+    q = np.atleast_2d(np.asarray(q, float))
+    qd = np.atleast_2d(np.asarray(qd, float))
+    n = q.shape[1]
+    lo, hi, vm = (np.asarray(a, float).reshape(-1) for a in (q_lower, q_upper, v_max))
+    if q.shape != (len(t), n) or qd.shape != (len(t), n) or not (len(lo) == len(hi) == len(vm)
+                                                                == n):
+        raise PlotError(f"joint arrays disagree: t {t.shape}, q {q.shape}, qd {qd.shape}, "
+                        f"limits {lo.shape}/{hi.shape}/{vm.shape}")
+    names = list(joint_names) if joint_names is not None else [f"joint {i + 1}" for i in range(n)]
+    # Utilizations from every sample; the curves from a decimated copy.
+    use_q = 100 * np.max(np.abs(q - 0.5 * (lo + hi)), axis=0) / np.maximum(0.5 * (hi - lo), 1e-12)
+    use_v = 100 * np.max(np.abs(qd), axis=0) / np.maximum(vm, 1e-12)
+    st = _stride(len(t))
+    t, q, qd = t[st], q[st], qd[st]
+    if q_planned is not None and t_planned_s is not None:
+        sp = _stride(len(np.asarray(t_planned_s)))
+        t_planned_s = np.asarray(t_planned_s, float)[sp]
+        q_planned = np.asarray(q_planned, float)[sp]
+    fig = Figure(figsize=(9.0, 1.7 * n + 0.6), layout="constrained")
+    axs = fig.subplots(n, 2, squeeze=False, sharex=True)
+    deg = np.degrees
+    for i in range(n):
+        a, b = axs[i]
+        if q_planned is not None and t_planned_s is not None:
+            a.plot(np.asarray(t_planned_s, float), deg(np.asarray(q_planned, float)[:, i]),
+                   color="0.6", lw=1.0, label="commanded")
+        a.plot(t, deg(q[:, i]), color="C0", lw=0.9, label="executed")
+        for lim in (lo[i], hi[i]):
+            a.axhline(deg(lim), color="C3", ls="--", lw=0.9)
+        a.set_ylabel(f"{names[i]}\n[deg]", fontsize=8)
+        b.plot(t, deg(qd[:, i]), color="C1", lw=0.9)
+        for lim in (-vm[i], vm[i]):
+            b.axhline(deg(lim), color="C3", ls="--", lw=0.9)
+        b.set_ylabel("[deg/s]", fontsize=8)
+        a.set_title(f"position ({use_q[i]:.0f} % of half range)", fontsize=8)
+        b.set_title(f"velocity ({use_v[i]:.0f} % of limit)", fontsize=8)
+    axs[0, 0].legend(fontsize=7, loc="upper right")
+    axs[-1, 0].set_xlabel("time [s]")
+    axs[-1, 1].set_xlabel("time [s]")
+    fig.suptitle("Joint positions and velocities; limits dashed red")
+    return _save(fig, path)
+
+
+def plot_index_width_curve(path: str | os.PathLike[str], widths_m: npt.ArrayLike,
+                           nsd: npt.ArrayLike, chosen_width_m: float | None = None,
+                           applicator_name: str = "") -> Path:
+    """σ/μ [%] versus index width [mm] of parallel passes on a plane (the paper's Fig. 5).
+
+    widths_m: (W,) index widths [m]; nsd: (W,) σ/μ as a fraction; chosen_width_m: the planner's
+    width to mark [m], or None. The minimum ("sweet spot") is marked and labelled.
+    """
+    w = np.asarray(widths_m, float).reshape(-1)
+    u = np.asarray(nsd, float).reshape(-1)
+    if w.shape != u.shape or w.size < 2:
+        raise PlotError(f"need ≥ 2 (width, σ/μ) pairs of equal length, got {w.size} and {u.size}")
+    ok = np.isfinite(w) & np.isfinite(u)
+    if not np.any(ok):
+        raise PlotError("every σ/μ value is NaN or inf; check the applicator and widths")
+    fig = Figure(figsize=(6.4, 4.0), layout="constrained")
+    ax = fig.subplots()
+    ax.plot(w[ok] * 1e3, u[ok] * 100, "-o", ms=3, color="C0", label="σ/μ of the film")
+    k = int(np.flatnonzero(ok)[np.argmin(u[ok])])
+    ax.plot(w[k] * 1e3, u[k] * 100, "*", ms=12, color="C3",
+            label=f"sweet spot {w[k] * 1e3:.0f} mm ({u[k] * 100:.2f} %)")
+    if chosen_width_m is not None and np.isfinite(chosen_width_m):
+        ax.axvline(chosen_width_m * 1e3, color="C2", ls="--",
+                   label=f"planner width {chosen_width_m * 1e3:.0f} mm")
+    ax.set_xlabel("index width [mm]")
+    ax.set_ylabel("σ/μ of film thickness [%]")
+    ax.set_title("Uniformity vs index width" + (f" — {applicator_name}" if applicator_name else ""))
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)

@@ -1,0 +1,170 @@
+"""Reading a part file into raw triangles, and choosing its length unit.
+
+Meshes (STL/OBJ/PLY/OFF/glTF) are read with trimesh; CAD (STEP/IGES) with the Open CASCADE kernel
+(`cadquery-ocp-novtk`), tessellated at a chord tolerance. OCCT converts a STEP/IGES file's declared
+unit to millimetres, so CAD coordinates are always millimetres.
+
+A car part is 0.1–6 m across (`PLAUSIBLE_SIZE_M`: a fuel flap to a body side). `choose_units`
+takes the file's largest extent and picks the first of m, mm, cm, in that puts it in that range;
+an explicit unit is checked against the same range, so a 509 m door or a 1 mm panel is refused
+with its dimensions and the `units` setting that would fix it.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from paintcell.core.errors import SurfaceError
+from paintcell.surface.part_spec import CAD_SUFFIXES, UNITS_M
+
+__all__ = ["PLAUSIBLE_SIZE_M", "RawMesh", "UnitChoice", "choose_units", "read_part_file"]
+
+#: Largest extent of a paintable car part [m]: smallest and largest plausible.
+PLAUSIBLE_SIZE_M = (0.1, 6.0)
+#: Order in which `units = "auto"` tries units: SI first, then what CAD systems export.
+_AUTO_ORDER = ("m", "mm", "cm", "in")
+
+
+@dataclass(frozen=True)
+class RawMesh:
+    """Triangles as read: vertices (N, 3) in file units, faces (F, 3) int64, and the format."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    fmt: str
+    cad: bool
+
+
+@dataclass(frozen=True)
+class UnitChoice:
+    """The unit chosen for a file: its name, metres per file unit, and why (one sentence)."""
+
+    units: str
+    scale_m: float
+    reason: str
+
+
+def read_part_file(path: str | os.PathLike[str], chord_tolerance_m: float = 5e-5) -> RawMesh:
+    """Read a mesh or CAD file into raw triangles (no repair). Raises SurfaceError if unreadable.
+
+    chord_tolerance_m: largest distance between a CAD surface and its tessellation [m].
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise SurfaceError(f"part file {path} does not exist; check [part] file (relative to "
+                           "the scenario file)")
+    if path.suffix.lower() in CAD_SUFFIXES:
+        v, f = _read_cad(path, chord_tolerance_m)
+        return RawMesh(v, f, path.suffix.lower().lstrip("."), True)
+    try:
+        src = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise SurfaceError(f"cannot read {path} ({type(exc).__name__}: {exc}); export it as "
+                           "STL, OBJ, PLY or STEP") from exc
+    if not isinstance(src, trimesh.Trimesh) or len(src.faces) == 0:
+        raise SurfaceError(f"{path} holds no triangles; export the part surface as an STL, OBJ "
+                           "or PLY triangle mesh, or as STEP")
+    v = np.asarray(src.vertices, float)
+    f = np.asarray(src.faces, np.int64)
+    check_raw(v, f, str(path))
+    return RawMesh(v, f, path.suffix.lower().lstrip("."), False)
+
+
+def check_raw(v: np.ndarray, f: np.ndarray, what: str) -> None:
+    """Refuse NaN/inf or absurd coordinates, bad indices and a lone triangle (SurfaceError)."""
+    bad = ~np.all(np.isfinite(v), axis=1)
+    if bad.any():
+        raise SurfaceError(f"{what} has {int(bad.sum())} vertices with NaN or inf coordinates; "
+                           "re-export the part from your CAD/scan tool")
+    big = float(np.abs(v).max()) if len(v) else 0.0
+    if big > 1e12:
+        raise SurfaceError(f"{what} has coordinates up to {big:.3g} (no unit makes that a car "
+                           "part); the export is corrupt, re-export the part")
+    if len(f) == 0 or f.min() < 0 or f.max() >= len(v):
+        raise SurfaceError(f"{what} faces index missing vertices; re-export the mesh")
+    distinct = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
+    if int(distinct.sum()) < 2:
+        raise SurfaceError(f"{what} has {int(distinct.sum())} usable triangle(s); a part surface "
+                           "needs a triangulated skin, export the whole part surface")
+
+
+def choose_units(extent_file: np.ndarray, units: str, cad: bool = False) -> UnitChoice:
+    """The unit of a file with bounding-box extents `extent_file` (3,) in file units.
+
+    units: "m", "mm", "cm", "in" or "auto". cad: the coordinates come from OCCT (millimetres).
+    Raises SurfaceError, naming the dimensions and the `units` setting to write, when the part
+    would be outside `PLAUSIBLE_SIZE_M`.
+    """
+    lo, hi = PLAUSIBLE_SIZE_M
+    size = float(np.max(extent_file))
+    dims = " × ".join(f"{x:.4g}" for x in extent_file)
+    if cad:
+        if units not in ("auto", "mm"):
+            raise SurfaceError(f"[part] units = {units!r} does not apply to STEP/IGES (the file "
+                               "declares its unit and is read in mm); write units = \"auto\"")
+        choice = UnitChoice("mm", 1e-3, "the CAD file declares its unit (read in mm)")
+        units = "mm"
+    elif units == "auto":
+        fits = [u for u in _AUTO_ORDER if lo <= size * UNITS_M[u] <= hi]
+        if not fits:
+            raise SurfaceError(
+                f"part is {dims} file units: no unit (m, mm, cm, in) makes it {lo:g}–{hi:g} m "
+                "across; check the export, or set [part] units and scale it yourself")
+        u = fits[0]
+        others = [f"{w}: {size * UNITS_M[w]:.3g} m" for w in _AUTO_ORDER if w != u]
+        choice = UnitChoice(u, UNITS_M[u], f"largest extent {size:.4g} file units is "
+                            f"{size * UNITS_M[u]:.3g} m in {u}, the first of m, mm, cm, in in "
+                            f"{lo:g}–{hi:g} m ({'; '.join(others)})")
+    else:
+        choice = UnitChoice(units, UNITS_M[units], f"set in the scenario (units = \"{units}\")")
+    size_m = size * choice.scale_m
+    if not lo <= size_m <= hi:
+        fix = [u for u in _AUTO_ORDER if lo <= size * UNITS_M[u] <= hi]
+        hint = (f"write [part] units = \"{fix[0]}\" (or \"auto\")" if fix else
+                "check the export: no unit makes it a car part")
+        raise SurfaceError(f"part is {dims} {units} = {size_m:.4g} m across, outside the "
+                           f"plausible {lo:g}–{hi:g} m of a car part; {hint}")
+    return choice
+
+
+def _read_cad(path: Path, chord_tolerance_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """STEP/IGES → triangles [mm] through OCCT: read, tessellate at the chord tolerance, and take
+    the triangulation through OCCT's own STL writer (oriented faces, no Python loop over nodes)."""
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.StlAPI import StlAPI_Writer
+
+    if path.suffix.lower() in (".step", ".stp"):
+        from OCP.STEPControl import STEPControl_Reader
+        reader = STEPControl_Reader()
+    else:
+        from OCP.IGESControl import IGESControl_Reader
+        reader = IGESControl_Reader()
+    if reader.ReadFile(str(path)) != IFSelect_RetDone:
+        raise SurfaceError(f"cannot read {path} as {path.suffix.upper().lstrip('.')}; "
+                           "re-export it from your CAD system (AP203/AP214 STEP)")
+    reader.TransferRoots()
+    shape = reader.OneShape()
+    if shape.IsNull():
+        raise SurfaceError(f"{path} holds no shape; export the part's surfaces or solid")
+    # Linear deflection in the file's (mm) unit; 0.2 rad angular deflection bounds tight fillets.
+    mesh = BRepMesh_IncrementalMesh(shape, chord_tolerance_m * 1e3, False, 0.2, True)
+    mesh.Perform()
+    with tempfile.TemporaryDirectory() as tmp:
+        stl = Path(tmp) / "tessellation.stl"
+        writer = StlAPI_Writer()
+        writer.ASCIIMode = False
+        if not writer.Write(shape, str(stl)) or stl.stat().st_size <= 84:
+            raise SurfaceError(f"{path} has no surface to tessellate (curves or points only); "
+                               "export the part's faces or solid")
+        m = trimesh.load(stl, force="mesh", process=False)
+    v = np.asarray(m.vertices, dtype=np.float64)  # type: ignore[attr-defined]
+    f = np.asarray(m.faces, dtype=np.int64)  # type: ignore[attr-defined]
+    check_raw(v, f, str(path))
+    return v, f
