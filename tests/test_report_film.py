@@ -20,6 +20,7 @@ from paintcell.output.report_names import check_reason, headline_rows, number, w
 from paintcell.output.report_sections import pass_rows
 from paintcell.paint.metrics import uniformity
 from paintcell.surface.surface import plane
+from tests.helpers import lattice_share
 
 
 def _film(tmp_path, planned, executed, areas, judged, target, tol):
@@ -56,8 +57,18 @@ def test_save_film_matches_planning_metrics(tmp_path):
                                    "tolerance_fraction": 0.05})
     save_film(tmp_path / "film.npz", s, rep)
     film = load_film(tmp_path)
-    assert film is not None and film.judged.all()
+    assert film is not None and film.judged.all() and film.faces is not None
     assert 0 < film.inside_pct() < 100
+    # the share over the faces, the film linear on each: against a brute-force lattice
+    lo, hi = film.window_m
+    assert film.inside_pct() == pytest.approx(lattice_share(executed, s.vertices, s.faces,
+                                                            lo, hi, n=40), abs=0.1)
+    # a file without the surface: the share lumped on the vertex areas, as uniformity's
+    with np.load(tmp_path / "film.npz") as z:
+        old = {k: z[k] for k in z.files if k not in ("vertices_m", "faces", "judged_faces")}
+    np.savez(tmp_path / "film.npz", **old)
+    film = load_film(tmp_path)
+    assert film is not None and film.faces is None
     assert film.inside_pct() == pytest.approx(100 * u_e.within_tolerance_fraction, abs=1e-9)
     png = histogram_png(film, (400, 300))
     with Image.open(io.BytesIO(png)) as im:
@@ -159,3 +170,4 @@ def test_spec_map_render_colours_the_window(tmp_path):
     (tmp_path / "metrics.json").write_text(json.dumps({"passed": True, "checks": []}))
     text = report.write_report(tmp_path).read_text(encoding="utf-8")
     assert 'alt="render_executed_spec.png"' in text.split('id="film-histogram"')[0]
+

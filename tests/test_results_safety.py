@@ -24,6 +24,7 @@ import pytest
 
 from paintcell.cli.main import EXIT_INTERRUPTED, EXIT_USAGE, main
 from paintcell.core.results_dir import MARKER, new_results
+from tests.helpers import LOOSE_SPEC_TOML
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -49,7 +50,8 @@ q_home = [0.0, -0.6, 0.3, 0.0, 0.9, 0.0]
 max_executed_nsd_pct = {nsd}
 max_loss_pp = 1.0
 max_cycle_time_s = 90.0
-"""
+
+""" + LOOSE_SPEC_TOML
 
 
 def _scenario(d: Path, name: str = "fz", nsd: float = 30.0, base_x: float = 0.0,

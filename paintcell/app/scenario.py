@@ -21,6 +21,7 @@ import numpy as np
 from paintcell.app.scenario_checks import check_thresholds
 from paintcell.core.errors import PaintcellError
 from paintcell.surface.part_spec import MeshPart
+from paintcell.validation.paint_spec import PaintSpec
 from paintcell.validation.validate_report import Thresholds
 
 __all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "pose"]
@@ -100,6 +101,10 @@ class Scenario:
     (`paintcell.validation.validate.Thresholds`: reachability,
         collisions, executed σ/μ, loss, cycle time, and optionally tracking error, speed error,
         torque and joint-range utilization).
+    spec: the paint spec the executed film is judged against
+    (`paintcell.validation.paint_spec.PaintSpec`: target film, window, least share of the
+        judged area inside it, largest σ/μ; its defaults when the scenario sets none;
+        `thresholds.max_executed_nsd_pct` can only tighten its σ/μ).
     sweep: the robustness sweep of `paintcell sweep`
     (`paintcell.sweeps.sweep_spec.spec_from_scenario`):
         factors {disturbance name: distribution string}, samples, fast_samples, method
@@ -124,6 +129,7 @@ class Scenario:
     servo: dict[str, Any] = field(default_factory=dict)
     disturbances: dict[str, Any] = field(default_factory=dict)
     thresholds: Thresholds = Thresholds()
+    spec: PaintSpec = PaintSpec()
     sweep: dict[str, Any] = field(default_factory=dict)
     source: str | None = None
 
@@ -148,6 +154,11 @@ class Scenario:
             raise ScenarioError("Scenario.thresholds must be a Thresholds "
                                 "(paintcell.app.scenario)")
         check_thresholds(self.thresholds)
+        if isinstance(self.spec, dict):
+            object.__setattr__(self, "spec", PaintSpec.from_table(self.spec, "Scenario.spec"))
+        if not isinstance(self.spec, PaintSpec):
+            raise ScenarioError("Scenario.spec must be a PaintSpec "
+                                "(paintcell.validation.paint_spec)")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe description of the scenario (for reports); `scenario_from_dict` inverts it."""

@@ -11,6 +11,7 @@ A TOML scenario maps one-to-one onto `paintcell.app.scenario.Scenario` (docs/int
     [part_placement]  xyz_m = [..], rpy_rad = [..]
     [base]            xyz_m = [..], rpy_rad = [..]
     [planner] [fast_planner] [trajectory] [servo] [disturbances] [thresholds]
+    [spec]            target_film_um, window_pct, min_inside_pct, max_nsd_pct (the paint spec)
 
 Relative paths are relative to the scenario file. Every key is checked on load: unknown names,
 non-finite numbers and values out of range are refused with one line naming the file, the key and
@@ -42,7 +43,7 @@ SNAPSHOT_VERSION = 1
 
 _SCALARS = ("name", "part", "robot", "resolution_m", "fast_resolution_m", "applicator")
 _PLACEMENTS = ("part_placement", "base")
-_TABLES = (*_PLACEMENTS, *_SETTINGS, "thresholds", "sweep")
+_TABLES = (*_PLACEMENTS, *_SETTINGS, "thresholds", "spec", "sweep")
 _KEYS = (*_SCALARS, *_TABLES)
 
 def _tuples(v: Any) -> Any:
@@ -140,6 +141,7 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
             object.__setattr__(thresholds, f.name, th.get(f.name, f.default))
         check_thresholds(thresholds, f"{where} [thresholds]")
         kw["thresholds"] = Thresholds(**th)
+        kw["spec"] = _spec(d.get("spec"), where)
         kw["source"] = source
         scn = Scenario(**kw)
     except ScenarioDataError:
@@ -148,6 +150,16 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
         raise ScenarioDataError(f"{where}: {exc}") from exc
     check_settings(scn, where)
     return scn
+
+
+def _spec(table: Any, where: str) -> Any:
+    """The `[spec]` table as a PaintSpec (its defaults when absent); errors name the file."""
+    from paintcell.validation.paint_spec import PaintSpec, SpecError
+
+    try:
+        return PaintSpec.from_table(table, where)
+    except SpecError as exc:
+        raise ScenarioDataError(str(exc)) from exc
 
 
 def _is_path(part: str) -> bool:

@@ -48,6 +48,7 @@ from paintcell.booth.booth_chain import job_record
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
 from paintcell.surface.part_spec import MeshPart
+from paintcell.validation.paint_spec import PaintSpec
 
 #: cycle estimate of the allocation: time per turn-around and for approach + retract [s]
 #: (measured on the library parts' programs: turn-arounds 0.8–1.8 s, approach + retract 3–5 s).
@@ -162,6 +163,10 @@ class Booth:
     build."""
     film_target_um: float | None = None
     """The common film build [µm] (None: the body's area-weighted planned mean)."""
+    spec: PaintSpec = PaintSpec()
+    """The paint spec every part's executed film is held to (`[spec]`,
+    `paintcell.validation.paint_spec`; its target by default the common film build);
+    `thresholds.max_executed_nsd_pct` can only tighten its σ/μ."""
     body_clearance_m: float | None = 0.01
     """Every robot's program keeps this far [m] from the whole body, every part of it
     (`paintcell.booth.booth_clearance`: rail positions chosen clear of the body, backed-off

@@ -43,11 +43,13 @@ from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
 from paintcell.surface.part_spec import MeshPart
+from paintcell.validation.paint_spec import PaintSpec
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
         "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
-        "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds")
+        "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds",
+        "spec")
 _PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse", "robots")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -170,6 +172,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                                         f"{where} body_clearance_m"),
             film_target_um=(None if d.get("film_target_um") is None
                             else _positive(d["film_target_um"], f"{where} film_target_um")),
+            spec=PaintSpec.from_table(d.get("spec"), where),
             source=source, sweep=dict(sweep), applicator=app)
     except PaintcellError as exc:
         raise BoothDataError(f"{where}: {exc}") from exc

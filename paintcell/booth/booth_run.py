@@ -28,7 +28,7 @@ import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell, build_booth_cell
-from paintcell.booth.booth_film import judged_body_mask, robot_films
+from paintcell.booth.booth_film import judged_body_faces, judged_body_mask, robot_films
 from paintcell.booth.booth_programs import MAX_ALLOCATIONS_TRIED, BoothPrograms, booth_programs
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
@@ -133,7 +133,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), progs.record, jobs,
                            [len(x.vertices) for x in surfaces], plans,
-                           judged_body_mask(surfaces))
+                           judged_body_mask(surfaces), judged_body_faces(surfaces))
     report.metrics["film_build"] = progs.film_build
     report.metrics["seams"] = progs.seams
     timings["validate"] = time.perf_counter() - t0

@@ -22,6 +22,7 @@ import numpy as np
 
 from paintcell.core.errors import PaintcellError
 from paintcell.surface.part_spec import MeshPart
+from paintcell.validation.paint_spec import PaintSpec
 
 __all__ = ["register"]
 
@@ -302,6 +303,9 @@ def _v(x: Any) -> str:
     return json.dumps(list(x) if isinstance(x, tuple) else x)
 
 
+#: The paint spec `init` writes: the defaults, stated.
+_SPEC = PaintSpec()
+
 #: Lowest TCP height of a pass `init` accepts [m]; the part is lifted until its plan clears it.
 _MIN_TCP_Z_M = 0.6
 
@@ -370,4 +374,11 @@ rpy_rad = {_v([round(x, 6) for x in base.rpy_rad])}
 [thresholds]
 reachability_pct = 100.0
 max_collisions = 0
+
+[spec]
+# the paint spec the executed film is judged against (paintcell.validation.paint_spec):
+# target_film_um = 30.0        # centre of the window [µm]; unset: the plan's own target film
+window_pct = {_v(_SPEC.window_pct)}               # the window: target ± this [%]
+min_inside_pct = {_v(_SPEC.min_inside_pct)}           # least share of the judged area inside it [%]
+max_nsd_pct = {_v(_SPEC.max_nsd_pct)}              # largest executed σ/μ [%]
 """

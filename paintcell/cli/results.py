@@ -38,7 +38,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         fast, mode = bool(f["run"]["fast"]), str(f["run"]["mode"])
         surface = load_surface(scn, fast)
         rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
-                       reachability=traj.meta.get("reachability"))
+                       reachability=traj.meta.get("reachability"), spec=scn.spec)
         old = args.dir / "metrics.json"
         stage_times: dict[str, Any] = {}
         if old.exists():

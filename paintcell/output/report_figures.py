@@ -185,11 +185,17 @@ def _renders(figs: list[dict[str, str]], out: Path, surface: Any, planned: np.nd
 
 
 def _spec(report: Any) -> tuple[float, float] | None:
-    """(window centre [µm], tolerance [-]) from a `ValidationReport`'s metrics, or None."""
+    """(window centre [µm], half-width [-]) of the paint spec from a `ValidationReport`'s
+    metrics, or None."""
     m = getattr(report, "metrics", None)
-    if not isinstance(m, dict) or "planned_mean_um" not in m or "tolerance_fraction" not in m:
+    if not isinstance(m, dict):
         return None
-    target, tol = float(m["planned_mean_um"]), float(m["tolerance_fraction"])
+    if "spec_target_um" in m and "spec_window_pct" in m:
+        target, tol = float(m["spec_target_um"]), 0.01 * float(m["spec_window_pct"])
+    elif "planned_mean_um" in m and "tolerance_fraction" in m:
+        target, tol = float(m["planned_mean_um"]), float(m["tolerance_fraction"])
+    else:
+        return None
     return (target, tol) if np.isfinite(target) and target > 0 and 0 < tol < 1 else None
 
 

@@ -104,7 +104,9 @@ def verdict_html(metrics: dict[str, Any]) -> str:
     else:
         word, cls = "FAIL", "fail"
         lines = [check_reason(c) for c in failed] or ["a threshold was not met"]
-    keys = [("executed_within_tolerance_pct", "area in spec window", "%", 1),
+    inside = ("executed_inside_spec_pct" if "executed_inside_spec_pct" in metrics
+              else "executed_within_tolerance_pct")   # a folder made without a paint spec
+    keys = [(inside, "area in spec window", "%", 1),
             ("executed_nsd_pct", "executed σ/μ", "%", 2),
             ("loss_pp", "loss of uniformity plan → execution", "pp", 2),
             ("executed_cycle_time_s", "cycle time", "s", 1)]
@@ -139,7 +141,7 @@ def histogram_html(film: FilmData | None) -> str:
     uri = "data:image/png;base64," + base64.b64encode(histogram_png(film)).decode("ascii")
     return (f'<figure id="film-histogram"><img src="{uri}" alt="film histogram">'
             f'<figcaption><b id="inside-pct">{film.inside_pct():.1f} %</b> of the judged area '
-            f"inside the spec window {lo:.1f}–{hi:.1f} µm (planned mean "
+            f"inside the spec window {lo:.1f}–{hi:.1f} µm (target "
             f"{1e6 * film.target_m:.1f} µm ± {100 * film.tolerance:g} %); "
             f"{below:.1f} % below, {above:.1f} % above. Planned: "
             f"{film.inside_pct('planned'):.1f} % inside.</figcaption></figure>")
