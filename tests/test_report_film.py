@@ -171,3 +171,36 @@ def test_spec_map_render_colours_the_window(tmp_path):
     text = report.write_report(tmp_path).read_text(encoding="utf-8")
     assert 'alt="render_executed_spec.png"' in text.split('id="film-histogram"')[0]
 
+
+def test_report_names_the_pieces_painted_and_not(tmp_path):
+    """metrics.json's pieces (a part file in pieces, a closed solid's back skin) become a table
+    with their areas; the verdict's reason names the figure that missed the spec and by how
+    much."""
+    metrics = {"passed": False, "executed_inside_spec_pct": 84.25, "executed_nsd_pct": 6.1,
+               "painted_area_m2": 0.6, "not_painted_area_m2": 0.45, "judged_area_m2": 0.58,
+               "pieces": [
+                   {"piece": "0", "area_m2": 0.48, "painted": True, "why": "the largest piece",
+                    "on_painted_side": True},
+                   {"piece": "1", "area_m2": 0.12, "painted": True, "on_painted_side": True,
+                    "why": "joined: 12.0 mm from the part, facing its painted side"},
+                   {"piece": "2", "area_m2": 0.0018, "painted": False, "on_painted_side": False,
+                    "why": "stray bit: 0.0018 m², under 1 % of the largest piece"},
+                   {"piece": "0 back side", "area_m2": 0.4482, "painted": False,
+                    "on_painted_side": False, "why": "the back (inner) skin of a closed solid"}],
+               "checks": [{"name": "film in spec window", "value": 84.25, "limit": 90.0,
+                           "unit": "%", "passed": False, "kind": "min",
+                           "detail": "5.8 points short: 84.2 % of the judged area in "
+                                     "24.0–36.0 µm"}]}
+    (tmp_path / "metrics.json").write_text(json.dumps(metrics))
+    raw = html.unescape(report.write_report(tmp_path).read_text(encoding="utf-8"))
+    text = re.sub(r"<[^>]+>", " ", raw)
+    assert "Film in spec window 84.2 % is below the minimum 90.0 % (5.8 points short" in \
+        re.sub(r"\s+", " ", text)
+    assert "area in spec window 84.2 %" in re.sub(r"\s+", " ", text)
+    table = raw[raw.index('id="piece-table"'):]
+    table = table[:table.index("</table>")]
+    rows = re.findall(r"<tr>(.*?)</tr>", table, re.S)[1:]
+    cells = [re.findall(r"<td>(.*?)</td>", r) for r in rows]
+    assert [c[0] for c in cells] == ["0", "1", "2", "0 back side"]
+    assert [c[1] for c in cells] == ["0.4800", "0.1200", "0.0018", "0.4482"]
+    assert [("not painted" in c[2]) for c in cells] == [False, False, True, True]

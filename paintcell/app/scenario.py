@@ -83,7 +83,7 @@ class Scenario:
     part: a library part name (`paintcell.surface.parts.PART_NAMES`), a path to an
     STL/OBJ/PLY mesh
         (relative paths are relative to the scenario file; read with every `[part]` setting at
-        its default: units auto, largest piece, side auto), or a mesh/CAD part
+        its default: units auto, pieces auto, side auto), or a mesh/CAD part
         (`paintcell.surface.part_spec.MeshPart`, or its TOML `[part]` table as a dict,
         converted on construction).
     resolution_m: mesh resolution for a full run [m]; fast_resolution_m for `--fast` runs.

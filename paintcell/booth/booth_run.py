@@ -19,7 +19,7 @@ public names are re-exported here.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Literal
 
@@ -34,6 +34,7 @@ from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.surface.surface import Surface
+from paintcell.validation.painted_side import painted_side_checks, parts_painted_side
 from paintcell.validation.validate_motion import collision_events
 from paintcell.validation.validate_report import ValidationReport
 
@@ -136,6 +137,11 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
                            judged_body_mask(surfaces), judged_body_faces(surfaces))
     report.metrics["film_build"] = progs.film_build
     report.metrics["seams"] = progs.seams
+    # the mesh parts' pieces, painted and not; no PASS with part of a painted side left out
+    side = parts_painted_side({f"{i}:{bp.part}": s for i, (bp, s)
+                               in enumerate(zip(booth.parts, surfaces, strict=True))})
+    report.metrics.update(side)
+    report = replace(report, checks=report.checks + tuple(painted_side_checks(side)))
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
                          timings, [len(x.vertices) for x in surfaces])

@@ -70,8 +70,13 @@ def _part_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", type=Path, help="part file: STL/OBJ/PLY mesh or STEP/IGES CAD")
     p.add_argument("--units", default="auto", choices=("auto", "m", "mm", "cm", "in"),
                    help="length unit of the file's coordinates (auto: inferred from the size)")
-    p.add_argument("--pieces", default="largest",
-                   help="pieces to keep: largest (by area), all, or indices like 0,2")
+    p.add_argument("--pieces", default="auto",
+                   help="pieces to paint: auto (the largest and every piece within --pieces-gap "
+                   "of it facing its painted side; stray bits under 1 %% of its area left out), "
+                   "largest (by area), all, or indices like 0,2")
+    p.add_argument("--pieces-gap", type=float, default=None, metavar="M",
+                   help="with --pieces auto: the largest gap between pieces painted as one part "
+                   "[m] (default 0.04)")
     p.add_argument("--side", default="auto",
                    help="painted side: auto (the convex skin) or a direction like 0,0,1")
     p.add_argument("--resolution", type=float, default=0.025,
@@ -80,12 +85,12 @@ def _part_options(p: argparse.ArgumentParser) -> None:
 
 def _spec(args: argparse.Namespace) -> MeshPart:
     pieces: Any = args.pieces
-    if pieces not in ("largest", "all"):
+    if pieces not in ("auto", "largest", "all"):
         try:
             pieces = tuple(int(x) for x in str(pieces).split(","))
         except ValueError:
-            raise PaintcellError(f"--pieces {args.pieces!r}: write largest, all or indices like "
-                                 "0,2") from None
+            raise PaintcellError(f"--pieces {args.pieces!r}: write auto, largest, all or indices "
+                                 "like 0,2") from None
     side: Any = args.side
     if side != "auto":
         try:
@@ -93,7 +98,8 @@ def _spec(args: argparse.Namespace) -> MeshPart:
         except ValueError:
             raise PaintcellError(f"--side {args.side!r}: write auto or a direction like 0,0,1") \
                 from None
-    return MeshPart(file=str(args.file), units=args.units, pieces=pieces, side=side)
+    gap = {} if args.pieces_gap is None else {"pieces_gap_m": args.pieces_gap}
+    return MeshPart(file=str(args.file), units=args.units, pieces=pieces, side=side, **gap)
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
@@ -116,7 +122,8 @@ def _describe(rep: Any, surf: Any) -> str:
              f"pieces: {len(rep.pieces)} (kept {list(rep.selected)})"]
     for p in rep.pieces[:10]:
         lines.append(f"  piece {p.index}: {p.area_m2:.4f} m², {p.n_faces} faces, "
-                     f"{' × '.join(f'{x:.3f}' for x in p.extent_m)} m")
+                     f"{' × '.join(f'{x:.3f}' for x in p.extent_m)} m, "
+                     f"{'painted' if p.painted else 'NOT painted'}: {p.why}")
     if len(rep.pieces) > 10:
         lines.append(f"  … {len(rep.pieces) - 10} more pieces")
     d = ", ".join(f"{x:.3f}" for x in rep.painted_direction)
@@ -325,7 +332,8 @@ def _scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, bas
                    verdict: str, n_passes: int, planner: dict[str, Any], tried: list[str],
                    trajectory: dict[str, Any], clearance_m: float | None) -> str:
     ops = rep.openings
-    pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m²" for p in rep.pieces[:6])
+    pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m² {'painted' if p.painted else 'not'}"
+                       for p in rep.pieces[:6])
     pieces += ", …" if len(rep.pieces) > 6 else ""
     d = [round(x, 3) for x in rep.painted_direction]
     regions = ", ".join(f"{k} {v:.3f} m²" for k, v in rep.region_areas_m2.items())
@@ -350,8 +358,10 @@ fast_resolution_m = 0.025      # remesh edge length of a --fast run [m]
 file = {_v(spec.file)}   # relative to this file
 # units: {rep.units.units} — {rep.units.reason}
 units = {_v(spec.units)}
-# pieces: {len(rep.pieces)} found ({pieces}); "largest" paints the largest by area
+# pieces: {len(rep.pieces)} found ({pieces}); "auto" paints the largest and the pieces
+# within pieces_gap_m of it that face its painted side; "largest" the largest alone
 pieces = {_v(spec.pieces)}
+pieces_gap_m = {_v(spec.pieces_gap_m)}
 # side: painted direction {d} in the part frame ({rep.side_reason})
 side = {_v(spec.side)}
 # regions: {regions}; openings: {len(ops)}

@@ -40,6 +40,7 @@ from paintcell.output.report_sections import (
     first_screen,
     format_value,
     headline_html,
+    pieces_html,
     plan_html,
     slowdowns_html,
 )
@@ -212,6 +213,10 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     parts = [f"<h1>{html.escape(title)}</h1>", first_screen(d, metrics, film, captions)]
     parts.append("<h2>Thresholds (pass/fail)</h2>")
     parts.append(checks_table(list(metrics.get("checks") or [])))
+    pieces = pieces_html(metrics)
+    if pieces:
+        parts.append("<h2>Pieces painted and not painted</h2>")
+        parts.append(pieces)
     parts.append("<h2>Key figures</h2>")
     parts.append(headline_html(metrics))
     parts.append("<h2>Reachability</h2>")

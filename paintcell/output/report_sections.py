@@ -147,6 +147,22 @@ def histogram_html(film: FilmData | None) -> str:
             f"{film.inside_pct('planned'):.1f} % inside.</figcaption></figure>")
 
 
+def pieces_html(metrics: dict[str, Any]) -> str:
+    """What of the part file was painted and what was not, with areas [m²] (metrics.json
+    `pieces`); "" for a library part (all of it painted and judged)."""
+    pieces = metrics.get("pieces")
+    if not isinstance(pieces, list) or not pieces:
+        return ""
+    rows = [(html.escape(str(p.get("piece"))), html.escape(number(p.get("area_m2"), 4)),
+             "painted" if p.get("painted") else "<b>not painted</b>",
+             html.escape(str(p.get("why", "")))) for p in pieces]
+    judged = metrics.get("judged_area_m2")
+    head = (f"<p>Painted {number(metrics.get('painted_area_m2'), 3)} m² of the file's pieces, "
+            f"judged {number(judged, 3)} m² (the judged regions); not painted "
+            f"{number(metrics.get('not_painted_area_m2'), 3)} m².</p>")
+    return head + table(["piece", "area [m²]", "painted", "why"], rows, "pieces", "piece-table")
+
+
 def pass_rows(d: Path) -> list[dict[str, Any]]:
     """Per pass: side, index width [m], length [m], planned speed range and time-law mean speed
     [m/s], slowdowns (count, slowed share of the pass [%], worst speed deficit [%]).

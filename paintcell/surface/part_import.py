@@ -1,7 +1,9 @@
 """A real part file → a paintable `Surface` with regions, and a report of every choice made.
 
 read (trimesh / OCCT) → units (explicit or inferred, size checked) → repair (pymeshlab) → pieces
-(connected, numbered by decreasing area) → painted side (given, or the convex side) → regions
+(connected, numbered by decreasing area; `pieces = "auto"` paints the largest with every piece
+close to it that faces its painted side, `paintcell.surface.pieces`; each piece recorded, painted
+or not and why) → painted side (given, or the convex side) → regions
 (skin, hems, inner panels, back side; the back side of a closed or double-sided shell is
 dropped) → small holes filled → isotropic remesh of each region to the scenario resolution.
 """
@@ -9,6 +11,7 @@ dropped) → small holes filled → isotropic remesh of each region to the scena
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -17,6 +20,7 @@ from paintcell.core.errors import SurfaceError
 from paintcell.surface.mesh_io import UnitChoice, choose_units, read_part_file
 from paintcell.surface.mesh_repair import RepairReport, fill_small_holes, remesh, repair
 from paintcell.surface.part_spec import MeshPart
+from paintcell.surface.pieces import choose_pieces
 from paintcell.surface.regions import (
     BACK,
     EDGE,
@@ -35,12 +39,23 @@ __all__ = ["ImportReport", "PieceInfo", "import_part", "split_pieces"]
 
 @dataclass(frozen=True)
 class PieceInfo:
-    """One connected piece of the file: index (by decreasing area), faces, area [m²], size [m]."""
+    """One connected piece of the file: index (by decreasing area), faces, area [m²], size [m];
+    painted: kept in the part; why: why it was kept or left out; on_side: a piece
+    `pieces = "auto"` joins (close, facing the painted side, not hidden, not a stray bit), so
+    leaving it out leaves part of the painted side unpainted."""
 
     index: int
     n_faces: int
     area_m2: float
     extent_m: tuple[float, ...]
+    painted: bool = False
+    why: str = ""
+    on_side: bool = False
+
+    def record(self) -> dict[str, Any]:
+        """JSON-safe record for the verdict (`PartRegions.pieces`)."""
+        return {"piece": str(self.index), "area_m2": self.area_m2, "painted": self.painted,
+                "why": self.why, "on_painted_side": self.on_side}
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,33 +183,48 @@ def import_part(spec: MeshPart, resolution_m: float | None = 0.01) -> tuple[Surf
     v, f, rep = repair(v0, f_raw)
     groups = split_pieces(v, f)
     a = face_areas(v, f)
-    pieces = tuple(PieceInfo(i, len(g), float(a[g].sum()),
-                             tuple(float(x) for x in np.ptp(v[np.unique(f[g])], axis=0)))
-                   for i, g in enumerate(groups))
+    side = None
+    if spec.side != "auto":
+        side = np.asarray(spec.side, float)
+        side = side / np.linalg.norm(side)
+    # which pieces belong to the part, seen from the largest one's painted side
+    f_main, d_main = _orient(v, f, groups[:1], side, nr)[:2]
+    choice = choose_pieces(v, f_main, groups, d_main, spec.pieces_gap_m)
     if spec.pieces == "largest":
         sel: tuple[int, ...] = (0,)
+    elif spec.pieces == "auto":
+        sel = choice.selected
     elif spec.pieces == "all":
         sel = tuple(range(len(groups)))
     else:
         sel = tuple(spec.pieces)  # type: ignore[arg-type]
         bad = [i for i in sel if i >= len(groups)]
         if bad:
-            listing = ", ".join(f"{p.index}: {p.area_m2:.3g} m²" for p in pieces[:8])
+            listing = ", ".join(f"{float(a[g].sum()):.3g} m²" for g in groups[:8])
             raise SurfaceError(f"[part] pieces = {list(sel)} but the file has {len(groups)} "
                                f"piece(s) ({listing}); write indices 0..{len(groups) - 1} or "
-                               "\"largest\"")
-    side = None
-    if spec.side != "auto":
-        side = np.asarray(spec.side, float)
-        side = side / np.linalg.norm(side)
+                               "\"auto\"")
+    pieces = tuple(PieceInfo(i, len(g), float(a[g].sum()),
+                             tuple(float(x) for x in np.ptp(v[np.unique(f[g])], axis=0)),
+                             i in sel, _why(i, sel, choice, spec), i in choice.selected)
+                   for i, g in enumerate(groups))
     f, d, side_reason, closed = _orient(v, f, [groups[i] for i in sel], side, nr)
+    if spec.pieces == "auto":  # the joined pieces wound toward the largest one's painted side
+        f = _wind_toward(v, f, [groups[i] for i in sel[1:]], d)
     keep = np.concatenate([groups[i] for i in sel])
     piece_of = np.empty(len(f), np.int32)
     for i, g in enumerate(groups):
         piece_of[g] = i
     f, piece_of = f[keep], piece_of[keep]
     labels = classify_faces(v, f, piece_of, d)
+    records = [p.record() for p in pieces]
     if closed:
+        back = face_areas(v, f[labels == BACK])
+        for p in np.unique(piece_of[labels == BACK]):
+            records.append({"piece": f"{p} back side", "painted": False, "on_painted_side": False,
+                            "area_m2": float(back[piece_of[labels == BACK] == p].sum()),
+                            "why": "the back (inner) skin of a closed solid, facing away from "
+                                   "the painter"})
         f, piece_of, labels = f[labels != BACK], piece_of[labels != BACK], labels[labels != BACK]
     if not np.any(labels == SKIN):
         raise SurfaceError(f"no face of the part faces the painted side {np.round(d, 3).tolist()}"
@@ -233,7 +263,7 @@ def import_part(spec: MeshPart, resolution_m: float | None = 0.01) -> tuple[Surf
     labels, piece_of = np.concatenate(parts_l), np.concatenate(parts_p)
     regions = PartRegions(face_labels=labels, face_piece=piece_of, painted_direction=d,
                           openings=tuple(sorted(openings, key=lambda o: -o.area_m2)),
-                          judged=spec.judge)
+                          judged=spec.judge, pieces=tuple(records))
     surf = surface_from_triangles(spec.stem, v, f)
     surf = replace(surf, regions=regions)
     skin_h = surf.mean_curvature[regions.vertex_mask(f, ("skin",))]
@@ -248,6 +278,33 @@ def import_part(spec: MeshPart, resolution_m: float | None = 0.01) -> tuple[Surf
         mean_curvature_range_1_m=(float(np.percentile(skin_h, 1)),
                                   float(np.percentile(skin_h, 99))))
     return surf, report
+
+
+def _why(i: int, sel: tuple[int, ...], choice: Any, spec: MeshPart) -> str:
+    """Why piece i was painted or not (`pieces` as the scenario sets it, `choice` what "auto"
+    finds)."""
+    if spec.pieces != "auto":
+        if i in sel:
+            return f"kept by [part] pieces = {spec.pieces!r}"
+        extra = "; pieces = \"auto\" paints it" if i in choice.selected else \
+            f"; auto: {choice.reasons.get(i, '')}"
+        return f"left out by [part] pieces = {spec.pieces!r}{extra}"
+    if i == 0:
+        return "the largest piece"
+    if i in sel:
+        return f"joined: {1e3 * choice.gaps_m[i]:.1f} mm from the part, facing its painted side"
+    return str(choice.reasons.get(i, "not joined"))
+
+
+def _wind_toward(v: np.ndarray, f: np.ndarray, groups: list[np.ndarray], d: np.ndarray
+                 ) -> np.ndarray:
+    """`f` with each open piece of `groups` wound so its area-weighted normal points along d."""
+    f = f.copy()
+    for g in groups:
+        m = trimesh.Trimesh(v, f[g], process=False)
+        if not m.is_watertight and float((m.face_normals * m.area_faces[:, None]).sum(0) @ d) < 0:
+            f[g] = f[g][:, ::-1]
+    return f
 
 
 def region_names() -> tuple[str, ...]:

@@ -20,6 +20,7 @@ on any part a paint shop sends, not on known shapes:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -74,6 +75,9 @@ class PartRegions:
     painted_direction: (3,) unit direction toward the painted side in the part frame.
     openings: boundary loops of the skin other than its outline.
     judged: region names the film metrics are judged on (default the skin).
+    pieces: what the import painted and left out, one JSON-safe record each (piece, area_m2,
+        painted, why, on_painted_side), a closed solid's dropped back skin among them
+        (`paintcell.surface.part_import`).
     """
 
     face_labels: np.ndarray
@@ -82,6 +86,7 @@ class PartRegions:
     openings: tuple[Opening, ...] = ()
     judged: tuple[str, ...] = ("skin",)
     info: dict[str, float] = field(default_factory=dict)
+    pieces: tuple[dict[str, Any], ...] = ()
 
     def face_mask(self, names: tuple[str, ...] | None = None) -> np.ndarray:
         """(F,) True for faces in the named regions (default: `judged`)."""

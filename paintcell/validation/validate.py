@@ -46,6 +46,7 @@ from paintcell.paint.metrics import transfer_efficiency, uniformity
 from paintcell.surface.surface import Surface
 from paintcell.validation.honest_reach import honest_reachability
 from paintcell.validation.paint_spec import PaintSpec, spec_checks, spec_metrics
+from paintcell.validation.painted_side import painted_side_checks, painted_side_metrics
 from paintcell.validation.region_film import region_film
 from paintcell.validation.validate_motion import _utilization, collision_events, tracking_errors
 from paintcell.validation.validate_report import (
@@ -218,10 +219,12 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     metrics.update({"spec_window_pct": spec.window_pct,
                     "spec_min_inside_pct": spec.min_inside_pct,
                     "spec_max_nsd_pct": spec.max_nsd_pct})
+    metrics.update(painted_side_metrics(surface))
     # the spec's σ/μ check replaces the threshold's (which can only tighten it)
     checks = _checks(metrics, replace(thresholds, max_executed_nsd_pct=None))
     at = sum(c.name in ("reachability", "collisions") for c in checks)
     checks[at:at] = spec_checks(metrics, spec, thresholds.max_executed_nsd_pct)
+    checks += painted_side_checks(metrics)
     return ValidationReport(
         metrics=metrics, checks=tuple(checks), reachability=reach_summary,
         collisions=tuple(events),
