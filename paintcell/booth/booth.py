@@ -165,7 +165,8 @@ class Booth:
     """The common film build [µm] (None: the body's area-weighted planned mean)."""
     spec: PaintSpec = PaintSpec()
     """The paint spec every part's executed film is held to (`[spec]`,
-    `paintcell.validation.paint_spec`; its target by default the common film build);
+    `paintcell.validation.paint_spec`; its target by default `film_target_um`, else the body's
+    planned mean film over the judged area);
     `thresholds.max_executed_nsd_pct` can only tighten its σ/μ."""
     body_clearance_m: float | None = 0.01
     """Every robot's program keeps this far [m] from the whole body, every part of it

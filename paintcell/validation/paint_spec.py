@@ -48,8 +48,8 @@ class PaintSpec:
     """A paint shop's film spec.
 
     target_film_um: centre of the window [µm]; None: the plan's own target film (a one-robot
-        run: the planned area-weighted mean film of the judged area; a booth: its common film
-        build).
+        run: the planned area-weighted mean film of the judged area; a booth: the booth's
+        `film_target_um`, else the whole body's planned mean film over the judged area).
     window_pct: half-width of the window [% of the target] (inclusive at both ends).
     min_inside_pct: least share of the judged area whose executed film lies in the window [%]
         (`min_inside_pct = 100` is allowed: every point in the window).
