@@ -15,7 +15,11 @@ from paintcell.output.report_figures import judged_view
 from paintcell.surface.part_import import import_part
 from paintcell.surface.part_spec import MeshPart, PartSpecError
 from paintcell.surface.regions import face_areas
-from paintcell.validation.painted_side import painted_side_checks, painted_side_metrics
+from paintcell.validation.painted_side import (
+    painted_side_checks,
+    painted_side_metrics,
+    parts_painted_side,
+)
 
 
 def _grid(x0: float, x1: float, y0: float, y1: float, z: float = 0.0, h: float = 0.02,
@@ -113,6 +117,12 @@ def test_largest_alone_leaves_the_painted_side_out_and_cannot_pass(tmp_path: Pat
     assert m["painted_side_left_out_m2"] == pytest.approx(left_out, rel=1e-6)
     check = painted_side_checks(m)[0]
     assert not check.passed and "write [part] pieces = \"auto\"" in check.detail
+    # a booth's body: every part's pieces named by part, the areas summed, the same verdict
+    auto, _ = import_part(MeshPart(file=str(path)), resolution_m=None)
+    body = parts_painted_side({"0:a": auto, "1:b": surf})
+    assert body["painted_side_left_out_m2"] == pytest.approx(left_out, rel=1e-6)
+    assert {p["piece"].split(" ")[0] for p in body["pieces"]} == {"0:a", "1:b"}
+    assert "1:b 1" in painted_side_checks(body)[0].detail
     # a gap tolerance below the smallest gap joins nothing either
     surf, rep = import_part(MeshPart(file=str(path), pieces_gap_m=0.004), resolution_m=None)
     assert rep.selected == (0,)
