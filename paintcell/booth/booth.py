@@ -111,7 +111,8 @@ class BoothThresholds:
     max_collisions: robot–part, robot–booth and robot–robot (and self) collision events.
     max_robot_collisions: robot–robot collision events alone.
     max_executed_nsd_pct: executed film σ/μ of the worst part [%] (the whole body's is reported;
-        it also measures how far the parts' planned film builds differ).
+        it also measures how far the parts' planned film builds differ); it only tightens the
+        paint spec's `max_nsd_pct` (`Booth.spec`).
     max_body_nsd_pct: executed film σ/μ over the whole body [%] (with a common film build,
         `Booth.common_film_build`, it measures the parts' edges and the robots' seams).
     max_abs_loss_pp: |executed − planned σ/μ| [pp]. max_cycle_time_s: booth cycle [s].

@@ -27,7 +27,8 @@ import numpy.typing as npt
 from paintcell.core.errors import PaintcellError
 from paintcell.validation.validate_report import Check
 
-__all__ = ["PaintSpec", "SpecError", "nsd_limit", "share_in_window", "spec_checks"]
+__all__ = ["PaintSpec", "SpecError", "nsd_limit", "share_in_window", "spec_checks",
+           "spec_metrics"]
 
 
 class SpecError(PaintcellError):
@@ -159,10 +160,10 @@ def nsd_limit(spec: PaintSpec, max_executed_nsd_pct: float | None) -> tuple[floa
 def spec_checks(m: dict[str, Any], spec: PaintSpec, max_executed_nsd_pct: float | None,
                 nsd_key: str = "executed_nsd_pct", inside_key: str = "executed_inside_spec_pct",
                 what: str = "") -> list[Check]:
-    """The spec's two checks on metrics `m`: executed σ/μ (named "executed σ/μ" + `what`) and
-    the share of the judged area in the window (`inside_key`, with `spec_low_um`,
-    `spec_high_um`, `{inside_key minus _inside_spec_pct}_below_spec_pct` / `_above_spec_pct`
-    beside it). A failed check says by how much it missed."""
+    """The spec's two checks on metrics `m`: "executed σ/μ" + `what` (`m[nsd_key]` against
+    `nsd_limit`) and "film in spec window" + `what` (`m[inside_key]` against `min_inside_pct`).
+    A failed one says by how much it missed (the window's detail reads `spec_*_um` and the
+    `*_below_spec_pct` / `*_above_spec_pct` of the same stem as `inside_key`)."""
     out = []
     limit, source = nsd_limit(spec, max_executed_nsd_pct)
     v = float(m[nsd_key])

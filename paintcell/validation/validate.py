@@ -16,10 +16,12 @@ kinematic replay gives the same film to round-off. The loss (executed − planne
 points) splits into its two causes: `loss_time_law_pp` = trajectory − plan (what the time law and
 IK did to the plan) and `loss_servo_pp` = executed − trajectory (what execution did: servo
 tracking, and any disturbance of the part or TCP); `loss_pp` is their sum, exactly. Beside it:
-thickness differences, coverage inside the ±tolerance window, TCP tracking and speed-following
-errors on paint segments, cycle time, joint and torque utilization (torque from what the servo
-demanded before the actuator clamp, so it exceeds 1 when a joint saturates), reachability and
-collisions — each checked against caller thresholds.
+thickness differences, the share of the judged area inside the paint spec's window
+(`paintcell.validation.paint_spec`: the spec's checks replace a bare σ/μ limit), the pieces
+painted and not (`paintcell.validation.painted_side`), coverage inside the ±tolerance window, TCP
+tracking and speed-following errors on paint segments, cycle time, joint and torque utilization
+(torque from what the servo demanded before the actuator clamp, so it exceeds 1 when a joint
+saturates), reachability and collisions — each checked against caller thresholds.
 
 The result types and threshold checks (`paintcell.validation.validate_report`), the motion
 metrics (`paintcell.validation.validate_motion`) and the binned TCP samples
