@@ -1,4 +1,5 @@
-"""Read a package's import graph and module sizes from its source (tests/test_structure.py)."""
+"""Read a package's import graph (module and folder level) and module sizes from its source
+(tests/test_structure.py)."""
 
 from __future__ import annotations
 
@@ -70,6 +71,30 @@ def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     """Each strongly connected group of more than one module (a cycle), sorted."""
     g = nx.DiGraph([(a, b) for a, bs in graph.items() for b in bs])
     return sorted(sorted(c) for c in nx.strongly_connected_components(g) if len(c) > 1)
+
+
+def folder_of(mod: str) -> str:
+    """The top folder a dotted module lives in (`paintcell.app.pipeline` → "app"); a module at
+    the package root is its own name (`paintcell` → "paintcell", `paintcell.__main__` →
+    "__main__")."""
+    parts = mod.split(".")
+    return parts[0] if len(parts) == 1 else parts[1]
+
+
+def folder_graph(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Folder → the other folders its modules import (the module graph, lumped by folder)."""
+    out: dict[str, set[str]] = {folder_of(m): set() for m in graph}
+    for a, bs in graph.items():
+        out[folder_of(a)].update(folder_of(b) for b in bs if folder_of(b) != folder_of(a))
+    return out
+
+
+def against_order(fgraph: dict[str, set[str]], order: list[str]) -> list[tuple[str, str]]:
+    """(a, b) for each folder a importing a folder b that `order` puts after it, or a folder
+    `order` does not name (either end)."""
+    rank = {f: i for i, f in enumerate(order)}
+    return sorted((a, b) for a, bs in fgraph.items() for b in bs
+                  if a not in rank or b not in rank or rank[b] > rank[a])
 
 
 def long_modules(pkg: Path) -> dict[str, int]:

@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.app.scenario import Placement
 from paintcell.booth.booth import (
     BodyPart,
     Booth,
@@ -33,6 +32,7 @@ from paintcell.booth.booth_rapid import booth_rapid_modules
 from paintcell.booth.booth_run import run_booth
 from paintcell.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagger_starts
 from paintcell.booth.conveyor import Conveyor
+from paintcell.core.placement import Placement
 from paintcell.paint.deposition import GunSamples, thickness
 
 HOME = (0.0, 0.0, -0.6, 0.3, 0.0, 0.9, 0.0)
@@ -574,8 +574,8 @@ def test_booth_reachability_is_honest(roof_booth):
 def test_booth_thresholds_are_checked_at_load(tmp_path, key, value, words):
     """A booth limit no run can meet, one that cannot fail, or a wrong type is refused when the
     file loads, in one line naming the key (as a one-robot scenario's), not after the run."""
-    from paintcell.app.scenario_checks import ScenarioDataError
     from paintcell.app.scenario_files import load_scenario
+    from paintcell.core.errors import ScenarioDataError
 
     src = (Path(__file__).resolve().parents[1] / "scenarios" / "booth.toml").read_text()
     lines = [ln for ln in src.splitlines() if not ln.startswith(f"{key} = ")]

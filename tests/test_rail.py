@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.app.scenario import pose
 from paintcell.app.scenario_files import load_scenario
+from paintcell.core.placement import pose
 from paintcell.execution.cell import build_cell
 from paintcell.execution.execute import execute
 from paintcell.motion.joint_trajectory import PAINT

@@ -117,7 +117,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
 
     t0 = time.perf_counter()
     bcell = build_booth_cell(robots, body, booth.body_placement.matrix, booth.conveyor)
-    from paintcell.app.pipeline import settings_from
+    from paintcell.core.settings import settings_from
     from paintcell.execution.execute import ServoSettings, execute
 
     prog = combined_program(bcell, trajs, t_ref)

@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
-from paintcell.sweeps.sweep_names import BOOTH_FACTORS, BOOTH_METRICS, SAMPLE_METRICS
-from paintcell.sweeps.sweep_spec import SweepError
 from paintcell.sweeps.sweep_worker import _num, cached_context
+from paintcell.validation.sweep_names import BOOTH_METRICS, SAMPLE_METRICS
+from paintcell.validation.sweep_spec import SweepError, check_booth_factors
 
 BOOTH_EXTRA = tuple(BOOTH_METRICS)
 
@@ -54,15 +54,6 @@ class BoothPayload:
     programs: Any
     films: tuple[np.ndarray, np.ndarray]
     names: tuple[str, ...]
-
-
-def check_booth_factors(names: tuple[str, ...]) -> None:
-    """One-line SweepError unless every factor is one a booth sweep models."""
-    bad = [n for n in names if n not in BOOTH_FACTORS]
-    if bad:
-        raise SweepError(f"factor(s) {bad} are not modelled in a booth sweep; a booth varies "
-                         f"{', '.join(BOOTH_FACTORS)} (sweep the single-robot scenario of the "
-                         "part for the other tolerances)")
 
 
 def prepare_booth_payload(booth: Any, names: tuple[str, ...], digest: str, fast: bool,
@@ -108,9 +99,9 @@ class _BoothContext:
 
 def _context(payload: BoothPayload) -> _BoothContext:
     def build() -> _BoothContext:
-        from paintcell.app.pipeline import settings_from
         from paintcell.booth.booth_cell import build_booth_cell
         from paintcell.booth.booth_programs import _load_robots
+        from paintcell.core.settings import settings_from
         from paintcell.execution.execute import ServoSettings
 
         t0 = time.perf_counter()

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from paintcell.sweeps.sweep_names import record_metrics
-from paintcell.sweeps.sweep_spec import _LIMIT_RE, SweepSpec, check_limits
+from paintcell.validation.sweep_names import record_metrics
+from paintcell.validation.sweep_spec import _LIMIT_RE, SweepSpec, check_limits
 
 QUANTILES = (5, 50, 95)
 CONFIDENCE = 0.95

@@ -18,7 +18,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
-from paintcell.sweeps.sweep_names import SAMPLE_METRICS
+from paintcell.validation.sweep_names import SAMPLE_METRICS
 
 T = TypeVar("T")
 
@@ -92,7 +92,7 @@ def context(payload: SweepPayload) -> WorkerContext:
 def disturbances_for(payload: SweepPayload, values: np.ndarray | None, seed: int) -> Any:
     """`Disturbances` of one sample: the scenario's own, with the sampled factors set and the
     sample's seed (values None: the nominal run, the scenario as declared)."""
-    from paintcell.app.pipeline import settings_from
+    from paintcell.core.settings import settings_from
     from paintcell.execution.execute_settings import Disturbances
 
     kw = dict(payload.scenario.disturbances)

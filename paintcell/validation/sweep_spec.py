@@ -30,7 +30,8 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
-from paintcell.sweeps.sweep_names import (
+from paintcell.validation.sweep_names import (
+    BOOTH_FACTORS,
     BOOTH_METRICS,
     FACTORS,
     MAGNITUDE_FACTORS,
@@ -255,6 +256,15 @@ def check_sweep_table(sweep: dict[str, Any]) -> None:
     if not isinstance(limits, dict):
         raise SweepError("sweep limits must be a table [sweep.limits]")
     check_limits(limits)
+
+
+def check_booth_factors(names: tuple[str, ...]) -> None:
+    """One-line SweepError unless every factor is one a booth sweep models."""
+    bad = [n for n in names if n not in BOOTH_FACTORS]
+    if bad:
+        raise SweepError(f"factor(s) {bad} are not modelled in a booth sweep; a booth varies "
+                         f"{', '.join(BOOTH_FACTORS)} (sweep the single-robot scenario of the "
+                         "part for the other tolerances)")
 
 
 def check_limits(limits: dict[str, Any] | None) -> dict[str, float]:
