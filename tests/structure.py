@@ -73,6 +73,63 @@ def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return sorted(sorted(c) for c in nx.strongly_connected_components(g) if len(c) > 1)
 
 
+def private_imports(pkg: Path) -> list[tuple[str, str, str]]:
+    """(module, other module, name) for each private name (`_x`, not a dunder) one package
+    module takes from another: `from m import _x`, or `m._x` on a module imported as
+    `import m` / `from pkg import m` (aliases followed), lazily or not (TYPE_CHECKING blocks
+    skipped)."""
+    mods = _modules(pkg)
+    out = set()
+    for mod, path in mods.items():
+        tree = ast.parse(path.read_text(), filename=str(path))
+        skip = _type_checking_nodes(tree)
+        here = mod.split(".") if path.name == "__init__.py" else mod.split(".")[:-1]
+        aliases: dict[str, str] = {}   # local name → package module it is bound to
+        for node in ast.walk(tree):
+            if id(node) in skip:
+                continue
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name in mods:
+                        aliases[a.asname or a.name] = a.name
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    anchor = here[: len(here) - (node.level - 1)]
+                    base = ".".join(anchor + ([base] if base else []))
+                for a in node.names:
+                    full = f"{base}.{a.name}"
+                    if full in mods:
+                        aliases[a.asname or a.name] = full
+                        if _private(a.name) and full != mod:
+                            out.add((mod, full, a.name))
+                    elif base in mods and base != mod and _private(a.name):
+                        out.add((mod, base, a.name))
+        for node in ast.walk(tree):
+            if id(node) in skip or not isinstance(node, ast.Attribute) or not _private(node.attr):
+                continue
+            target = _dotted(node.value)
+            target = aliases.get(target, target if target in mods else None)
+            if target is not None and target != mod:
+                out.add((mod, target, node.attr))
+    return sorted(out)
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def _dotted(node: ast.AST) -> str:
+    """`a.b.c` for a Name/Attribute chain, "" for anything else."""
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if not isinstance(node, ast.Name):
+        return ""
+    return ".".join([node.id, *reversed(parts)])
+
+
 def folder_of(mod: str) -> str:
     """The top folder a dotted module lives in (`paintcell.app.pipeline` → "app"); a module at
     the package root is its own name (`paintcell` → "paintcell", `paintcell.__main__` →

@@ -3,6 +3,8 @@ modules nor between folders, which follow one declared order with the command li
 imports inside functions count; `if TYPE_CHECKING:` blocks do not run and do not count), a folder
 per stage, and a README "Where things live" table that matches the tree.
 
+Nor does a module use another's private (underscored) names.
+
 The checkers are also run on small synthetic packages that break each rule, so a checker that
 stopped finding anything would fail here too.
 """
@@ -23,6 +25,7 @@ from tests.structure import (
     import_cycles,
     import_graph,
     long_modules,
+    private_imports,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -92,6 +95,15 @@ def test_folders_form_a_dag_in_the_declared_order() -> None:
     assert not cycles, "folder cycles: " + "; ".join(" -> ".join(c) for c in cycles)
     assert not against_order(fgraph, LAYERS), against_order(fgraph, LAYERS)
     assert not any("cli" in bs for f, bs in fgraph.items() if f != "cli")   # cli is on top
+
+
+def test_no_private_name_crosses_a_module() -> None:
+    """A name with a leading underscore is its module's own: no other package module imports it
+    (`from m import _x`) or reaches it (`m._x`), lazily or not. What modules share is public,
+    named and documented."""
+    found = private_imports(PKG)
+    assert not found, "private names used across modules: " + "; ".join(
+        f"{a} uses {b}.{n}" for a, b, n in found)
 
 
 def test_every_stage_has_its_folder_and_every_folder_is_a_stage() -> None:
@@ -184,6 +196,28 @@ def test_checker_finds_a_folder_cycle_that_no_module_cycle_shows(tmp_path: Path)
     assert against_order(fgraph, ["paintcell", "a", "b", "c"]) == [("a", "b")]
     assert against_order(fgraph, ["paintcell", "b", "a", "c"]) == [("b", "a")]
     assert folder_of("paintcell.a.x") == "a" and folder_of("paintcell") == "paintcell"
+
+
+def test_checker_finds_private_names_across_modules(tmp_path: Path) -> None:
+    """Each way of reaching another module's private name is found once; a module's own private
+    names, dunders, public names and TYPE_CHECKING imports are not."""
+    pkg = _write(tmp_path, {
+        "paintcell/__init__.py": "",
+        "paintcell/s/__init__.py": "",
+        "paintcell/s/m.py": "_X = 1\n__version__ = '1'\nY = 2\ndef _f():\n    return _X\n",
+        "paintcell/s/a.py": "from paintcell.s.m import _X, Y\n",
+        "paintcell/s/b.py": "def g():\n    from .m import _f\n    return _f()\n",
+        "paintcell/s/c.py": "import paintcell.s.m\nv = paintcell.s.m._X + paintcell.s.m.Y\n",
+        "paintcell/s/d.py": "from paintcell.s import m as mm\nv = mm._f()\nw = mm.__version__\n",
+        "paintcell/s/e.py": ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                             "    from paintcell.s.m import _X\n_own = 3\nv = _own\n"),
+    })
+    assert private_imports(pkg) == [
+        ("paintcell.s.a", "paintcell.s.m", "_X"),
+        ("paintcell.s.b", "paintcell.s.m", "_f"),
+        ("paintcell.s.c", "paintcell.s.m", "_X"),
+        ("paintcell.s.d", "paintcell.s.m", "_f"),
+    ]
 
 
 def test_checker_finds_a_long_module(tmp_path: Path) -> None:

@@ -187,7 +187,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
         # the core MuJoCo's single-threaded stepping leaves idle.
         films = start_program_films(plan, surface, traj, T_world_part)
         cell = build_cell(robot, surface, T_world_part)
-        trace = execute(cell, traj, mode=mode, servo=_servo(scn),
+        trace = execute(cell, traj, mode=mode, servo=servo_settings(scn),
                         disturbances=_disturbances(scn))
         trace.meta["plan_digest"] = traj.meta["plan_digest"]
         done("execute", t0)
@@ -231,7 +231,8 @@ def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, 
     return res.plan, res.trajectory
 
 
-def _servo(scn: Scenario) -> Any:
+def servo_settings(scn: Scenario) -> Any:
+    """The scenario's servo settings (`[servo]` table) as `ServoSettings`."""
     from paintcell.execution.execute_settings import ServoSettings
 
     return settings_from(ServoSettings, scn.servo, "servo")

@@ -16,7 +16,7 @@ from paintcell.core.settings import check_types
 
 __all__ = ["check_settings"]
 
-_SETTINGS = ("planner", "fast_planner", "trajectory", "servo", "disturbances")
+SETTINGS_TABLES = ("planner", "fast_planner", "trajectory", "servo", "disturbances")
 
 
 # Ranges the settings classes do not check themselves: (table, key) → (low, high, what).
@@ -52,7 +52,7 @@ def check_settings(scn: Any, where: str) -> None:
     (and `_SETTING_RANGES`) define. Raises ScenarioDataError naming `where` (the file) and the key.
     """
     classes = _settings_classes()
-    for table in _SETTINGS:
+    for table in SETTINGS_TABLES:
         values = getattr(scn, table)
         cls = classes[table]
         names = {f.name for f in fields(cls)}

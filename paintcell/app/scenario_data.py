@@ -26,7 +26,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-from paintcell.app.scenario_checks import _SETTINGS, check_settings
+from paintcell.app.scenario_checks import SETTINGS_TABLES, check_settings
 from paintcell.core.errors import PaintcellError, ScenarioDataError
 from paintcell.validation.validate_report import check_thresholds
 
@@ -37,7 +37,7 @@ SNAPSHOT_VERSION = 1
 
 _SCALARS = ("name", "part", "robot", "resolution_m", "fast_resolution_m", "applicator")
 _PLACEMENTS = ("part_placement", "base")
-_TABLES = (*_PLACEMENTS, *_SETTINGS, "thresholds", "sweep")
+_TABLES = (*_PLACEMENTS, *SETTINGS_TABLES, "thresholds", "sweep")
 _KEYS = (*_SCALARS, *_TABLES)
 
 def _tuples(v: Any) -> Any:
@@ -108,7 +108,7 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
             kw[key] = Placement(**{k: tuple(v) for k, v in t.items()})
         except (PaintcellError, TypeError) as exc:
             raise ScenarioDataError(f"{where}: [{key}] {exc}") from exc
-    for key in _SETTINGS:
+    for key in SETTINGS_TABLES:
         t = d.get(key, {})
         if not isinstance(t, dict):
             raise ScenarioDataError(f"{where}: {key} must be a table [{key}]")

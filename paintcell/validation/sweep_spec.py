@@ -41,7 +41,7 @@ from paintcell.validation.sweep_names import (
 )
 
 #: a sweep limit key: max_pNN_<figure> or min_pNN_<figure>
-_LIMIT_RE = re.compile(r"^(max|min)_p(\d{1,2})_(.+)$")
+LIMIT_RE = re.compile(r"^(max|min)_p(\d{1,2})_(.+)$")
 
 
 class SweepError(PaintcellError):
@@ -273,7 +273,7 @@ def check_limits(limits: dict[str, Any] | None) -> dict[str, float]:
     for key, val in (limits or {}).items():
         if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val):
             raise SweepError(f"sweep limit {key} = {val!r} must be a finite number")
-        m = _LIMIT_RE.match(key)
+        m = LIMIT_RE.match(key)
         if key in ("min_yield_pct", "min_yield_lower_pct"):
             pass
         elif m is None or m.group(3) not in {**SAMPLE_METRICS, **BOOTH_METRICS}:

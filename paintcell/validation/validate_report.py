@@ -195,7 +195,9 @@ def _json_num(v: Any) -> Any:
     return v
 
 
-def _checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
+def threshold_checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
+    """Each limit of `th` set (not None or inf) checked against the metrics `m`, in report
+    order."""
     spec = [  # (name, metric key, limit, unit, kind)
         ("reachability", "reachability_pct", th.reachability_pct, "%", "min"),
         ("collisions", "n_collisions", th.max_collisions, "events", "max"),
