@@ -495,7 +495,8 @@ def arc_length_m(points: np.ndarray) -> float:
 def test_door_from_a_mesh_file_gives_a_robot_program(tmp_path) -> None:
     # the trajectory stage used to fail on the mesh door's kinked edge pass ("TOPP-RA failed on
     # a pass"); the placement of scenarios/door.toml
-    from paintcell.app.scenario import Placement, facing_robot
+    from paintcell.app.scenario import facing_robot
+    from paintcell.core.placement import Placement
     from paintcell.motion.trajectory import TrajectorySettings, build_program
     from paintcell.robots import load_robot
 

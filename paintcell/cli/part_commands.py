@@ -251,8 +251,9 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
     from paintcell.app.init_verify import ProgramCheck
     from paintcell.app.pipeline import make_plan
-    from paintcell.app.scenario import Placement, Scenario
+    from paintcell.app.scenario import Scenario
     from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.core.placement import Placement
     from paintcell.robots.catalog import ROBOT_NAMES
     from paintcell.surface.part_import import import_part
 
