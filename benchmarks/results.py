@@ -84,7 +84,7 @@ def run_check(scenarios: list[str], out: Path, jobs: int) -> list[str]:
            "--out", str(out)]
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT),
                                                                      os.environ.get("PYTHONPATH")])))
-    proc = subprocess.run(cmd, cwd=ROOT, env=env, text=True, capture_output=True)
+    proc = subprocess.run(cmd, env=env, text=True, capture_output=True)   # paths as the user's
     print(proc.stdout, end="", flush=True)
     if proc.returncode not in (0, 1):   # 1: a scenario failed its thresholds (its row says so)
         last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
@@ -159,6 +159,9 @@ def markdown(runs: dict[str, dict[str, Any]], paper: dict[str, Any] | None,
                      "`metrics.json`.")
     if stamp.get("paper"):
         lines.append(f"- Paper tables: `{stamp['paper']}`.")
+    if stamp.get("missing"):
+        lines.append("- **Not in the tables** (the check wrote no results for them; its output "
+                     "says why): " + ", ".join(f"`{n}`" for n in stamp["missing"]) + ".")
     lines += ["", "Columns: planned and executed σ/μ of the judged film; the loss (executed − "
               "planned) and its time-law and servo shares; the judged area whose executed film "
               "is within ±10 % of the planned mean; the executed cycle time; honest "
@@ -226,12 +229,17 @@ def main(argv: list[str] | None = None) -> int:
         "command": f"python benchmarks/results.py {argv_txt}".strip()}
     with tempfile.TemporaryDirectory(prefix="paintcell-results-") as td:
         folder = args.from_dir
+        expected: list[str] = []
         if folder is None:
+            from paintcell.app.scenario_files import find_scenarios
+
+            expected = [p.stem for p in find_scenarios(args.scenarios)]
             folder = args.keep if args.keep is not None else Path(td) / "runs"
             stamp["check"] = " ".join(run_check(args.scenarios, folder, args.jobs))
         else:
             stamp["check"] = f"paintcell check --fast --out {folder} (read, not run again)"
         runs = read_runs(folder)
+        stamp["missing"] = [n for n in expected if n not in runs]
         if not runs:
             raise SystemExit(f"no DIR/NAME/metrics.json under {folder}: pass the --out folder of "
                              "`paintcell check --fast --out DIR`")
@@ -248,6 +256,9 @@ def main(argv: list[str] | None = None) -> int:
                                  ensure_ascii=False) + "\n")
     print(f"written: {args.out} and {args.out.with_suffix('.json').name} ({len(runs)} scenarios"
           f"{', paper tables' if paper else ''})")
+    if stamp["missing"]:
+        print(f"not in the tables (no results): {', '.join(stamp['missing'])}", file=sys.stderr)
+        return 1
     return 0
 
 
