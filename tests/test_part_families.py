@@ -81,7 +81,7 @@ def test_pieces_their_areas_roles_and_gaps(seed: int) -> None:
     truth = sorted(p.truth["pieces"], key=lambda x: -x["area_m2"])
     assert len(comps) == len(truth)
     assert np.allclose([c.area / 1e6 for c in comps], [x["area_m2"] for x in truth], rtol=1e-6)
-    skins = [c for c, x in zip(comps, truth) if x["role"] == "skin"]
+    skins = [c for c, x in zip(comps, truth, strict=True) if x["role"] == "skin"]
     strays = [x for x in truth if x["role"] == "stray"]
     assert len(skins) >= 3 and len(strays) >= 3
     assert sum(x["area_m2"] for x in truth if x["role"] == "skin") == \
