@@ -10,7 +10,8 @@ like any scenario script (`SCENARIO = Booth(...)`).
 Allocation (`allocate`): the jobs are whole parts or two pieces of a part (its passes split at
 a pass boundary); a part planned in patches may also be cut once inside each patch and at its
 seams, so that one robot takes a wing of every patch (`job_options`). Every assignment of one
-job per robot — each part whole or split, one robot per job — is enumerated (≤ a few hundred for four robots) and the one chosen:
+job per robot — each part whole or split, one robot per job — is enumerated (≤ a few hundred
+for four robots) and the one chosen:
 1. every job is reachable by its robot (closed-form IK feasibility of every pass: inside the
    limits, off the wrist singularity; a rail robot at its best rail position per pass);
 2. the booth cycle — the longest robot's estimated program: paint time of its passes plus
