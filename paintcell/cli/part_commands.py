@@ -6,7 +6,8 @@
   the robot, the first robot model whose base reaches the fast plan, `init_cell.choose_cell`)
   that `paintcell run` and `plan` accept as written; none reaches it: a one-line refusal.
 - generate KIND --out FILE: a CAD-like door/hood/fender/roof mesh in mm
-(`paintcell.surface.cad_like`).
+  (`paintcell.surface.cad_like`), or a part of a seeded family with its truth beside it
+  (`paintcell.surface.part_families`).
 """
 
 from __future__ import annotations
@@ -21,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
+from paintcell.surface.part_families import FAMILIES
 from paintcell.surface.part_spec import MeshPart
-from paintcell.validation.paint_spec import PaintSpec
 
 __all__ = ["register"]
 
@@ -56,13 +57,23 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "when none does)")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
     n.set_defaults(func=_cmd_init)
-    g = add_parser("generate", help="write a CAD-like car-part mesh (mm)",
-                   description="Write a generated CAD-like part (outer skin hemmed onto an inner "
-                   "panel, crease; a door also has a handle recess and a window) in millimetres, "
-                   "with coarse uneven tessellation and a few slivers; seeded, deterministic.")
-    g.add_argument("kind", choices=("door", "hood", "fender", "roof"), help="part kind")
+    g = add_parser("generate", help="write a generated car-part mesh with its truth",
+                   description="Write a generated part, seeded and deterministic. The CAD-like "
+                   "kinds (door, hood, fender, roof) are an outer skin hemmed onto an inner panel "
+                   "in millimetres, with coarse uneven tessellation and a few slivers. The "
+                   "families (door_frame, door_pieces, door_solid, hood_rolled, tailgate, bumper, "
+                   "fender_arch, roof_sunroof) are the shapes a paint shop sends — window frames "
+                   "of narrow members, parts in pieces with stray clips, closed thin solids, "
+                   "rolled corners, recesses, wraps past 120°, arches and openings — with sizes, "
+                   "curvatures, member widths, tessellation, units (mm or m) and orientation "
+                   "drawn from the seed; their truth (areas, pieces, widths, openings, units, "
+                   "rotation) is written beside the mesh as <stem>.truth.json.")
+    kinds = ("door", "hood", "fender", "roof", *FAMILIES)   # cad_like.PART_KINDS, then families
+    g.add_argument("kind", choices=kinds, metavar="KIND", help=f"part kind: {', '.join(kinds)}")
     g.add_argument("--out", type=Path, required=True, help="mesh file to write (.stl/.ply/.obj)")
-    g.add_argument("--seed", type=int, default=0, help="tessellation seed")
+    g.add_argument("--seed", type=int, default=0,
+                   help="seed of the sizes, shape, tessellation, units and orientation "
+                   "(default 0)")
     g.set_defaults(func=_cmd_generate)
 
 
@@ -185,13 +196,25 @@ def _plot_regions(surf: Any, png: Path) -> None:
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:
-    from paintcell.core.atomic_io import atomic_path
+    from paintcell.core.atomic_io import atomic_path, atomic_write_text
     from paintcell.surface.cad_like import make_part
+    from paintcell.surface.part_families import make_family_part
 
-    part = make_part(args.kind, args.seed)
     suffix = args.out.suffix.lower().lstrip(".")
     if suffix not in ("stl", "ply", "obj"):
         raise PaintcellError(f"--out {args.out}: write a .stl, .ply or .obj file")
+    if args.kind in FAMILIES:
+        fam = make_family_part(args.kind, args.seed)
+        truth_path = args.out.with_name(args.out.stem + ".truth.json")
+        with atomic_path(args.out) as tmp:
+            fam.mesh.export(tmp, file_type=suffix)
+        atomic_write_text(truth_path, json.dumps(fam.truth, indent=1) + "\n")
+        t = fam.truth
+        print(f"{args.kind} (seed {args.seed}): {len(fam.mesh.faces)} faces in {t['units']}, "
+              f"{t['up_axis']} up → {args.out}; painted side {t['painted_area_m2']:.4f} m², "
+              f"{len(t['pieces'])} piece(s); truth → {truth_path}")
+        return 0
+    part = make_part(args.kind, args.seed)
     with atomic_path(args.out) as tmp:
         part.mesh.export(tmp, file_type=suffix)
     t = part.truth
@@ -233,10 +256,12 @@ def _placement(surf: Any) -> np.ndarray:
 
 def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
+    from paintcell.app.init_toml import scenario_toml
     from paintcell.app.init_verify import ProgramCheck
     from paintcell.app.pipeline import make_plan
-    from paintcell.app.scenario import Placement, Scenario
+    from paintcell.app.scenario import Scenario
     from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.core.placement import Placement
     from paintcell.robots.catalog import ROBOT_NAMES
     from paintcell.surface.part_import import import_part
 
@@ -290,7 +315,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     trajectory = check.trajectory.get(cell.robot, {})
     T_base = cell.T_base
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
-    text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
+    text = scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
                           f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried,
                           trajectory, check.clearance_m.get(cell.robot))
     atomic_write_text(out, text)
@@ -306,13 +331,6 @@ def _relpath(p: Path, start: Path) -> str:
     return os.path.relpath(p.resolve(), start.resolve())
 
 
-def _v(x: Any) -> str:
-    return json.dumps(list(x) if isinstance(x, tuple) else x)
-
-
-#: The paint spec `init` writes: the defaults, stated.
-_SPEC = PaintSpec()
-
 #: Lowest TCP height of a pass `init` accepts [m]; the part is lifted until its plan clears it.
 _MIN_TCP_Z_M = 0.6
 
@@ -326,69 +344,3 @@ _INIT_PLANNER: dict[str, Any] = {"film_refine": False}
 _PLANNER_TRIES: tuple[dict[str, Any], ...] = (
     {}, {"orientation": "zero-curvature"}, {"orientation": "max-curvature"},
     {"orientation": "auto", "w_max_m": 0.3})
-
-
-def _scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, base: Any,
-                   verdict: str, n_passes: int, planner: dict[str, Any], tried: list[str],
-                   trajectory: dict[str, Any], clearance_m: float | None) -> str:
-    ops = rep.openings
-    pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m² {'painted' if p.painted else 'not'}"
-                       for p in rep.pieces[:6])
-    pieces += ", …" if len(rep.pieces) > 6 else ""
-    d = [round(x, 3) for x in rep.painted_direction]
-    regions = ", ".join(f"{k} {v:.3f} m²" for k, v in rep.region_areas_m2.items())
-    planner_lines = "".join(f"# failed: {t[:300]}\n" for t in tried)
-    planner_lines += "".join(f"{k} = {_v(v)}\n" for k, v in planner.items()) or \
-        "# the planner's defaults plan this part\n"
-    gap = f"at least {(clearance_m or 0.0) * 1e3:.0f} mm"   # init_verify's sweep of the program
-    traj_lines = "".join(f"{k} = {_v(v)}\n" for k, v in trajectory.items())
-    if traj_lines:
-        traj_lines = (f"# the default moves came close to the part on the fast plan; folded (the "
-                      f"arm pulls back toward its base before it turns) they keep {gap} from "
-                      "it\n" + traj_lines)
-    else:
-        traj_lines = f"# the default moves keep {gap} from the part on the fast plan\n"
-    return f"""# Written by `paintcell init {rep.spec.file}`: every choice below is editable.
-name = {_v(name)}
-robot = {_v(robot)}               # see [base] for why this robot
-resolution_m = 0.01            # remesh edge length of a full run [m]
-fast_resolution_m = 0.025      # remesh edge length of a --fast run [m]
-
-[part]
-file = {_v(spec.file)}   # relative to this file
-# units: {rep.units.units} — {rep.units.reason}
-units = {_v(spec.units)}
-# pieces: {len(rep.pieces)} found ({pieces}); "auto" paints the largest and the pieces
-# within pieces_gap_m of it that face its painted side; "largest" the largest alone
-pieces = {_v(spec.pieces)}
-pieces_gap_m = {_v(spec.pieces_gap_m)}
-# side: painted direction {d} in the part frame ({rep.side_reason})
-side = {_v(spec.side)}
-# regions: {regions}; openings: {len(ops)}
-judge = ["skin"]               # film metrics judged on the skin (add "hem" to include hems)
-
-[part_placement]
-# painted side toward the robot (world −x), longest extent horizontal, centre 1.4 m in front
-xyz_m = {_v([round(x, 4) for x in pl.xyz_m])}
-rpy_rad = {_v([round(x, 6) for x in pl.rpy_rad])}
-
-[base]
-# paintcell.robots.placement.find_base_pose on the fast plan ({n_passes} passes): {verdict}
-xyz_m = {_v([round(x, 4) for x in base.xyz_m])}
-rpy_rad = {_v([round(x, 6) for x in base.rpy_rad])}
-
-[planner]
-{planner_lines}
-[trajectory]
-{traj_lines}
-[thresholds]
-reachability_pct = 100.0
-max_collisions = 0
-
-[spec]
-# the paint spec the executed film is judged against (paintcell.validation.paint_spec):
-# target_film_um = 30.0        # centre of the window [µm]; unset: the plan's own target film
-window_pct = {_v(_SPEC.window_pct)}               # the window: target ± this [%]
-min_inside_pct = {_v(_SPEC.min_inside_pct)}           # least share of the judged area inside it [%]
-max_nsd_pct = {_v(_SPEC.max_nsd_pct)}              # largest executed σ/μ [%]
-"""

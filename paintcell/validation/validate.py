@@ -50,13 +50,13 @@ from paintcell.validation.honest_reach import honest_reachability
 from paintcell.validation.paint_spec import PaintSpec, spec_checks, spec_metrics
 from paintcell.validation.painted_side import painted_side_checks, painted_side_metrics
 from paintcell.validation.region_film import region_film
-from paintcell.validation.validate_motion import _utilization, collision_events, tracking_errors
+from paintcell.validation.validate_motion import collision_events, tracking_errors, utilization
 from paintcell.validation.validate_report import (
     Check,
     Thresholds,
     ValidationError,
     ValidationReport,
-    _checks,
+    threshold_checks,
 )
 from paintcell.validation.validate_samples import executed_gun_samples, trajectory_gun_samples
 
@@ -144,7 +144,7 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     rms_diff = float(np.sqrt(np.dot(areas, diff**2) / areas.sum()))
 
     trk = tracking_errors(traj, trace)
-    q_use, tau_use, tau_sat = _utilization(trace)
+    q_use, tau_use, tau_sat = utilization(trace)
     reach_summary, _ = _reachability_summary(reachability)
     # Jumps, wrist flips, contacts and slowdowns count against reachability
     # (paintcell.validation.honest_reach).
@@ -223,7 +223,7 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
                     "spec_max_nsd_pct": spec.max_nsd_pct})
     metrics.update(painted_side_metrics(surface))
     # the spec's σ/μ check replaces the threshold's (which can only tighten it)
-    checks = _checks(metrics, replace(thresholds, max_executed_nsd_pct=None))
+    checks = threshold_checks(metrics, replace(thresholds, max_executed_nsd_pct=None))
     at = sum(c.name in ("reachability", "collisions") for c in checks)
     checks[at:at] = spec_checks(metrics, spec, thresholds.max_executed_nsd_pct)
     checks += painted_side_checks(metrics)
