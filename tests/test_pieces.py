@@ -165,3 +165,43 @@ def test_closed_thin_solid_paints_and_judges_its_outer_skin(tmp_path: Path, res:
     assert np.all(n @ d > 0.999 * np.linalg.norm(n, axis=1))
     assert face_areas(view.vertices, view.faces).sum() == pytest.approx(judged, rel=1e-12)
     assert np.array_equal(view.vertices, surf.vertices[keep])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_generated_door_in_pieces_is_painted_whole(tmp_path: Path, seed: int) -> None:
+    """`paintcell generate door_pieces` (paintcell.surface.part_families): the lower panel and
+    the window frame's members 15-35 mm from it are painted, their areas the generator's; the
+    clips and the sealer bead are not (mm or m, z- or y-up, as the seed draws)."""
+    from paintcell.surface.part_families import make_family_part
+
+    part = make_family_part("door_pieces", seed)
+    path = tmp_path / "door.stl"
+    part.mesh.export(path)
+    surf, rep = import_part(MeshPart(file=str(path)), resolution_m=None)
+    skins = sorted(x["area_m2"] for x in part.truth["pieces"] if x["role"] == "skin")
+    strays = sorted(x["area_m2"] for x in part.truth["pieces"] if x["role"] == "stray")
+    # STL stores float32: a 6 mm bead's area in metres to ~1e-6
+    assert sorted(p.area_m2 for p in rep.pieces if p.painted) == pytest.approx(skins, rel=1e-5)
+    assert sorted(p.area_m2 for p in rep.pieces if not p.painted) == pytest.approx(strays,
+                                                                                  rel=1e-5)
+    judged = face_areas(surf.vertices, surf.faces[surf.regions.face_mask()]).sum()
+    assert judged == pytest.approx(part.truth["painted_area_m2"], rel=1e-5)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_generated_closed_door_judges_its_outer_skin(tmp_path: Path, seed: int) -> None:
+    """`door_solid`: a curved door as a closed solid 30-60 mm thick. The painted side is the
+    outer (convex) skin, the generator's +z, and the judged skin is its area; the inner skin is
+    named as not painted."""
+    from paintcell.surface.part_families import make_family_part
+
+    part = make_family_part("door_solid", seed)
+    path = tmp_path / "door.stl"
+    part.mesh.export(path)
+    surf, rep = import_part(MeshPart(file=str(path)), resolution_m=0.025)
+    up = np.asarray(part.truth["R_file_part"]) @ [0.0, 0.0, 1.0]
+    assert float(up @ np.asarray(rep.painted_direction)) > 0.95
+    judged = face_areas(surf.vertices, surf.faces[surf.regions.face_mask()]).sum()
+    assert judged == pytest.approx(part.truth["painted_area_m2"], rel=5e-3)
+    back = [p for p in surf.regions.pieces if not p["painted"]]
+    assert len(back) == 1 and back[0]["area_m2"] >= part.truth["inner_skin_area_m2"]

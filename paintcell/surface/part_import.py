@@ -154,12 +154,14 @@ def _orient(v: np.ndarray, f: np.ndarray, groups: list[np.ndarray], side: np.nda
     if side is not None:
         return f, side, "set in the scenario (side)", closed_any
     if main.is_watertight:
-        # Closed shell: the skin is the convex side of the thinnest axis.
+        # Closed shell: the skin is the convex side of its thinnest axis, judged on the faces
+        # within 60° of it (the rim between the two skins meets both at convex edges, and a
+        # thin solid's long rim would outweigh the skins' own curvature).
         w, vec = np.linalg.eigh(np.cov((main.vertices[np.unique(main.faces)]).T))
         axis = vec[:, 0]
         scores = []
         for s in (1.0, -1.0):
-            keep = (main.face_normals @ (s * axis)) > 0
+            keep = (main.face_normals @ (s * axis)) > 0.5
             sub = trimesh.Trimesh(main.vertices, main.faces[keep], process=False)
             scores.append(_convexity(sub) if keep.any() else -np.inf)
         d = axis if scores[0] >= scores[1] else -axis
@@ -216,7 +218,7 @@ def import_part(spec: MeshPart, resolution_m: float | None = 0.01) -> tuple[Surf
     for i, g in enumerate(groups):
         piece_of[g] = i
     f, piece_of = f[keep], piece_of[keep]
-    labels = classify_faces(v, f, piece_of, d)
+    labels = classify_faces(v, f, piece_of, d, closed=closed)
     records = [p.record() for p in pieces]
     if closed:
         back = face_areas(v, f[labels == BACK])
