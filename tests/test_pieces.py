@@ -157,6 +157,10 @@ def test_closed_thin_solid_paints_and_judges_its_outer_skin(tmp_path: Path, res:
     back = [p for p in m["pieces"] if not p["painted"]]
     assert len(back) == 1 and "back (inner) skin" in back[0]["why"]
     assert back[0]["area_m2"] >= L * W * (1 - 1e-6)          # the inner skin is not painted
+    # the file's solid is split between its painted side and its back skin, nothing twice
+    assert m["painted_area_m2"] + m["not_painted_area_m2"] == pytest.approx(
+        2 * (L * W + L * t + W * t), rel=1e-6)
+    assert m["painted_area_m2"] < L * W + 2 * (L + W) * t
     # the figures draw the judged outer skin alone, every face toward the painted side
     view, keep = judged_view(surf)
     n = np.cross(*(view.vertices[view.faces[:, k]] - view.vertices[view.faces[:, 0]]

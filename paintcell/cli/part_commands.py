@@ -137,6 +137,9 @@ def _describe(rep: Any, surf: Any) -> str:
                      f"{'painted' if p.painted else 'NOT painted'}: {p.why}")
     if len(rep.pieces) > 10:
         lines.append(f"  … {len(rep.pieces) - 10} more pieces")
+    for r in (surf.regions.pieces if surf.regions is not None else ()):
+        if r["piece"].endswith("back side"):
+            lines.append(f"  piece {r['piece']}: {r['area_m2']:.4f} m², NOT painted: {r['why']}")
     d = ", ".join(f"{x:.3f}" for x in rep.painted_direction)
     lines.append(f"painted side: [{d}] — {rep.side_reason}"
                  + ("; closed shell reduced to its skin" if rep.closed_shell else ""))

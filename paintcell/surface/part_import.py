@@ -223,8 +223,12 @@ def import_part(spec: MeshPart, resolution_m: float | None = 0.01) -> tuple[Surf
     if closed:
         back = face_areas(v, f[labels == BACK])
         for p in np.unique(piece_of[labels == BACK]):
+            a_back = float(back[piece_of[labels == BACK] == p].sum())
+            # the piece's record keeps its painted side; its back skin is a record of its own
+            records[p] = {**records[p], "area_m2": records[p]["area_m2"] - a_back,
+                          "why": records[p]["why"] + " (its painted side)"}
             records.append({"piece": f"{p} back side", "painted": False, "on_painted_side": False,
-                            "area_m2": float(back[piece_of[labels == BACK] == p].sum()),
+                            "area_m2": a_back,
                             "why": "the back (inner) skin of a closed solid, facing away from "
                                    "the painter"})
         f, piece_of, labels = f[labels != BACK], piece_of[labels != BACK], labels[labels != BACK]
