@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast lint docs bench clean
+.PHONY: demo test test-fast lint docs bench results clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -32,8 +32,13 @@ lint: $(STAMP)
 docs: $(STAMP)
 	$(BIN)/mkdocs build --strict
 
+# results.py writes docs/results.md (every scenario and the paper tables): `make results`.
 bench: $(STAMP)
-	for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
+	for b in benchmarks/*.py; do [ $$b = benchmarks/results.py ] && continue; \
+		echo "== $$b"; $(BIN)/python $$b || exit 1; done
+
+results: $(STAMP)
+	$(BIN)/python benchmarks/results.py --jobs 2
 
 clean:
 	rm -rf $(VENV) results build site *.egg-info

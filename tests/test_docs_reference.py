@@ -27,10 +27,9 @@ from typing import Any
 
 import pytest
 
-from paintcell.app.scenario_checks import ScenarioDataError
 from paintcell.app.scenario_data import load_toml_scenario
 from paintcell.cli.main import build_parser
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, ScenarioDataError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -139,8 +138,8 @@ def test_each_documented_default_is_accepted_and_is_the_default(
 
 def _effective(scn: Any, table: str, key: str) -> Any:
     """What a scenario loaded without `key` runs with (tuples as lists)."""
-    from paintcell.app.scenario_checks import _settings_classes
-    from paintcell.sweeps.sweep_spec import spec_from_scenario
+    from paintcell.app.scenario_checks import settings_classes
+    from paintcell.validation.sweep_spec import spec_from_scenario
 
     if table == "":
         v = getattr(scn, key)
@@ -156,7 +155,7 @@ def _effective(scn: Any, table: str, key: str) -> Any:
         spec = spec_from_scenario(scn.sweep, vary=["part_offset_m=0.001"])
         v = getattr(spec, key)
     else:
-        v = getattr(_settings_classes()[table](**getattr(scn, table)), key)
+        v = getattr(settings_classes()[table](**getattr(scn, table)), key)
     return list(v) if isinstance(v, tuple) else v
 
 
@@ -317,10 +316,13 @@ def _a_value(r: dict[str, str]) -> str:
     value = r["value"].strip("` ")
     if not value:
         return ""
+    default = r["default"].strip("` ")
     if value.startswith("{"):
         choices = value.strip("{}").split(",")
-        default = r["default"].strip("` ")
         return next(c for c in choices if c != default)
+    m = re.search(r"\(choices: (.*)\)$", r["help"])
+    if m:
+        return next(c for c in re.findall(r"`([^`]+)`", m.group(1)) if c != default)
     return "3"
 
 
@@ -374,8 +376,8 @@ def _help_options(cmd: str) -> set[str]:
 @pytest.mark.parametrize("cmd", list(CLI))
 def test_help_lists_exactly_the_documented_arguments(cmd: str) -> None:
     shown = _help_options(cmd)
-    # a positional with choices shows as its choices, {a,b}
-    documented = {r["value"].strip("`") if not f.startswith("-") and "{" in r["value"] else f
+    # a positional shows as its value: its metavar, its choices {a,b} or its name
+    documented = {r["value"].strip("`").removesuffix(" …") if not f.startswith("-") else f
                   for r in CLI[cmd].values() if r["help"] != "internal"
                   for f in r["flags"].split()}
     assert shown == documented

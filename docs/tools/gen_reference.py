@@ -49,7 +49,7 @@ TABLE_TITLES = {
     "thresholds": ("[thresholds]", "The limits `paintcell run` and `paintcell check` hold the "
                    "run to (`paintcell.validation.validate_report.Thresholds`)."),
     "sweep": ("[sweep]", "The robustness sweep of `paintcell sweep` "
-              "(`paintcell.sweeps.sweep_spec`), with its sub-tables `[sweep.factors]` and "
+              "(`paintcell.validation.sweep_spec`), with its sub-tables `[sweep.factors]` and "
               "`[sweep.limits]`."),
 }
 
@@ -187,7 +187,7 @@ def scenario_reference() -> str:
 
 
 def _sweep_notes() -> list[str]:
-    from paintcell.sweeps.sweep_names import FACTORS, SAMPLE_METRICS
+    from paintcell.validation.sweep_names import FACTORS, SAMPLE_METRICS
 
     lines = ["### `[sweep.factors]`", "",
              "One `NAME = \"DIST\"` per disturbance to vary; DIST is `normal(mean, sd)`, "
@@ -207,9 +207,10 @@ def _sweep_notes() -> list[str]:
 # --- the command-line reference ---------------------------------------------------------------
 
 def _value(action: argparse.Action) -> str:
+    """The argument's value as `--help` shows it: its metavar, else its choices, else its name."""
     if action.nargs == 0:
         return ""
-    if action.choices is not None:
+    if action.metavar is None and action.choices is not None:
         return "{" + ",".join(map(str, action.choices)) + "}"
     meta = action.metavar or (action.dest.upper() if action.option_strings else action.dest)
     return str(meta) + (" …" if action.nargs in ("*", "+") else "")
@@ -219,6 +220,8 @@ def _help(action: argparse.Action, prog: str) -> str:
     text = action.help or ""
     if "%(" in text:
         text = text % {**vars(action), "prog": prog}
+    if action.metavar is not None and action.choices is not None:   # not in the Value column
+        text += " (choices: " + ", ".join(f"`{c}`" for c in action.choices) + ")"
     return text
 
 

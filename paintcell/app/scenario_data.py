@@ -26,16 +26,12 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-from paintcell.app.scenario_checks import (
-    ScenarioDataError,
-    check_settings,
-    check_thresholds,
-)
+from paintcell.app.scenario_checks import check_settings
 from paintcell.app.scenario_keys import LENGTH_RANGE_M, PLACEMENTS, SETTINGS, TABLES, TOP_LEVEL
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, ScenarioDataError
+from paintcell.validation.validate_report import check_thresholds
 
-__all__ = ["SNAPSHOT_VERSION", "check_settings", "check_thresholds", "load_toml_scenario",
-           "scenario_from_dict", "snapshot_dict"]
+__all__ = ["SNAPSHOT_VERSION", "load_toml_scenario", "scenario_from_dict", "snapshot_dict"]
 
 #: Version of the `scenario.json` snapshot written into results folders.
 SNAPSHOT_VERSION = 1
@@ -57,7 +53,9 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
     where: the file, named in every error. base_dir: folder that relative paths (a mesh part,
     `[part] file`, `applicator`) are resolved against (None: keep them as written).
     """
-    from paintcell.app.scenario import Placement, Scenario, Thresholds
+    from paintcell.app.scenario import Scenario
+    from paintcell.core.placement import Placement
+    from paintcell.validation.validate_report import Thresholds
 
     if not isinstance(d, dict):
         raise ScenarioDataError(f"{where}: a scenario must be a table of keys")
@@ -117,7 +115,7 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
         kw[key] = {k: _tuples(v) for k, v in t.items()}
     sw = d.get("sweep", {})
     if sw:  # [sweep], [sweep.factors], [sweep.limits]: checked now, not when a sweep starts
-        from paintcell.sweeps.sweep_spec import SweepError, check_sweep_table
+        from paintcell.validation.sweep_spec import SweepError, check_sweep_table
 
         try:
             check_sweep_table(sw)

@@ -5,8 +5,8 @@ required ones, the placements' keys and the top-level lengths' range), and the d
 scenario reference is generated from it (docs/tools/gen_reference.py). The settings tables take
 their keys, types and defaults from the fields of the classes that check them
 (`PlannerSettings`, `TrajectorySettings`, `ServoSettings`, `Disturbances`, `Thresholds`,
-`MeshPart`), the thresholds their ranges from `paintcell.app.scenario_checks`, and `[sweep]` its
-keys from `paintcell.sweeps.sweep_spec`: one table, the loader's own.
+`MeshPart`), the thresholds their ranges from `paintcell.validation.validate_report`, and
+`[sweep]` its keys from `paintcell.validation.sweep_spec`: one table, the loader's own.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import typing
 from dataclasses import MISSING, Field, dataclass, fields
 from typing import Any
 
-from paintcell.app.scenario_checks import _SETTINGS
+from paintcell.app.scenario_checks import SETTINGS_TABLES
 
 __all__ = ["LENGTH_RANGE_M", "ScenarioKey", "TABLES", "TOP_LEVEL", "scenario_keys",
            "table_class", "toml_type"]
@@ -67,21 +67,22 @@ TOP_LEVEL = ("name", "part", "robot", "resolution_m", "fast_resolution_m", "appl
 TABLES = ("part", "part_placement", "base", "planner", "fast_planner", "trajectory", "servo",
           "disturbances", "thresholds", "sweep")
 
-#: The tables that hold a placement (`paintcell.app.scenario.Placement`).
+#: The tables that hold a placement (`paintcell.core.placement.Placement`).
 PLACEMENTS = ("part_placement", "base")
 
 #: The settings tables built into a settings class (checked by `check_settings`).
-SETTINGS = _SETTINGS
+SETTINGS = SETTINGS_TABLES
 
 
 def table_class(table: str) -> type | None:
     """The class whose fields are the keys of `table` (None for `sweep` and the top level)."""
-    from paintcell.app.scenario import Placement, Thresholds
-    from paintcell.app.scenario_checks import _settings_classes
+    from paintcell.app.scenario_checks import settings_classes
+    from paintcell.core.placement import Placement
     from paintcell.surface.part_spec import MeshPart
+    from paintcell.validation.validate_report import Thresholds
 
     if table in SETTINGS:
-        return _settings_classes()[table]
+        return settings_classes()[table]
     return {"part": MeshPart, "part_placement": Placement, "base": Placement,
             "thresholds": Thresholds}.get(table)
 
@@ -142,7 +143,7 @@ def _top_level() -> list[ScenarioKey]:
 
 
 def _placement(table: str) -> list[ScenarioKey]:
-    from paintcell.app.scenario import Placement
+    from paintcell.core.placement import Placement
 
     what = {"xyz_m": "position [m]", "rpy_rad": "roll, pitch, yaw about fixed x, y, z [rad]"}
     frame = "the part frame" if table == "part_placement" else "the robot base"
@@ -184,7 +185,8 @@ def _part() -> list[ScenarioKey]:
 
 
 def _settings(table: str) -> list[ScenarioKey]:
-    from paintcell.app.scenario_checks import _SETTING_RANGES, _THRESHOLD_RANGES
+    from paintcell.app.scenario_checks import SETTING_RANGES
+    from paintcell.validation.validate_report import THRESHOLD_RANGES
 
     cls = table_class(table)
     assert cls is not None
@@ -193,12 +195,12 @@ def _settings(table: str) -> list[ScenarioKey]:
     for f in fields(cls):
         key = ScenarioKey(table, f.name, toml_type(hints[f.name]), _toml_value(_default(f)),
                           owner=cls)
-        if table == "thresholds" and f.name in _THRESHOLD_RANGES:
-            lo, hi, lo_closed, _ = _THRESHOLD_RANGES[f.name]
+        if table == "thresholds" and f.name in THRESHOLD_RANGES:
+            lo, hi, lo_closed, _ = THRESHOLD_RANGES[f.name]
             key = _with_range(key, lo, hi, lo_closed, f.name != "tolerance")
             if f.name.startswith("max_"):
                 key = _replace(key, valid="unset or inf: not checked")
-        rng = _SETTING_RANGES.get(("planner" if table == "fast_planner" else table, f.name))
+        rng = SETTING_RANGES.get(("planner" if table == "fast_planner" else table, f.name))
         if rng is not None:
             key = _with_range(key, rng[0], rng[1], False, False)
         out.append(key)
@@ -217,8 +219,8 @@ def _replace(key: ScenarioKey, **kw: Any) -> ScenarioKey:
 
 
 def _sweep() -> list[ScenarioKey]:
-    from paintcell.sweeps.sweep_names import METHODS
-    from paintcell.sweeps.sweep_spec import SCENARIO_DEFAULTS
+    from paintcell.validation.sweep_names import METHODS
+    from paintcell.validation.sweep_spec import SCENARIO_DEFAULTS
 
     kinds = {"factors": "table", "limits": "table", "method": "string"}
     valid = {"factors": "NAME = \"DIST\" per disturbance (the [disturbances] keys)",
