@@ -463,14 +463,19 @@ def test_the_site_builds_strictly_with_the_generated_pages(tmp_path: Path) -> No
 
 
 @pytest.mark.slow
-def test_a_broken_link_fails_the_strict_build(tmp_path: Path) -> None:
+def test_a_broken_link_and_a_blank_docstring_fail_the_strict_build(tmp_path: Path) -> None:
     shutil.copy(ROOT / "mkdocs.yml", tmp_path / "mkdocs.yml")
     shutil.copytree(ROOT / "docs", tmp_path / "docs",
                     ignore=shutil.ignore_patterns("__pycache__"))
     (tmp_path / "paintcell").symlink_to(ROOT / "paintcell")
     index = tmp_path / "docs" / "index.md"
     index.write_text(index.read_text() + "\nSee [the results](no_such_page.md).\n")
+    api = tmp_path / "docs" / "api" / "app.md"      # a module whose function has no docstring
+    (tmp_path / "paintcell_blank.py").write_text('"""A module."""\n\n\ndef bare() -> None:\n'
+                                                 '    pass\n')
+    api.write_text(api.read_text() + "\n::: paintcell_blank\n")
     r = _mkdocs(tmp_path, tmp_path / "site")
     assert r.returncode != 0
     said = r.stdout + r.stderr
     assert "contains a link 'no_such_page.md'" in said and "in strict mode" in said
+    assert "paintcell_blank.bare has no docstring" in said
