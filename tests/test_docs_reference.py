@@ -479,3 +479,25 @@ def test_a_broken_link_and_a_blank_docstring_fail_the_strict_build(tmp_path: Pat
     said = r.stdout + r.stderr
     assert "contains a link 'no_such_page.md'" in said and "in strict mode" in said
     assert "paintcell_blank.bare has no docstring" in said
+
+
+def test_docstring_entries_render_as_lists() -> None:
+    fields = _load("griffe_fields")
+    doc = textwrap.dedent("""\
+        Settings (all SI).
+
+        u_max: largest σ/μ [fraction].
+        v_min_m_s / v_max_m_s: speed bounds
+            of the QP [m/s].
+        kp, kd: gains; a wrap at the margin
+        carries on in lower case.
+        A new paragraph: not an entry.
+
+            code(x): indented, kept
+        """)
+    assert fields.as_lists(doc).splitlines() == [
+        "Settings (all SI).", "",
+        "- `u_max`: largest σ/μ [fraction].",
+        "- `v_min_m_s`, `v_max_m_s`: speed bounds", "  of the QP [m/s].",
+        "- `kp`, `kd`: gains; a wrap at the margin", "  carries on in lower case.", "",
+        "A new paragraph: not an entry.", "", "    code(x): indented, kept"]

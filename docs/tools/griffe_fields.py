@@ -1,9 +1,9 @@
 """A griffe extension (mkdocs.yml, mkdocstrings `extensions`): `name: text` entries as lists.
 
 paintcell's docstrings describe fields and arguments as paragraphs of `name: text` lines, the
-text's continuation indented (`a / b: text` and `a, b: text` describe several). Markdown would
-run such a paragraph together into one; this turns each run of entries into a bulleted list with
-the names in code, leaving every other line as it is.
+text's continuation indented or starting in lower case (`a / b: text` and `a, b: text` describe
+several). Markdown would run such a paragraph together into one; this turns each run of entries
+into a bulleted list with the names in code, leaving every other line as it is.
 """
 
 from __future__ import annotations
@@ -13,8 +13,10 @@ from typing import Any
 
 import griffe
 
-_ENTRY = re.compile(r"^(?P<names>[a-z_][a-z0-9_]*(?:\s*(?:,|/)\s*[a-z_][a-z0-9_]*)*):\s+"
-                    r"(?P<text>\S.*)$")
+_ENTRY = re.compile(r"^(?P<names>[A-Za-z_][A-Za-z0-9_]*(?:\s*(?:,|/)\s*[A-Za-z_][A-Za-z0-9_]*)*):"
+                    r"\s+(?P<text>\S.*)$")
+#: A line that carries on the sentence of the line before (a wrap at the margin), not a new one.
+_CARRIES_ON = re.compile(r"^[a-z(`\[{'\"]")
 
 
 def as_lists(doc: str) -> str:
@@ -33,7 +35,7 @@ def as_lists(doc: str) -> str:
             names = ", ".join(f"`{n.strip()}`" for n in re.split(r"[,/]", m["names"]))
             out.append(f"- {names}: {m['text']}")
             in_list = True
-        elif in_list and line.startswith(" ") and line.strip():
+        elif in_list and line.strip() and (line.startswith(" ") or _CARRIES_ON.match(line)):
             out.append("  " + line.strip())      # the entry's continuation
         else:
             if in_list and line.strip():
