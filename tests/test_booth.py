@@ -689,3 +689,4 @@ def test_booth_film_file(roof_booth, tmp_path):
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert 100 * w[inside].sum() / w.sum() == pytest.approx(m["executed_within_tolerance_pct"],
                                                             abs=1e-9)
+    assert 'id="film-3d"' in (tmp_path / "report.html").read_text(encoding="utf-8")
