@@ -1,13 +1,22 @@
-"""The report's 3-D film view (paintcell.output.film_view) in a real headless Chromium: the door
-report at --fast stays under 2 MB, the view draws the film (pixels read back from the canvas, in
-the spec scale's colours), nothing reaches the console, and pointing at the part shows the film
-there in µm, within what the folder's film.npz holds."""
+"""The door's film.glb and the report's 3-D view of it (paintcell.output.gltf_film,
+paintcell.output.film_view), from one `paintcell run scenarios/door.toml --fast`.
+
+film.glb read back by trimesh's loader against the folder's other files and the part built
+again: vertex count, bounds, colours (the executed film of film.npz through the spec scale,
+recomputed), the passes of plan.json/.npz, the placements of scenario.json. The report in a
+real headless Chromium: under 2 MB and fetching nothing, the view draws the film (pixels read
+back from the canvas, in the spec scale's colours), nothing reaches the console, and pointing at
+the part shows the film there in µm, within what film.npz holds."""
 
 from __future__ import annotations
 
 import importlib.util
 import io
+import json
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +24,14 @@ import pytest
 from matplotlib import colormaps
 
 from paintcell.output.report_film import register_spec_cmap
+from tests.helpers import (
+    GLB_COLOUR_ATOL,
+    GLB_POSITION_ATOL_M,
+    GLB_THICKNESS_ATOL_UM,
+    R_GLTF_WORLD,
+    line_strips,
+    spec_colours_linear,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the report's budget [bytes] at --fast (no execution video)
@@ -31,6 +48,17 @@ def _tool():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+@pytest.fixture(scope="module")
+def door_fast(tmp_path_factory) -> Path:
+    """The results folder of `paintcell run scenarios/door.toml --fast` (one run per module)."""
+    out = tmp_path_factory.mktemp("door_fast") / "door"
+    proc = subprocess.run([sys.executable, "-m", "paintcell", "run", "scenarios/door.toml",
+                           "--fast", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                          timeout=1200, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert proc.returncode in (0, 1), proc.stderr[-3000:]
+    return out
 
 
 @pytest.fixture(scope="module")
@@ -108,3 +136,46 @@ def test_pointing_at_the_part_shows_the_film_in_um(view, door_fast):
         t_um = 1e6 * z["executed_thickness_m"]
     # a value interpolated inside one triangle lies within the film's range (0.05: the rounding)
     assert t_um.min() - 0.05 <= float(m[1]) <= t_um.max() + 0.05
+
+
+@pytest.mark.slow
+def test_door_film_glb_against_the_folder(door_fast):
+    import trimesh
+
+    from paintcell.app.pipeline import load_surface
+    from paintcell.app.scenario_data import scenario_from_snapshot
+    from paintcell.coverage.plan import CoveragePlan
+
+    path = door_fast / "film.glb"
+    marker = json.loads((door_fast / ".paintcell-results").read_text())
+    assert "film.glb" in marker["files"]
+    with np.load(door_fast / "film.npz") as z:
+        planned, executed = z["planned_thickness_m"], z["executed_thickness_m"]
+        areas, judged, tol = z["vertex_areas_m2"], z["judged"], float(z["tolerance"])
+    w = np.where(judged, areas, 0.0)
+    target_m = float(w @ planned / w.sum())  # the window's centre, recomputed from the arrays
+
+    snap = json.loads((door_fast / "scenario.json").read_text())
+    scn = scenario_from_snapshot(snap, str(door_fast / "scenario.json"))
+    surface = load_surface(scn, fast=True)  # the judged surface, built again from the part
+
+    scene = trimesh.load(path, force="scene")
+    mesh = scene.geometry["film"]
+    assert len(mesh.vertices) == len(surface.vertices) == len(executed)
+    sv = np.asarray(surface.vertices)
+    np.testing.assert_allclose(mesh.bounds, [sv.min(0), sv.max(0)], atol=GLB_POSITION_ATOL_M)
+    rgb = np.asarray(mesh.visual.vertex_attributes["color"], float)[:, :3]
+    np.testing.assert_allclose(rgb, spec_colours_linear(executed, target_m, tol),
+                               atol=GLB_COLOUR_ATOL)
+    np.testing.assert_allclose(mesh.vertex_attributes["_THICKNESS_UM"].reshape(-1), 1e6 * executed,
+                               atol=GLB_THICKNESS_ATOL_UM)
+
+    plan = CoveragePlan.load(door_fast / "plan.json")
+    strips = line_strips(path)
+    assert len(strips) == len(plan.passes) > 0
+    for got, p in zip(strips, plan.passes, strict=True):
+        np.testing.assert_allclose(got, p.positions, atol=GLB_POSITION_ATOL_M)
+    T_part, _ = scene.graph["part"]
+    np.testing.assert_allclose(T_part, R_GLTF_WORLD @ scn.part_placement.matrix, atol=1e-9)
+    T_base, _ = scene.graph[f"robot base {scn.robot}"]
+    np.testing.assert_allclose(T_base, R_GLTF_WORLD @ scn.base.matrix, atol=1e-9)

@@ -5,7 +5,6 @@ format's own layout (glTF 2.0 §4.4: 12-byte header, JSON chunk, BIN chunk)."""
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -104,44 +103,3 @@ def test_film_scene_refuses_arrays_that_do_not_agree(grid_scene):
     with pytest.raises(FilmGlbError, match="pass"):
         FilmScene(g.vertices_m, g.faces, g.normals, g.film, [np.zeros((4, 2))], g.T_world_part,
                   g.bases)
-
-
-@pytest.mark.slow
-def test_door_film_glb_against_the_folder(door_fast):
-    from paintcell.app.pipeline import load_surface
-    from paintcell.app.scenario_data import scenario_from_snapshot
-    from paintcell.coverage.plan import CoveragePlan
-
-    path = door_fast / "film.glb"
-    marker = json.loads((door_fast / ".paintcell-results").read_text())
-    assert "film.glb" in marker["files"]
-    with np.load(door_fast / "film.npz") as z:
-        planned, executed = z["planned_thickness_m"], z["executed_thickness_m"]
-        areas, judged, tol = z["vertex_areas_m2"], z["judged"], float(z["tolerance"])
-    w = np.where(judged, areas, 0.0)
-    target_m = float(w @ planned / w.sum())  # the window's centre, recomputed from the arrays
-
-    snap = json.loads((door_fast / "scenario.json").read_text())
-    scn = scenario_from_snapshot(snap, str(door_fast / "scenario.json"))
-    surface = load_surface(scn, fast=True)  # the judged surface, built again from the part
-
-    scene = trimesh.load(path, force="scene")
-    mesh = scene.geometry["film"]
-    assert len(mesh.vertices) == len(surface.vertices) == len(executed)
-    sv = np.asarray(surface.vertices)
-    np.testing.assert_allclose(mesh.bounds, [sv.min(0), sv.max(0)], atol=GLB_POSITION_ATOL_M)
-    rgb = np.asarray(mesh.visual.vertex_attributes["color"], float)[:, :3]
-    np.testing.assert_allclose(rgb, spec_colours_linear(executed, target_m, tol),
-                               atol=GLB_COLOUR_ATOL)
-    np.testing.assert_allclose(mesh.vertex_attributes["_THICKNESS_UM"].reshape(-1), 1e6 * executed,
-                               atol=GLB_THICKNESS_ATOL_UM)
-
-    plan = CoveragePlan.load(door_fast / "plan.json")
-    strips = line_strips(path)
-    assert len(strips) == len(plan.passes) > 0
-    for got, p in zip(strips, plan.passes, strict=True):
-        np.testing.assert_allclose(got, p.positions, atol=GLB_POSITION_ATOL_M)
-    T_part, _ = scene.graph["part"]
-    np.testing.assert_allclose(T_part, R_GLTF_WORLD @ scn.part_placement.matrix, atol=1e-9)
-    T_base, _ = scene.graph[f"robot base {scn.robot}"]
-    np.testing.assert_allclose(T_base, R_GLTF_WORLD @ scn.base.matrix, atol=1e-9)
