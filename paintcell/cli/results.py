@@ -24,12 +24,11 @@ def add_validate(add_parser: Any) -> None:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import RunResult, load_surface, metrics_dict
+    from paintcell.app.pipeline import RunResult, load_surface, metrics_dict, write_film_files
     from paintcell.app.run_files import load_run_dir, read_json
     from paintcell.core.atomic_io import atomic_write_text
     from paintcell.core.json_values import json_default
     from paintcell.core.results_dir import lock_results, note_files, require_results
-    from paintcell.output.report_film import FILM_NAME, save_film
     from paintcell.validation.validate import validate
 
     require_results(args.dir)
@@ -51,8 +50,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, timings_s=stage_times,
                         fast=fast, mode=mode)
         atomic_write_text(old, json.dumps(metrics_dict(res), indent=2, default=json_default))
-        save_film(args.dir / FILM_NAME, surface, rep)
-        note_files(args.dir, ["metrics.json", FILM_NAME])
+        note_files(args.dir, ["metrics.json",
+                              *write_film_files(args.dir, scn, surface, plan, rep)])
     print(format_table([row(scn.name, rep)]))
     return EXIT_OK if rep.passed else EXIT_FAIL
 

@@ -9,7 +9,8 @@ the HTML references nothing outside itself.
 
 The first screen (1280×800) holds the verdict with the reasons for any failure, the executed film
 map, the film histogram against the spec window with the share of area inside it, and the
-per-pass table (`paintcell.output.report_sections`); the detail follows: thresholds, headline
+per-pass table (`paintcell.output.report_sections`); below it the interactive 3-D view of
+`film.glb` (`paintcell.output.film_view`); the detail follows: thresholds, headline
 metrics under
 human names with units (`paintcell.output.report_names`), collisions, slowdowns, every figure,
 the plan, the
@@ -30,6 +31,8 @@ import numpy as np
 
 from paintcell.core.atomic_io import atomic_path
 from paintcell.core.errors import PaintcellError
+from paintcell.output.film_view import film_view_html
+from paintcell.output.gltf_film import FILM_GLB_NAME
 from paintcell.output.report_figures import FIGURES_JSON, make_figures
 from paintcell.output.report_film import FILM_NAME, load_film
 from paintcell.output.report_sections import (
@@ -185,8 +188,9 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
                  video: bool = False) -> Path:
     """Write `results_dir/report.html` from the folder's files; return its path.
 
-    Needs `metrics.json`; uses `film.npz`, `scenario.json`, `plan.json`, `trajectory.npz`,
-    `trace.npz`, `figures.json` and the folder's `*.png` (embedded as data URIs).
+    Needs `metrics.json`; uses `film.npz`, `film.glb` (the 3-D view), `scenario.json`,
+    `plan.json`, `trajectory.npz`, `trace.npz`, `figures.json` and the folder's `*.png`
+    (embedded as data URIs).
     video: also embed the execution video `execution.gif` (a few MB); without it the report
     names the file and how to embed it.
     """
@@ -210,6 +214,9 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     film = load_film(d)
 
     parts = [f"<h1>{html.escape(title)}</h1>", first_screen(d, metrics, film, captions)]
+    if (d / FILM_GLB_NAME).is_file():
+        parts.append("<h2>The film in 3-D</h2>")
+        parts.append(film_view_html(d / FILM_GLB_NAME, film))
     parts.append("<h2>Thresholds (pass/fail)</h2>")
     parts.append(checks_table(list(metrics.get("checks") or [])))
     parts.append("<h2>Key figures</h2>")
