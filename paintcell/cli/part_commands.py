@@ -38,7 +38,8 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "hems, repairs and curvature range; write a PNG of the regions.")
     _part_options(i)
     i.add_argument("--png", type=Path, default=None,
-                   help="regions picture (default: <file stem>_regions.png in the current folder)")
+                   help="regions picture (default: <file stem>_regions.png in the current "
+                   "folder); a link, device node or FIFO there is refused")
     i.set_defaults(func=_cmd_inspect)
     n = add_parser("init", help="write a ready scenario for a part file",
                    description="Write a commented TOML scenario for a part file: units, pieces, "
@@ -47,7 +48,10 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "fast plan. `paintcell run` and `paintcell plan` accept it as written; when "
                    "no robot reaches the part, init says so in one line and writes nothing.")
     _part_options(n)
-    n.add_argument("--out", type=Path, required=True, help="scenario file to write (.toml)")
+    n.add_argument("--out", type=Path, required=True,
+                   help="scenario file to write (.toml); an existing file is refused unless "
+                   "--force")
+    n.add_argument("--force", action="store_true", help="replace an existing --out file")
     n.add_argument("--robot", default="auto",
                    help="robot name (abb_paint, irb5500, ur10, abb_paint_rail, irb5500_rail), or "
                    "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
@@ -60,7 +64,10 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "panel, crease; a door also has a handle recess and a window) in millimetres, "
                    "with coarse uneven tessellation and a few slivers; seeded, deterministic.")
     g.add_argument("kind", choices=("door", "hood", "fender", "roof"), help="part kind")
-    g.add_argument("--out", type=Path, required=True, help="mesh file to write (.stl/.ply/.obj)")
+    g.add_argument("--out", type=Path, required=True,
+                   help="mesh file to write (.stl/.ply/.obj); an existing file is refused unless "
+                   "--force")
+    g.add_argument("--force", action="store_true", help="replace an existing --out file")
     g.add_argument("--seed", type=int, default=0, help="tessellation seed")
     g.set_defaults(func=_cmd_generate)
 
@@ -96,8 +103,11 @@ def _spec(args: argparse.Namespace) -> MeshPart:
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
+    from paintcell.core.safe_paths import check_write_target
     from paintcell.surface.part_import import import_part
 
+    if args.png is not None:  # before the import's work, not after
+        check_write_target(args.png, "--png")
     res = args.resolution if args.resolution > 0 else None
     surf, rep = import_part(_spec(args), resolution_m=res)
     print(_describe(rep, surf))
@@ -178,12 +188,14 @@ def _plot_regions(surf: Any, png: Path) -> None:
 
 def _cmd_generate(args: argparse.Namespace) -> int:
     from paintcell.core.atomic_io import atomic_path
+    from paintcell.core.safe_paths import check_new_target
     from paintcell.surface.cad_like import make_part
 
-    part = make_part(args.kind, args.seed)
     suffix = args.out.suffix.lower().lstrip(".")
     if suffix not in ("stl", "ply", "obj"):
         raise PaintcellError(f"--out {args.out}: write a .stl, .ply or .obj file")
+    check_new_target(args.out, "--out", args.force)
+    part = make_part(args.kind, args.seed)
     with atomic_path(args.out) as tmp:
         part.mesh.export(tmp, file_type=suffix)
     t = part.truth
@@ -229,12 +241,14 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.pipeline import make_plan
     from paintcell.app.scenario import Placement, Scenario
     from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.core.safe_paths import check_new_target
     from paintcell.robots.catalog import ROBOT_NAMES
     from paintcell.surface.part_import import import_part
 
     out: Path = args.out
     if out.suffix != ".toml":
         raise PaintcellError(f"--out {out}: a scenario file ends in .toml")
+    check_new_target(out, "--out", args.force)  # before minutes of planning, and again below
     if args.robot != "auto" and args.robot not in ROBOT_NAMES:  # before minutes of planning
         raise PaintcellError(f"--robot {args.robot!r} is not a robot paintcell ships; write "
                              f"--robot auto or one of {', '.join(ROBOT_NAMES)}")
@@ -285,6 +299,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
                           f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried,
                           trajectory, check.clearance_m.get(cell.robot))
+    check_new_target(out, "--out", args.force)
     atomic_write_text(out, text)
     print(_describe(rep, surf))
     print(f"cell: {cell.why}")
