@@ -5,8 +5,8 @@
 - init PART_FILE --out scenarios/NAME.toml: a commented TOML scenario (part, placement in front of
   the robot, the first robot model whose base reaches the fast plan, `init_cell.choose_cell`)
   that `paintcell run` and `plan` accept as written; none reaches it: a one-line refusal.
-- generate KIND --out FILE: a CAD-like door/hood/fender/roof mesh in mm
-(`paintcell.surface.cad_like`).
+- generate KIND --out FILE: a CAD-like or seeded-family mesh with its truth
+  (`paintcell.cli.generate`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from paintcell.cli.common import add_out_force
+from paintcell.cli.generate import add_generate
 from paintcell.core.errors import PaintcellError
+from paintcell.core.safe_paths import check_new_target, check_write_target
 from paintcell.surface.part_spec import MeshPart
 
 __all__ = ["register"]
@@ -38,8 +41,7 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "hems, repairs and curvature range; write a PNG of the regions.")
     _part_options(i)
     i.add_argument("--png", type=Path, default=None,
-                   help="regions picture (default: <file stem>_regions.png in the current "
-                   "folder); a link, device node or FIFO there is refused")
+                   help="regions picture (default: <file stem>_regions.png in the current folder)")
     i.set_defaults(func=_cmd_inspect)
     n = add_parser("init", help="write a ready scenario for a part file",
                    description="Write a commented TOML scenario for a part file: units, pieces, "
@@ -48,10 +50,7 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "fast plan. `paintcell run` and `paintcell plan` accept it as written; when "
                    "no robot reaches the part, init says so in one line and writes nothing.")
     _part_options(n)
-    n.add_argument("--out", type=Path, required=True,
-                   help="scenario file to write (.toml); an existing file is refused unless "
-                   "--force")
-    n.add_argument("--force", action="store_true", help="replace an existing --out file")
+    add_out_force(n, "scenario file to write (.toml)")
     n.add_argument("--robot", default="auto",
                    help="robot name (abb_paint, irb5500, ur10, abb_paint_rail, irb5500_rail), or "
                    "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
@@ -59,17 +58,7 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "when none does)")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
     n.set_defaults(func=_cmd_init)
-    g = add_parser("generate", help="write a CAD-like car-part mesh (mm)",
-                   description="Write a generated CAD-like part (outer skin hemmed onto an inner "
-                   "panel, crease; a door also has a handle recess and a window) in millimetres, "
-                   "with coarse uneven tessellation and a few slivers; seeded, deterministic.")
-    g.add_argument("kind", choices=("door", "hood", "fender", "roof"), help="part kind")
-    g.add_argument("--out", type=Path, required=True,
-                   help="mesh file to write (.stl/.ply/.obj); an existing file is refused unless "
-                   "--force")
-    g.add_argument("--force", action="store_true", help="replace an existing --out file")
-    g.add_argument("--seed", type=int, default=0, help="tessellation seed")
-    g.set_defaults(func=_cmd_generate)
+    add_generate(add_parser)
 
 
 def _part_options(p: argparse.ArgumentParser) -> None:
@@ -103,7 +92,6 @@ def _spec(args: argparse.Namespace) -> MeshPart:
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
-    from paintcell.core.safe_paths import check_write_target
     from paintcell.surface.part_import import import_part
 
     if args.png is not None:  # before the import's work, not after
@@ -186,25 +174,6 @@ def _plot_regions(surf: Any, png: Path) -> None:
     plt.close(fig)
 
 
-def _cmd_generate(args: argparse.Namespace) -> int:
-    from paintcell.core.atomic_io import atomic_path
-    from paintcell.core.safe_paths import check_new_target
-    from paintcell.surface.cad_like import make_part
-
-    suffix = args.out.suffix.lower().lstrip(".")
-    if suffix not in ("stl", "ply", "obj"):
-        raise PaintcellError(f"--out {args.out}: write a .stl, .ply or .obj file")
-    check_new_target(args.out, "--out", args.force)
-    part = make_part(args.kind, args.seed)
-    with atomic_path(args.out) as tmp:
-        part.mesh.export(tmp, file_type=suffix)
-    t = part.truth
-    print(f"{args.kind} (seed {args.seed}): {len(part.mesh.faces)} faces in mm → {args.out}; "
-          f"truth: skin {t['skin_m2']:.4f} m², hem {t['hem_m2']:.4f} m², inner panel "
-          f"{t['inner_m2']:.4f} m², window {t['window_m2']:.4f} m²")
-    return 0
-
-
 def _rpy(R: np.ndarray) -> tuple[float, float, float]:
     from scipy.spatial.transform import Rotation
 
@@ -239,9 +208,9 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
     from paintcell.app.init_verify import ProgramCheck
     from paintcell.app.pipeline import make_plan
-    from paintcell.app.scenario import Placement, Scenario
+    from paintcell.app.scenario import Scenario
     from paintcell.core.atomic_io import atomic_write_text
-    from paintcell.core.safe_paths import check_new_target
+    from paintcell.core.placement import Placement
     from paintcell.robots.catalog import ROBOT_NAMES
     from paintcell.surface.part_import import import_part
 

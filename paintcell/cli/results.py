@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from paintcell.cli.check import format_table, row
-from paintcell.cli.common import DIR_HELP, EXIT_FAIL, EXIT_OK, one_line
+from paintcell.cli.common import DIR_HELP, EXIT_FAIL, EXIT_OK, add_out_force, one_line
 from paintcell.core.errors import PaintcellError
 
 
@@ -36,9 +36,10 @@ def _revalidate(f: dict[str, Any]) -> tuple[Any, Any]:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import RunResult, json_default, metrics_dict
+    from paintcell.app.pipeline import RunResult, metrics_dict
     from paintcell.app.run_files import load_run_dir, read_json
     from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.core.json_values import json_default
     from paintcell.core.results_dir import lock_results, note_files, require_results
     from paintcell.output.report_film import FILM_NAME, save_film
 
@@ -79,11 +80,8 @@ def add_export(add_parser: Any) -> None:
     e.add_argument("--style", choices=("trigg", "paintl"), default="trigg",
                    help="brush events as TriggL + TriggIO on a digital output (trigg), or as "
                    "PaintL + SetBrush (paintl, ABB paint option)")
-    e.add_argument("--out", type=Path, default=None,
-                   help="module file (default: DIR/<scenario>.mod); an existing file is refused "
-                   "unless --force (DIR's own module, listed in its marker, is replaced)")
-    e.add_argument("--force", action="store_true",
-                   help="replace an existing --out file")
+    add_out_force(e, "module file (default: DIR/<scenario>.mod, which is replaced: the "
+                  "folder's own)", required=False)
     e.add_argument("--spacing", type=float, default=0.05,
                    help="maximum distance between exported targets along a pass [m]")
     e.add_argument("--allow-failed", action="store_true",

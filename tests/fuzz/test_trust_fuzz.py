@@ -34,7 +34,7 @@ from paintcell.output.export_rapid import (
     recorded_mismatches,
     validation_header,
 )
-from paintcell.validation.validate_report import Thresholds, ValidationReport, _checks
+from paintcell.validation.validate_report import Thresholds, ValidationReport, threshold_checks
 from tests.trust_cases import dead_pid, flat, rapid_parse, small_program, snapshot
 
 # --- what sits where paintcell writes ----------------------------------------------------------
@@ -365,7 +365,7 @@ def test_validated_only_when_the_data_pass_and_metrics_json_agrees(tamper: str,
     rng = random.Random(f"{tamper}-{fails}")
     m = _metrics(rng)
     th = Thresholds(max_executed_nsd_pct=0.5 if fails else 20.0)
-    checks = _checks(m, th)
+    checks = threshold_checks(m, th)
     rep = ValidationReport(metrics=m, checks=tuple(checks), reachability=None, collisions=(),
                            joint_range_utilization=(), torque_utilization=())
     recorded = json.loads(json.dumps(rep.to_dict()))     # what `run` writes into metrics.json
