@@ -124,6 +124,37 @@ def test_the_lock_is_a_regular_file_or_refused_at_once(tmp_path: Path, state: st
     assert victim.read_bytes() == b"victim" and time.monotonic() - t0 < 5
 
 
+INPUTS = ("scenario.toml", "scenario.py", "part.stl", "metrics.json", "trace.npz")
+
+
+@pytest.mark.parametrize("name", INPUTS)
+@pytest.mark.parametrize("state", ["fifo", "link_to_file"])
+def test_inputs_that_are_fifos_or_links_are_refused_at_once(tmp_path: Path, name: str,
+                                                            state: str) -> None:
+    """A FIFO where paintcell reads is refused, not waited on; a results file that is a link is
+    not followed (a scenario or part file may be a link: the user's choice)."""
+    from paintcell.app.run_files import check_folder_files, read_json
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.core.errors import PaintcellError
+    from paintcell.surface.mesh_io import read_part_file
+
+    victim = tmp_path / "victim.bin"
+    _plant(tmp_path / name, state, victim)
+    readers = {"scenario.toml": load_scenario, "scenario.py": load_scenario,
+               "part.stl": read_part_file, "metrics.json": read_json,
+               "trace.npz": lambda p: check_folder_files(p.parent)}
+    if name == "trace.npz":   # check_folder_files reads metrics.json first
+        (tmp_path / "metrics.json").write_text("{}")
+    t0 = time.monotonic()
+    if state == "link_to_file" and name in ("scenario.toml", "scenario.py", "part.stl"):
+        with pytest.raises(PaintcellError):   # followed, and victim's content is no scenario
+            readers[name](tmp_path / name)
+    else:
+        with pytest.raises(PaintcellError, match="FIFO|symbolic link"):
+            readers[name](tmp_path / name)
+    assert time.monotonic() - t0 < 5 and victim.read_bytes() == b"victim"
+
+
 OUT_STATES = ("absent", "empty", "marked", "marked_foreign", "unmarked", "link_to_marked",
               "regular", "fifo", "linked_marker")
 
