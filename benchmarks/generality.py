@@ -42,7 +42,7 @@ from paintcell.surface.part_families import FAMILIES  # noqa: E402
 
 _FORMATS = ("stl", "obj", "ply")
 #: metrics.json keys of the share of the judged area inside the spec window [%], newest first.
-_WINDOW_KEYS = ("executed_in_window_pct", "spec_in_window_pct", "executed_within_tolerance_pct")
+_WINDOW_KEYS = ("executed_inside_spec_pct", "executed_within_tolerance_pct")
 
 
 @dataclass
@@ -121,7 +121,7 @@ def run_part(name: str, mesh: Path, work: Path, generated: bool, timeout_s: floa
     row.nsd_pct = float(m.get("executed_nsd_pct") or np.nan)
     row.in_window_pct = next((float(m[k]) for k in _WINDOW_KEYS if m.get(k) is not None),
                              float("nan"))
-    honest = m.get("honest_reachability_pct", m.get("reachability_pct"))
+    honest = m.get("reachability_pct")          # honest: jumps, flips, contacts, slowdowns
     row.reach_pct = float(honest) if honest is not None else float("nan")
     row.jumps = int(m.get("reach_n_joint_jumps") or 0)
     row.collisions = int(m.get("n_collisions") or 0)
