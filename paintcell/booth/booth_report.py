@@ -276,7 +276,9 @@ def write_booth_report(out: Path) -> Path:
     scenario = json.loads((out / "scenario.json").read_text())
     images = [n for n in ("booth.png", "body_film.png") if (out / n).exists()]
     film_3d = ""
-    if (out / FILM_GLB_NAME).is_file():
+    from paintcell.output.report_sections import embeddable
+
+    if embeddable(out / FILM_GLB_NAME):
         from paintcell.output.film_view import film_view_html
         from paintcell.output.report_film import load_film
 

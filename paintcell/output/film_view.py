@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from paintcell.core.safe_paths import read_regular_bytes
 from paintcell.output.report_film import FilmData, spec_range_um, spec_rgb
 
 __all__ = ["THREE_BUNDLE", "VIEW_SCRIPT", "film_view_html"]
@@ -68,7 +69,7 @@ def film_view_html(glb: Path, film: FilmData | None, ident: str = "film-3d") -> 
     """The 3-D view section of `glb` (a `film.glb`); `film` gives the legend (None: none).
 
     ident: the section's HTML id (the embedded data's id is derived from it)."""
-    data = base64.b64encode(Path(glb).read_bytes()).decode("ascii")
+    data = base64.b64encode(read_regular_bytes(Path(glb))).decode("ascii")
     legend = legend_html(film) if film is not None else ""
     return (
         f"<style>{_CSS}</style>"
