@@ -501,3 +501,11 @@ def test_docstring_entries_render_as_lists() -> None:
         "- `v_min_m_s`, `v_max_m_s`: speed bounds", "  of the QP [m/s].",
         "- `kp`, `kd`: gains; a wrap at the margin", "  carries on in lower case.", "",
         "A new paragraph: not an entry.", "", "    code(x): indented, kept"]
+
+
+def test_the_example_on_the_scenario_page_loads(tmp_path: Path) -> None:
+    text = gen.scenario_reference()
+    m = re.search(r"```toml\n(.*?)\n```", text, re.S)
+    assert m, "the scenario reference shows no example"
+    scn = _write_and_load(tmp_path, m.group(1) + "\n")
+    assert scn.part == "panel" and scn.thresholds.max_collisions == 0

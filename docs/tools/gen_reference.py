@@ -26,6 +26,9 @@ ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:   # run as a script from a checkout
     sys.path.insert(0, str(ROOT))
 
+#: The scenario file the reference shows as its example (read when the page is made).
+EXAMPLE = ROOT / "scenarios" / "panel.toml"
+
 #: The title of each table's section and what it is for (the key table holds the keys).
 TABLE_TITLES = {
     "": ("Top level", "The scalar keys at the top of the file."),
@@ -162,6 +165,8 @@ def scenario_reference() -> str:
         "and the description from the class that holds the setting.", "",
         "This page is generated from `paintcell.app.scenario_keys`, the table the loader "
         "checks files against.", "",
+        f"An example, `{EXAMPLE.relative_to(ROOT)}` as shipped:", "", "```toml",
+        EXAMPLE.read_text(encoding="utf-8").strip(), "```", "",
     ]
     for table in ("", *TABLES):
         title, what = TABLE_TITLES[table]
