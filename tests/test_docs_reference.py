@@ -87,11 +87,12 @@ def _toml(table: str, key: str, literal: str | None) -> str:
     if table == "part":
         top.pop("part")
         tables["part"] = {"file": '"part.stl"'}
-    if literal is not None:
-        if table == "":
-            top[key] = literal
-        else:
-            tables.setdefault(table, {})[key] = literal
+    if literal is None:                          # left out, also of the minimal file
+        (top if table == "" else tables.get(table, {})).pop(key, None)
+    elif table == "":
+        top[key] = literal
+    else:
+        tables.setdefault(table, {})[key] = literal
     lines = [f"{k} = {v}" for k, v in top.items()]
     for t, kv in tables.items():
         lines += [f"[{t}]", *(f"{k} = {v}" for k, v in kv.items())]
@@ -175,12 +176,12 @@ def test_documented_words_for_defaults_are_true(tmp_path: Path) -> None:
 def test_required_keys_are_refused_when_missing(tmp_path: Path) -> None:
     required = [(t, k) for t, rows in DOC.items() for k, r in rows.items()
                 if r["default"] == "*required*"]
-    assert set(required) == {("", "part"), ("part", "file"), ("part_placement", "xyz_m"),
-                             ("part_placement", "rpy_rad")}
+    assert set(required) == {("", "part"), ("part", "file")}
     no_part = "[part_placement]\nxyz_m = [1.4, 0.0, 1.0]\nrpy_rad = [0.0, 0.0, 0.0]\n"
-    no_file = 'part = "panel"\n' + no_part.replace("[part_placement]", '[part]\nunits = "m"\n'
-                                                   "[part_placement]")
-    for text in (no_part, no_file.replace('part = "panel"\n', ""), 'part = "panel"\n'):
+    no_file = '[part]\nunits = "m"\n' + no_part
+    no_placement = 'part = "panel"\n'           # the section says the table is required
+    assert "The table is required" in gen.scenario_reference()
+    for text in (no_part, no_file, no_placement):
         with pytest.raises(ScenarioDataError):
             _write_and_load(tmp_path, text)
 

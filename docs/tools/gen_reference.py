@@ -34,8 +34,8 @@ TABLE_TITLES = {
     "": ("Top level", "The scalar keys at the top of the file."),
     "part": ("[part]", "A part read from a mesh or CAD file, given as a table instead of "
              "`part = \"…\"` (`paintcell.surface.part_spec.MeshPart`)."),
-    "part_placement": ("[part_placement]", "Where the part frame sits in the world "
-                       "(required)."),
+    "part_placement": ("[part_placement]", "Where the part frame sits in the world. The "
+                       "table is required; a key it leaves out is zero."),
     "base": ("[base]", "Where the robot base sits in the world."),
     "planner": ("[planner]", "Settings of the coverage planner, Algorithm 1 "
                 "(`paintcell.coverage.coverage_settings.PlannerSettings`); give only what "

@@ -148,7 +148,7 @@ def _placement(table: str) -> list[ScenarioKey]:
     what = {"xyz_m": "position [m]", "rpy_rad": "roll, pitch, yaw about fixed x, y, z [rad]"}
     frame = "the part frame" if table == "part_placement" else "the robot base"
     return [ScenarioKey(table, f.name, "array of numbers", _toml_value(f.default),
-                        "three finite numbers", required=table == "part_placement",
+                        "three finite numbers",
                         doc=f"{frame} in the world: {what[f.name]}", owner=Placement)
             for f in fields(Placement)]
 
