@@ -199,7 +199,8 @@ def _settings(table: str) -> list[ScenarioKey]:
             lo, hi, lo_closed, _ = THRESHOLD_RANGES[f.name]
             key = _with_range(key, lo, hi, lo_closed, f.name != "tolerance")
             if f.name.startswith("max_"):
-                key = _replace(key, valid="unset or inf: not checked")
+                key = _replace(key, valid="inf: not checked" if key.default is not None
+                               else "unset or inf: not checked")
         rng = SETTING_RANGES.get(("planner" if table == "fast_planner" else table, f.name))
         if rng is not None:
             key = _with_range(key, rng[0], rng[1], False, False)
