@@ -468,7 +468,8 @@ def test_a_broken_link_and_a_blank_docstring_fail_the_strict_build(tmp_path: Pat
     shutil.copy(ROOT / "mkdocs.yml", tmp_path / "mkdocs.yml")
     shutil.copytree(ROOT / "docs", tmp_path / "docs",
                     ignore=shutil.ignore_patterns("__pycache__"))
-    (tmp_path / "paintcell").symlink_to(ROOT / "paintcell")
+    for tree in ("paintcell", "scenarios"):     # the code and the example the pages read
+        (tmp_path / tree).symlink_to(ROOT / tree)
     index = tmp_path / "docs" / "index.md"
     index.write_text(index.read_text() + "\nSee [the results](no_such_page.md).\n")
     api = tmp_path / "docs" / "api" / "app.md"      # a module whose function has no docstring
