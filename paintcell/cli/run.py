@@ -90,7 +90,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         return EXIT_OK if r["passed"] else EXIT_FAIL
     print(format_table([r]))
     if out is not None:
-        html = (out / "report.html").exists()   # a booth writes no HTML report (yet)
+        html = (out / "report.html").exists()
         print(f"results: {out}" + (f" (report: {out / 'report.html'})" if html else ""))
     return EXIT_OK if res.passed else EXIT_FAIL
 
