@@ -29,7 +29,7 @@ from paintcell.booth.booth import (
 from paintcell.booth.booth_film import gun_in_body, plan_gun_in_body
 from paintcell.booth.booth_programs import load_robots
 from paintcell.booth.booth_rapid import booth_rapid_modules
-from paintcell.booth.booth_run import run_booth
+from paintcell.booth.booth_run import BoothResult
 from paintcell.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagger_starts
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.placement import Placement
@@ -60,7 +60,13 @@ ROOF_BOOTH = Booth(
 
 @pytest.fixture(scope="module")
 def roof_booth():
-    return run_booth(ROOF_BOOTH, fast=True, mode="kinematic")
+    """The roof booth's run, through the public API's `run_scenario` (a booth is a cell of
+    several robots: it runs `run_booth`)."""
+    from paintcell import run_scenario
+
+    res = run_scenario(ROOF_BOOTH, fast=True, mode="kinematic", progress=False)
+    assert isinstance(res, BoothResult) and res.fast and res.mode == "kinematic"
+    return res
 
 
 def test_two_robots_film_is_one_robot_running_all_passes(roof_booth):
