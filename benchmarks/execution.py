@@ -65,9 +65,9 @@ from paintcell.validation.validate import start_program_films, validate
 
 DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
 #: (name, compiled loops?, part's collision slabs on the world body?), the first the baseline.
-PATHS = (("python loops, slabs on the part body (before session 3)", False, False),
-         ("compiled loops, slabs on the part body (before)", True, False),
-         ("compiled loops, slabs on the world body (now)", True, True))
+PATHS = (("python loops, slabs on the part body (reference)", False, False),
+         ("compiled loops, slabs on the part body", True, False),
+         ("compiled loops, slabs on the world body (paintcell's path)", True, True))
 
 
 @contextmanager

@@ -54,7 +54,7 @@ ROOF_BOOTH = Booth(
     thresholds=BoothThresholds(min_bell_distance_m=0.8),
     # the bell this cell was laid out for (see scenarios/booth.toml)
     applicator=str(Path(__file__).resolve().parents[1] / "scenarios" / "bells"
-                   / "issue3_bell.toml"),
+                   / "narrow_bell.toml"),
 )
 
 
@@ -420,7 +420,7 @@ def test_booth_toml_is_read_and_checked(tmp_path):
     with pytest.raises(BoothDataError, match="rail = \\[lower, upper\\]"):
         load_scenario(bad)
     # the bell: a path relative to the booth file, shared by all robots
-    assert b.applicator == str((Path("scenarios") / "bells" / "issue3_bell.toml").resolve())
+    assert b.applicator == str((Path("scenarios") / "bells" / "narrow_bell.toml").resolve())
     bad.write_text('name = "b"\napplicator = 3\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\n')
     with pytest.raises(BoothDataError, match="applicator = 3 must be a path"):
         load_scenario(bad)
@@ -539,7 +539,7 @@ def _held_first(traj, n: int):
 
 
 def test_booth_reachability_is_honest(roof_booth):
-    """The booth's reachability is its least robot's honest figure (issue 12 item 5): a contact
+    """The booth's reachability is its least robot's honest figure: a contact
     during a pass takes exactly that pass's pose, one during a move the two poses it links, on
     the robot's own clock however late it started in the booth (here 2.5 s later than in the
     run: its program's first pose held, as a start delay holds it)."""

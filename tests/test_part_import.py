@@ -1,4 +1,4 @@
-"""Real part files in (issue 11): units, repair, remesh, regions, CAD, refusals — each against an
+"""Real part files in: units, repair, remesh, regions, CAD, refusals — each against an
 independent truth (the generator's construction, closed-form areas, the file's own numbers)."""
 
 from __future__ import annotations

@@ -201,12 +201,9 @@ def _slowest_pass(plan: Any, traj: Any) -> str:
         ratio[sel[part]] = v[sel[part]] / traj.v_tcp_planned[sel[part]]
     slow = np.bincount(np.asarray(traj.pass_index)[ratio < 0.9], minlength=len(plan.passes))
     i = int(np.argmax(slow))
-    d = np.diff(plan.passes[i].positions, axis=0)
-    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
-    turn = np.degrees(np.arccos(np.clip(np.sum(d[1:] * d[:-1], axis=1), -1.0, 1.0)))
     worst = float(ratio[np.asarray(traj.pass_index) == i].min())
     return (f"pass {i} runs at {100 * worst:.0f} % of its planned speed at worst, its TCP path "
-            f"turning up to {turn.max(initial=0.0):.0f}° between two samples")
+            f"turning up to {plan.passes[i].max_turn_deg:.0f}° between two samples")
 
 
 def _honest(plan: Any, traj: Any) -> dict[str, Any]:
