@@ -15,9 +15,10 @@ from pathlib import Path
 from typing import Any
 
 from paintcell.core.errors import PaintcellError
+from paintcell.core.safe_paths import read_regular_bytes
 
-__all__ = ["check_folder_files", "load_run_dir", "program_modules", "read_json",
-           "revalidate_run_dir", "write_run_report"]
+__all__ = ["check_folder_files", "load_run_dir", "plans_digest", "program_modules",
+           "read_json", "rederive", "revalidate_run_dir", "write_run_report"]
 
 _ZIP_MAGIC = b"PK\x03\x04"
 
@@ -26,7 +27,7 @@ def read_json(path: Path) -> dict[str, Any]:
     """A JSON object file; a missing, corrupt or non-object file is named in the error."""
     path = Path(path)
     try:
-        d = json.loads(path.read_text(encoding="utf-8"))
+        d = json.loads(read_regular_bytes(path).decode("utf-8"))
     except FileNotFoundError:
         raise PaintcellError(f"{path} is missing; re-run `paintcell run`") from None
     except (ValueError, UnicodeDecodeError) as exc:
@@ -63,10 +64,9 @@ def load_run_dir(d: Path) -> dict[str, Any]:
             raise PaintcellError(f"{path} is missing; {d} was not written by `paintcell run` "
                                  "(re-run it)")
         if path.suffix == ".npz":
-            with open(path, "rb") as fh:
-                if fh.read(4) != _ZIP_MAGIC:
-                    raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
-                                         "corrupt or replaced); re-run `paintcell run`")
+            if read_regular_bytes(path, head_bytes=4) != _ZIP_MAGIC:
+                raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
+                                     "corrupt or replaced); re-run `paintcell run`")
         try:
             return loader(path)
         except PaintcellError:
@@ -113,11 +113,33 @@ def plans_digest(files: dict[str, Any]) -> str:
     return hashlib.sha256("+".join(digests).encode()).hexdigest()
 
 
+def rederive(files: dict[str, Any], metrics: dict[str, Any]) -> tuple[Any, Any]:
+    """The validation of a loaded results folder (`load_run_dir`) recomputed from its data with
+    the thresholds of its snapshot, never the verdict its metrics.json states: (the
+    `ValidationReport`, write_films(folder) -> the film files it writes there). `metrics`: the
+    folder's metrics.json (a booth's allocation, film build and seam records)."""
+    scn = files["scenario"]
+    if files["kind"] == "booth":   # the film on the whole body on its conveyor, per robot
+        from paintcell.booth.booth_results import revalidate_booth, write_booth_film_files
+
+        rep, films = revalidate_booth(scn, files, metrics)
+        return rep, lambda out: write_booth_film_files(out, scn, files, films)
+    from paintcell.app.pipeline import load_surface, write_film_files
+    from paintcell.validation.validate import validate
+
+    surface = load_surface(scn, bool(files["run"]["fast"]))
+    plan, traj, trace = files["plan"], files["trajectory"], files["trace"]
+    rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
+                   reachability=traj.meta.get("reachability"))
+    files["surface"] = surface
+    return rep, lambda out: write_film_files(out, scn, surface, plan, rep)
+
+
 def revalidate_run_dir(d: Path) -> tuple[str, Any, list[str]]:
-    """Recompute the validation of results folder `d` from its files and snapshot and rewrite
-    its metrics.json (and a one-robot run's film file): (scenario name, the
-    `ValidationReport`, the files written). The stage times of the old metrics.json are kept;
-    a corrupt one is replaced with a warning."""
+    """Recompute the validation of results folder `d` from its files and snapshot (`rederive`)
+    and rewrite its metrics.json and film files: (scenario name, the `ValidationReport`, the
+    files written). The stage times of the old metrics.json are kept; a corrupt one is replaced
+    with a warning."""
     import sys
 
     from paintcell.core.atomic_io import atomic_write_text
@@ -135,29 +157,18 @@ def revalidate_run_dir(d: Path) -> tuple[str, Any, list[str]]:
             # metrics.json is what validate rewrites: a corrupt one is replaced, not fatal.
             sys.stderr.write(f"paintcell: warning: {exc} (replacing it)\n")
     stage_times = dict(old.get("stage_times_s") or {})
-    written = ["metrics.json"]
-    if f["kind"] == "booth":   # the film on the whole body on its conveyor, per robot
-        from paintcell.booth.booth_results import json_dump, revalidate_booth
-
-        rep = revalidate_booth(scn, f, old)
+    rep, write_films = rederive(f, old)
+    if f["kind"] == "booth":
         m = rep.to_dict()
         m["scenario"] = {"name": scn.name, "source": scn.source}
         m["stage_times_s"] = stage_times
-        atomic_write_text(old_path, json_dump(m))
-        return scn.name, rep, written
-    from paintcell.app.pipeline import RunResult, load_surface, metrics_dict
-    from paintcell.output.report_film import FILM_NAME, save_film
-    from paintcell.validation.validate import validate
+    else:
+        from paintcell.app.pipeline import RunResult, metrics_dict
 
-    surface = load_surface(scn, fast)
-    plan, traj, trace = f["plan"], f["trajectory"], f["trace"]
-    rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
-                   reachability=traj.meta.get("reachability"))
-    res = RunResult(scn, d, surface, plan, traj, trace, rep, timings_s=stage_times, fast=fast,
-                    mode=mode)
-    atomic_write_text(old_path, json.dumps(metrics_dict(res), indent=2, default=json_default))
-    save_film(d / FILM_NAME, surface, rep)
-    return scn.name, rep, [*written, FILM_NAME]
+        m = metrics_dict(RunResult(scn, d, f["surface"], f["plan"], f["trajectory"], f["trace"],
+                                   rep, timings_s=stage_times, fast=fast, mode=mode))
+    atomic_write_text(old_path, json.dumps(m, indent=2, default=json_default))
+    return scn.name, rep, ["metrics.json", *write_films(d)]
 
 
 def program_modules(files: dict[str, Any], metrics: dict[str, Any], header: list[str],
@@ -186,7 +197,8 @@ def write_run_report(d: Path, video: bool = False) -> Path:
     """Rebuild `report.html` of results folder `d` from its files (a booth's: its booth report);
     returns its path. video: embed the folder's execution.gif (one-robot runs)."""
     d = Path(d)
-    if read_json(d / "scenario.json").get("kind") == "booth":
+    snapshot = d / "scenario.json"   # the report itself needs only metrics.json
+    if snapshot.exists() and read_json(snapshot).get("kind") == "booth":
         from paintcell.booth.booth_report import write_booth_report
 
         return write_booth_report(d)
@@ -204,8 +216,7 @@ def check_folder_files(d: Path) -> None:
             read_json(d / name)
     for name in ("plan.npz", "trajectory.npz", "trace.npz"):
         path = d / name
-        if path.exists():
-            with open(path, "rb") as fh:
-                if fh.read(4) != _ZIP_MAGIC:
-                    raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
-                                         "corrupt or replaced); re-run `paintcell run`")
+        if path.exists() or path.is_symlink():
+            if read_regular_bytes(path, head_bytes=4) != _ZIP_MAGIC:
+                raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
+                                     "corrupt or replaced); re-run `paintcell run`")

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.output.export_rapid import program_runs, rapid_module
+from paintcell.output.export_rapid import program_runs, rapid_ident, rapid_module
 
 _EXT_RE = r"\[9E9,9E9,9E9,9E9,9E9,9E9\]"
 
@@ -134,7 +134,8 @@ def booth_rapid_modules(booth: Any, metrics: dict[str, Any], jobs: dict[int, tup
     start delay and flow from the booth's `metrics` (allocation, film build), MultiMove
     synchronisation between the tasks. options: `rapid_module`'s style, max_spacing_m and
     validation."""
-    names = [f"T_{r.name.upper()}" for r in booth.robots]
+    # task and module names, also the .mod file names: RAPID identifiers (no path, no keyword)
+    names = [rapid_ident(f"T_{r.name.upper()}") for r in booth.robots]
     delays = metrics["allocation"].get("start_delays_s", [0.0] * len(names))
     build = metrics.get("film_build", {}).get("parts", {})
     flows: list[Any] = []

@@ -29,8 +29,14 @@ from paintcell.core.json_values import json_default
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.output.gltf_film import FilmScene
+from paintcell.output.report_film import FilmData
 from paintcell.surface.surface import Surface
 from paintcell.validation.validate_report import Check, ValidationReport
+
+#: half-width of the body's spec window as a fraction of its planned mean film (±10 %, as a
+#: one-robot run's default `tolerance_fraction`): `executed_within_tolerance_pct` and `film.glb`.
+FILM_TOLERANCE = 0.10
 
 
 def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) -> float:
@@ -53,7 +59,8 @@ def _within(film: np.ndarray, plan: np.ndarray, areas: np.ndarray) -> float:
     from paintcell.paint.metrics import uniformity
 
     target = float(plan @ areas / areas.sum())
-    return 100.0 * uniformity(film, areas, target_m=target).within_tolerance_fraction
+    return 100.0 * uniformity(film, areas, target_m=target,
+                              tolerance=FILM_TOLERANCE).within_tolerance_fraction
 
 
 def _least(honest: list[dict[str, Any] | None], key: str) -> float:
@@ -218,9 +225,10 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     `plan_<part index>.json`, the body surface `body.npz` and `cell.npz` (the parts' vertex
     counts, the judged vertices, the jobs), per robot its static program `static_<robot>.npz`,
     its tracked program `trajectory_<robot>.npz` and its trace `trace_<robot>.npz`, the booth's
-    one trace `trace.npz` (with the carrier), one RAPID module per robot, `booth.png`
-    (`paintcell.booth.booth_plots`), `body_film.png` and `report.html`
-    (`paintcell.booth.booth_report`). `read_booth_results` reads the data files back."""
+    one trace `trace.npz` (with the carrier), one RAPID module per robot, the body's film
+    (`film.npz`, `film.glb`: `booth_film`), `booth.png` (`paintcell.booth.booth_plots`),
+    `body_film.png` and `report.html` (`paintcell.booth.booth_report`). `read_booth_results`
+    reads the data files back."""
     from paintcell.booth.booth_data import booth_snapshot
     from paintcell.booth.booth_plots import booth_figure
     from paintcell.booth.booth_rapid import booth_rapid_modules
@@ -262,6 +270,12 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
                      band=overlap_mask(ex),
                      title=f"{booth.name}: executed film over the whole body "
                            f"(σ/μ {result.report.metrics['executed_nsd_pct']:.2f} %)")
+    from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
+    from paintcell.output.report_film import FILM_NAME, save_film_data
+
+    film, scene = booth_film(booth, result.surface, result.judged, result.films_m, result.plans)
+    save_film_data(out / FILM_NAME, film)
+    write_film_glb(out / FILM_GLB_NAME, scene)
     write_booth_report(out)
 
 
@@ -290,10 +304,10 @@ def read_booth_results(out: Path, booth: Booth, read: Any) -> dict[str, Any]:
 
 
 def revalidate_booth(booth: Booth, files: dict[str, Any], metrics: dict[str, Any]
-                     ) -> ValidationReport:
+                     ) -> tuple[ValidationReport, dict[str, np.ndarray]]:
     """The booth's `ValidationReport` recomputed from its results folder's files
-    (`read_booth_results`): the films of the programs and traces on the body, every metric and
-    check; `metrics` (the folder's metrics.json) gives the allocation, film build and seam
+    (`read_booth_results`), with the robots' films (kind → (R, N) [m]) on the body: every metric
+    and check; `metrics` (the folder's metrics.json) gives the allocation, film build and seam
     records the run made before it executed."""
     from paintcell.booth.booth_cell import build_booth_cell
     from paintcell.booth.booth_film import robot_films
@@ -313,7 +327,45 @@ def revalidate_booth(booth: Booth, files: dict[str, Any], metrics: dict[str, Any
     for key in ("film_build", "seams"):
         if key in metrics:
             report.metrics[key] = metrics[key]
-    return report
+    return report, films
+
+
+def write_booth_film_files(out: Path, booth: Booth, files: dict[str, Any],
+                           films: dict[str, np.ndarray]) -> list[str]:
+    """Write a booth's film files (`film.npz`, `film.glb`: `booth_film`) into results folder
+    `out` from its files (`read_booth_results`) and the robots' films; return the names."""
+    from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
+    from paintcell.output.report_film import FILM_NAME, save_film_data
+
+    film, scene = booth_film(booth, files["body"], files["judged"], films, files["plans"])
+    save_film_data(out / FILM_NAME, film)
+    write_film_glb(out / FILM_GLB_NAME, scene)
+    return [FILM_NAME, FILM_GLB_NAME]
+
+
+def booth_film(booth: Booth, body: Surface, judged: np.ndarray | None,
+               films_m: dict[str, np.ndarray], plans: list[CoveragePlan]
+               ) -> tuple[FilmData, FilmScene]:
+    """The body's film (the robots' films `films_m` summed; spec window ±`FILM_TOLERANCE`
+    around the planned area-weighted mean of the judged area, the window of
+    `executed_within_tolerance_pct`) and its 3-D scene: the body at conveyor position 0, every
+    part's passes moved into the body frame, every robot's base."""
+    n = len(body.vertices)
+    judged = np.ones(n, bool) if judged is None else np.asarray(judged, bool)
+    areas = np.asarray(body.vertex_areas, float)
+    planned = films_m["plan"].sum(axis=0)
+    w = areas * judged
+    film = FilmData(planned, films_m["executed"].sum(axis=0), areas, judged,
+                    float(planned @ w / w.sum()), FILM_TOLERANCE)
+    passes = []
+    for bp, plan in zip(booth.parts, plans, strict=True):
+        T = bp.placement.matrix
+        passes += [np.asarray(p.positions, float) @ T[:3, :3].T + T[:3, 3] for p in plan.passes]
+    scene = FilmScene(np.asarray(body.vertices, float), np.asarray(body.faces, np.int64),
+                      np.asarray(body.normals, float), film, passes,
+                      booth.body_placement.matrix, {r.name: r.base.matrix for r in booth.robots},
+                      frame="body")
+    return film, scene
 
 
 def json_dump(d: dict[str, Any]) -> str:

@@ -59,11 +59,10 @@ class BoothResult:
     timings_s: dict[str, float] = field(default_factory=dict)
     part_vertex_counts: list[int] = field(default_factory=list)
     """The parts' vertex counts, in the order they are stacked in `surface`."""
+    judged: np.ndarray | None = None
+    """(N,) bool: the body's vertices the film is judged on (None: every vertex)."""
     trace: ExecutedTrace | None = None
     """The booth's one execution: every robot's joints, then the conveyor carrier's."""
-    judged: np.ndarray | None = None
-    """(N,) bool, the body's vertices the film is judged on
-    (`paintcell.booth.booth_film.judged_body_mask`)."""
     fast: bool = False
     mode: str = "servo"
 
@@ -145,7 +144,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     report.metrics["seams"] = progs.seams
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
-                         timings, [len(x.vertices) for x in surfaces], trace, judged, fast, mode)
+                         timings, [len(x.vertices) for x in surfaces], judged, trace, fast, mode)
     with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         if tmp is not None:
             write_booth_results(result, tmp, robots)
