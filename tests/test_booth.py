@@ -721,6 +721,20 @@ def test_export_writes_one_synchronised_module_per_booth_robot(roof_booth, roof_
         assert sum(ln.strip().startswith("WaitSyncTask") for ln in got) == 2
     assert main(["export", str(roof_booth_dir), "--rapid", "--allow-failed", "--out",
                  str(tmp_path / "one.mod")]) == EXIT_USAGE
+    # a metrics.json that states another figure than the files give: refused, nothing written
+    import json
+
+    path = roof_booth_dir / "metrics.json"
+    kept = path.read_text()
+    m = json.loads(kept)
+    m["checks"][0]["value"] = m["checks"][0]["value"] + 1.0
+    path.write_text(json.dumps(m))
+    try:
+        assert main(["export", str(roof_booth_dir), "--rapid", "--out",
+                     str(tmp_path / "tampered")]) == EXIT_USAGE
+        assert not (tmp_path / "tampered").exists()
+    finally:
+        path.write_text(kept)
 
 
 def test_report_rebuilds_a_booth_folder_report(roof_booth_dir):
