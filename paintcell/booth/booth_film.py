@@ -51,13 +51,6 @@ def judged_body_mask(parts: list[Surface]) -> np.ndarray:
                            for s, m in zip(parts, masks, strict=True)])
 
 
-def judged_body_faces(parts: list[Surface]) -> np.ndarray:
-    """(F,) bool over `merge_surfaces(parts, …)`'s faces: a mesh part's judged regions' faces,
-    every face of a part without regions."""
-    return np.concatenate([np.ones(len(s.faces), bool) if s.regions is None
-                           else np.asarray(s.regions.face_mask(), bool) for s in parts])
-
-
 def plan_gun_in_body(plan: CoveragePlan, T_body_part: np.ndarray) -> GunSamples:
     """A plan's paint-on gun samples moved from its part frame into the body frame."""
     g = plan.gun_samples()

@@ -24,14 +24,21 @@ import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell
+from paintcell.booth.booth_spec import booth_spec_metrics
 from paintcell.core.atomic_io import atomic_write_text
 from paintcell.core.json_values import json_default
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.output.gltf_film import FilmScene
+from paintcell.output.report_film import FilmData
 from paintcell.surface.surface import Surface
-from paintcell.validation.paint_spec import spec_checks, spec_metrics
+from paintcell.validation.paint_spec import spec_checks
 from paintcell.validation.validate_report import Check, ValidationReport
+
+#: half-width of the body's spec window as a fraction of its planned mean film (±10 %, as a
+#: one-robot run's default `tolerance_fraction`): `executed_within_tolerance_pct` and `film.glb`.
+FILM_TOLERANCE = 0.10
 
 
 def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) -> float:
@@ -54,7 +61,8 @@ def _within(film: np.ndarray, plan: np.ndarray, areas: np.ndarray) -> float:
     from paintcell.paint.metrics import uniformity
 
     target = float(plan @ areas / areas.sum())
-    return 100.0 * uniformity(film, areas, target_m=target).within_tolerance_fraction
+    return 100.0 * uniformity(film, areas, target_m=target,
+                              tolerance=FILM_TOLERANCE).within_tolerance_fraction
 
 
 def _least(honest: list[dict[str, Any] | None], key: str) -> float:
@@ -82,17 +90,17 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
                   traces: list[ExecutedTrace], trace: ExecutedTrace,
                   events: list[dict[str, Any]], record: dict[str, Any],
                   jobs: dict[int, tuple[Job, ...]], part_counts: list[int],
-                  plans: list[CoveragePlan], judged: np.ndarray | None = None,
-                  judged_faces: np.ndarray | None = None) -> ValidationReport:
+                  plans: list[CoveragePlan], judged: np.ndarray | None = None
+                  ) -> ValidationReport:
     """The booth's `ValidationReport` (module doc). trajs0: each robot's own program (static, not
     delayed); trajs: the tracked programs on the booth clock. part_counts: the parts' vertex
     counts, in the order `paintcell.booth.booth_film.merge_surfaces` stacked them into
     `body`. plans: the parts' plans (the jobs' passes are slices of them). judged: (N,) bool,
     the body's vertices the film is judged on (a mesh part's skin, as a one-robot run judges it:
     `paintcell.booth.booth_film.judged_body_mask`); the others count with zero area in every
-    film figure. None: every vertex. judged_faces: (F,) bool, the body's faces the share in the
-    paint spec's window is measured over (None: every face). Each part is held to the booth's
-    paint spec (`Booth.spec`): the worst part's σ/μ and share inside the window."""
+    film figure. None: every vertex. Each part is held to the booth's paint spec (`Booth.spec`):
+    the worst part's σ/μ and share inside the window, measured over the faces whose corners are
+    all judged (what a results folder's files give again: `revalidate_booth`)."""
     from paintcell.booth.booth_film import overlap_mask
     from paintcell.booth.booth_reach import robot_honest_reach
 
@@ -178,7 +186,8 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
         "execution_mode": trace.mode,
         "n_mujoco_warnings": int(sum(trace.meta.get("mujoco_warnings", {}).values())),
     }
-    m.update(_spec_metrics(booth, body, tot, areas, judged_faces, offs))
+    judged_faces = None if judged is None else np.asarray(judged, bool)[body.faces].all(axis=1)
+    m.update(booth_spec_metrics(booth, body, tot, areas, judged_faces, offs))
     th = booth.thresholds
     spec = [("collisions", "n_collisions", th.max_collisions, "events", "max"),
             ("robot-robot collisions", "n_robot_robot_collisions", th.max_robot_collisions,
@@ -212,35 +221,6 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
                             trajectory_thickness_m=tot["trajectory"])
 
 
-def _spec_metrics(booth: Booth, body: Surface, tot: dict[str, np.ndarray], areas: np.ndarray,
-                  judged_faces: np.ndarray | None, offs: np.ndarray) -> dict[str, Any]:
-    """The paint spec's figures: the window around the spec's target (else the booth's
-    `film_target_um`, else the body's planned mean over the judged area), the whole body's
-    share inside it and each part's (`part_executed_inside_spec_pct`), the worst part's share
-    (`min_part_executed_inside_spec_pct`, with its shares below and above)."""
-    spec = booth.spec
-    own = (1e-6 * booth.film_target_um if booth.film_target_um is not None
-           else float(tot["plan"] @ areas / areas.sum()))
-    target = spec.target_m(own)
-    faces = body.faces
-    fmask = np.ones(len(faces), bool) if judged_faces is None else np.asarray(judged_faces, bool)
-    out: dict[str, Any] = spec_metrics(tot["executed"], body.vertices, faces, fmask, target, spec)
-    out.update({"spec_window_pct": spec.window_pct, "spec_min_inside_pct": spec.min_inside_pct,
-                "spec_max_nsd_pct": spec.max_nsd_pct})
-    per: dict[str, dict[str, float]] = {}
-    for i, bp in enumerate(booth.parts):
-        own_faces = fmask & (faces[:, 0] >= offs[i]) & (faces[:, 0] < offs[i + 1])
-        per[f"{i}:{bp.part}"] = spec_metrics(tot["executed"], body.vertices, faces, own_faces,
-                                             target, spec)
-    out["part_executed_inside_spec_pct"] = {k: v["executed_inside_spec_pct"]
-                                            for k, v in per.items()}
-    worst = min(per, key=lambda k: per[k]["executed_inside_spec_pct"])
-    for k in ("inside", "below", "above"):
-        out[f"min_part_executed_{k}_spec_pct"] = per[worst][f"executed_{k}_spec_pct"]
-    out["min_part_executed_inside_spec_part"] = worst
-    return out
-
-
 def trajs_carrier(trace: ExecutedTrace, booth: Booth, trajs: list[JointTrajectory]
                   ) -> np.ndarray:
     """(K,) the carrier's commanded position [m] (the conveyor's nominal motion)."""
@@ -249,23 +229,45 @@ def trajs_carrier(trace: ExecutedTrace, booth: Booth, trajs: list[JointTrajector
 
 
 def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
-    """metrics.json (booth metrics, per-robot credit, allocation, film build), per-robot
-    trajectories and traces, one RAPID module per robot, `booth.png`
-    (`paintcell.booth.booth_plots`),
-    `body_film.png` and `report.html` (`paintcell.booth.booth_report`)."""
+    """A booth's results folder: metrics.json (booth metrics, per-robot credit, allocation, film
+    build), scenario.json (the booth's snapshot and run settings), the parts' plans
+    `plan_<part index>.json`, the body surface `body.npz` and `cell.npz` (the parts' vertex
+    counts, the judged vertices, the jobs), per robot its static program `static_<robot>.npz`,
+    its tracked program `trajectory_<robot>.npz` and its trace `trace_<robot>.npz`, the booth's
+    one trace `trace.npz` (with the carrier), one RAPID module per robot, the body's film
+    (`film.npz`, `film.glb`: `booth_film`), `booth.png` (`paintcell.booth.booth_plots`),
+    `body_film.png` and `report.html` (`paintcell.booth.booth_report`). `read_booth_results`
+    reads the data files back."""
+    from paintcell.booth.booth_data import booth_snapshot
     from paintcell.booth.booth_plots import booth_figure
     from paintcell.booth.booth_rapid import booth_rapid_modules
+    from paintcell.core.atomic_io import atomic_write_npz
 
+    booth = result.scenario
     d = result.report.to_dict()
-    d["scenario"] = {"name": result.scenario.name, "source": result.scenario.source}
+    d["scenario"] = {"name": booth.name, "source": booth.source}
     d["stage_times_s"] = result.timings_s
     atomic_write_text(out / "metrics.json", json_dump(d))
-    atomic_write_text(out / "scenario.json", json_dump(result.scenario.to_dict()))
-    for spec, tr, ex in zip(result.scenario.robots, result.trajectories, result.traces,
-                            strict=True):
+    atomic_write_text(out / "scenario.json",
+                      json_dump(booth_snapshot(booth, {"fast": result.fast, "mode": result.mode})))
+    for i, plan in enumerate(result.plans):
+        plan.save(out / f"plan_{i}.json")
+    result.surface.save(out / "body.npz")
+    judged = np.ones(len(result.surface.vertices), bool) if result.judged is None \
+        else np.asarray(result.judged, bool)
+    atomic_write_npz(out / "cell.npz", {
+        "part_vertex_counts": np.asarray(result.part_vertex_counts, np.int64), "judged": judged,
+        "jobs": np.array([(r, j.part, j.first, j.end) for r, js in sorted(result.jobs.items())
+                          for j in js], np.int64).reshape(-1, 4)})
+    for spec, st, tr, ex in zip(booth.robots, result.static_trajectories, result.trajectories,
+                                result.traces, strict=True):
+        st.save_npz(out / f"static_{spec.name}.npz")
         tr.save_npz(out / f"trajectory_{spec.name}.npz")
         ex.save_npz(out / f"trace_{spec.name}.npz")
-    for name, text in booth_rapid_modules(result, robots).items():
+    if result.trace is not None:
+        result.trace.save_npz(out / "trace.npz")
+    for name, text in booth_rapid_modules(booth, result.report.metrics, result.jobs,
+                                          result.static_trajectories, robots).items():
         atomic_write_text(out / f"{name}.mod", text)
     booth_figure(result, out / "booth.png")
     from paintcell.booth.booth_film import overlap_mask
@@ -273,11 +275,108 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
 
     ex = result.films_m["executed"]
     body_film_figure(result.surface, result.part_vertex_counts, ex,
-                     [r.name for r in result.scenario.robots], out / "body_film.png",
+                     [r.name for r in booth.robots], out / "body_film.png",
                      band=overlap_mask(ex),
-                     title=f"{result.scenario.name}: executed film over the whole body "
+                     title=f"{booth.name}: executed film over the whole body "
                            f"(σ/μ {result.report.metrics['executed_nsd_pct']:.2f} %)")
+    from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
+    from paintcell.output.report_film import FILM_NAME, save_film_data
+
+    film, scene = booth_film(booth, result.surface, result.judged, result.films_m, result.plans)
+    save_film_data(out / FILM_NAME, film)
+    write_film_glb(out / FILM_GLB_NAME, scene)
     write_booth_report(out)
+
+
+def read_booth_results(out: Path, booth: Booth, read: Any) -> dict[str, Any]:
+    """The data files `write_booth_results` wrote into `out`, for `booth` (from the folder's
+    snapshot): plans, body, part_vertex_counts, judged, jobs, and per robot static,
+    trajectories, traces, with the booth's trace. read(name, loader): reads one file, naming
+    it in a one-line error when it is missing or unreadable."""
+    from paintcell.coverage.plan import CoveragePlan
+
+    cell = read("cell.npz", lambda p: dict(np.load(p)))
+    jobs: dict[int, tuple[Job, ...]] = {}
+    for r, part, first, end in np.asarray(cell["jobs"], int).reshape(-1, 4):
+        jobs[int(r)] = (*jobs.get(int(r), ()), Job(int(part), int(first), int(end)))
+    names = [r.name for r in booth.robots]
+    return {
+        "plans": [read(f"plan_{i}.json", CoveragePlan.load) for i in range(len(booth.parts))],
+        "body": read("body.npz", Surface.load),
+        "part_vertex_counts": [int(n) for n in cell["part_vertex_counts"]],
+        "judged": np.asarray(cell["judged"], bool), "jobs": jobs,
+        "static": [read(f"static_{n}.npz", JointTrajectory.load_npz) for n in names],
+        "trajectories": [read(f"trajectory_{n}.npz", JointTrajectory.load_npz) for n in names],
+        "traces": [read(f"trace_{n}.npz", ExecutedTrace.load_npz) for n in names],
+        "trace": read("trace.npz", ExecutedTrace.load_npz),
+    }
+
+
+def revalidate_booth(booth: Booth, files: dict[str, Any], metrics: dict[str, Any]
+                     ) -> tuple[ValidationReport, dict[str, np.ndarray]]:
+    """The booth's `ValidationReport` recomputed from its results folder's files
+    (`read_booth_results`), with the robots' films (kind → (R, N) [m]) on the body: every metric
+    and check; `metrics` (the folder's metrics.json) gives the allocation, film build and seam
+    records the run made before it executed."""
+    from paintcell.booth.booth_cell import build_booth_cell
+    from paintcell.booth.booth_film import robot_films
+    from paintcell.booth.booth_programs import load_robots
+    from paintcell.validation.validate_motion import collision_events
+
+    body, plans, jobs = files["body"], files["plans"], files["jobs"]
+    trajs, traces, trace = files["trajectories"], files["traces"], files["trace"]
+    bcell = build_booth_cell(load_robots(booth), body, booth.body_placement.matrix,
+                             booth.conveyor)
+    t_ref = float(trajs[0].meta["conveyor"]["t_ref_s"])
+    films = robot_films(booth, bcell, body, plans, jobs,
+                        [bp.placement.matrix for bp in booth.parts], trajs, traces, trace, t_ref)
+    report = booth_metrics(booth, bcell, body, films, files["static"], trajs, traces, trace,
+                           collision_events(trace), metrics.get("allocation", {}), jobs,
+                           files["part_vertex_counts"], plans, files["judged"])
+    for key in ("film_build", "seams"):
+        if key in metrics:
+            report.metrics[key] = metrics[key]
+    return report, films
+
+
+def write_booth_film_files(out: Path, booth: Booth, files: dict[str, Any],
+                           films: dict[str, np.ndarray]) -> list[str]:
+    """Write a booth's film files (`film.npz`, `film.glb`: `booth_film`) into results folder
+    `out` from its files (`read_booth_results`) and the robots' films; return the names."""
+    from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
+    from paintcell.output.report_film import FILM_NAME, save_film_data
+
+    film, scene = booth_film(booth, files["body"], files["judged"], films, files["plans"])
+    save_film_data(out / FILM_NAME, film)
+    write_film_glb(out / FILM_GLB_NAME, scene)
+    return [FILM_NAME, FILM_GLB_NAME]
+
+
+def booth_film(booth: Booth, body: Surface, judged: np.ndarray | None,
+               films_m: dict[str, np.ndarray], plans: list[CoveragePlan]
+               ) -> tuple[FilmData, FilmScene]:
+    """The body's film (the robots' films `films_m` summed; the window of the booth's paint
+    spec, `Booth.spec`, as its checks hold every part to: around `film_target_um`, else the
+    planned area-weighted mean of the judged area) and its 3-D scene: the body at conveyor
+    position 0, every part's passes moved into the body frame, every robot's base."""
+    n = len(body.vertices)
+    judged = np.ones(n, bool) if judged is None else np.asarray(judged, bool)
+    areas = np.asarray(body.vertex_areas, float)
+    planned = films_m["plan"].sum(axis=0)
+    w = areas * judged
+    own = (1e-6 * booth.film_target_um if booth.film_target_um is not None
+           else float(planned @ w / w.sum()))
+    film = FilmData(planned, films_m["executed"].sum(axis=0), areas, judged,
+                    booth.spec.target_m(own), 0.01 * booth.spec.window_pct)
+    passes = []
+    for bp, plan in zip(booth.parts, plans, strict=True):
+        T = bp.placement.matrix
+        passes += [np.asarray(p.positions, float) @ T[:3, :3].T + T[:3, 3] for p in plan.passes]
+    scene = FilmScene(np.asarray(body.vertices, float), np.asarray(body.faces, np.int64),
+                      np.asarray(body.normals, float), film, passes,
+                      booth.body_placement.matrix, {r.name: r.base.matrix for r in booth.robots},
+                      frame="body")
+    return film, scene
 
 
 def json_dump(d: dict[str, Any]) -> str:

@@ -19,7 +19,7 @@ public names are re-exported here.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -28,13 +28,13 @@ import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell, build_booth_cell
-from paintcell.booth.booth_film import judged_body_faces, judged_body_mask, robot_films
+from paintcell.booth.booth_film import judged_body_mask, robot_films
 from paintcell.booth.booth_programs import MAX_ALLOCATIONS_TRIED, BoothPrograms, booth_programs
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.surface.surface import Surface
-from paintcell.validation.painted_side import painted_side_checks, parts_painted_side
+from paintcell.validation.painted_side import parts_painted_side
 from paintcell.validation.validate_motion import collision_events
 from paintcell.validation.validate_report import ValidationReport
 
@@ -60,6 +60,12 @@ class BoothResult:
     timings_s: dict[str, float] = field(default_factory=dict)
     part_vertex_counts: list[int] = field(default_factory=list)
     """The parts' vertex counts, in the order they are stacked in `surface`."""
+    judged: np.ndarray | None = None
+    """(N,) bool: the body's vertices the film is judged on (None: every vertex)."""
+    trace: ExecutedTrace | None = None
+    """The booth's one execution: every robot's joints, then the conveyor carrier's."""
+    fast: bool = False
+    mode: str = "servo"
 
     @property
     def passed(self) -> bool:
@@ -131,20 +137,20 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     traces = robot_traces(bcell, trace, trajs, pos, rot)
     films = robot_films(booth, bcell, body, plans, jobs, progs.T_body_parts, trajs, traces, trace,
                         t_ref)
+    judged = judged_body_mask(surfaces)
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), progs.record, jobs,
-                           [len(x.vertices) for x in surfaces], plans,
-                           judged_body_mask(surfaces), judged_body_faces(surfaces))
+                           [len(x.vertices) for x in surfaces], plans, judged)
     report.metrics["film_build"] = progs.film_build
     report.metrics["seams"] = progs.seams
-    # the mesh parts' pieces, painted and not; no PASS with part of a painted side left out
-    side = parts_painted_side({f"{i}:{bp.part}": s for i, (bp, s)
-                               in enumerate(zip(booth.parts, surfaces, strict=True))})
-    report.metrics.update(side)
-    report = replace(report, checks=report.checks + tuple(painted_side_checks(side)))
+    # the mesh parts' pieces, painted and not (reported; a part's pieces are its [parts.part]
+    # table's choice, as a one-robot run's [part] table's)
+    report.metrics.update(parts_painted_side({f"{i}:{bp.part}": s for i, (bp, s)
+                                              in enumerate(zip(booth.parts, surfaces,
+                                                               strict=True))}))
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
-                         timings, [len(x.vertices) for x in surfaces])
+                         timings, [len(x.vertices) for x in surfaces], judged, trace, fast, mode)
     with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         if tmp is not None:
             write_booth_results(result, tmp, robots)

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from paintcell.core.atomic_io import atomic_write_npz
 from paintcell.core.errors import PaintcellError
@@ -91,11 +92,12 @@ class FilmData:
         return 100.0 * below, 100.0 * (1.0 - below - above), 100.0 * above
 
 
-def save_film(path: str | os.PathLike[str], surface: Any, report: Any) -> Path:
-    """Write `film.npz` (atomically) from a `Surface` and its `ValidationReport`; return the path.
+def film_data(surface: Any, report: Any) -> FilmData:
+    """`FilmData` of a `Surface` and its `ValidationReport`.
 
     The window is the report's paint spec window (`spec_target_um` ± `spec_window_pct`; a report
-    without them: the planned mean ± `tolerance_fraction`), so the file agrees with metrics.json.
+    without them: the planned mean ± `tolerance_fraction`), so the data agree with metrics.json;
+    the surface's vertices, faces and judged faces come along (the share over the judged faces).
     """
     m = report.metrics
     judged = surface.judged_vertex_mask()  # None: every vertex is judged
@@ -104,21 +106,37 @@ def save_film(path: str | os.PathLike[str], surface: Any, report: Any) -> Path:
     else:
         target_um, tol = float(m["planned_mean_um"]), float(m["tolerance_fraction"])
     faces = np.asarray(surface.faces, np.int64)
+    regions = getattr(surface, "regions", None)
+    return FilmData(np.asarray(report.planned_thickness_m, float).reshape(-1),
+                    np.asarray(report.executed_thickness_m, float).reshape(-1),
+                    np.asarray(surface.vertex_areas, float).reshape(-1),
+                    (np.ones(len(surface.vertices), bool) if judged is None
+                     else np.asarray(judged, bool).reshape(-1)),
+                    1e-6 * target_um, tol, np.asarray(surface.vertices, float), faces,
+                    (np.ones(len(faces), bool) if regions is None
+                     else np.asarray(regions.face_mask(), bool)))
+
+
+def save_film_data(path: str | os.PathLike[str], film: FilmData) -> Path:
+    """Write `film` as `film.npz` (atomically; the surface's arrays when `film` has them);
+    return the path."""
     arrays = {
-        "planned_thickness_m": np.asarray(report.planned_thickness_m, float),
-        "executed_thickness_m": np.asarray(report.executed_thickness_m, float),
-        "vertex_areas_m2": np.asarray(surface.vertex_areas, float),
-        "judged": (np.ones(len(surface.vertices), bool) if judged is None
-                   else np.asarray(judged, bool)),
-        "target_m": np.asarray(1e-6 * target_um),
-        "tolerance": np.asarray(tol),
-        "vertices_m": np.asarray(surface.vertices, float),
-        "faces": faces.astype(np.int32),
-        "judged_faces": (np.ones(len(faces), bool) if surface.regions is None
-                         else np.asarray(surface.regions.face_mask(), bool)),
+        "planned_thickness_m": film.planned_m, "executed_thickness_m": film.executed_m,
+        "vertex_areas_m2": film.areas_m2, "judged": film.judged,
+        "target_m": np.asarray(film.target_m), "tolerance": np.asarray(film.tolerance),
     }
+    if film.faces is not None and film.vertices_m is not None and film.judged_faces is not None:
+        arrays.update(vertices_m=np.asarray(film.vertices_m, float),
+                      faces=np.asarray(film.faces).astype(np.int32),
+                      judged_faces=np.asarray(film.judged_faces, bool))
     atomic_write_npz(Path(path), arrays)
     return Path(path)
+
+
+def save_film(path: str | os.PathLike[str], surface: Any, report: Any) -> Path:
+    """Write `film.npz` (atomically) from a `Surface` and its `ValidationReport` (`film_data`);
+    return the path."""
+    return save_film_data(path, film_data(surface, report))
 
 
 def load_film(results_dir: str | os.PathLike[str]) -> FilmData | None:
@@ -223,3 +241,15 @@ def register_spec_cmap() -> str:
                             ("#fcbba1", "#67000d"))]
         colormaps.register(ListedColormap(np.vstack(thirds), name=SPEC_CMAP))
     return SPEC_CMAP
+
+
+def spec_rgb(thickness_m: npt.ArrayLike, target_um: float, tolerance: float) -> np.ndarray:
+    """(N, 3) sRGB colours in [0, 1] of film thickness_m (N,) [m] on the spec map: `SPEC_CMAP`
+    over `spec_range_um(target_um, tolerance)`, clamped at both ends (the scale of the report's
+    spec render and its colour bar). NaN is drawn as the low end."""
+    from matplotlib import colormaps
+
+    lo, hi = spec_range_um(target_um, tolerance)
+    t_um = np.nan_to_num(1e6 * np.asarray(thickness_m, float).reshape(-1), nan=lo)
+    s = np.clip((t_um - lo) / (hi - lo), 0.0, 1.0)
+    return np.asarray(colormaps[register_spec_cmap()](s), float)[:, :3]

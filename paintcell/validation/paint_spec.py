@@ -27,7 +27,7 @@ import numpy.typing as npt
 from paintcell.core.errors import PaintcellError
 from paintcell.validation.validate_report import Check
 
-__all__ = ["PaintSpec", "SpecError", "nsd_limit", "share_in_window", "spec_checks",
+__all__ = ["PaintSpec", "SPEC_RANGES", "SpecError", "nsd_limit", "share_in_window", "spec_checks",
            "spec_metrics"]
 
 
@@ -35,8 +35,9 @@ class SpecError(PaintcellError):
     """A `[spec]` table holds an unknown key or a value out of range."""
 
 
-#: (low, high, what) of each `[spec]` key; low and high exclusive.
-_RANGES: dict[str, tuple[float, float, str]] = {
+#: (low, high, what) of each `[spec]` key; low and high exclusive (`min_inside_pct` may be
+#: 100: every point in the window).
+SPEC_RANGES: dict[str, tuple[float, float, str]] = {
     "target_film_um": (0.0, 1000.0, "a film thickness [µm]"),
     "window_pct": (0.0, 100.0, "a half-width in % of the target"),
     "min_inside_pct": (0.0, 100.0, "a share of the judged area [%]"),
@@ -67,7 +68,7 @@ class PaintSpec:
             v = getattr(self, f.name)
             if v is None and f.name == "target_film_um":
                 continue
-            lo, hi, what = _RANGES[f.name]
+            lo, hi, what = SPEC_RANGES[f.name]
             if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
                 raise SpecError(f"{f.name} = {v!r} must be a number ({what})")
             top_ok = f.name == "min_inside_pct" and v == hi
