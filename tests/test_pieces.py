@@ -117,7 +117,7 @@ def test_largest_alone_leaves_the_painted_side_out_and_cannot_pass(tmp_path: Pat
     assert m["painted_side_left_out_m2"] == pytest.approx(left_out, rel=1e-6)
     check = painted_side_checks(m)[0]
     assert not check.passed and "write [part] pieces = \"auto\"" in check.detail
-    # a booth's body: every part's pieces named by part, the areas summed, the same verdict
+    # a booth's body: every part's pieces named by part, the areas summed (reported)
     auto, _ = import_part(MeshPart(file=str(path)), resolution_m=None)
     body = parts_painted_side({"0:a": auto, "1:b": surf})
     assert body["painted_side_left_out_m2"] == pytest.approx(left_out, rel=1e-6)

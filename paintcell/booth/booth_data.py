@@ -264,6 +264,7 @@ def booth_from_snapshot(d: Any, where: str) -> Booth:
         kw["body_placement"] = Placement(**_tuples(d["body_placement"]))
         kw["conveyor"] = Conveyor(**_tuples(d["conveyor"]))
         kw["thresholds"] = BoothThresholds(**d["thresholds"])
+        kw["spec"] = PaintSpec.from_table(d.get("spec"), where)
         for key in ("planner", "trajectory", "servo", "allocation"):
             if kw.get(key) is not None:
                 kw[key] = _tuples(kw[key])
