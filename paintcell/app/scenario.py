@@ -26,6 +26,11 @@ from paintcell.validation.validate_report import Thresholds
 __all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "pose"]
 
 
+#: Longest scenario name: it names the results folder and its hidden siblings (a file name holds
+#: at most 255 bytes).
+MAX_NAME_CHARS = 100
+
+
 class ScenarioError(PaintcellError):
     """A scenario cannot be found, loaded or is inconsistent."""
 
@@ -63,10 +68,13 @@ class Placement:
 
     def __post_init__(self) -> None:
         for name in ("xyz_m", "rpy_rad"):
-            v = np.asarray(getattr(self, name), float)
-            if v.shape != (3,) or not np.all(np.isfinite(v)):
-                raise ScenarioError(f"Placement.{name} = {getattr(self, name)!r} must be three "
-                                    "finite numbers")
+            raw = getattr(self, name)
+            ok = isinstance(raw, list | tuple | np.ndarray) and len(raw) == 3 and all(
+                isinstance(x, int | float | np.integer | np.floating)
+                and not isinstance(x, bool | np.bool_) for x in raw)
+            if not ok or not np.all(np.isfinite(np.asarray(raw, float))):
+                raise ScenarioError(f"{name} = {list(raw) if ok else raw!r} must be three finite "
+                                    f"numbers (no quotes), e.g. {name} = [0.0, 0.0, 0.0]")
 
     @property
     def matrix(self) -> np.ndarray:
@@ -128,9 +136,11 @@ class Scenario:
     source: str | None = None
 
     def __post_init__(self) -> None:
-        if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
-            raise ScenarioError(f"scenario name {self.name!r} must be non-empty letters, digits, "
-                                "'_' or '-' (it names the results folder)")
+        if not isinstance(self.name, str) or not self.name or len(self.name) > MAX_NAME_CHARS \
+                or not all(c.isalnum() or c in "_-" for c in self.name):
+            shown = self.name if len(str(self.name)) <= 40 else f"{str(self.name)[:40]}…"
+            raise ScenarioError(f"scenario name {shown!r} must be 1 to {MAX_NAME_CHARS} letters, "
+                                "digits, '_' or '-' (it names the results folder)")
         if isinstance(self.part, dict):
             object.__setattr__(self, "part", MeshPart.from_dict(self.part))
         if not self.part or not isinstance(self.part, str | MeshPart):

@@ -17,9 +17,11 @@ from typing import Any
 
 import numpy as np
 
+from paintcell.app.setting_ranges import check_range
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["ScenarioDataError", "check_settings", "check_thresholds", "check_types"]
+__all__ = ["ScenarioDataError", "check_settings", "check_settings_table", "check_thresholds",
+           "check_types"]
 
 _SETTINGS = ("planner", "fast_planner", "trajectory", "servo", "disturbances")
 
@@ -42,13 +44,6 @@ _THRESHOLD_RANGES: dict[str, tuple[float, float, bool, str]] = {
     "max_body_nsd_pct": (0.0, math.inf, False, "σ/μ [%]"),
     "min_bell_distance_m": (0.0, math.inf, True, "a distance [m]"),
 }
-
-# Ranges the settings classes do not check themselves: (table, key) → (low, high, what).
-_SETTING_RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
-    ("planner", "u_max"): (0.0, 1.0, "a fraction, 0.04 = 4 %"),
-    ("planner", "band_half_width"): (0.0, 10.0, "a fraction of the index width"),
-}
-
 
 class ScenarioDataError(PaintcellError):
     """A scenario file or snapshot holds an unknown key or an invalid value."""
@@ -109,32 +104,47 @@ def check_settings(scn: Any, where: str) -> None:
     """Validate every settings table of a scenario by building its settings class.
 
     Unknown keys name the valid ones; values must be finite and within the ranges the classes
-    (and `_SETTING_RANGES`) define. Raises ScenarioDataError naming `where` (the file) and the key.
+    (and `paintcell.app.setting_ranges`) define, and the planner's index-width search must fit
+    its memory budget (`paintcell.app.budget`). Raises ScenarioDataError (BudgetError for the
+    budget) naming `where` (the file), the table and the key.
     """
-    classes = _settings_classes()
     for table in _SETTINGS:
-        values = getattr(scn, table)
-        cls = classes[table]
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(values) - names)
-        if unknown:
-            raise ScenarioDataError(f"{where}: unknown {table} setting(s) {unknown}; valid: "
-                                    f"{', '.join(sorted(names))}")
-        check_types(cls, values, f"{where} [{table}]")
-        for key, v in values.items():
-            _check_finite(f"{where} [{table}]", key, v)
-            rng = _SETTING_RANGES.get(("planner" if table == "fast_planner" else table, key))
-            if rng is not None and isinstance(v, int | float) and not isinstance(v, bool) \
-                    and not rng[0] < v < rng[1]:
-                raise ScenarioDataError(f"{where} [{table}]: {key} = {v!r} is out of range; "
-                                        f"valid: {rng[0]:g} < {key} < {rng[1]:g} ({rng[2]})")
-        kw = {**scn.planner, **values} if table == "fast_planner" else values
-        try:
-            cls(**kw)
-        except PaintcellError as exc:
-            raise ScenarioDataError(f"{where} [{table}]: {exc}") from exc
-        except (TypeError, ValueError) as exc:
-            raise ScenarioDataError(f"{where} [{table}]: {exc}") from exc
+        check_settings_table(table, getattr(scn, table), where,
+                             scn.planner if table == "fast_planner" else None)
+
+
+def check_settings_table(table: str, values: dict[str, Any], where: str,
+                         base: dict[str, Any] | None = None) -> Any:
+    """Validate one settings table (`table` one of planner, fast_planner, trajectory, servo,
+    disturbances) and return its settings object: unknown keys, types, finiteness, the ranges
+    of `paintcell.app.setting_ranges`, the class's own checks and, for the planner, the width
+    search's memory budget. base: the planner a fast_planner table overrides."""
+    cls = _settings_classes()[table]
+    if not isinstance(values, dict):
+        raise ScenarioDataError(f"{where}: {table} must be a table [{table}] of settings")
+    names = {f.name for f in fields(cls)}
+    unknown = sorted(set(values) - names)
+    if unknown:
+        raise ScenarioDataError(f"{where}: unknown {table} setting(s) {unknown}; valid: "
+                                f"{', '.join(sorted(names))}")
+    check_types(cls, values, f"{where} [{table}]")
+    for key, v in values.items():
+        _check_finite(f"{where} [{table}]", key, v)
+        bad = check_range(table, key, v)
+        if bad is not None:
+            raise ScenarioDataError(f"{where} [{table}]: {bad}")
+    kw = {**(base or {}), **values}
+    try:
+        built = cls(**kw)
+    except PaintcellError as exc:
+        raise ScenarioDataError(f"{where} [{table}]: {exc}") from exc
+    except (TypeError, ValueError) as exc:
+        raise ScenarioDataError(f"{where} [{table}]: {exc}") from exc
+    if table in ("planner", "fast_planner"):
+        from paintcell.app.budget import check_planner_budget
+
+        check_planner_budget(built, f"{where} [{table}]")
+    return built
 
 
 def _toml(v: Any) -> str:
