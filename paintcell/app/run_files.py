@@ -7,10 +7,10 @@ named in a one-line error with the fix (re-run `paintcell run`).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
+from paintcell.core.data_text import DataTextError, parse_json
 from paintcell.core.errors import PaintcellError
 
 __all__ = ["load_run_dir", "read_json"]
@@ -22,10 +22,10 @@ def read_json(path: Path) -> dict[str, Any]:
     """A JSON object file; a missing, corrupt or non-object file is named in the error."""
     path = Path(path)
     try:
-        d = json.loads(path.read_text(encoding="utf-8"))
+        d = parse_json(path.read_text(encoding="utf-8"), str(path))
     except FileNotFoundError:
         raise PaintcellError(f"{path} is missing; re-run `paintcell run`") from None
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (DataTextError, UnicodeDecodeError) as exc:
         raise PaintcellError(f"{path} is not readable JSON ({_first(exc)}); re-run "
                              "`paintcell run`") from exc
     if not isinstance(d, dict):

@@ -21,7 +21,6 @@ what is valid. The same reader turns a results folder's `scenario.json` snapshot
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
@@ -32,6 +31,7 @@ from paintcell.app.scenario_checks import (
     check_settings,
     check_thresholds,
 )
+from paintcell.core.data_text import DataTextError, read_toml
 from paintcell.core.errors import PaintcellError
 
 __all__ = ["SNAPSHOT_VERSION", "check_settings", "check_thresholds", "load_toml_scenario",
@@ -160,11 +160,9 @@ def load_toml_scenario(path: str | Path) -> Any:
     """Read a TOML scenario file (no code runs); relative paths are relative to the file."""
     path = Path(path)
     try:
-        d = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioDataError(f"{path}: not valid TOML ({exc}); fix the line named") from exc
-    except UnicodeDecodeError as exc:
-        raise ScenarioDataError(f"{path}: not a UTF-8 text file ({exc.reason})") from exc
+        d = read_toml(path)
+    except DataTextError as exc:
+        raise ScenarioDataError(str(exc)) from exc
     d.setdefault("name", path.stem)
     return scenario_from_dict(d, str(path), base_dir=path.resolve().parent,
                               source=str(path.resolve()))

@@ -12,6 +12,7 @@ from paintcell.app.scenario import Scenario, ScenarioError
 from paintcell.app.scenario_data import check_settings, load_toml_scenario
 from paintcell.booth.booth import Booth
 from paintcell.booth.booth_data import load_toml_booth
+from paintcell.core.data_text import read_toml
 from paintcell.core.errors import PaintcellError
 
 __all__ = ["find_scenarios", "load_scenario"]
@@ -66,16 +67,20 @@ def load_scenario(path: str | Path) -> Any:
     return scenario
 
 
-def _is_booth_toml(path: Path) -> bool:
-    """Whether a TOML file declares a booth (`[[robots]]` tables;
-    `paintcell.booth.booth_data`)."""
-    import tomllib
+#: Tables only a booth file has: a file with one of them (or with [[parts]] tables) is read as
+#: a booth, which then needs its [[robots]], not as a one-robot scenario with unknown keys.
+_BOOTH_ONLY = ("robots", "conveyor", "body_placement", "allocation")
 
+
+def _is_booth_toml(path: Path) -> bool:
+    """Whether a TOML file declares a booth (`paintcell.booth.booth_data`)."""
     try:
-        with open(path, "rb") as f:
-            return isinstance(tomllib.load(f).get("robots"), list)
-    except (OSError, tomllib.TOMLDecodeError):
+        d = read_toml(path)
+    except (OSError, PaintcellError):
         return False   # the scenario loader reports the file's own error
+    parts = d.get("parts")
+    return any(k in d for k in _BOOTH_ONLY) or (
+        isinstance(parts, list) and any(isinstance(p, dict) for p in parts))
 
 
 def find_scenarios(paths: list[str]) -> list[Path]:

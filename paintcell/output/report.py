@@ -21,7 +21,6 @@ under 2 MB.
 from __future__ import annotations
 
 import html
-import json
 import os
 from pathlib import Path
 from typing import Any
@@ -29,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.atomic_io import atomic_path
+from paintcell.core.data_text import DataTextError, parse_json
 from paintcell.core.errors import PaintcellError
 from paintcell.output.report_figures import FIGURES_JSON, make_figures
 from paintcell.output.report_film import FILM_NAME, load_film
@@ -176,8 +176,8 @@ details { margin: 0.5em 0; }
 
 def _read_json(path: Path) -> Any:
     try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as e:
+        return parse_json(path.read_text(), str(path))
+    except (OSError, UnicodeDecodeError, DataTextError) as e:
         raise ReportError(f"{path} is not readable JSON ({e}); re-run `paintcell run`") from e
 
 
