@@ -9,8 +9,9 @@ like any scenario script (`SCENARIO = Booth(...)`).
 
 Allocation (`allocate`): the jobs are whole parts or two pieces of a part (its passes split at
 a pass boundary); a part planned in patches may also be cut once inside each patch and at its
-seams, so that one robot takes a wing of every patch (`job_options`). Every assignment of one job per robot — each part whole or split, one robot
-per job — is enumerated (≤ a few hundred for four robots) and the one chosen:
+seams, so that one robot takes a wing of every patch (`job_options`). Every assignment of one
+job per robot — each part whole or split, one robot per job — is enumerated (≤ a few hundred
+for four robots) and the one chosen:
 1. every job is reachable by its robot (closed-form IK feasibility of every pass: inside the
    limits, off the wrist singularity; a rail robot at its best rail position per pass);
 2. the booth cycle — the longest robot's estimated program: paint time of its passes plus
@@ -82,6 +83,17 @@ class BoothRobot:
     def __post_init__(self) -> None:
         if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
             raise BoothError(f"robot name {self.name!r} must be letters, digits, '_' or '-'")
+        from paintcell.robots.catalog import ROBOT_NAMES
+
+        if self.model not in ROBOT_NAMES:
+            raise BoothError(f"robot {self.name!r}: model {self.model!r} is not a known robot; "
+                             f"valid: {', '.join(ROBOT_NAMES)}")
+        r = self.rail_m
+        if r is not None and not (isinstance(r, tuple | list) and len(r) == 2
+                                  and all(isinstance(x, int | float) and not isinstance(x, bool)
+                                          and np.isfinite(x) for x in r) and r[0] < r[1]):
+            raise BoothError(f"robot {self.name!r}: rail_m = {r!r} must be (lower, upper) "
+                             "carriage travel [m] with lower < upper")
 
 
 @dataclass(frozen=True)
@@ -264,7 +276,8 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
     """Every feasible allocation of the module doc, best first.
 
     n_passes: per part, its number of passes; patches: per part, its patches' pass counts
-    (`job_options`; None: whole or two pieces only); durations: per part, (P,) planned pass times [s];
+    (`job_options`; None: whole or two pieces only); durations: per part, (P,) planned pass
+    times [s];
     reachable(robot, job) -> bool; max_jobs_per_robot: jobs one robot may run one after the
     other (its program: `paintcell.booth.booth_chain.chain_programs`). Returns the
     allocations ({robot index: its jobs in part order}), best first by lexicographic min-max of
