@@ -99,7 +99,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     from paintcell.surface.part_import import import_part
 
     res = args.resolution if args.resolution > 0 else None
-    surf, rep = import_part(_spec(args), resolution_m=res)
+    surf, rep = import_part(_spec(args), resolution_m=res, setting="--resolution")
     print(_describe(rep, surf))
     png = args.png or Path(f"{surf.name}_regions.png")
     _plot_regions(surf, png)
