@@ -98,7 +98,7 @@ def _snapshot(d: Path) -> dict[str, bytes]:
     ("[thresholds]\nmax_executed_nsd_pct = nan", "max_executed_nsd_pct = nan"),
     ("[thresholds]\nmax_collisions = -1", "max_collisions = -1 is out of range; valid: [0, inf)"),
     ("[thresholds]\nreachability_pct = 101.0", "reachability_pct = 101.0 is out of range"),
-    ("[planner]\nu_max = 5.0", "u_max = 5.0 is out of range; valid: 0 < u_max < 1"),
+    ("[planner]\nu_max = 5.0", "u_max = 5.0 is out of range; valid: [1e-06, 0.999]"),
     ("[planner]\nv_nominal_m_s = inf", "v_nominal_m_s = inf is not a finite number"),
     ("[planner]\nu_maxx = 0.04", "unknown planner setting(s) ['u_maxx']; valid: "),
     ("[robot_base]\nxyz_m = [0, 0, 0]", "unknown key(s) ['robot_base']; valid: "),

@@ -31,9 +31,10 @@ def load_scenario(path: str | Path) -> Any:
         raise ScenarioError(f"scenario {path} is a folder; pass one scenario file (`paintcell "
                             "check` takes folders)")
     if path.suffix == ".toml":
-        if _is_booth_toml(path):   # several robots: imported only for a booth
-            return load_toml_booth(path)
-        return load_toml_scenario(path)
+        # several robots: imported only for a booth
+        scn = load_toml_booth(path) if _is_booth_toml(path) else load_toml_scenario(path)
+        check_applicator(scn, str(path))
+        return scn
     if path.suffix != ".py":
         raise ScenarioError(f"scenario {path} is neither a .toml scenario nor a Python script "
                             "(.py defining SCENARIO)")
@@ -64,7 +65,32 @@ def load_scenario(path: str | Path) -> Any:
     scenario = replace(scenario, source=str(path.resolve()))
     if isinstance(scenario, Scenario):
         check_settings(scenario, str(path))
+    check_applicator(scenario, str(path))
     return scenario
+
+
+def check_applicator(scn: Any, where: str) -> None:
+    """Read the scenario's (or booth's) applicator file now, before any work, and budget the
+    planner's index-width curve and width search for its footprint (`paintcell.app.budget`);
+    errors name `where` and the applicator file."""
+    from paintcell.app.budget import check_planner_budget, check_profile_budget
+    from paintcell.app.scenario_checks import _settings_classes
+    from paintcell.paint.applicator import Applicator
+
+    if scn.applicator is None:
+        return
+    app_path = Path(scn.applicator)
+    if not app_path.is_absolute() and scn.source:
+        app_path = Path(scn.source).parent / app_path
+    try:
+        app = Applicator.from_toml(app_path)
+    except PaintcellError as exc:
+        msg = str(exc)
+        raise ScenarioError(f"{where}: applicator {app_path}: {msg}" if str(app_path) not in msg
+                            else f"{where}: {msg}") from exc
+    check_profile_budget(app, f"{where} applicator {app_path}")
+    planner = _settings_classes()["planner"](**scn.planner)
+    check_planner_budget(planner, f"{where} [planner]", app.footprint_radius_m)
 
 
 #: Tables only a booth file has: a file with one of them (or with [[parts]] tables) is read as

@@ -96,8 +96,10 @@ def check_robot(r: dict[str, Any], i: int, where: str, seen: set[str]
         if arm not in RAIL_ARMS:
             raise BoothDataError(f"{at}: model {model!r} has no rail; rail arms: "
                                  f"{', '.join(RAIL_ARMS)} (or drop rail)")
-        lo, hi = numbers(r["rail"], 2, f"{at} rail", -RAIL_LIMIT_M, RAIL_LIMIT_M, "m",
-                         "[-1.2, 1.2]")
+        if not isinstance(r["rail"], list) or len(r["rail"]) != 2:
+            raise BoothDataError(f"{at}: rail = {r['rail']!r} must be rail = [lower, upper] "
+                                 "carriage travel [m], e.g. [-1.2, 1.2]")
+        lo, hi = numbers(r["rail"], 2, f"{at} rail", -RAIL_LIMIT_M, RAIL_LIMIT_M, "m")
         if not lo < hi:
             raise BoothDataError(f"{at}: rail = {list(r['rail'])!r} must be [lower, upper] with "
                                  f"lower < upper [m]; write rail = [{hi:g}, {lo:g}]")

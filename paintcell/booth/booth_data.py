@@ -228,7 +228,7 @@ def _bool(v: Any, where: str) -> bool:
 
 def _positive(v: Any, where: str) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= 1e4:
-        raise BoothDataError(f"{where} must be a number in (0, 1e4] [µm], got {v!r}")
+        raise BoothDataError(f"{where} must be a number > 0 and ≤ 1e4 [µm], got {v!r}")
     return float(v)
 
 
