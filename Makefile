@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast lint bench clean
+.PHONY: demo test test-fast fuzz lint bench clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -17,11 +17,15 @@ demo: $(STAMP)
 	@echo "Results: results/door (report.html, metrics.json, plan.json, trajectory.npz/.csv, trace.npz)"
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -m "not fuzz_full"
 	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml
 
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow and not fuzz_full"
+
+# The whole fuzz suite (tests/fuzz/), its long cases too; `make test` runs its fast slice.
+fuzz: $(STAMP)
+	$(BIN)/python -m pytest -q tests/fuzz
 
 lint: $(STAMP)
 	$(BIN)/ruff check paintcell tests benchmarks
