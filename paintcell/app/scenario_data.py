@@ -79,6 +79,11 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
     for key in ("name", "robot"):
         if key in kw and not isinstance(kw[key], str):
             raise ScenarioDataError(f"{where}: {key} = {kw[key]!r} must be a string")
+    from paintcell.robots.catalog import ROBOT_NAMES
+
+    if kw.get("robot", "abb_paint") not in ROBOT_NAMES:
+        raise ScenarioDataError(f"{where}: robot = {kw['robot']!r} is not a known robot; valid: "
+                                f"{', '.join(ROBOT_NAMES)}")
     for key in ("resolution_m", "fast_resolution_m"):
         v = kw.get(key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)

@@ -138,7 +138,8 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                               _bool(p.get("reverse", False), f"{where} [[parts]] #{i} reverse"),
                               None if who is None else tuple(who), mesh))
     check_parts_once(d["parts"], where)
-    robots, seen = [], set()
+    robots: list[BoothRobot] = []
+    seen: set[str] = set()
     for i, r in enumerate(d["robots"]):
         r = _check_keys(r, _ROBOT, f"{where} [[robots]] #{i}")
         name, model, rail, home = check_robot(r, i, where, seen)

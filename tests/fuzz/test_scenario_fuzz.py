@@ -146,6 +146,13 @@ def test_a_malformed_toml_is_one_line_naming_the_file(tmp_path: Path, kind: str)
     assert loader_outcome(lambda: load_scenario(p), str(p)) is not None, kind
 
 
+@pytest.mark.parametrize("robot", ["irb9999", "", "ABB_PAINT", "ur10_rail"])
+def test_an_unknown_robot_is_refused_at_load(tmp_path: Path, robot: str) -> None:
+    p = _write(tmp_path, _with(BASE, ("robot",), robot))
+    msg = loader_outcome(lambda: load_scenario(p), str(p))
+    assert msg is not None and f"robot = {robot!r} is not a known robot" in msg
+
+
 def test_a_byte_order_mark_is_read_as_utf8(tmp_path: Path) -> None:
     p = _write(tmp_path, BASE)
     p.write_bytes(b"\xef\xbb\xbf" + p.read_bytes())
