@@ -11,13 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.app.budget import check_planner_budget, planner_bytes
 from paintcell.booth.booth import BoothRobot
 from paintcell.booth.booth_checks import ARM_JOINTS, RAIL_ARMS, BoothDataError
 from paintcell.core import memory
+from paintcell.core.budget import check_planner_budget, planner_bytes
 from paintcell.core.memory import BudgetError, memory_cap_bytes
 from paintcell.coverage.coverage import PlannerSettings
-from paintcell.coverage.index_width import search_range, search_widths
+from paintcell.coverage.index_width import search_range, search_size, search_widths
 from paintcell.surface.mesh_thinning import cluster_vertices
 
 
@@ -88,16 +88,16 @@ def test_the_planner_estimate_is_the_width_search_arrays(monkeypatch: pytest.Mon
     search_widths(film, st.w_res_m, g0, point_s, [], widths, np.unique(fut), st.n_future, None)
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    est = planner_bytes(st, 0.3)
+    est = planner_bytes(search_size(st, 0.3))
     assert film.nbytes < est and 0.5 * peak < est < 4 * peak, (peak, est)
 
 
 def test_a_width_search_past_the_room_is_refused(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("PAINTCELL_MAX_MEMORY_GB", "0.01")
     with pytest.raises(BudgetError, match=r"door.toml \[planner\]: the index-width search needs"):
-        check_planner_budget(PlannerSettings(), "door.toml [planner]")
+        check_planner_budget(search_size(PlannerSettings()), "door.toml [planner]")
     monkeypatch.delenv("PAINTCELL_MAX_MEMORY_GB")
-    assert check_planner_budget(PlannerSettings(), "door.toml [planner]") < 2**30
+    assert check_planner_budget(search_size(PlannerSettings()), "door.toml [planner]") < 2**30
 
 
 def test_clustering_merges_cells_and_keeps_the_outline() -> None:
@@ -150,10 +150,10 @@ def test_ranges_hold_every_default() -> None:
     """Every settings class's defaults lie in the ranges the loader enforces."""
     from dataclasses import fields
 
-    from paintcell.app.scenario_checks import _settings_classes
-    from paintcell.app.setting_ranges import check_range
+    from paintcell.core.setting_ranges import check_range
+    from paintcell.validation.settings_tables import settings_classes
 
-    for table, cls in _settings_classes().items():
+    for table, cls in settings_classes().items():
         for f in fields(cls):
             if f.default is not None and not callable(f.default) and \
                     not isinstance(f.default, str) and not (isinstance(f.default, float)

@@ -1,6 +1,6 @@
-"""Results safety, replayed as a hostile user would (issue 13): real processes, real signals.
+"""Results safety, replayed as a hostile user would: real processes, real signals.
 
-Every case of the issue: decoy folders survive, failed runs are not exported, code named in a
+Every case: decoy folders survive, failed runs are not exported, code named in a
 results folder is never executed, invalid thresholds are refused, `check` survives scenarios that
 exit, raise or crash, killed runs leave nothing the next run does not clean, two concurrent runs
 cannot both write, and the messages name the file at fault.
@@ -286,7 +286,7 @@ def test_results_use_the_snapshot_and_never_run_code_from_the_folder(good: Path,
     assert (res / "fz.mod").read_text() == (tmp_path / "before.mod").read_text()
     assert "VALIDATED in MuJoCo simulation: PASS" in (res / "fz.mod").read_text()
     marker = json.loads((res / MARKER).read_text())
-    assert {"fz.mod", "report.html", "metrics.json"} <= set(marker["files"])
+    assert {"fz.mod", "report.html", "metrics.json", "film.npz", "film.glb"} <= set(marker["files"])
 
 
 @pytest.mark.slow
@@ -383,7 +383,7 @@ def test_check_survives_exits_exceptions_crashes_and_memory_hogs(
     (d / "a_exit.py").write_text("import sys\nsys.exit(0)\n")
     (d / "b_memory.py").write_text(head.format(n="b") + "raise MemoryError('planted')\n")
     (d / "c_killed.py").write_text("import os, signal\nos.kill(os.getpid(), signal.SIGKILL)\n")
-    bell = (ROOT / "paintcell" / "planning" / "paint" / "data" / "default_bell.toml").read_text()
+    bell = (ROOT / "paintcell" / "paint" / "data" / "default_bell.toml").read_text()
     # whatever the shipped values (a plain text replace of them silently stopped matching when
     # the default bell changed, and d_huge ran the ordinary bell)
     bell = re.sub(r"^sigma_x_m = .*$", "sigma_x_m = 50.0", bell, flags=re.M)

@@ -3,7 +3,7 @@
     python docs/tools/report_screenshot.py [REPORT_HTML] [--png docs/img/report_first_screen.png]
 
 Without REPORT_HTML it runs `paintcell run scenarios/door.toml --fast` into a temporary folder
-first (a few minutes). The README's screenshot is made this way. Needs the `dev` extra
+first (a few minutes). docs/img/report_first_screen.png is made this way. Needs the `dev` extra
 (playwright) and a Chromium: playwright's own (`python -m playwright install chromium`) or the
 system's (`apt-get install chromium`; found on PATH as chromium, chromium-browser or
 google-chrome, or named by $PAINTCELL_CHROMIUM). `tests/test_report_browser.py` uses
@@ -25,6 +25,10 @@ ROOT = Path(__file__).resolve().parents[2]
 VIEWPORT = (1280, 800)
 #: elements of the first screen (paintcell.output.report_sections ids).
 FIRST_SCREEN = ("#verdict", "#film-map", "#film-histogram", "#pass-table")
+#: Chromium flags: WebGL (the report's 3-D film view) on SwiftShader, the software GPU Chromium
+#: ships, so a headless run draws the same with or without a GPU and its driver's performance
+#: messages do not reach the console.
+CHROMIUM_ARGS = ("--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader")
 
 
 def find_chromium() -> str | None:
@@ -53,7 +57,7 @@ def inspect_report(html_path: str | Path, png: str | Path | None = None,
     exe = find_chromium()
     with sync_playwright() as p:
         try:
-            browser = p.chromium.launch(executable_path=exe, args=["--no-sandbox"])
+            browser = p.chromium.launch(executable_path=exe, args=list(CHROMIUM_ARGS))
         except Error as e:
             raise RuntimeError("no headless Chromium: `apt-get install chromium` or "
                                f"`python -m playwright install chromium` ({str(e)[:200]})") from e

@@ -8,12 +8,14 @@ import importlib.util
 from pathlib import Path
 from typing import Any
 
-from paintcell.app.scenario import Scenario, ScenarioError
-from paintcell.app.scenario_data import check_settings, load_toml_scenario
+from paintcell.app.scenario import Scenario
+from paintcell.app.scenario_checks import check_settings
+from paintcell.app.scenario_data import load_toml_scenario
 from paintcell.booth.booth import Booth
 from paintcell.booth.booth_data import load_toml_booth
 from paintcell.core.data_text import read_toml
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, ScenarioError
+from paintcell.core.safe_paths import kind_of
 
 __all__ = ["find_scenarios", "load_scenario"]
 
@@ -30,6 +32,9 @@ def load_scenario(path: str | Path) -> Any:
     if path.is_dir():
         raise ScenarioError(f"scenario {path} is a folder; pass one scenario file (`paintcell "
                             "check` takes folders)")
+    if not path.is_file():   # a FIFO would block the reader until someone writes to it
+        raise ScenarioError(f"scenario {path} is a {kind_of(path.stat().st_mode)}, not a "
+                            "regular file; pass the scenario file itself")
     if path.suffix == ".toml":
         # several robots: imported only for a booth
         scn = load_toml_booth(path) if _is_booth_toml(path) else load_toml_scenario(path)
@@ -71,11 +76,12 @@ def load_scenario(path: str | Path) -> Any:
 
 def check_applicator(scn: Any, where: str) -> None:
     """Read the scenario's (or booth's) applicator file now, before any work, and budget the
-    planner's index-width curve and width search for its footprint (`paintcell.app.budget`);
+    planner's index-width curve and width search for its footprint (`paintcell.core.budget`);
     errors name `where` and the applicator file."""
-    from paintcell.app.budget import check_planner_budget, check_profile_budget
-    from paintcell.app.scenario_checks import _settings_classes
+    from paintcell.core.budget import check_profile_budget
+    from paintcell.coverage.index_width import profile_size
     from paintcell.paint.applicator import Applicator
+    from paintcell.validation.settings_tables import check_settings_table
 
     if scn.applicator is None:
         return
@@ -88,9 +94,10 @@ def check_applicator(scn: Any, where: str) -> None:
         msg = str(exc)
         raise ScenarioError(f"{where}: applicator {app_path}: {msg}" if str(app_path) not in msg
                             else f"{where}: {msg}") from exc
-    check_profile_budget(app, f"{where} applicator {app_path}")
-    planner = _settings_classes()["planner"](**scn.planner)
-    check_planner_budget(planner, f"{where} [planner]", app.footprint_radius_m)
+    check_profile_budget(*profile_size(app), app.footprint_radius_m,
+                         f"{where} applicator {app_path}")
+    check_settings_table("planner", scn.planner, where,
+                         footprint_radius_m=app.footprint_radius_m)
 
 
 #: Tables only a booth file has: a file with one of them (or with [[parts]] tables) is read as

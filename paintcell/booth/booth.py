@@ -44,10 +44,10 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.app.scenario import Placement
 from paintcell.booth.booth_chain import job_record
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
+from paintcell.core.placement import Placement
 from paintcell.surface.part_spec import MeshPart
 
 #: cycle estimate of the allocation: time per turn-around and for approach + retract [s]
@@ -194,7 +194,7 @@ class Booth:
     applicator: str | None = None
     """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
     sweep: dict[str, Any] = field(default_factory=dict)
-    """The `paintcell sweep` table (`paintcell.sweeps.sweep_spec.SCENARIO_KEYS`); a booth sweep
+    """The `paintcell sweep` table (`paintcell.validation.sweep_spec.SCENARIO_KEYS`); a booth sweep
     varies the
     line speed (`paintcell.sweeps.sweep_booth`)."""
 

@@ -36,9 +36,6 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from paintcell.app.scenario import Placement
-from paintcell.app.scenario_checks import check_thresholds
-from paintcell.app.setting_ranges import check_range
 from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
 from paintcell.booth.booth_checks import (
     BoothDataError,
@@ -51,9 +48,12 @@ from paintcell.booth.booth_checks import (
 )
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.data_text import DataTextError, read_toml
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, ScenarioDataError
+from paintcell.core.placement import Placement
+from paintcell.core.setting_ranges import check_range
 from paintcell.surface.part_spec import MeshPart
 from paintcell.surface.parts import PART_NAMES
+from paintcell.validation.validate_report import check_thresholds
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
@@ -102,7 +102,7 @@ def _resolution(d: dict[str, Any], key: str, default: float, where: str) -> floa
 
 def _settings(table: str, values: Any, where: str) -> dict[str, Any]:
     """A booth's (or a part's) settings table, checked as a scenario's is."""
-    from paintcell.app.scenario_checks import ScenarioDataError, check_settings_table
+    from paintcell.validation.settings_tables import check_settings_table
 
     try:
         check_settings_table(table, values, where)
@@ -171,8 +171,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     body = _placement(_table(d, "body_placement", where), f"{where} [body_placement]")
     try:
         if sweep:
-            from paintcell.sweeps.sweep_booth import check_booth_factors
-            from paintcell.sweeps.sweep_spec import check_sweep_table
+            from paintcell.validation.sweep_spec import check_booth_factors, check_sweep_table
 
             check_sweep_table(sweep)
             check_booth_factors(tuple(sweep.get("factors", {})))

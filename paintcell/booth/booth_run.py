@@ -59,6 +59,8 @@ class BoothResult:
     timings_s: dict[str, float] = field(default_factory=dict)
     part_vertex_counts: list[int] = field(default_factory=list)
     """The parts' vertex counts, in the order they are stacked in `surface`."""
+    judged: np.ndarray | None = None
+    """(N,) bool: the body's vertices the film is judged on (None: every vertex)."""
 
     @property
     def passed(self) -> bool:
@@ -117,7 +119,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
 
     t0 = time.perf_counter()
     bcell = build_booth_cell(robots, body, booth.body_placement.matrix, booth.conveyor)
-    from paintcell.app.pipeline import settings_from
+    from paintcell.core.settings import settings_from
     from paintcell.execution.execute import ServoSettings, execute
 
     prog = combined_program(bcell, trajs, t_ref)
@@ -127,18 +129,18 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
 
     t0 = time.perf_counter()
     pos, rot = robot_tcp(bcell, trace.q)
-    traces = _robot_traces(bcell, trace, trajs, pos, rot)
+    traces = robot_traces(bcell, trace, trajs, pos, rot)
     films = robot_films(booth, bcell, body, plans, jobs, progs.T_body_parts, trajs, traces, trace,
                         t_ref)
+    judged = judged_body_mask(surfaces)
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), progs.record, jobs,
-                           [len(x.vertices) for x in surfaces], plans,
-                           judged_body_mask(surfaces))
+                           [len(x.vertices) for x in surfaces], plans, judged)
     report.metrics["film_build"] = progs.film_build
     report.metrics["seams"] = progs.seams
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
-                         timings, [len(x.vertices) for x in surfaces])
+                         timings, [len(x.vertices) for x in surfaces], judged)
     with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         if tmp is not None:
             write_booth_results(result, tmp, robots)
@@ -146,8 +148,11 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     return result
 
 
-def _robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTrajectory],
-                  pos: np.ndarray, rot: np.ndarray) -> list[ExecutedTrace]:
+def robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTrajectory],
+                 pos: np.ndarray, rot: np.ndarray) -> list[ExecutedTrace]:
+    """Each robot's own `ExecutedTrace` cut from the booth's one trace: its joint columns, its
+    TCP poses `pos` (R, K, 3) [m] and `rot` (R, K, 3, 3), its program's paint trigger and the
+    contacts its bodies were in."""
     out = []
     for i, (cols, tr) in enumerate(zip(bcell.columns, trajs, strict=True)):
         mine = tuple(c for c in trace.contacts

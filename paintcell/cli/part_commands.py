@@ -5,8 +5,8 @@
 - init PART_FILE --out scenarios/NAME.toml: a commented TOML scenario (part, placement in front of
   the robot, the first robot model whose base reaches the fast plan, `init_cell.choose_cell`)
   that `paintcell run` and `plan` accept as written; none reaches it: a one-line refusal.
-- generate KIND --out FILE: a CAD-like door/hood/fender/roof mesh in mm
-(`paintcell.surface.cad_like`).
+- generate KIND --out FILE: a CAD-like or seeded-family mesh with its truth
+  (`paintcell.cli.generate`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from paintcell.cli.common import add_out_force
+from paintcell.cli.generate import add_generate
 from paintcell.core.errors import PaintcellError
+from paintcell.core.safe_paths import check_new_target, check_write_target
 from paintcell.surface.part_spec import MeshPart
 
 __all__ = ["register"]
@@ -47,7 +50,7 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "fast plan. `paintcell run` and `paintcell plan` accept it as written; when "
                    "no robot reaches the part, init says so in one line and writes nothing.")
     _part_options(n)
-    n.add_argument("--out", type=Path, required=True, help="scenario file to write (.toml)")
+    add_out_force(n, "scenario file to write (.toml)")
     n.add_argument("--robot", default="auto",
                    help="robot name (abb_paint, irb5500, ur10, abb_paint_rail, irb5500_rail), or "
                    "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
@@ -55,14 +58,7 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "when none does)")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
     n.set_defaults(func=_cmd_init)
-    g = add_parser("generate", help="write a CAD-like car-part mesh (mm)",
-                   description="Write a generated CAD-like part (outer skin hemmed onto an inner "
-                   "panel, crease; a door also has a handle recess and a window) in millimetres, "
-                   "with coarse uneven tessellation and a few slivers; seeded, deterministic.")
-    g.add_argument("kind", choices=("door", "hood", "fender", "roof"), help="part kind")
-    g.add_argument("--out", type=Path, required=True, help="mesh file to write (.stl/.ply/.obj)")
-    g.add_argument("--seed", type=int, default=0, help="tessellation seed")
-    g.set_defaults(func=_cmd_generate)
+    add_generate(add_parser)
 
 
 def _part_options(p: argparse.ArgumentParser) -> None:
@@ -98,6 +94,8 @@ def _spec(args: argparse.Namespace) -> MeshPart:
 def _cmd_inspect(args: argparse.Namespace) -> int:
     from paintcell.surface.part_import import import_part
 
+    if args.png is not None:  # before the import's work, not after
+        check_write_target(args.png, "--png")
     res = args.resolution if args.resolution > 0 else None
     surf, rep = import_part(_spec(args), resolution_m=res, setting="--resolution")
     print(_describe(rep, surf))
@@ -176,23 +174,6 @@ def _plot_regions(surf: Any, png: Path) -> None:
     plt.close(fig)
 
 
-def _cmd_generate(args: argparse.Namespace) -> int:
-    from paintcell.core.atomic_io import atomic_path
-    from paintcell.surface.cad_like import make_part
-
-    part = make_part(args.kind, args.seed)
-    suffix = args.out.suffix.lower().lstrip(".")
-    if suffix not in ("stl", "ply", "obj"):
-        raise PaintcellError(f"--out {args.out}: write a .stl, .ply or .obj file")
-    with atomic_path(args.out) as tmp:
-        part.mesh.export(tmp, file_type=suffix)
-    t = part.truth
-    print(f"{args.kind} (seed {args.seed}): {len(part.mesh.faces)} faces in mm → {args.out}; "
-          f"truth: skin {t['skin_m2']:.4f} m², hem {t['hem_m2']:.4f} m², inner panel "
-          f"{t['inner_m2']:.4f} m², window {t['window_m2']:.4f} m²")
-    return 0
-
-
 def _rpy(R: np.ndarray) -> tuple[float, float, float]:
     from scipy.spatial.transform import Rotation
 
@@ -227,14 +208,16 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
     from paintcell.app.init_verify import ProgramCheck
     from paintcell.app.pipeline import make_plan
-    from paintcell.app.scenario import Placement, Scenario
+    from paintcell.app.scenario import Scenario
     from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.core.placement import Placement
     from paintcell.robots.catalog import ROBOT_NAMES
     from paintcell.surface.part_import import import_part
 
     out: Path = args.out
     if out.suffix != ".toml":
         raise PaintcellError(f"--out {out}: a scenario file ends in .toml")
+    check_new_target(out, "--out", args.force)  # before minutes of planning, and again below
     if args.robot != "auto" and args.robot not in ROBOT_NAMES:  # before minutes of planning
         raise PaintcellError(f"--robot {args.robot!r} is not a robot paintcell ships; write "
                              f"--robot auto or one of {', '.join(ROBOT_NAMES)}")
@@ -285,6 +268,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
                           f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried,
                           trajectory, check.clearance_m.get(cell.robot))
+    check_new_target(out, "--out", args.force)
     atomic_write_text(out, text)
     print(_describe(rep, surf))
     print(f"cell: {cell.why}")

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from paintcell.sweeps.sweep_names import FACTORS, METHODS
+from paintcell.validation.sweep_names import FACTORS, METHODS
 
 
 def add_sweep_parser(add_parser: Any) -> None:
@@ -56,7 +56,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """Run `paintcell sweep`; exit 0, or 1 when a sweep limit of the scenario is not met."""
     from paintcell.app.scenario_files import load_scenario
     from paintcell.sweeps.sweep import run_sweep
-    from paintcell.sweeps.sweep_spec import spec_from_scenario
+    from paintcell.validation.sweep_spec import spec_from_scenario
 
     scn = load_scenario(args.scenario)
     spec = spec_from_scenario(scn.sweep, fast=args.fast, vary=args.vary, samples=args.samples,
@@ -105,7 +105,7 @@ def sweep_checks(scn: Any, fast: bool, out: Path | None) -> list[dict[str, Any]]
     import tempfile
 
     from paintcell.sweeps.sweep import run_sweep
-    from paintcell.sweeps.sweep_spec import spec_from_scenario
+    from paintcell.validation.sweep_spec import spec_from_scenario
 
     if not scn.sweep.get("limits"):
         return []

@@ -4,7 +4,7 @@
 cgroup's limit less its usage (a container's `memory.max`, cgroup v2, or v1's
 `memory.limit_in_bytes`), RLIMIT_AS less the address space in use (`ulimit -v`), and
 `PAINTCELL_MAX_MEMORY_GB`, with the name of the one that bounds it. The stage budgets that use
-it live with their stages' callers (`paintcell.app.budget`, `paintcell.surface.mesh_thinning`).
+it are `paintcell.core.budget`'s.
 """
 
 from __future__ import annotations

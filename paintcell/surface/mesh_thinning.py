@@ -6,7 +6,7 @@ remesh throws away (a 2-million-face binary STL, `benchmarks/huge_mesh.py`: `pai
 155 s and 4.8 GiB peak, `init` 556 s and 4.9 GiB; thinned first, 23 s and 1.06 GiB, 46 s and
 1.14 GiB). So before the repair:
 
-- the file's faces are budgeted (`paintcell.surface.surface_budget`) against the memory the
+- the file's faces are budgeted (`paintcell.core.budget`) against the memory the
   process may use, and so is the surface at the run's resolution;
 - a mesh with more than `DECIMATE_RATIO` times the faces of a mesh at a quarter of the run's
   resolution (an isotropic mesh at edge h has ~`FACES_PER_H2` · area / h² faces), or more than

@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import trimesh
 
+from paintcell.core.budget import check_surface_budget
 from paintcell.core.errors import SurfaceError
 from paintcell.surface.mesh_io import UnitChoice, choose_units, read_part_file
 from paintcell.surface.mesh_repair import RepairReport, fill_small_holes, remesh, repair
@@ -30,7 +31,6 @@ from paintcell.surface.regions import (
     find_openings,
 )
 from paintcell.surface.surface import Surface, surface_from_triangles
-from paintcell.surface.surface_budget import check_surface_budget
 
 __all__ = ["ImportReport", "PieceInfo", "import_part", "split_pieces"]
 

@@ -2,7 +2,7 @@
 
 Every case writes a TOML file and asserts what `tests/fuzz/fuzz_cases.py` states: the loader
 returns or refuses in one line naming the file (never another exception); a value out of its
-documented range (`paintcell.app.setting_ranges`) is refused, naming the key; through the real
+documented range (`paintcell.core.setting_ranges`) is refused, naming the key; through the real
 `paintcell` command the refusal exits 2 with one stderr line and writes no results folder.
 Generators are seeded, so every run tries the same cases.
 """
@@ -18,7 +18,7 @@ import pytest
 import tomli_w
 
 from paintcell.app.scenario_files import load_scenario
-from paintcell.app.setting_ranges import INF_ALLOWED, RANGES
+from paintcell.core.setting_ranges import INF_ALLOWED, RANGES
 from tests.fuzz.fuzz_cases import cli_refusal, loader_outcome
 
 BASE: dict[str, Any] = {

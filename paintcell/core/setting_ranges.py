@@ -6,7 +6,7 @@ profile spacing, 10⁶ band curves, a 1000 km overspray, a one-hour jerk ramp), 
 is answered at load in one line naming the file, the table, the key and the valid range, not
 by an out-of-memory or a library's raw error minutes later. Each bound is one to two orders of
 magnitude beyond what any shipped scenario, test or benchmark uses; the combined costs
-(grids × footprints, widths tried) are budgeted in `paintcell.app.budget`.
+(grids × footprints, widths tried) are budgeted in `paintcell.core.budget`.
 
 `(table, key) → (low, high, what)`: inclusive bounds in the key's unit; +inf as high means
 unbounded above (still finite unless `INF_ALLOWED` names the key).
