@@ -50,6 +50,8 @@ class PlannerSettings:
         itself, whole part and interior (farther than film_guard_band_m [m] from the boundary):
         speeds v_nom + α (v_QP − v_nom), α ∈ {1, ¾, ½, ¼, 0}: the best whole-part film among
         the blends no worse than constant speed on both.
+    film_guard_band_m: the interior the film guard and film refine judge apart is the part
+        farther than this from its boundary [m].
     film_refine: after the film guard, re-time all passes together by a bounded least-squares fit
         of the simulated film on the real part to its mean (slowness knots along each pass,
         speeds within [v_min, v_max] and the robot's caps), kept only where it lowers σ/μ on the
