@@ -75,7 +75,7 @@ def load_scenario(path: str | Path) -> Any:
 
 
 def check_applicator(scn: Any, where: str) -> None:
-    """Read the scenario's (or booth's) applicator file now, before any work, and budget the
+    """Read the scenario's (or booth's) applicator file at load, before any work, and budget the
     planner's index-width curve and width search for its footprint (`paintcell.core.budget`);
     errors name `where` and the applicator file."""
     from paintcell.core.budget import check_profile_budget
