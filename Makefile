@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast lint bench clean
+.PHONY: demo test test-fast fuzz lint bench clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -21,7 +21,11 @@ test: $(STAMP)
 	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml
 
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow and not fuzz_full"
+
+# The whole fuzz suite, its long cases (marker fuzz_full) included; `make test` runs its fast slice.
+fuzz: $(STAMP)
+	$(BIN)/python -m pytest -q -m "" tests/fuzz
 
 lint: $(STAMP)
 	$(BIN)/ruff check paintcell tests benchmarks

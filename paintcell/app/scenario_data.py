@@ -33,6 +33,7 @@ from paintcell.app.scenario_checks import (
     check_thresholds,
 )
 from paintcell.core.errors import PaintcellError
+from paintcell.core.toml_text import toml_text
 
 __all__ = ["SNAPSHOT_VERSION", "check_settings", "check_thresholds", "load_toml_scenario",
            "scenario_from_dict", "snapshot_dict"]
@@ -160,11 +161,9 @@ def load_toml_scenario(path: str | Path) -> Any:
     """Read a TOML scenario file (no code runs); relative paths are relative to the file."""
     path = Path(path)
     try:
-        d = tomllib.loads(path.read_text(encoding="utf-8"))
+        d = tomllib.loads(toml_text(path, ScenarioDataError))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioDataError(f"{path}: not valid TOML ({exc}); fix the line named") from exc
-    except UnicodeDecodeError as exc:
-        raise ScenarioDataError(f"{path}: not a UTF-8 text file ({exc.reason})") from exc
     d.setdefault("name", path.stem)
     return scenario_from_dict(d, str(path), base_dir=path.resolve().parent,
                               source=str(path.resolve()))

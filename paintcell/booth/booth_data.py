@@ -42,6 +42,7 @@ from paintcell.app.scenario_checks import check_thresholds
 from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
+from paintcell.core.toml_text import toml_text
 from paintcell.surface.part_spec import MeshPart
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
@@ -215,8 +216,7 @@ def load_toml_booth(path: str | Path) -> Booth:
     """The `Booth` of a booth TOML file (module doc)."""
     path = Path(path)
     try:
-        with open(path, "rb") as f:
-            d = tomllib.load(f)
+        d = tomllib.loads(toml_text(path, BoothDataError))
     except tomllib.TOMLDecodeError as exc:
         raise BoothDataError(f"{path}: not valid TOML ({exc})") from exc
     return booth_from_dict(d, str(path), source=str(path.resolve()))

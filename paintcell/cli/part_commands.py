@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from paintcell.cli.common import number_option
 from paintcell.core.errors import PaintcellError
 from paintcell.surface.part_spec import MeshPart
 
@@ -61,7 +62,9 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "with coarse uneven tessellation and a few slivers; seeded, deterministic.")
     g.add_argument("kind", choices=("door", "hood", "fender", "roof"), help="part kind")
     g.add_argument("--out", type=Path, required=True, help="mesh file to write (.stl/.ply/.obj)")
-    g.add_argument("--seed", type=int, default=0, help="tessellation seed")
+    g.add_argument("--seed", type=number_option("--seed", int, low=0, high=2**32 - 1,
+                                                example="3"),
+                   default=0, help="tessellation seed")
     g.set_defaults(func=_cmd_generate)
 
 
@@ -73,7 +76,9 @@ def _part_options(p: argparse.ArgumentParser) -> None:
                    help="pieces to keep: largest (by area), all, or indices like 0,2")
     p.add_argument("--side", default="auto",
                    help="painted side: auto (the convex skin) or a direction like 0,0,1")
-    p.add_argument("--resolution", type=float, default=0.025,
+    p.add_argument("--resolution", default=0.025,
+                   type=number_option("--resolution", float, low=0.0, high=1.0, unit="m",
+                                      example="0.025", note="0: keep the tessellation"),
                    help="remesh edge length [m] (0: keep the repaired tessellation)")
 
 

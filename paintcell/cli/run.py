@@ -46,13 +46,24 @@ def add_run(add_parser: Any) -> None:
                    "tcp_offset_m [m], gain_scale [-], standoff_error_m [m], trigger_delay_s [s], "
                    "flow_scale [-], flow_drift [-], seed [int]; e.g. --disturb "
                    "part_offset_m=0.005 --disturb seed=3")
-    # Internal, for `paintcell check`: write the table row as JSON; results under a folder.
-    r.add_argument("--row-json", type=Path, default=None, help=argparse.SUPPRESS)
+    # Internal, for `paintcell check`: write the table row as JSON to an open file descriptor;
+    # results under a folder; the check's pid (its child stops when the check dies).
+    r.add_argument("--row-fd", type=int, default=None, help=argparse.SUPPRESS)
     r.add_argument("--out-under", type=Path, default=None, help=argparse.SUPPRESS)
+    r.add_argument("--parent-pid", type=int, default=None, help=argparse.SUPPRESS)
     r.set_defaults(func=_cmd_run)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    if args.parent_pid is None:
+        return _run(args)
+    from paintcell.cli.check import scenario_worker
+
+    with scenario_worker(args.parent_pid):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     from paintcell.app.pipeline import run_scenario
     from paintcell.app.scenario_files import load_scenario
     from paintcell.booth.booth import Booth
@@ -66,9 +77,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from paintcell.app.scenario_data import check_settings
 
         check_settings(scn, "--disturb")
-    # `paintcell check` runs each scenario as `run --row-json FILE` in its own process and
+    # `paintcell check` runs each scenario as `run --row-fd N` in its own process and
     # writes results only when it was given --out.
-    worker = args.row_json is not None
+    worker = args.row_fd is not None
     out = args.out or (args.out_under / scn.name if args.out_under is not None
                        else None if worker else default_out(scn.name))
     if isinstance(scn, Booth):   # several robots on a conveyor
@@ -82,11 +93,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from paintcell.cli.sweep import (
             sweep_checks,  # the limits of the scenario's sweep, if any
         )
-        from paintcell.core.atomic_io import atomic_write_text
-
         r["checks"] += sweep_checks(scn, args.fast, args.out_under)
         r["passed"] = bool(r["passed"]) and all(c["passed"] for c in r["checks"])
-        atomic_write_text(args.row_json, json.dumps(r))
+        with open(args.row_fd, "w", encoding="utf-8", closefd=False) as f:
+            f.write(json.dumps(r))
         return EXIT_OK if r["passed"] else EXIT_FAIL
     print(format_table([r]))
     if out is not None:
