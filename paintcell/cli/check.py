@@ -82,6 +82,9 @@ def _jobs(text: str) -> int:
     return int(_JOBS(text)) or (os.cpu_count() or 1)
 
 
+_jobs.allowed, _jobs.example = _JOBS.allowed, _JOBS.example  # type: ignore[attr-defined]
+
+
 # --- process groups ---------------------------------------------------------------------------
 
 def _stop_group(proc: subprocess.Popen[bytes], grace_s: float = GRACE_S) -> None:
@@ -202,7 +205,8 @@ def _claim_junit(path: Path) -> None:
     except OSError as exc:
         from paintcell.cli.common import os_error_line
 
-        raise PaintcellError(f"--junit: {os_error_line(exc)}; no scenario was run") from exc
+        raise PaintcellError(f"--junit {path} cannot be written ({os_error_line(exc)}); no "
+                             "scenario was run") from exc
 
 
 def _final_junit(path: Path, scripts: list[Path] | None,

@@ -54,6 +54,8 @@ def number_option(option: str, kind: type[int] | type[float], *, low: float,
         return value
 
     parse.__name__ = option.lstrip("-").replace("-", "_")
+    parse.allowed = allowed   # type: ignore[attr-defined]
+    parse.example = example   # type: ignore[attr-defined]
     return parse
 
 

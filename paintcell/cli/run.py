@@ -16,6 +16,7 @@ from paintcell.cli.common import (
     SCENARIO_HELP,
     default_out,
     key_values,
+    number_option,
 )
 from paintcell.core.errors import PaintcellError
 
@@ -48,9 +49,11 @@ def add_run(add_parser: Any) -> None:
                    "part_offset_m=0.005 --disturb seed=3")
     # Internal, for `paintcell check`: write the table row as JSON to an open file descriptor;
     # results under a folder; the check's pid (its child stops when the check dies).
-    r.add_argument("--row-fd", type=int, default=None, help=argparse.SUPPRESS)
+    r.add_argument("--row-fd", default=None, help=argparse.SUPPRESS,
+                   type=number_option("--row-fd", int, low=0, example="3"))
     r.add_argument("--out-under", type=Path, default=None, help=argparse.SUPPRESS)
-    r.add_argument("--parent-pid", type=int, default=None, help=argparse.SUPPRESS)
+    r.add_argument("--parent-pid", default=None, help=argparse.SUPPRESS,
+                   type=number_option("--parent-pid", int, low=1, example="1234"))
     r.set_defaults(func=_cmd_run)
 
 

@@ -18,6 +18,12 @@ def _umask_mode() -> int:
     return 0o666 & ~mask
 
 
+def _name_path(exc: BaseException, path: Path) -> None:
+    """An OS error of a write (ENOSPC from `write`, …) names no file: name the target."""
+    if isinstance(exc, OSError) and exc.filename is None:
+        exc.filename = str(path)
+
+
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     """Write text to `path` via a temp file in the same folder and a rename (never half-written)."""
     path = Path(path)
@@ -28,8 +34,9 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
             f.write(text)
         os.chmod(tmp, _umask_mode())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        _name_path(exc, path)
         raise
 
 
@@ -43,8 +50,9 @@ def atomic_write_npz(path: str | os.PathLike[str], arrays: dict[str, np.ndarray]
         np.savez_compressed(tmp, **arrays)  # type: ignore[arg-type]
         os.chmod(tmp, _umask_mode())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        _name_path(exc, path)
         raise
 
 
@@ -63,6 +71,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         yield Path(tmp)
         os.chmod(tmp, _umask_mode())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        _name_path(exc, path)
         raise
