@@ -497,26 +497,38 @@ def _check(tmp: Path, d: Path, *extra: str, until: Callable[[list[psutil.Process
 
 
 def test_timeout_stops_a_scenario_and_every_process_it_started(tmp_path: Path) -> None:
-    """A hung scenario and one whose child process hangs, two at once: each is an error case
-    after --timeout, and nothing of either process group is left."""
-    d = _scenarios(tmp_path, a_hang=HANG, b_fork=FORK_HANG, c_nasty=NASTY)
+    """A hung scenario, one whose child process hangs and one that ignores SIGTERM (and whose
+    child would outlive it), at once: each is an error case after --timeout, and nothing of any
+    process group is left."""
+    d = _scenarios(tmp_path, a_hang=HANG, b_fork=FORK_HANG, d_stubborn=STUBBORN)
     t0 = time.monotonic()
-    p, out, err, groups = _check(tmp_path, d, "--timeout", "8", "--jobs", "2")
+    p, out, err, groups = _check(tmp_path, d, "--timeout", "8", "--jobs", "4")
     assert time.monotonic() - t0 < 60
     assert p.returncode == 1 and err == "", err
-    assert len(groups) >= 3   # check's own and one per scenario
+    assert len(groups) >= 4   # check's own and one per scenario
     _assert_nothing_left(groups)
-    assert len(_spawned(d)) == 1   # b_fork started its child before the time ran out
+    assert len(_spawned(d)) == 2   # both started their child before the time ran out
     _assert_dead(_spawned(d))
     errors = _errors(tmp_path / "j.xml")
-    assert set(errors) == {"a_hang", "b_fork", "c_nasty"} and not _green(tmp_path / "j.xml")
-    for name in ("a_hang", "b_fork"):
+    assert set(errors) == {"a_hang", "b_fork", "d_stubborn"}
+    assert not _green(tmp_path / "j.xml")
+    for name in ("a_hang", "b_fork", "d_stubborn"):
         assert errors[name] == ("exceeded --timeout 8 s and was stopped with every process it "
                                 "started")
-    # Control characters are gone from the JUnit and from the table; the rest is escaped.
-    assert "bad red nul bel <&> ]]>" in errors["c_nasty"], errors["c_nasty"]
-    assert not any(ch in out + errors["c_nasty"] for ch in "\x00\x07\x1b\x1f")
     assert os.listdir(tmp_path / "tmp") == []
+
+
+def test_control_characters_in_an_error_make_a_well_formed_junit(tmp_path: Path) -> None:
+    """ESC, NUL, BEL and unit separator in a scenario's error: gone from the JUnit (which a
+    strict XML parser and junitparser read) and from the table; <, & and ]]> are escaped."""
+    d = _scenarios(tmp_path, nasty=NASTY)
+    p, out, err, groups = _check(tmp_path, d)
+    assert p.returncode == 1 and err == "", err
+    message = _errors(tmp_path / "j.xml")["nasty"]
+    assert message.endswith("RuntimeError: bad red nul bel <&> ]]>"), message
+    assert not any(ch in out + message for ch in "\x00\x07\x1b\x1f")
+    assert "ERROR   cannot import scenario" in out and "bad red nul bel <&>" in out
+    _assert_nothing_left(groups)
 
 
 def test_a_child_that_outlives_its_scenario_does_not_hold_the_check(tmp_path: Path) -> None:
@@ -594,14 +606,22 @@ def test_signals_at_random_points(tmp_path: Path, seed: int) -> None:
 
 
 @pytest.mark.fuzz_full
-def test_a_scenario_that_ignores_sigterm_is_killed_after_the_grace_period(tmp_path: Path) -> None:
-    d = _scenarios(tmp_path, stubborn=STUBBORN)
-    t0 = time.monotonic()
-    p, out, err, groups = _check(tmp_path, d, "--timeout", "10", until=_has_sleep(1))
-    assert p.returncode == 1 and time.monotonic() - t0 < 60, (out, err)
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_an_interrupt_kills_a_scenario_that_ignores_sigterm(tmp_path: Path, jobs: int) -> None:
+    """SIGTERM to check while a scenario that ignores SIGTERM runs: its group is SIGKILLed after
+    the grace period; exit 130, nothing left, the JUnit says interrupted."""
+    d = _scenarios(tmp_path, a=STUBBORN, b=HANG)
+    p = _start(tmp_path, "check", str(d), "--junit", str(tmp_path / "j.xml"), "--jobs",
+               str(jobs))
+    groups = _watch(p, _has_sleep(1))
+    p.send_signal(signal.SIGTERM)
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == EXIT_INTERRUPTED, (out, err)
     _assert_nothing_left(groups)
     _assert_dead(_spawned(d))
-    assert "exceeded --timeout 10 s" in _errors(tmp_path / "j.xml")["stubborn"]
+    errors = _errors(tmp_path / "j.xml")
+    assert errors["a"] == "interrupted (SIGTERM) while running; no result"
+    assert errors["interrupted"].startswith("interrupted (SIGTERM): ")
 
 
 FZ = """\
@@ -633,15 +653,19 @@ def test_sigkill_during_a_real_run_leaves_no_process_and_no_temp_folder(tmp_path
     (d / "fz.toml").write_text(FZ)
     p = _start(tmp_path, "check", str(d), "--fast", "--out", str(tmp_path / "res"), "--junit",
                str(tmp_path / "j.xml"))
-    groups = _watch(p, lambda kids: len(kids) >= 1)
-    t_end = time.monotonic() + random.Random(seed).uniform(1.0, 8.0)
+    res = tmp_path / "res"
+
+    def writing(kids: list[psutil.Process]) -> bool:   # the run's temporary folder is there
+        return res.is_dir() and any(".fz.tmp-" in q.name for q in res.iterdir())
+
+    groups = _watch(p, writing, timeout=180)
+    t_end = time.monotonic() + random.Random(seed).uniform(0.0, 3.0)
     while time.monotonic() < t_end and p.poll() is None:
         groups |= _groups_of(_descendants(p.pid))
         time.sleep(0.05)
     p.kill()
     p.communicate(timeout=30)
     _assert_nothing_left(groups, timeout=60)
-    res = tmp_path / "res"
-    leftovers = [q.name for q in res.iterdir() if ".tmp-" in q.name] if res.exists() else []
-    assert leftovers == [] and os.listdir(tmp_path / "tmp") == []
+    assert [q.name for q in res.iterdir() if ".tmp-" in q.name] == []
+    assert os.listdir(tmp_path / "tmp") == []
     assert not _green(tmp_path / "j.xml")
