@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -38,10 +37,12 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from paintcell.cli.common import number_option, one_line
+from paintcell.cli.common import fmt_value, number_option, one_line
+from paintcell.cli.junit import clean_text, write_junit
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["add_check", "format_table", "row", "run_isolated", "scenario_worker", "write_junit"]
+__all__ = ["add_check", "clean_text", "format_table", "row", "run_isolated", "scenario_worker",
+           "write_junit"]
 
 GRACE_S = 5.0   # between SIGTERM and SIGKILL of a scenario's process group [s]
 
@@ -341,16 +342,6 @@ def _error_row(script: Path, msg: str) -> dict[str, Any]:
     return {"name": script.stem, "error": clean_text(msg), "passed": False, "checks": []}
 
 
-_ANSI = re.compile(r"\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]")
-_NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
-
-
-def clean_text(text: str) -> str:
-    """Text without terminal escape sequences and without the characters XML 1.0 forbids
-    (NUL, BEL, ESC and the other control characters; lone surrogates)."""
-    return _NOT_XML.sub("", _ANSI.sub("", text))
-
-
 def row(name: str, report: Any) -> dict[str, Any]:
     d = report.to_dict()
     checks = [dict(c) for c in d.get("checks", [])]
@@ -363,13 +354,7 @@ def row(name: str, report: Any) -> dict[str, Any]:
             "cycle_time_s": d.get("executed_cycle_time_s")}
 
 
-def _fmt(v: Any) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, float):
-        # Counts (collisions) and whole percentages print without decimals.
-        return f"{v:.0f}" if v.is_integer() and abs(v) < 1e9 else f"{v:.2f}"
-    return str(v)
+_fmt = fmt_value
 
 
 def _pp(v: Any) -> str:
@@ -399,43 +384,3 @@ def format_table(rows: list[dict[str, Any]]) -> str:
             f"{_pp(r.get('loss_servo_pp')):>8} {_fmt(r['reachability_pct']):>8} "
             f"{_fmt(r['cycle_time_s']):>8}  {'PASS' if r['passed'] else 'FAIL':<6}  {checks}")
     return "\n".join(lines)
-
-
-def write_junit(path: Path, cases: list[tuple[str, float, list[dict[str, Any]], str | None]],
-                *, suite_error: tuple[str, str] | None = None) -> None:
-    """JUnit XML with one test case per scenario; failures list the failing thresholds.
-    `suite_error` (name, message): the check itself did not complete (interrupted, usage error,
-    still running) — an error case of class `paintcell.check`, so the suite is never green.
-    Every text is stripped of control characters (and XML-escaped by the writer)."""
-    import xml.etree.ElementTree as ET
-
-    from paintcell.core.atomic_io import atomic_write_text
-
-    c = clean_text
-    n_fail = sum(1 for _, _, checks, err in cases
-                 if err is None and not all(ch["passed"] for ch in checks))
-    n_err = sum(1 for case in cases if case[3] is not None) + (suite_error is not None)
-    suite = ET.Element("testsuite", name="paintcell-check",
-                       tests=str(len(cases) + (suite_error is not None)),
-                       failures=str(n_fail), errors=str(n_err),
-                       time=f"{sum(case[1] for case in cases):.3f}")
-    for name, dt, checks, err in cases:
-        case = ET.SubElement(suite, "testcase", classname="paintcell.scenarios", name=c(name),
-                             time=f"{dt:.3f}")
-        if err is not None:
-            ET.SubElement(case, "error", message=c(err)).text = c(err)
-            continue
-        bad = [ch for ch in checks if not ch["passed"]]
-        if bad:
-            msg = "; ".join(f"{ch['name']}={_fmt(ch['value'])} (limit {_fmt(ch['limit'])})"
-                            for ch in bad)
-            ET.SubElement(case, "failure", message=c(msg)).text = c(msg)
-        ET.SubElement(case, "system-out").text = c("\n".join(
-            f"{ch['name']}: {_fmt(ch['value'])} (limit {_fmt(ch['limit'])} {ch.get('unit', '')})"
-            for ch in checks))
-    if suite_error is not None:
-        case = ET.SubElement(suite, "testcase", classname="paintcell.check",
-                             name=suite_error[0], time="0.000")
-        ET.SubElement(case, "error", type=suite_error[0],
-                      message=c(suite_error[1])).text = c(suite_error[1])
-    atomic_write_text(path, ET.tostring(suite, encoding="unicode", xml_declaration=True))

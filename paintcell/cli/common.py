@@ -32,6 +32,16 @@ def one_line(exc: BaseException) -> str:
     return msg[0] if msg else type(exc).__name__
 
 
+def fmt_value(v: Any) -> str:
+    """A figure of the check table and JUnit file: '-' for None, counts and whole percentages
+    without decimals, other floats with two."""
+    if v is None:
+        return "-"
+    if isinstance(v, float):
+        return f"{v:.0f}" if v.is_integer() and abs(v) < 1e9 else f"{v:.2f}"
+    return str(v)
+
+
 def number_option(option: str, kind: type[int] | type[float], *, low: float,
                   low_open: bool = False, high: float | None = None, unit: str = "",
                   example: str, note: str = "") -> Callable[[str], Any]:

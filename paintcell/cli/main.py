@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.cli.check import add_check, format_table, write_junit
+from paintcell.cli.check import add_check, format_table
 from paintcell.cli.common import (
     EXIT_FAIL,
     EXIT_INTERRUPTED,
@@ -32,6 +32,7 @@ from paintcell.cli.common import (
     os_error_line,
     symlink_loop_path,
 )
+from paintcell.cli.junit import write_junit
 from paintcell.cli.part_commands import register as add_part_commands
 from paintcell.cli.results import add_export, add_report, add_validate
 from paintcell.cli.run import add_plan, add_run
