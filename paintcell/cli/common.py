@@ -89,7 +89,8 @@ _OS_FIXES = {
 
 def os_error_line(exc: OSError) -> str:
     """One line for an OS error: the path(s) it concerns, what happened and what to do."""
-    where = " -> ".join(str(f) for f in (exc.filename, exc.filename2) if f is not None)
+    # Of a rename or link (source -> destination), the destination is the path the user named.
+    where = str(exc.filename2 if exc.filename2 is not None else exc.filename or "")
     fix = _OS_FIXES.get(exc.errno or -1)
     if fix is None:
         fix = f"{exc.strerror or one_line(exc)}; check the path and retry"

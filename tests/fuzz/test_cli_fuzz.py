@@ -291,6 +291,12 @@ def test_reported_option_cases_in_a_real_process(tmp_path: Path) -> None:
         assert out.returncode == EXIT_USAGE and out.stdout == ""
         assert "argument --timeout: " in _one_line(out.stderr) and "> 0 s" in out.stderr
         assert not _green(junit) and "--timeout" in _errors(junit)["usage"]
+    # An error of the check itself (a missing folder) is in the JUnit file too.
+    out = _cli(tmp_path, "check", str(tmp_path / "nope"), "--junit", str(junit))
+    assert out.returncode == EXIT_USAGE and f"{tmp_path / 'nope'} does not exist" in \
+        _one_line(out.stderr)
+    assert _errors(junit) == {"error": f"paintcell check stopped: scenario path "
+                                       f"{tmp_path / 'nope'} does not exist"}
     for value in ("-1", "nan"):
         out = _cli(tmp_path, "inspect", "x.stl", "--resolution", value)
         assert out.returncode == EXIT_USAGE and "argument --resolution: " in _one_line(out.stderr)
@@ -409,6 +415,17 @@ def _in_process(capfd: pytest.CaptureFixture[str], *args: str) -> tuple[int, str
     except SystemExit as exc:
         code = int(exc.code or 0)
     return code, capfd.readouterr().err
+
+
+def test_a_folder_where_a_file_belongs_is_named(tmp_path: Path,
+                                                capfd: pytest.CaptureFixture[str]) -> None:
+    """EISDIR from the rename onto a folder: the folder the user named, not a temporary name."""
+    target = tmp_path / "door.stl"
+    target.mkdir()
+    code, err = _in_process(capfd, "generate", "door", "--out", str(target))
+    assert code == EXIT_USAGE and _one_line(err) == (f"paintcell: error: {target}: is a folder "
+                                                     "where a file belongs; give a file path\n")
+    assert os.listdir(tmp_path) == ["door.stl"] and os.listdir(target) == []
 
 
 def test_link_loops_and_encodings(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
