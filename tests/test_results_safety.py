@@ -383,7 +383,7 @@ def test_check_survives_exits_exceptions_crashes_and_memory_hogs(
     (d / "a_exit.py").write_text("import sys\nsys.exit(0)\n")
     (d / "b_memory.py").write_text(head.format(n="b") + "raise MemoryError('planted')\n")
     (d / "c_killed.py").write_text("import os, signal\nos.kill(os.getpid(), signal.SIGKILL)\n")
-    bell = (ROOT / "paintcell" / "planning" / "paint" / "data" / "default_bell.toml").read_text()
+    bell = (ROOT / "paintcell" / "paint" / "data" / "default_bell.toml").read_text()
     # whatever the shipped values (a plain text replace of them silently stopped matching when
     # the default bell changed, and d_huge ran the ordinary bell)
     bell = re.sub(r"^sigma_x_m = .*$", "sigma_x_m = 50.0", bell, flags=re.M)
