@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast fuzz lint bench clean
+.PHONY: demo test test-fast fuzz lint bench results clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -31,8 +31,13 @@ lint: $(STAMP)
 	$(BIN)/ruff check paintcell tests benchmarks
 	$(BIN)/mypy
 
+# results.py writes docs/results.md (every scenario and the paper tables): `make results`.
 bench: $(STAMP)
-	for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
+	for b in benchmarks/*.py; do [ $$b = benchmarks/results.py ] && continue; \
+		echo "== $$b"; $(BIN)/python $$b || exit 1; done
+
+results: $(STAMP)
+	$(BIN)/python benchmarks/results.py --jobs 2
 
 clean:
 	rm -rf $(VENV) results build *.egg-info

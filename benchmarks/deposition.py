@@ -27,10 +27,10 @@ from paintcell.paint.deposition import GunSamples, deposition_rate_reference, th
 from paintcell.paint.deposition_kernel import (
     BLOCK_POINTS,
     CHUNK_SAMPLES,
-    _candidate_blocks,
-    _make_blocks,
+    candidate_blocks,
+    make_blocks,
 )
-from paintcell.paint.deposition_samples import _tool_axes
+from paintcell.paint.deposition_samples import tool_axes
 
 
 def door_points() -> tuple[str, np.ndarray, np.ndarray]:
@@ -62,13 +62,13 @@ def raster(spacing_m: float = 0.35, step_m: float = 0.003, speed_m_s: float = 0.
 
 def evaluated_pairs(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndarray) -> int:
     """Pairs the fast kernel actually evaluates (candidate blocks × samples of each chunk)."""
-    blocks = _make_blocks(p, n, BLOCK_POINTS)
-    _, _, a = _tool_axes(gun.spray_axes, gun.travel_dirs)
+    blocks = make_blocks(p, n, BLOCK_POINTS)
+    _, _, a = tool_axes(gun.spray_axes, gun.travel_dirs)
     tan_cone = app.footprint_radius_m / app.standoff_m
     total = 0
     for i in range(0, len(gun), CHUNK_SAMPLES):
         sl = slice(i, min(i + CHUNK_SAMPLES, len(gun)))
-        cand = _candidate_blocks(blocks, gun.positions[sl], a[sl], tan_cone)
+        cand = candidate_blocks(blocks, gun.positions[sl], a[sl], tan_cone)
         total += len(cand) * BLOCK_POINTS * (sl.stop - sl.start)
     return total
 
@@ -91,16 +91,16 @@ def plain_same_pairs(app: Applicator, gun: GunSamples, p: np.ndarray,
     kernels evaluate: every sample of a `CHUNK_SAMPLES` chunk against the points of the blocks
     the cone test keeps for that chunk (the kernels' culling, and nothing else, applied to an
     independent all-pairs evaluation) — so the kernels' arithmetic can be held to round-off."""
-    blocks = _make_blocks(p, n, BLOCK_POINTS)
+    blocks = make_blocks(p, n, BLOCK_POINTS)
     block_of = np.empty(len(p), np.int64)
     block_of[blocks.order] = np.arange(len(p)) // BLOCK_POINTS
-    _, _, a = _tool_axes(gun.spray_axes, gun.travel_dirs)
+    _, _, a = tool_axes(gun.spray_axes, gun.travel_dirs)
     tan_cone = app.footprint_radius_m / app.standoff_m
     out = np.zeros(len(p))
     for i in range(0, len(gun), CHUNK_SAMPLES):
         sl = slice(i, min(i + CHUNK_SAMPLES, len(gun)))
         keep = np.zeros(len(blocks.radii), bool)
-        keep[_candidate_blocks(blocks, gun.positions[sl], a[sl], tan_cone)] = True
+        keep[candidate_blocks(blocks, gun.positions[sl], a[sl], tan_cone)] = True
         pts = np.flatnonzero(keep[block_of])
         if len(pts):
             out[pts] += gun.dwell_s[sl] @ deposition_rate_reference(
@@ -113,7 +113,7 @@ def plain_simplified(app: Applicator, gun: GunSamples, p: np.ndarray, n: np.ndar
     """All S × N pairs with the simplified formula f(h·dx/dz, h·dy/dz)·(−n·d)·h²/dz³ written as
     plain numpy expressions (GEMMs for the projections; no culling, no in-place work), `chunk`
     samples at a time."""
-    x_hat, y_hat, a = _tool_axes(gun.spray_axes, gun.travel_dirs)
+    x_hat, y_hat, a = tool_axes(gun.spray_axes, gun.travel_dirs)
     h = app.standoff_m
     out = np.zeros(len(p))
     for i in range(0, len(gun), chunk):

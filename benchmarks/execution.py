@@ -57,17 +57,17 @@ from paintcell.execution import execute_compiled
 from paintcell.execution.cell import build_cell
 from paintcell.execution.execute import ServoSettings, execute
 from paintcell.execution.execute_models import (
-    _controller_model,
-    _set_torque_actuators,
+    controller_model,
     inverse_dynamics,
+    set_torque_actuators,
 )
 from paintcell.validation.validate import start_program_films, validate
 
 DOOR_SCENARIO = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
 #: (name, compiled loops?, part's collision slabs on the world body?), the first the baseline.
-PATHS = (("python loops, slabs on the part body (before session 3)", False, False),
-         ("compiled loops, slabs on the part body (before)", True, False),
-         ("compiled loops, slabs on the world body (now)", True, True))
+PATHS = (("python loops, slabs on the part body (reference)", False, False),
+         ("compiled loops, slabs on the part body", True, False),
+         ("compiled loops, slabs on the world body (paintcell's path)", True, True))
 
 
 @contextmanager
@@ -169,8 +169,8 @@ def main() -> None:
     print(f"build_cell: {1e3 * t_cell:.1f} ms")
     cells = {False: build_cell(robot, surface, T, part_slabs_on_world=False), True: cell}
     model = cell.model.__copy__()
-    _set_torque_actuators(model, cell)
-    ctrl_model = _controller_model(model, cell, ServoSettings())
+    set_torque_actuators(model, cell)
+    ctrl_model = controller_model(model, cell, ServoSettings())
 
     for _, compiled, on_world in PATHS:
         with loops(compiled):

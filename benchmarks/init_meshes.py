@@ -1,6 +1,5 @@
-"""`paintcell init` on every shared mesh (issue 12 item 6: "seconds, not minutes"): wall and CPU
-time per mesh and what init decided — the robot it chose (and whether it wrote `fold_moves`) or
-its one-line refusal.
+"""`paintcell init` on every shared mesh: wall and CPU time per mesh and what init decided — the
+robot it chose (and whether it wrote `fold_moves`) or its one-line refusal.
 
 Each mesh runs as `python -m paintcell init FILE --out DIR/NAME.toml` in its own process, one at a
 time, as a user runs it; the first run of a fresh checkout also compiles the numba film kernels

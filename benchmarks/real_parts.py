@@ -1,5 +1,6 @@
-"""Per-part table of the real-part scenarios (issue 12): film, loss, tolerance window, cycle time,
-honest reachability, joint jumps and collisions — the README table, reproduced.
+"""Per-part table of the real-part scenarios: film, loss, tolerance window, cycle time, honest
+reachability, joint jumps and collisions, at the fast or the full resolution
+(`benchmarks/results.py` writes docs/results.md from `paintcell check --fast` of every scenario).
 
 Each scenario runs as `python -m paintcell run SCENARIO [--fast] --out DIR` in its own process (the
 way `paintcell check` runs it) and the table is read back from the run's metrics.json, so the
@@ -29,7 +30,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: The real-part scenarios of issue 12, in the README's order.
+#: The real-part scenarios.
 REAL_PARTS = ("cad_door", "cad_hood", "cad_fender", "cad_roof", "snp_panel", "reach_hood_panel",
               "crs_cowling_3_holes", "crs_cowling_creases")
 
@@ -71,7 +72,7 @@ def _metrics(d: dict) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scenarios", nargs="*", type=Path,
-                    help="scenario files (default: the issue-12 real-part scenarios)")
+                    help="scenario files (default: the real-part scenarios)")
     ap.add_argument("--full", action="store_true",
                     help="full resolution (resolution_m) instead of the fast one")
     args = ap.parse_args(argv)

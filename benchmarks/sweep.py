@@ -25,7 +25,7 @@ import numpy as np
 
 from paintcell.app.scenario_files import load_scenario
 from paintcell.sweeps.sweep import run_sweep
-from paintcell.sweeps.sweep_spec import SweepSpec
+from paintcell.validation.sweep_spec import SweepSpec
 
 DOOR = Path(__file__).resolve().parent.parent / "scenarios" / "door.toml"
 #: the door scenario's own sweep factors (scenarios/door.toml [sweep.factors]).

@@ -23,7 +23,7 @@ import numpy as np
 
 from paintcell.app.scenario_files import load_scenario
 from paintcell.sweeps.sweep import run_sweep
-from paintcell.sweeps.sweep_spec import spec_from_scenario
+from paintcell.validation.sweep_spec import spec_from_scenario
 
 BOOTH = Path(__file__).resolve().parent.parent / "scenarios" / "booth.toml"
 

@@ -125,9 +125,9 @@ FD_LIMIT_RTOL = 1e-6
 # Vectorized ruckig profile evaluation vs ruckig's own at_time, and boundary states of a move:
 # the same cubics in float64 (observed ~1e-13).
 RUCKIG_STATE_ATOL = 1e-9
-# TCP path deviation from the planned path on paint segments [m] (issue 5: < 0.5 mm).
+# TCP path deviation from the planned path on paint segments [m] (required: < 0.5 mm).
 TCP_PATH_ATOL_M = 0.5e-3
-# TCP speed vs planned where no limit binds (issue 5: within 1 %); measured by central differences
+# TCP speed vs planned where no limit binds (required: within 1 %); measured by central differences
 # of 1 kHz FK positions (chord error on a 1 m radius at 1 m/s: ~1e-8 relative).
 SPEED_FOLLOW_RTOL = 0.01
 # Executed film from 5 ms bins vs every 1 ms step (midpoint rule, travel per bin ≪ footprint σ):

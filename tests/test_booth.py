@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.app.scenario import Placement
 from paintcell.booth.booth import (
     BodyPart,
     Booth,
@@ -28,11 +27,12 @@ from paintcell.booth.booth import (
     estimate_s,
 )
 from paintcell.booth.booth_film import gun_in_body, plan_gun_in_body
-from paintcell.booth.booth_programs import _load_robots
+from paintcell.booth.booth_programs import load_robots
 from paintcell.booth.booth_rapid import booth_rapid_modules
 from paintcell.booth.booth_run import run_booth
 from paintcell.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagger_starts
 from paintcell.booth.conveyor import Conveyor
+from paintcell.core.placement import Placement
 from paintcell.paint.deposition import GunSamples, thickness
 
 HOME = (0.0, 0.0, -0.6, 0.3, 0.0, 0.9, 0.0)
@@ -54,7 +54,7 @@ ROOF_BOOTH = Booth(
     thresholds=BoothThresholds(min_bell_distance_m=0.8),
     # the bell this cell was laid out for (see scenarios/booth.toml)
     applicator=str(Path(__file__).resolve().parents[1] / "scenarios" / "bells"
-                   / "issue3_bell.toml"),
+                   / "narrow_bell.toml"),
 )
 
 
@@ -221,7 +221,7 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
 
 
 def test_rapid_modules_are_synchronised_and_conveyor_coordinated(roof_booth):
-    robots = _load_robots(ROOF_BOOTH)
+    robots = load_robots(ROOF_BOOTH)
     mods = booth_rapid_modules(roof_booth, robots)
     assert set(mods) == {"T_ROOF_L", "T_ROOF_R"}
     for text, traj in zip(mods.values(), roof_booth.static_trajectories, strict=True):
@@ -413,7 +413,7 @@ def test_booth_toml_is_read_and_checked(tmp_path):
     with pytest.raises(BoothDataError, match="rail = \\[lower, upper\\]"):
         load_scenario(bad)
     # the bell: a path relative to the booth file, shared by all robots
-    assert b.applicator == str((Path("scenarios") / "bells" / "issue3_bell.toml").resolve())
+    assert b.applicator == str((Path("scenarios") / "bells" / "narrow_bell.toml").resolve())
     bad.write_text('name = "b"\napplicator = 3\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\n')
     with pytest.raises(BoothDataError, match="applicator = 3 must be a path"):
         load_scenario(bad)
@@ -440,7 +440,7 @@ def test_booth_report_in_a_browser(roof_booth, tmp_path):
     from paintcell.booth.booth_report import _ZONE_COLOURS
     from paintcell.booth.booth_results import write_booth_results
 
-    write_booth_results(roof_booth, tmp_path, _load_robots(ROOF_BOOTH))
+    write_booth_results(roof_booth, tmp_path, load_robots(ROOF_BOOTH))
     m = json.loads((tmp_path / "metrics.json").read_text())
     with Image.open(tmp_path / "body_film.png") as im:
         rgb = np.asarray(im.convert("RGB")).reshape(-1, 3)
@@ -532,7 +532,7 @@ def _held_first(traj, n: int):
 
 
 def test_booth_reachability_is_honest(roof_booth):
-    """The booth's reachability is its least robot's honest figure (issue 12 item 5): a contact
+    """The booth's reachability is its least robot's honest figure: a contact
     during a pass takes exactly that pass's pose, one during a move the two poses it links, on
     the robot's own clock however late it started in the booth (here 2.5 s later than in the
     run: its program's first pose held, as a start delay holds it)."""
@@ -574,8 +574,8 @@ def test_booth_reachability_is_honest(roof_booth):
 def test_booth_thresholds_are_checked_at_load(tmp_path, key, value, words):
     """A booth limit no run can meet, one that cannot fail, or a wrong type is refused when the
     file loads, in one line naming the key (as a one-robot scenario's), not after the run."""
-    from paintcell.app.scenario_checks import ScenarioDataError
     from paintcell.app.scenario_files import load_scenario
+    from paintcell.core.errors import ScenarioDataError
 
     src = (Path(__file__).resolve().parents[1] / "scenarios" / "booth.toml").read_text()
     lines = [ln for ln in src.splitlines() if not ln.startswith(f"{key} = ")]
@@ -601,7 +601,7 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
     from paintcell.execution.trace import Contact
 
     res = roof_booth
-    robot = _load_robots(ROOF_BOOTH)[0]
+    robot = load_robots(ROOF_BOOTH)[0]
     s0, s1 = (dataclasses.replace(s, meta=copy.deepcopy(s.meta))
               for s in res.static_trajectories)
     jobs = (res.jobs[0][0], res.jobs[1][0])

@@ -1,6 +1,6 @@
 """A booth part read from a mesh file: the `[parts.part]` table is a scenario's `[part]` table,
-read by the same loader (`MeshPart.from_dict`, `paintcell.app.pipeline.part_surface`), so the
-booth plans exactly the surface and passes a one-robot scenario of that file plans."""
+read by the same loader (`MeshPart.from_dict`, `paintcell.surface.part_surface.part_surface`),
+so the booth plans exactly the surface and passes a one-robot scenario of that file plans."""
 
 from __future__ import annotations
 

@@ -60,10 +60,10 @@ def test_stripe_profile_integrates_to_flow() -> None:
     assert np.trapezoid(prof, y) * 0.4 == pytest.approx(TRUE.emitted_flow_m3_s, rel=1e-9)
 
 
-@pytest.mark.parametrize("initial", [None, "issue3_bell.toml"])
+@pytest.mark.parametrize("initial", [None, "narrow_bell.toml"])
 def test_noise_free_stripe_is_recovered_exactly(initial: str | None) -> None:
     # from the shipped bell's shape scaled to the stripe (the default start), and from a given
-    # model (the issue-3 bell, whose rings lie near TRUE's; a local fit needs a start of the
+    # model (the narrow bell, whose rings lie near TRUE's; a local fit needs a start of the
     # right shape: the unscaled default bell, rings at 0.13 / 0.31 m, does not converge here)
     y = np.linspace(-0.4, 0.4, 401)
     start = None if initial is None else Applicator.from_toml(BELLS / initial)

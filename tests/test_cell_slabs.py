@@ -62,9 +62,9 @@ def test_a_displaced_part_takes_its_slabs_along() -> None:
     moved = [abs(c.depth_m - depth.get((c.body1, round(c.time_s, 6)), 0.0)) for c in new.contacts]
     assert max(moved) > 0.01
     # The world body's tree still bounds every moved slab (MuJoCo's midphase reaches them all).
-    from paintcell.execution.execute_models import _disturbed_model
+    from paintcell.execution.execute_models import disturbed_model
 
-    model, _, _ = _disturbed_model(new_cell, dist)
+    model, _, _ = disturbed_model(new_cell, dist)
     d = mujoco.MjData(model)
     mujoco.mj_kinematics(model, d)
     root = model.bvh_aabb[model.body_bvhadr[0]]

@@ -82,13 +82,15 @@ def test_junit_xml_is_valid_with_one_case_per_scenario(tmp_path: Path) -> None:
 
 BROKEN = {
     "typo.py": '''
-from paintcell.app.scenario import Placement, Scenario
+from paintcell.app.scenario import Scenario
+from paintcell.core.placement import Placement
 SCENARIO = Scenario(name="typo", part="panel", part_placement=Placement(),
                     planner={"v_nominl_m_s": 0.4})
 ''',
     "syntax.py": "SCENARIO = Scenario(\n",
     "badvalue.py": '''
-from paintcell.app.scenario import Placement, Scenario
+from paintcell.app.scenario import Scenario
+from paintcell.core.placement import Placement
 SCENARIO = Scenario(name="badvalue", part="panel", part_placement=Placement(),
                     fast_resolution_m=-0.01)
 ''',

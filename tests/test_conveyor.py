@@ -8,12 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.app.scenario import pose
 from paintcell.app.scenario_files import load_scenario
 from paintcell.booth.booth_cell import build_booth_cell
 from paintcell.booth.booth_film import gun_in_body
 from paintcell.booth.booth_run import combined_program
 from paintcell.booth.conveyor import Conveyor, ConveyorError, track_program
+from paintcell.core.placement import pose
 from paintcell.execution.cell import build_cell
 from paintcell.execution.execute import execute
 from paintcell.motion.joint_trajectory import PAINT, JointTrajectory

@@ -299,8 +299,8 @@ def test_algorithm1_terminates_on_every_part_and_covers_it(name: str) -> None:
     # σ/μ bounds: the paper's planar 2.64 %; for the curved parts what this plan achieved
     # (constant speed, 250 mm overspray, every third vertex) + 1 point: cylinder 6.17, door 2.95,
     # fender 9.66, hood 1.70, roof 3.51 %; min film ≥ 65 % of the mean (achieved ≥ 71 %). The
-    # curvature-robust default bell (issue 16, third session) plans the door in 6 passes at
-    # 0.17-0.25 m instead of 7: door 4.51 % here (its speed-optimized check run: 4.41 %)
+    # curvature-robust default bell plans the door in 6 passes at 0.17-0.25 m: door 4.51 % here
+    # (its speed-optimized check run: 4.41 %)
     bound = {"panel": 2.64, "cylinder_section": 7.2, "door": 5.5, "fender": 10.7, "hood": 2.7,
              "roof": 4.5}[name]
     assert u.nsd_pct <= bound, f"{name}: σ/μ {u.nsd_pct:.2f} % > {bound} %"
@@ -409,7 +409,7 @@ def test_offset_past_a_focal_point_is_refused() -> None:
     dome = trimesh.Trimesh(ico.vertices, ico.faces[keep])
     dome.remove_unreferenced_vertices()
     s = Surface.from_mesh(dome, name="dome")
-    # the plain width rule (width_tolerance_m = 0): with issue 16's sensitivity window the
+    # the plain width rule (width_tolerance_m = 0): with the width rule's sensitivity window the
     # narrower widths on this dome walk a later level-set pass onto the pole (a degenerate pass)
     st = PlannerSettings(optimize_speed=False, start_position=0.2, sample_spacing_m=0.04,
                          geodesic_fallback=False, width_tolerance_m=0.0)
@@ -495,7 +495,8 @@ def arc_length_m(points: np.ndarray) -> float:
 def test_door_from_a_mesh_file_gives_a_robot_program(tmp_path) -> None:
     # the trajectory stage used to fail on the mesh door's kinked edge pass ("TOPP-RA failed on
     # a pass"); the placement of scenarios/door.toml
-    from paintcell.app.scenario import Placement, facing_robot
+    from paintcell.app.scenario import facing_robot
+    from paintcell.core.placement import Placement
     from paintcell.motion.trajectory import TrajectorySettings, build_program
     from paintcell.robots import load_robot
 

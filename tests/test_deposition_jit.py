@@ -108,10 +108,10 @@ def test_zero_amplitudes_and_a_partial_last_group_of_samples() -> None:
     from paintcell.paint.deposition_kernel import (
         BLOCK_POINTS,
         CHUNK_SAMPLES,
-        _candidate_blocks,
-        _make_blocks,
+        candidate_blocks,
+        make_blocks,
     )
-    from paintcell.paint.deposition_samples import _tool_axes
+    from paintcell.paint.deposition_samples import tool_axes
 
     base = Applicator.default()
     app = Applicator(base.standoff_m, 0.0, base.sigma_x_m, base.sigma_y_m,
@@ -128,12 +128,12 @@ def test_zero_amplitudes_and_a_partial_last_group_of_samples() -> None:
         got = thickness(app, gun, p, n, backend="numba")
         assert ref.max() > 0
         assert np.max(np.abs(got - ref)) <= 1e-9 * ref.max()
-        x_hat, y_hat, a = _tool_axes(gun.spray_axes, gun.travel_dirs)
+        x_hat, y_hat, a = tool_axes(gun.spray_axes, gun.travel_dirs)
         _, evaluated = jit.film_cpu(p, n, gun.positions, x_hat, y_hat, a, gun.dwell_s,
                                     CHUNK_SAMPLES, tan_cone, jit.params(app))
-        blocks = _make_blocks(p, n, BLOCK_POINTS)
+        blocks = make_blocks(p, n, BLOCK_POINTS)
         sizes = np.minimum(len(p) - np.arange(len(blocks.radii)) * BLOCK_POINTS, BLOCK_POINTS)
-        want = sum(int(sizes[_candidate_blocks(blocks, gun.positions[c:c + CHUNK_SAMPLES],
+        want = sum(int(sizes[candidate_blocks(blocks, gun.positions[c:c + CHUNK_SAMPLES],
                                                a[c:c + CHUNK_SAMPLES], tan_cone)].sum())
                    * len(gun.positions[c:c + CHUNK_SAMPLES]) for c in range(0, k, CHUNK_SAMPLES))
         assert evaluated == want

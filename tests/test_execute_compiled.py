@@ -23,9 +23,9 @@ import pytest
 from paintcell.execution import execute_compiled, execute_models
 from paintcell.execution.execute import ServoSettings, execute
 from paintcell.execution.execute_models import (
-    _controller_model,
-    _set_torque_actuators,
+    controller_model,
     inverse_dynamics,
+    set_torque_actuators,
 )
 from paintcell.execution.trace import ExecutedTrace
 from tests.test_execute import make_case, make_cell
@@ -80,8 +80,8 @@ def test_inverse_dynamics_equals_the_per_sample_mj_inverse_loop(
     case, cell = make_case(), make_cell()
     traj = case.traj
     model = copy.copy(cell.model)
-    _set_torque_actuators(model, cell)
-    ctrl_model = _controller_model(model, cell, ServoSettings())
+    set_torque_actuators(model, cell)
+    ctrl_model = controller_model(model, cell, ServoSettings())
     # long enough for the two-thread split (execute_models._inverse_compiled), which runs on
     # any machine with two cores
     assert len(traj.q) >= execute_models.SPLIT_MIN_SAMPLES

@@ -16,7 +16,7 @@ from paintcell.paint.deposition import deposition_rate
 from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
 from paintcell.surface import parts
 
-ISSUE3_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "issue3_bell.toml"
+NARROW_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "narrow_bell.toml"
 
 
 def _film(app: Applicator, passes: list, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
@@ -34,7 +34,7 @@ def test_interior_weighted_fit_lowers_both_when_the_plain_fit_does_not() -> None
     # the library roof with the bell and planner settings of scenarios/roof.toml, at 25 mm:
     # the plain fit takes the whole part 5.27 -> 4.77 % but the interior 4.0000 -> 4.0008 %
     part = parts.get_part("roof", resolution_m=0.025)
-    app = Applicator.from_toml(str(ISSUE3_BELL))
+    app = Applicator.from_toml(str(NARROW_BELL))
     st = PlannerSettings(width_tolerance_m=0.0, first_side="right", film_refine=False)
     plan = plan_coverage(part, app, st)
     V, N, a = part.vertices, part.normals, part.vertex_areas

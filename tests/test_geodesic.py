@@ -27,11 +27,10 @@ from paintcell.surface.surface import Surface, cylinder, plane
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 RES_M = 0.01
 
-# The raw-panel case below was written for the bell of issue 3 (kept as
-# scenarios/bells/issue3_bell.toml: 100–170 mm widths on this panel). With the issue-16 default
-# bell the heat-method passes of this raw mesh come 13 mm close (passes -14/-13, check below):
-# a known gap of the fallback at wider widths, noted in the issue-16 closing note.
-ISSUE3_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "issue3_bell.toml"
+# The raw-panel case below uses the narrow bell (scenarios/bells/narrow_bell.toml: 100–170 mm
+# widths on this panel). With the default bell the heat-method passes of this raw mesh come 13 mm
+# close (passes -14/-13, check below): a known limit of the fallback at wider widths.
+NARROW_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "narrow_bell.toml"
 
 
 def _line(x0: float, x1: float, n: int = 61) -> np.ndarray:
@@ -84,9 +83,9 @@ def test_real_panel_that_walking_breaks_plans_with_the_heat_fallback() -> None:
     s = _hood_panel()
     raw = dict(smoothing_m=None, first_side="right")
     with pytest.raises(PlanError, match="self-intersects"):
-        plan_coverage(s, Applicator.from_toml(ISSUE3_BELL),
+        plan_coverage(s, Applicator.from_toml(NARROW_BELL),
                       PlannerSettings(geodesic_fallback=False, **raw))
-    plan = plan_coverage(s, Applicator.from_toml(ISSUE3_BELL), PlannerSettings(**raw))
+    plan = plan_coverage(s, Applicator.from_toml(NARROW_BELL), PlannerSettings(**raw))
     infos = plan.settings["report"]["passes"]
     assert any(i.get("offset") == "heat-method level set" for i in infos)
     _assert_passes_do_not_cross(plan, min_passes=4)

@@ -28,10 +28,10 @@ from paintcell.surface.surface import Surface, plane, surface_from_triangles
 WINDOW = (-0.3, 0.1, -0.12, 0.12)      # x0, x1, y0, y1 [m]
 HOLE_C, HOLE_R = (0.3, 0.15), 0.06     # service hole centre (x, y), radius [m]
 
-# The plate was laid out for the pass spacing of the bell of issue 3 (kept as
-# scenarios/bells/issue3_bell.toml, 160–180 mm): a pass runs over the service hole. The issue-16
-# default bell spaces passes 330 mm apart (y = 0, ±0.33 m here), which straddle the hole.
-ISSUE3_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "issue3_bell.toml"
+# The plate is laid out for the pass spacing of the narrow bell (scenarios/bells/narrow_bell.toml,
+# 160–180 mm): a pass runs over the service hole. The default bell spaces passes 330 mm apart
+# (y = 0, ±0.33 m here), which straddle the hole.
+NARROW_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "narrow_bell.toml"
 
 
 def _holed_plate() -> tuple[Surface, trimesh.Trimesh]:
@@ -54,7 +54,7 @@ def _holed_plate() -> tuple[Surface, trimesh.Trimesh]:
 @functools.lru_cache(maxsize=1)
 def _case() -> tuple[Surface, trimesh.Trimesh, CoveragePlan]:
     part, gone = _holed_plate()
-    plan = plan_coverage(part, Applicator.from_toml(ISSUE3_BELL), PlannerSettings(orientation=0.0,
+    plan = plan_coverage(part, Applicator.from_toml(NARROW_BELL), PlannerSettings(orientation=0.0,
                                                                      first_side="right"))
     return part, gone, plan
 

@@ -1,4 +1,4 @@
-"""`paintcell generate`, `inspect` and `init` (issue 11): a generated CAD-like part goes in as a
+"""`paintcell generate`, `inspect` and `init`: a generated CAD-like part goes in as a
 file, comes out as a ready TOML scenario that `plan` and `run` accept as written."""
 
 from __future__ import annotations

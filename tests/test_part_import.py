@@ -1,4 +1,4 @@
-"""Real part files in (issue 11): units, repair, remesh, regions, CAD, refusals — each against an
+"""Real part files in: units, repair, remesh, regions, CAD, refusals — each against an
 independent truth (the generator's construction, closed-form areas, the file's own numbers)."""
 
 from __future__ import annotations
@@ -327,7 +327,8 @@ def _median_edge_m(s: Surface) -> float:
 def test_resolution_and_fast_work_for_mesh_parts(parts):
     """`resolution_m` and `--fast` remesh a mesh part, given as a bare path or a [part] table."""
     from paintcell.app.pipeline import load_surface
-    from paintcell.app.scenario import Placement, Scenario
+    from paintcell.app.scenario import Scenario
+    from paintcell.core.placement import Placement
 
     path, truth = parts["fender"]
     for part in (str(path), {"file": str(path), "units": "mm"}):

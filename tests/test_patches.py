@@ -30,11 +30,11 @@ from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import uniformity
 from paintcell.surface.surface import Surface, grid_faces, surface_from_triangles
 
-# The bracket's 0.5 m faces were sized for the bell of issue 3 (kept as
-# scenarios/bells/issue3_bell.toml, 160 mm widths: 4 passes a face). With the issue-16 default bell
-# (330 mm) a face holds one pass and its edge passes, and the seam band reaches σ/μ 7.6 % against
-# 2.7 % inside — a known gap of the seam blending with wide bells (issue-16 closing note).
-ISSUE3_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "issue3_bell.toml"
+# The bracket's 0.5 m faces are sized for the narrow bell (scenarios/bells/narrow_bell.toml,
+# 160 mm widths: 4 passes a face). With the default bell (330 mm) a face holds one pass and its
+# edge passes, and the seam band reaches σ/μ 7.6 % against 2.7 % inside — a known limit of the
+# seam blending with wide bells.
+NARROW_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "narrow_bell.toml"
 
 
 def bracket(res_m: float = 0.02) -> tuple[Surface, np.ndarray]:
@@ -55,7 +55,7 @@ def bracket(res_m: float = 0.02) -> tuple[Surface, np.ndarray]:
 @functools.lru_cache(maxsize=1)
 def _plans() -> tuple[Surface, np.ndarray, CoveragePlan, CoveragePlan]:
     s, t = bracket()
-    app = Applicator.from_toml(ISSUE3_BELL)
+    app = Applicator.from_toml(NARROW_BELL)
     return (s, t, plan_patches(s, app, start_point=np.array([0.0, 2.0, 1.0])),
             plan_coverage(s, app, PlannerSettings()))
 
@@ -91,7 +91,7 @@ def test_film_across_the_seam_is_within_1_5x_the_interior() -> None:
     assert nsd(np.ones(len(x), bool)) < nsd(np.ones(len(x), bool), film1)
     rep = plan.settings["report"]
     assert len(rep["patches"]) == 2
-    # The seam blending switches samples off. With the issue-16 film guard on each patch the
+    # The seam blending switches samples off. With the film guard on each patch the
     # best seam share switches none (whole-part σ/μ 5.355 % at shares ≥ 1.5 against 5.363 % at
     # 1.0, which switches some off), so the mechanism is checked on the plain QP speeds the
     # case was written for (film_guard=False: share 0.8, samples switched off).
@@ -129,7 +129,7 @@ def test_speed_caps_reach_every_patch() -> None:
     every pass of every patch under its caps, sample by sample, where a patch plan ignored them;
     the passes themselves do not move."""
     s, _ = bracket()
-    app = Applicator.from_toml(ISSUE3_BELL)
+    app = Applicator.from_toml(NARROW_BELL)
     st = PlannerSettings(patches=True)
     plan = plan_coverage(s, app, st)
     n = len(plan.passes)

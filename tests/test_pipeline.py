@@ -17,7 +17,9 @@ from paintcell.motion.joint_trajectory import JointTrajectory
 
 SCENARIO = '''
 from paintcell.cli.main import run_script
-from paintcell.app.scenario import Placement, Scenario, Thresholds, facing_robot
+from paintcell.app.scenario import Scenario, facing_robot
+from paintcell.core.placement import Placement
+from paintcell.validation.validate_report import Thresholds
 
 SCENARIO = Scenario(
     name="{name}",

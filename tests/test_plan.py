@@ -105,3 +105,31 @@ def test_corrupt_npz_raises_plan_error(tmp_path) -> None:
     _plan().save(tmp_path / "plan.json")
     (tmp_path / "plan.npz").write_bytes(b"PK\x03\x04 not a zip")
     _expect(tmp_path / "plan.json", "re-run `paintcell plan`")
+
+
+def _pass_through(points: np.ndarray) -> PassPlan:
+    """A pass at 0.4 m/s along `points` (M, 3) [m], the spray axis straight down."""
+    d = np.gradient(points, axis=0)
+    d[:, 2] = 0.0
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    m = len(points)
+    v = np.full(m, 0.4)
+    return PassPlan(points, np.tile([0.0, 0.0, -1.0], (m, 1)), d, v,
+                    times_from_speeds(points, v), np.ones(m, bool), np.ones(m, bool))
+
+
+def test_worst_turn_of_a_pass_against_closed_forms(tmp_path) -> None:
+    # an arc of radius R sampled every dθ: consecutive chords turn by exactly dθ
+    R, dth = 0.5, np.radians(3.0)
+    th = np.arange(0, 40) * dth
+    arc = _pass_through(np.c_[R * np.cos(th), R * np.sin(th), np.zeros_like(th)])
+    assert arc.max_turn_deg == pytest.approx(3.0, abs=1e-9)
+    # a straight run, a 90° corner and a straight run: 90° at the corner, nowhere more
+    x = np.r_[np.linspace(0, 0.2, 11), np.full(10, 0.2)]
+    y = np.r_[np.zeros(11), np.linspace(0.02, 0.2, 10)]
+    corner = _pass_through(np.c_[x, y, np.zeros_like(x)])
+    assert corner.max_turn_deg == pytest.approx(90.0, abs=1e-9)
+    plan = replace(_plan(), passes=(arc, corner))
+    plan.save(tmp_path / "plan.json")
+    meta = json.loads((tmp_path / "plan.json").read_text())
+    assert [p["max_turn_deg"] for p in meta["passes"]] == pytest.approx([3.0, 90.0], abs=1e-9)

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.app.scenario import pose
 from paintcell.app.scenario_files import load_scenario
+from paintcell.core.placement import pose
 from paintcell.execution.cell import build_cell
 from paintcell.execution.execute import execute
 from paintcell.motion.joint_trajectory import PAINT
@@ -149,7 +149,7 @@ def test_refined_pass_keeps_the_carriage_still(roof_case):
     placement put it for the pass). Every 8th IK sample of a roof pass leaves the spline
     centimetres off the path, so knots are inserted; re-measured: the rail column is exactly
     constant, and the inserted knots are on the path."""
-    from paintcell.motion.trajectory_paths import _refined_path
+    from paintcell.motion.trajectory_paths import refined_path
     from paintcell.robots.paths import solve_paths
 
     scn, _, plan, robot = roof_case
@@ -162,7 +162,7 @@ def test_refined_pass_keeps_the_carriage_still(roof_case):
     def fk_pos(Q):
         return robot.fk_many(Q)[:, :3, 3]
 
-    path, dev = _refined_path(robot, fk_pos, s[keep], p[keep], q[keep], 1e-4)
+    path, dev = refined_path(robot, fk_pos, s[keep], p[keep], q[keep], 1e-4)
     assert len(path.s_knots) > len(keep)                  # knots were inserted
     assert np.ptp(path.q_knots[:, 0]) == 0.0              # the carriage did not move
     on = np.isin(path.s_knots, s[keep], invert=True)

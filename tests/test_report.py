@@ -114,7 +114,7 @@ def test_report_is_self_contained_html_with_every_metric(results):
     p.feed(text)
     p.close()
     assert not p.stack, f"unclosed tags {p.stack}"
-    # every PNG of the folder is embedded, the execution GIF only on request (issue 17: a
+    # every PNG of the folder is embedded, the execution GIF only on request (a
     # report under 2 MB by default), and nothing is fetched from outside
     images = sorted(x for x in results.iterdir() if x.suffix in (".png", ".gif"))
     assert len(p.srcs) == len(images) - 1 == 2

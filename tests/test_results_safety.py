@@ -1,6 +1,6 @@
-"""Results safety, replayed as a hostile user would (issue 13): real processes, real signals.
+"""Results safety, replayed as a hostile user would: real processes, real signals.
 
-Every case of the issue: decoy folders survive, failed runs are not exported, code named in a
+Every case: decoy folders survive, failed runs are not exported, code named in a
 results folder is never executed, invalid thresholds are refused, `check` survives scenarios that
 exit, raise or crash, killed runs leave nothing the next run does not clean, two concurrent runs
 cannot both write, and the messages name the file at fault.

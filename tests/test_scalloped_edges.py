@@ -1,4 +1,4 @@
-"""Real-part coverage (issue 12): a pass ending in a notch of a scalloped edge, and a smooth arch
+"""Real-part coverage: a pass ending in a notch of a scalloped edge, and a smooth arch
 cut by the patch segmentation.
 
 Independent truth: the plate's geometry (where its tongues end), the film of the produced passes

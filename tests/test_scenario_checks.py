@@ -10,10 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.app.pipeline import settings_from
-from paintcell.app.scenario_checks import ScenarioDataError, _settings_classes
+from paintcell.app.scenario_checks import _settings_classes
 from paintcell.app.scenario_files import load_scenario
 from paintcell.booth.booth import Booth
+from paintcell.core.errors import ScenarioDataError
+from paintcell.core.settings import settings_from
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[1] / "scenarios").glob("*.toml"))
 

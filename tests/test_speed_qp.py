@@ -167,7 +167,7 @@ def test_speed_upper_bounds_are_met() -> None:
     cap = np.where(np.isfinite(cap), cap, settings.v_max_m_s)
     assert free.sample_speeds_m_s[mid] > 0.42
     res = optimize_speed_from_rates(rates, band.lengths, s, settings, v_upper_m_s=cap)
-    # Known gap (issue 16 note): under caps the SQP's linearized equality leaves the average film
+    # Known limit: under caps the SQP's linearized equality leaves the average film
     # on the pass ~2 % off; the caps, bounds and accelerations hold exactly.
     _remeasure(res, s, settings, rates, band.lengths, cap, equality_rtol=0.03)
     assert res.optimized

@@ -272,7 +272,7 @@ def test_section_components_are_ordered_chains_of_the_whole_component() -> None:
     ordering returns (all of them, or the one holding a wanted crossing, as an indexing curve
     asks) is exactly a connected component found by brute force, every consecutive pair of its
     crossings shares a face, and an open chain starts at one of its ends."""
-    from paintcell.coverage.offset_sections import _crossings, _order_components
+    from paintcell.coverage.offset_sections import order_components, section_crossings
 
     geom = SurfaceGeometry.from_surface(parts.get_part("hood", 0.05))
     rng = np.random.default_rng(7)
@@ -281,12 +281,12 @@ def test_section_components_are_ordered_chains_of_the_whole_component() -> None:
         o = geom.vertices[rng.integers(len(geom.vertices))]
         nrm = rng.normal(size=3)
         d = (geom.vertices - o) @ (nrm / np.linalg.norm(nrm))
-        cross, _, _ = _crossings(geom, d)
+        cross, _, _ = section_crossings(geom, d)
         truth = _components_brute(geom, cross)
         faces_of = [set(geom.edge_faces[e]) - {-1} for e in cross]
         wanted = np.array([int(rng.integers(len(cross)))])
         for want in (None, wanted):
-            got = _order_components(geom, d, cross, want)
+            got = order_components(geom, d, cross, want)
             expect = truth if want is None else [c for c in truth if int(wanted[0]) in c]
             assert sorted(map(sorted, (set(o.tolist()) for o, _ in got))) == \
                 sorted(map(sorted, expect))

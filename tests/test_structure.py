@@ -1,6 +1,9 @@
-"""The house rules, found from the code: modules of at most 400 lines, no import cycles (lazy
+"""The house rules, found from the code: modules of at most 400 lines, no import cycles between
+modules nor between folders, which follow one declared order with the command line on top (lazy
 imports inside functions count; `if TYPE_CHECKING:` blocks do not run and do not count), a folder
 per stage, and a README "Where things live" table that matches the tree.
+
+Nor does a module use another's private (underscored) names.
 
 The checkers are also run on small synthetic packages that break each rule, so a checker that
 stopped finding anything would fail here too.
@@ -14,7 +17,16 @@ from pathlib import Path
 
 import pytest
 
-from tests.structure import MAX_MODULE_LINES, import_cycles, import_graph, long_modules
+from tests.structure import (
+    MAX_MODULE_LINES,
+    against_order,
+    folder_graph,
+    folder_of,
+    import_cycles,
+    import_graph,
+    long_modules,
+    private_imports,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "paintcell"
@@ -36,46 +48,62 @@ def test_no_import_cycles() -> None:
     assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
 
 
-#: The stages in data-flow order; a module may import its own stage and the ones before it.
-#: booth, sweeps, app and cli sit on top of the chain (they use every stage and each other,
-#: without cycles).
-STAGE_ORDER = ["core", "surface", "paint", "coverage", "robots", "motion", "execution",
-               "validation", "output"]
-ON_TOP = ("paintcell.booth", "paintcell.sweeps", "paintcell.app", "paintcell.cli")
+#: The folders in data-flow order: a module imports only its own folder and the ones before it
+#: (lazy imports inside functions count). After the stages of one part's data flow come the
+#: booth (several robots and a conveyor, built from those stages), the application (scenario
+#: files of either kind, the pipeline, `init`), the sweeps (many runs of a scenario), the public
+#: API (`paintcell/__init__.py`, shown as "paintcell") and, on top, the command line
+#: (`paintcell/__main__.py` is the command line too).
+LAYERS = ["core", "surface", "paint", "coverage", "robots", "motion", "execution", "validation",
+          "output", "booth", "app", "sweeps", "paintcell", "cli"]
+
+
+def _layer(folder: str) -> str:
+    return "cli" if folder == "__main__" else folder
 
 
 def _stage(mod: str) -> int | None:
-    """Index in STAGE_ORDER of the longest stage prefix of `mod` (`core`'s modules, such as
-    `errors`, are stage 0, shared by every stage after it)."""
+    """Index in LAYERS of the folder `mod` lives in (`core`'s modules, such as `errors`, are 0,
+    shared by every folder after it); None for a folder that is not a layer."""
     rest = mod.removeprefix("paintcell.")
-    found = None
-    for i, s in enumerate(STAGE_ORDER):
-        if rest == s or rest.startswith(s + "."):
-            found = i
-    return found
+    f = _layer(folder_of(mod)) if rest != mod or mod == "paintcell" else None
+    return LAYERS.index(f) if f in LAYERS else None
 
 
 def test_every_module_lives_in_a_stage() -> None:
-    """No module outside the stage folders (a new `paintcell/x.py` would dodge the data-flow
-    check): only the package roots and `paintcell/__main__.py` sit above them."""
-    roots = {"paintcell", "paintcell.__main__"}
-    stray = sorted(m for m in import_graph(PKG)
-                   if m not in roots and _stage(m) is None and not m.startswith(ON_TOP))
+    """No module outside the layer folders (a new `paintcell/x.py` would dodge the data-flow
+    check): only the package root and `paintcell/__main__.py` sit above them."""
+    stray = sorted(m for m in import_graph(PKG) if _stage(m) is None)
     assert not stray, f"modules outside every stage folder: {stray}"
 
 
 def test_data_flows_one_way_through_the_stages() -> None:
     graph = import_graph(PKG)
-    upward = []
-    for a, bs in graph.items():
-        sa = _stage(a)
-        if sa is None:
-            continue
-        for b in bs:
-            sb = _stage(b)
-            if b.startswith(ON_TOP) or (sb is not None and sb > sa):
-                upward.append((a, b))
-    assert not upward, f"imports against the data flow: {sorted(upward)}"
+    upward = sorted((a, b) for a, bs in graph.items() for b in bs
+                    if (_stage(a) or 0) < (_stage(b) or 0))
+    assert not upward, f"imports against the data flow: {upward}"
+
+
+def test_folders_form_a_dag_in_the_declared_order() -> None:
+    """The folder-level graph (every import of a module of one folder from another, lazy ones
+    counted, `if TYPE_CHECKING:` blocks not) has no cycle and follows LAYERS, cli on top."""
+    fgraph = {_layer(a): set() for a in folder_graph(import_graph(PKG))}
+    for a, bs in folder_graph(import_graph(PKG)).items():
+        fgraph[_layer(a)].update(_layer(b) for b in bs if _layer(b) != _layer(a))
+    assert set(fgraph) == set(LAYERS), sorted(set(fgraph) ^ set(LAYERS))
+    cycles = import_cycles(fgraph)
+    assert not cycles, "folder cycles: " + "; ".join(" -> ".join(c) for c in cycles)
+    assert not against_order(fgraph, LAYERS), against_order(fgraph, LAYERS)
+    assert not any("cli" in bs for f, bs in fgraph.items() if f != "cli")   # cli is on top
+
+
+def test_no_private_name_crosses_a_module() -> None:
+    """A name with a leading underscore is its module's own: no other package module imports it
+    (`from m import _x`) or reaches it (`m._x`), lazily or not. What modules share is public,
+    named and documented."""
+    found = private_imports(PKG)
+    assert not found, "private names used across modules: " + "; ".join(
+        f"{a} uses {b}.{n}" for a, b, n in found)
 
 
 def test_every_stage_has_its_folder_and_every_folder_is_a_stage() -> None:
@@ -143,7 +171,53 @@ def test_stage_of_a_module() -> None:
     assert _stage("paintcell.robots.ik") == 4
     assert _stage("paintcell.validation.validate") == 7
     assert _stage("paintcell.sim.foo") is None
-    assert _stage("paintcell.cli.main") is None
+    assert _stage("paintcell.cli.main") == _stage("paintcell.__main__") == len(LAYERS) - 1
+    assert _stage("paintcell") == LAYERS.index("paintcell")
+
+
+def test_checker_finds_a_folder_cycle_that_no_module_cycle_shows(tmp_path: Path) -> None:
+    """a.x → b.y at top level and b.z → a.w inside a function: no module cycle, but folders a and
+    b import each other; a TYPE_CHECKING import from c to a adds no edge."""
+    pkg = _write(tmp_path, {
+        "paintcell/__init__.py": "",
+        "paintcell/a/__init__.py": "", "paintcell/b/__init__.py": "", "paintcell/c/__init__.py": "",
+        "paintcell/a/x.py": "from paintcell.b.y import f\n",
+        "paintcell/a/w.py": "",
+        "paintcell/b/y.py": "def f():\n    pass\n",
+        "paintcell/b/z.py": "def g():\n    from paintcell.a import w\n",
+        "paintcell/c/v.py": ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                             "    from paintcell.a.x import f\n"),
+    })
+    graph = import_graph(pkg)
+    assert not import_cycles(graph)
+    fgraph = folder_graph(graph)
+    assert fgraph["c"] == set()
+    assert import_cycles(fgraph) == [["a", "b"]]
+    assert against_order(fgraph, ["paintcell", "a", "b", "c"]) == [("a", "b")]
+    assert against_order(fgraph, ["paintcell", "b", "a", "c"]) == [("b", "a")]
+    assert folder_of("paintcell.a.x") == "a" and folder_of("paintcell") == "paintcell"
+
+
+def test_checker_finds_private_names_across_modules(tmp_path: Path) -> None:
+    """Each way of reaching another module's private name is found once; a module's own private
+    names, dunders, public names and TYPE_CHECKING imports are not."""
+    pkg = _write(tmp_path, {
+        "paintcell/__init__.py": "",
+        "paintcell/s/__init__.py": "",
+        "paintcell/s/m.py": "_X = 1\n__version__ = '1'\nY = 2\ndef _f():\n    return _X\n",
+        "paintcell/s/a.py": "from paintcell.s.m import _X, Y\n",
+        "paintcell/s/b.py": "def g():\n    from .m import _f\n    return _f()\n",
+        "paintcell/s/c.py": "import paintcell.s.m\nv = paintcell.s.m._X + paintcell.s.m.Y\n",
+        "paintcell/s/d.py": "from paintcell.s import m as mm\nv = mm._f()\nw = mm.__version__\n",
+        "paintcell/s/e.py": ("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n"
+                             "    from paintcell.s.m import _X\n_own = 3\nv = _own\n"),
+    })
+    assert private_imports(pkg) == [
+        ("paintcell.s.a", "paintcell.s.m", "_X"),
+        ("paintcell.s.b", "paintcell.s.m", "_f"),
+        ("paintcell.s.c", "paintcell.s.m", "_X"),
+        ("paintcell.s.d", "paintcell.s.m", "_f"),
+    ]
 
 
 def test_checker_finds_a_long_module(tmp_path: Path) -> None:

@@ -23,8 +23,8 @@ from paintcell.app.scenario_files import load_scenario
 from paintcell.cli.main import main
 from paintcell.execution.execute_settings import Disturbances
 from paintcell.sweeps.sweep import run_sweep, sample_path
-from paintcell.sweeps.sweep_spec import SweepError, spec_from_scenario
 from paintcell.sweeps.sweep_worker import RUN_KEYS
+from paintcell.validation.sweep_spec import SweepError, spec_from_scenario
 from tests.sweep_cases import plate_scenario
 
 pytestmark = pytest.mark.slow

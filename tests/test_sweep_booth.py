@@ -24,8 +24,8 @@ import numpy as np
 import pytest
 
 from paintcell.sweeps.sweep import run_sweep
-from paintcell.sweeps.sweep_spec import SweepError, SweepSpec
 from paintcell.sweeps.sweep_worker import RUN_KEYS
+from paintcell.validation.sweep_spec import SweepError, SweepSpec
 from tests.sweep_cases import plate_scenario
 from tests.test_booth import ROOF_BOOTH
 from tests.test_sweep_dask import cluster  # noqa: F401 - the loopback cluster fixture

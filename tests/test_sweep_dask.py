@@ -27,8 +27,8 @@ import pytest
 
 from paintcell.app.scenario_files import load_scenario
 from paintcell.sweeps.sweep import run_sweep
-from paintcell.sweeps.sweep_spec import spec_from_scenario
 from paintcell.sweeps.sweep_worker import RUN_KEYS
+from paintcell.validation.sweep_spec import spec_from_scenario
 from tests.sweep_cases import plate_scenario
 
 pytestmark = pytest.mark.slow

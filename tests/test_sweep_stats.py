@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from paintcell.sweeps.sweep_spec import Distribution, SweepError, SweepSpec, spec_from_scenario
 from paintcell.sweeps.sweep_stats import (
     check_limits,
     limit_checks,
@@ -23,6 +22,7 @@ from paintcell.sweeps.sweep_stats import (
     sensitivity,
     yield_interval,
 )
+from paintcell.validation.sweep_spec import Distribution, SweepError, SweepSpec, spec_from_scenario
 
 
 def test_clopper_pearson_matches_closed_forms() -> None:
@@ -127,7 +127,8 @@ def test_scenario_files_check_their_sweep_table_on_load(tmp_path: object) -> Non
 
     import tomli_w
 
-    from paintcell.app.scenario_data import ScenarioDataError, load_toml_scenario
+    from paintcell.app.scenario_data import load_toml_scenario
+    from paintcell.core.errors import ScenarioDataError
     from tests.sweep_cases import SCENARIO
 
     folder = Path(str(tmp_path))

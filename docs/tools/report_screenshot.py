@@ -3,7 +3,7 @@
     python docs/tools/report_screenshot.py [REPORT_HTML] [--png docs/img/report_first_screen.png]
 
 Without REPORT_HTML it runs `paintcell run scenarios/door.toml --fast` into a temporary folder
-first (a few minutes). The README's screenshot is made this way. Needs the `dev` extra
+first (a few minutes). docs/img/report_first_screen.png is made this way. Needs the `dev` extra
 (playwright) and a Chromium: playwright's own (`python -m playwright install chromium`) or the
 system's (`apt-get install chromium`; found on PATH as chromium, chromium-browser or
 google-chrome, or named by $PAINTCELL_CHROMIUM). `tests/test_report_browser.py` uses

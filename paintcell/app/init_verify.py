@@ -189,24 +189,21 @@ def _slowest_pass(plan: Any, traj: Any) -> str:
     below the planned speed (honest reachability's slowdown), its slowest speed ratio there and
     the sharpest turn of its planned TCP path between two samples."""
     from paintcell.motion.joint_trajectory import PAINT
-    from paintcell.validation.honest_reach import _nearest_pose, _pose_arc_lengths
+    from paintcell.validation.honest_reach import nearest_pose, pose_arc_lengths
 
     v = np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1)
     on = (np.asarray(traj.segment) == PAINT) & (np.asarray(traj.v_tcp_planned) > 1e-9)
     ratio = np.full(len(v), np.inf)
-    for i, (p, s) in enumerate(zip(plan.passes, _pose_arc_lengths(plan), strict=True)):
+    for i, (p, s) in enumerate(zip(plan.passes, pose_arc_lengths(plan), strict=True)):
         sel = np.flatnonzero(on & (np.asarray(traj.pass_index) == i))
-        part = np.asarray(p.on_part, bool)[np.clip(_nearest_pose(s, traj.s_pass_m[sel]), 0,
+        part = np.asarray(p.on_part, bool)[np.clip(nearest_pose(s, traj.s_pass_m[sel]), 0,
                                                    len(s) - 1)]
         ratio[sel[part]] = v[sel[part]] / traj.v_tcp_planned[sel[part]]
     slow = np.bincount(np.asarray(traj.pass_index)[ratio < 0.9], minlength=len(plan.passes))
     i = int(np.argmax(slow))
-    d = np.diff(plan.passes[i].positions, axis=0)
-    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-12)
-    turn = np.degrees(np.arccos(np.clip(np.sum(d[1:] * d[:-1], axis=1), -1.0, 1.0)))
     worst = float(ratio[np.asarray(traj.pass_index) == i].min())
     return (f"pass {i} runs at {100 * worst:.0f} % of its planned speed at worst, its TCP path "
-            f"turning up to {turn.max(initial=0.0):.0f}° between two samples")
+            f"turning up to {plan.passes[i].max_turn_deg:.0f}° between two samples")
 
 
 def _honest(plan: Any, traj: Any) -> dict[str, Any]:

@@ -9,22 +9,24 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from tqdm import tqdm
 
-from paintcell.app.scenario import Scenario, ScenarioError
-from paintcell.app.scenario_checks import check_types
+from paintcell.app.scenario import Scenario
 from paintcell.core.atomic_io import atomic_write_text
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, ScenarioError
 from paintcell.core.interrupts import raise_if_interrupted
+from paintcell.core.json_values import json_default
 from paintcell.core.results_dir import new_results
+from paintcell.core.settings import settings_from
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
-from paintcell.surface.part_spec import CAD_SUFFIXES, MESH_SUFFIXES, MeshPart
+from paintcell.surface.part_spec import MeshPart
+from paintcell.surface.part_surface import part_surface
 from paintcell.surface.surface import Surface
 
 STAGES = ("surface", "plan", "trajectory", "execute", "validate", "report")
@@ -57,78 +59,6 @@ def load_surface(scn: Scenario, fast: bool = False) -> Surface:
                         scn.source, "fast_resolution_m" if fast else "resolution_m")
 
 
-def part_surface(part: str | MeshPart, res: float, source: str | None = None,
-                 res_key: str = "resolution_m") -> Surface:
-    """A part's surface in its own frame at remesh edge length res [m]: a library part name, a
-    mesh/CAD `MeshPart` (a scenario's or a booth's `[part]` table) or a bare path (every [part]
-    setting at its default); a relative file is relative to `source` (the scenario file).
-    res_key names the setting in the budget's error."""
-    from paintcell.surface import parts
-
-    if isinstance(part, str) and part in parts.PART_NAMES:
-        from paintcell.app.budget import check_surface_budget
-
-        # The area from a coarse build (~40 ms) sizes the real one before it allocates.
-        area = parts.get_part(part, resolution_m=max(res, 0.05)).area
-        check_surface_budget(area, res, res_key)
-        return parts.get_part(part, resolution_m=res)
-    # A mesh/CAD file: a [part] table, or a bare path (every [part] setting at its default).
-    if isinstance(part, MeshPart):
-        spec = part
-    elif Path(part).suffix.lower() in MESH_SUFFIXES + CAD_SUFFIXES:
-        spec = MeshPart(file=part)
-    else:
-        raise PaintcellError(f"part {part!r} is neither a library part "
-                             f"({', '.join(parts.PART_NAMES)}) nor a mesh/CAD file")
-    from paintcell.surface.part_import import import_part
-
-    path = Path(spec.file)
-    if not path.is_absolute() and source:
-        path = Path(source).parent / path
-    if path.is_file() and path.suffix.lower() in MESH_SUFFIXES:
-        sniff_mesh(path)
-    return import_part(replace(spec, file=str(path)), resolution_m=res)[0]
-
-
-def sniff_mesh(path: Path) -> None:
-    """Refuse a mesh file whose bytes cannot be the format its suffix says, in one line.
-
-    Binary STL: 84-byte header + 50 bytes per triangle (a truncated file does not add up); ASCII
-    STL, OBJ and ASCII PLY must be UTF-8 text (random bytes would otherwise reach trimesh's
-    text-encoding guesser and come back as an unrelated import error).
-    """
-    suffix = path.suffix.lower()
-    data = path.read_bytes()
-    what = f"mesh {path}"
-    if not data:
-        raise PaintcellError(f"{what} is empty; export the part surface again")
-
-    def is_text() -> bool:
-        try:
-            data.decode("utf-8")
-        except UnicodeDecodeError:
-            return False
-        return True
-
-    if suffix == ".stl":
-        if len(data) >= 84:
-            n = int.from_bytes(data[80:84], "little")
-            if len(data) == 84 + 50 * n:
-                return
-        if data.lstrip()[:5].lower() == b"solid" and is_text():
-            return
-        n_hint = int.from_bytes(data[80:84], "little") if len(data) >= 84 else 0
-        raise PaintcellError(f"{what} is neither a binary STL ({len(data)} bytes, the header's "
-                             f"{n_hint} triangles need {84 + 50 * n_hint}) nor an ASCII STL; the "
-                             "file is truncated or not an STL — export it again")
-    if suffix == ".obj" and not is_text():
-        raise PaintcellError(f"{what} is not a text OBJ file (it holds non-UTF-8 bytes); the "
-                             "file is corrupt or not an OBJ — export it again")
-    if suffix == ".ply" and not data.startswith(b"ply"):
-        raise PaintcellError(f"{what} does not start with the PLY magic 'ply'; the file is "
-                             "corrupt or not a PLY — export it again")
-
-
 def load_applicator(scn: Scenario) -> Applicator:
     """The scenario's applicator (TOML path relative to the scenario file) or the default bell."""
     if scn.applicator is None:
@@ -146,17 +76,6 @@ def load_applicator(scn: Scenario) -> Applicator:
         raise type(exc)(msg if str(path) in msg else f"applicator {path}: {msg}") from exc
 
 
-def settings_from(cls: type, values: dict[str, Any], what: str) -> Any:
-    """An instance of the settings dataclass `cls` from a scenario's dict, with a clear error
-    naming the valid keys when one is misspelt or a value is not of its field's type."""
-    names = {f.name for f in fields(cls)}
-    unknown = sorted(set(values) - names)
-    if unknown:
-        raise ScenarioError(f"unknown {what} setting(s) {unknown}; valid: {sorted(names)}")
-    check_types(cls, values, f"[{what}]")
-    return cls(**values)
-
-
 def planner_settings(scn: Scenario, fast: bool = False) -> Any:
     """`PlannerSettings` of the scenario (with the fast overrides when `fast`)."""
     from paintcell.coverage.coverage import PlannerSettings
@@ -169,11 +88,13 @@ def planner_settings(scn: Scenario, fast: bool = False) -> Any:
 
 def make_plan(scn: Scenario, surface: Surface, fast: bool = False) -> CoveragePlan:
     """Run the coverage planner for the scenario."""
-    from paintcell.app.budget import check_profile_budget
+    from paintcell.core.budget import check_profile_budget
     from paintcell.coverage.coverage import plan_coverage
+    from paintcell.coverage.index_width import profile_size
 
     app = load_applicator(scn)
-    check_profile_budget(app, scn.applicator or "the default bell")
+    check_profile_budget(*profile_size(app), app.footprint_radius_m,
+                         scn.applicator or "the default bell")
     # A real part's planner covers its skin (hems, inner panels stay in the surface for the film).
     return plan_coverage(surface.region_surface(("skin",)), app, planner_settings(scn, fast))
 
@@ -256,7 +177,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
 
         t0 = time.perf_counter()
         stage("execute")
-        from paintcell.app.budget import check_validation_budget
+        from paintcell.core.budget import check_validation_budget
 
         # the validation's film maps are refused before any of them starts
         check_validation_budget(len(surface.vertices), int((traj.t_s[-1] - traj.t_s[0]) / 0.005),
@@ -266,7 +187,7 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
         # the core MuJoCo's single-threaded stepping leaves idle.
         films = start_program_films(plan, surface, traj, T_world_part)
         cell = build_cell(robot, surface, T_world_part)
-        trace = execute(cell, traj, mode=mode, servo=_servo(scn),
+        trace = execute(cell, traj, mode=mode, servo=servo_settings(scn),
                         disturbances=_disturbances(scn))
         trace.meta["plan_digest"] = traj.meta["plan_digest"]
         done("execute", t0)
@@ -310,7 +231,8 @@ def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, 
     return res.plan, res.trajectory
 
 
-def _servo(scn: Scenario) -> Any:
+def servo_settings(scn: Scenario) -> Any:
+    """The scenario's servo settings (`[servo]` table) as `ServoSettings`."""
     from paintcell.execution.execute_settings import ServoSettings
 
     return settings_from(ServoSettings, scn.servo, "servo")
@@ -373,12 +295,3 @@ def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = 
         make_figures(out, surface=result.surface, plan=result.plan, trajectory=result.trajectory,
                      trace=result.trace, report=result.report, cell=cell, video=video)
         write_report(out, video=video)
-
-
-def json_default(o: Any) -> Any:
-    """`json.dumps` default for numpy scalars and arrays."""
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serializable: {type(o).__name__}")

@@ -18,31 +18,12 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.app.scenario_checks import check_thresholds
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import ScenarioError
+from paintcell.core.placement import Placement
 from paintcell.surface.part_spec import MeshPart
-from paintcell.validation.validate_report import Thresholds
+from paintcell.validation.validate_report import Thresholds, check_thresholds
 
-__all__ = ["Placement", "Scenario", "ScenarioError", "Thresholds", "facing_robot", "pose"]
-
-
-class ScenarioError(PaintcellError):
-    """A scenario cannot be found, loaded or is inconsistent."""
-
-
-def pose(xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
-         rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
-    """(4, 4) transform from a position [m] and roll-pitch-yaw (fixed XYZ axes) [rad]."""
-    r, p, y = rpy_rad
-    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
-    T = np.eye(4)
-    T[:3, :3] = np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
-    T[:3, 3] = xyz_m
-    return T
+__all__ = ["Scenario", "facing_robot"]
 
 
 def facing_robot() -> tuple[float, float, float]:
@@ -52,26 +33,6 @@ def facing_robot() -> tuple[float, float, float]:
     +x), the part's y axis points up (+z) and its x axis runs along −y.
     """
     return (np.pi / 2, 0.0, -np.pi / 2)
-
-
-@dataclass(frozen=True)
-class Placement:
-    """A rigid placement in the cell: position [m] and roll-pitch-yaw [rad] (fixed XYZ axes)."""
-
-    xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def __post_init__(self) -> None:
-        for name in ("xyz_m", "rpy_rad"):
-            v = np.asarray(getattr(self, name), float)
-            if v.shape != (3,) or not np.all(np.isfinite(v)):
-                raise ScenarioError(f"Placement.{name} = {getattr(self, name)!r} must be three "
-                                    "finite numbers")
-
-    @property
-    def matrix(self) -> np.ndarray:
-        """(4, 4) homogeneous transform."""
-        return pose(self.xyz_m, self.rpy_rad)
 
 
 @dataclass(frozen=True)
@@ -101,7 +62,7 @@ class Scenario:
         collisions, executed σ/μ, loss, cycle time, and optionally tracking error, speed error,
         torque and joint-range utilization).
     sweep: the robustness sweep of `paintcell sweep`
-    (`paintcell.sweeps.sweep_spec.spec_from_scenario`):
+    (`paintcell.validation.sweep_spec.spec_from_scenario`):
         factors {disturbance name: distribution string}, samples, fast_samples, method
         ("lhs" | "mc"), seed, workers (local Dask processes; 0: in-process), and limits on
         quantiles and yield that `paintcell check` holds the scenario to

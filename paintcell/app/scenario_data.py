@@ -26,24 +26,19 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-from paintcell.app.scenario_checks import (
-    _SETTINGS,
-    ScenarioDataError,
-    check_settings,
-    check_thresholds,
-)
-from paintcell.core.errors import PaintcellError
+from paintcell.app.scenario_checks import SETTINGS_TABLES, check_settings
+from paintcell.core.errors import PaintcellError, ScenarioDataError
 from paintcell.core.toml_text import toml_text
+from paintcell.validation.validate_report import check_thresholds
 
-__all__ = ["SNAPSHOT_VERSION", "check_settings", "check_thresholds", "load_toml_scenario",
-           "scenario_from_dict", "snapshot_dict"]
+__all__ = ["SNAPSHOT_VERSION", "load_toml_scenario", "scenario_from_dict", "snapshot_dict"]
 
 #: Version of the `scenario.json` snapshot written into results folders.
 SNAPSHOT_VERSION = 1
 
 _SCALARS = ("name", "part", "robot", "resolution_m", "fast_resolution_m", "applicator")
 _PLACEMENTS = ("part_placement", "base")
-_TABLES = (*_PLACEMENTS, *_SETTINGS, "thresholds", "sweep")
+_TABLES = (*_PLACEMENTS, *SETTINGS_TABLES, "thresholds", "sweep")
 _KEYS = (*_SCALARS, *_TABLES)
 
 def _tuples(v: Any) -> Any:
@@ -60,7 +55,9 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
     where: the file, named in every error. base_dir: folder that relative paths (a mesh part,
     `[part] file`, `applicator`) are resolved against (None: keep them as written).
     """
-    from paintcell.app.scenario import Placement, Scenario, Thresholds
+    from paintcell.app.scenario import Scenario
+    from paintcell.core.placement import Placement
+    from paintcell.validation.validate_report import Thresholds
 
     if not isinstance(d, dict):
         raise ScenarioDataError(f"{where}: a scenario must be a table of keys")
@@ -112,14 +109,14 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
             kw[key] = Placement(**{k: tuple(v) for k, v in t.items()})
         except (PaintcellError, TypeError) as exc:
             raise ScenarioDataError(f"{where}: [{key}] {exc}") from exc
-    for key in _SETTINGS:
+    for key in SETTINGS_TABLES:
         t = d.get(key, {})
         if not isinstance(t, dict):
             raise ScenarioDataError(f"{where}: {key} must be a table [{key}]")
         kw[key] = {k: _tuples(v) for k, v in t.items()}
     sw = d.get("sweep", {})
     if sw:  # [sweep], [sweep.factors], [sweep.limits]: checked now, not when a sweep starts
-        from paintcell.sweeps.sweep_spec import SweepError, check_sweep_table
+        from paintcell.validation.sweep_spec import SweepError, check_sweep_table
 
         try:
             check_sweep_table(sw)

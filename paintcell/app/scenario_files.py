@@ -8,11 +8,12 @@ import importlib.util
 from pathlib import Path
 from typing import Any
 
-from paintcell.app.scenario import Scenario, ScenarioError
-from paintcell.app.scenario_data import check_settings, load_toml_scenario
+from paintcell.app.scenario import Scenario
+from paintcell.app.scenario_checks import check_settings
+from paintcell.app.scenario_data import load_toml_scenario
 from paintcell.booth.booth import Booth
 from paintcell.booth.booth_data import load_toml_booth
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, ScenarioError
 
 __all__ = ["find_scenarios", "load_scenario"]
 

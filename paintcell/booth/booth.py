@@ -9,8 +9,9 @@ like any scenario script (`SCENARIO = Booth(...)`).
 
 Allocation (`allocate`): the jobs are whole parts or two pieces of a part (its passes split at
 a pass boundary); a part planned in patches may also be cut once inside each patch and at its
-seams, so that one robot takes a wing of every patch (`job_options`). Every assignment of one job per robot — each part whole or split, one robot
-per job — is enumerated (≤ a few hundred for four robots) and the one chosen:
+seams, so that one robot takes a wing of every patch (`job_options`). Every assignment of one
+job per robot — each part whole or split, one robot per job — is enumerated (≤ a few hundred
+for four robots) and the one chosen:
 1. every job is reachable by its robot (closed-form IK feasibility of every pass: inside the
    limits, off the wrist singularity; a rail robot at its best rail position per pass);
 2. the booth cycle — the longest robot's estimated program: paint time of its passes plus
@@ -43,10 +44,10 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.app.scenario import Placement
 from paintcell.booth.booth_chain import job_record
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
+from paintcell.core.placement import Placement
 from paintcell.surface.part_spec import MeshPart
 
 #: cycle estimate of the allocation: time per turn-around and for approach + retract [s]
@@ -182,7 +183,7 @@ class Booth:
     applicator: str | None = None
     """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
     sweep: dict[str, Any] = field(default_factory=dict)
-    """The `paintcell sweep` table (`paintcell.sweeps.sweep_spec.SCENARIO_KEYS`); a booth sweep
+    """The `paintcell sweep` table (`paintcell.validation.sweep_spec.SCENARIO_KEYS`); a booth sweep
     varies the
     line speed (`paintcell.sweeps.sweep_booth`)."""
 
@@ -264,7 +265,8 @@ def rank_allocations(n_robots: int, n_passes: list[int], durations: list[np.ndar
     """Every feasible allocation of the module doc, best first.
 
     n_passes: per part, its number of passes; patches: per part, its patches' pass counts
-    (`job_options`; None: whole or two pieces only); durations: per part, (P,) planned pass times [s];
+    (`job_options`; None: whole or two pieces only); durations: per part, (P,) planned pass
+    times [s];
     reachable(robot, job) -> bool; max_jobs_per_robot: jobs one robot may run one after the
     other (its program: `paintcell.booth.booth_chain.chain_programs`). Returns the
     allocations ({robot index: its jobs in part order}), best first by lexicographic min-max of

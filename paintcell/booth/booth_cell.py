@@ -31,15 +31,15 @@ import numpy.typing as npt
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.transforms import check_pose, quat_wxyz_from_matrix
 from paintcell.execution.cell import (
-    _COLLISION_BIT,
     BOOTH_BODY,
+    COLLISION_BIT,
     PART_BODY,
     Cell,
     CellError,
     RobotLike,
-    _index_cell,
     add_contact_sensors,
     add_part_geoms,
+    index_cell,
     new_cell_spec,
     riding_bodies,
 )
@@ -57,7 +57,7 @@ def robot_prefix(i: int) -> str:
 
 @dataclass(frozen=True)
 class _BoothRobot:
-    """The combined "robot" `paintcell.execution.cell._index_cell` indexes: all robots' joints +
+    """The combined "robot" `paintcell.execution.cell.index_cell` indexes: all robots' joints +
     the carrier."""
 
     name: str
@@ -138,8 +138,8 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
         spec.attach(rs, prefix=robot_prefix(i), frame=frame)
     for geom in spec.geoms:   # only robot geoms so far: collision geoms collide with each other
         if geom.contype or geom.conaffinity:
-            geom.contype |= _COLLISION_BIT
-            geom.conaffinity |= _COLLISION_BIT
+            geom.contype |= COLLISION_BIT
+            geom.conaffinity |= COLLISION_BIT
 
     part = spec.worldbody.add_body(name=PART_BODY, pos=T_wp[:3, 3],
                                    quat=quat_wxyz_from_matrix(T_wp[:3, :3]))
@@ -201,7 +201,7 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
                            tcp_site_name=site0,
                            base_body_name=ROBOTS_BODY, T_world_base=np.eye(4))
     # Names in the booth are prefixed per robot already: index with an empty prefix.
-    cell = _index_cell(model, spec, combined, surface, T_wp, np.eye(4), (), booth, prefix="")
+    cell = index_cell(model, spec, combined, surface, T_wp, np.eye(4), (), booth, prefix="")
     columns, start = [], 0
     for r in robots:
         columns.append(np.arange(start, start + len(r.joint_names)))

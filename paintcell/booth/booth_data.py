@@ -37,13 +37,13 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from paintcell.app.scenario import Placement
-from paintcell.app.scenario_checks import check_thresholds
 from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
+from paintcell.core.placement import Placement
 from paintcell.core.toml_text import toml_text
 from paintcell.surface.part_spec import MeshPart
+from paintcell.validation.validate_report import check_thresholds
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
@@ -137,8 +137,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
         app = str((Path(where).parent / app).resolve())
     try:
         if sweep:
-            from paintcell.sweeps.sweep_booth import check_booth_factors
-            from paintcell.sweeps.sweep_spec import check_sweep_table
+            from paintcell.validation.sweep_spec import check_booth_factors, check_sweep_table
 
             check_sweep_table(sweep)
             check_booth_factors(tuple(sweep.get("factors", {})))

@@ -25,8 +25,8 @@ def robot_programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     """Each robot's static program for its jobs (cached per robot and job, failures too), kept
     `Booth.body_clearance_m` from the whole body (`paintcell.booth.booth_clearance`); a
     robot's jobs one after the other (`paintcell.booth.booth_chain.chain_programs`)."""
-    from paintcell.app.pipeline import settings_from
     from paintcell.booth.booth_chain import chain_programs
+    from paintcell.core.settings import settings_from
     from paintcell.motion.trajectory import TrajectorySettings
 
     out = []

@@ -55,9 +55,10 @@ def part_settings(booth: Booth) -> list[dict[str, Any]]:
 
 def plan_parts(booth: Booth, fast: bool) -> PartPlans:
     """Load each part (the scenario's loader: import, repair, remesh, regions) and plan its skin."""
-    from paintcell.app.pipeline import part_surface, settings_from
+    from paintcell.core.settings import settings_from
     from paintcell.coverage.coverage import PlannerSettings, plan_coverage
     from paintcell.surface import parts
+    from paintcell.surface.part_surface import part_surface
 
     res = booth.fast_resolution_m if fast else booth.resolution_m
     app = Applicator.default() if booth.applicator is None \
@@ -93,8 +94,8 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
     names = [f"{i}:{bp.part}" for i, bp in enumerate(booth.parts)]
     refine: dict[str, Any] = {"rule": "off"}
     if booth.film_refine_pace:
-        from paintcell.app.pipeline import settings_from
         from paintcell.booth.booth_refine import refine_parts
+        from paintcell.core.settings import settings_from
         from paintcell.coverage.coverage import PlannerSettings
 
         # a part whose planner says film_refine = false (booth or part table) is not refined

@@ -87,7 +87,7 @@ def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
     fin = finish_plans(booth, pp, pp.plans)
     surfaces, T_body_parts, body = pp.surfaces, pp.T_body_parts, fin.body
     T_wb = booth.body_placement.matrix
-    robots = _load_robots(booth)
+    robots = load_robots(booth)
     # Every robot's arm measured against the whole body, every part of it
     # (`paintcell.booth.booth_clearance`).
     probes = None
@@ -167,7 +167,7 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     holding a job already refused is passed over (recorded, not counted: MAX_ALLOCATIONS_TRIED
     counts the others). probes:
     per robot, its `paintcell.booth.booth_clearance.BodyProbe` (None: no body clearance)."""
-    planners = _load_robots(booth, shrink_m) if shrink_m > 0 else robots
+    planners = load_robots(booth, shrink_m) if shrink_m > 0 else robots
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
     chained: dict[tuple[int, tuple[Job, ...]], int] = {}   # a robot's jobs as built [samples]
     tried: list[dict[str, Any]] = []
@@ -241,7 +241,7 @@ def _longest_program_s(jobs: dict[int, tuple[Job, ...]],
                else sum(job_s(r, j) for j in js) for r, js in jobs.items())
 
 
-def _load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
+def load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
     """The booth's robots; rail robots with their travel shrunk by rail_shrink_m at both ends
     (for planning the passes' carriage positions, leaving room for conveyor tracking)."""
     from paintcell.robots import load_robot

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.output.export_rapid import _segments, rapid_module
+from paintcell.output.export_rapid import program_runs, rapid_module
 
 _EXT_RE = r"\[9E9,9E9,9E9,9E9,9E9,9E9\]"
 
@@ -45,7 +45,7 @@ def _rail_values_mm(traj: JointTrajectory, via_dt_s: float) -> tuple[dict[int, f
     selection)."""
     per_pass: dict[int, float] = {}
     vias: list[float] = []
-    for is_paint, k, idx in _segments(traj):
+    for is_paint, k, idx in program_runs(traj):
         if is_paint:
             per_pass[k] = 1000.0 * float(traj.q[idx[0], 0])
             continue

@@ -1,4 +1,4 @@
-"""Honest reachability of each booth robot (issue 12 item 5, for the booth).
+"""Honest reachability of each booth robot.
 
 A booth robot's program is its jobs' programs back to back (`paintcell.booth.booth_chain`),
 each built from a slice of a part's plan. Its honest reachability is the single-robot one

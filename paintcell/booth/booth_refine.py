@@ -7,7 +7,7 @@ and the pass durations it changes are what the robots share: the door's passes r
 fender's pace so the two side bells sweep in step, the roof's two pieces are painted side by side,
 and the start delays that keep the arms apart are measured on these timings. Re-timed on its
 own, every part drifts: with it on, four of the five ranked allocations failed the arm stagger and
-the fifth left a robot idle (measured when it was first switched on, issue 14).
+the fifth left a robot idle (measured on the booth scenario).
 
 Here each part is planned without it and then refined with every pass's DURATION held
 (`refine_speeds(pass_time_weight=PASS_TIME_WEIGHT)`): the speeds still move along each pass to

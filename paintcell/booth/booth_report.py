@@ -22,7 +22,7 @@ from matplotlib.tri import Triangulation
 
 from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S
 from paintcell.core.atomic_io import atomic_write_text
-from paintcell.output.plots import THICKNESS_CMAP, _save, thickness_range_um
+from paintcell.output.plots import THICKNESS_CMAP, save_figure, thickness_range_um
 
 _AXES = "xyz"
 #: one colour per robot in the zone map (tab10).
@@ -99,7 +99,7 @@ def body_film_figure(body: Any, part_counts: list[int], films_m: np.ndarray,
                title_fontsize=8)
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _fmt(v: Any, digits: int = 2) -> str:

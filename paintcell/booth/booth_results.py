@@ -22,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.app.pipeline import json_default
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell
 from paintcell.core.atomic_io import atomic_write_text
+from paintcell.core.json_values import json_default
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory

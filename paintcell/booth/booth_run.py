@@ -117,7 +117,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
 
     t0 = time.perf_counter()
     bcell = build_booth_cell(robots, body, booth.body_placement.matrix, booth.conveyor)
-    from paintcell.app.pipeline import settings_from
+    from paintcell.core.settings import settings_from
     from paintcell.execution.execute import ServoSettings, execute
 
     prog = combined_program(bcell, trajs, t_ref)
@@ -127,7 +127,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
 
     t0 = time.perf_counter()
     pos, rot = robot_tcp(bcell, trace.q)
-    traces = _robot_traces(bcell, trace, trajs, pos, rot)
+    traces = robot_traces(bcell, trace, trajs, pos, rot)
     films = robot_films(booth, bcell, body, plans, jobs, progs.T_body_parts, trajs, traces, trace,
                         t_ref)
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
@@ -146,8 +146,11 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     return result
 
 
-def _robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTrajectory],
-                  pos: np.ndarray, rot: np.ndarray) -> list[ExecutedTrace]:
+def robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTrajectory],
+                 pos: np.ndarray, rot: np.ndarray) -> list[ExecutedTrace]:
+    """Each robot's own `ExecutedTrace` cut from the booth's one trace: its joint columns, its
+    TCP poses `pos` (R, K, 3) [m] and `rot` (R, K, 3, 3), its program's paint trigger and the
+    contacts its bodies were in."""
     out = []
     for i, (cols, tr) in enumerate(zip(bcell.columns, trajs, strict=True)):
         mine = tuple(c for c in trace.contacts

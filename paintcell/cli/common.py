@@ -97,6 +97,13 @@ def os_error_line(exc: OSError) -> str:
     return f"{where}: {fix}" if where else f"{fix} (errno {exc.errno})"
 
 
+#: `--resolution` of inspect and init: a remesh edge length [m], 0 keeps the tessellation.
+RESOLUTION_M = number_option("--resolution", float, low=0.0, high=1.0, unit="m", example="0.025",
+                             note="0: keep the tessellation")
+#: `--seed` of generate and sweep.
+SEED = number_option("--seed", int, low=0, high=2**32 - 1, example="3")
+
+
 def symlink_loop_path(exc: RuntimeError) -> str | None:
     """The path of pathlib's 'Symlink loop from …' RuntimeError (Python < 3.13), else None."""
     msg = str(exc)

@@ -102,7 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     from paintcell.cli.sweep import add_sweep_parser
 
     for register in (add_run, add_check, add_plan, add_validate, add_export, add_report,
-                     add_part_commands,  # inspect, init, generate (issue 11)
+                     add_part_commands,  # inspect, init, generate
                      add_sweep_parser):
         register(add_parser)
     return p

@@ -6,7 +6,8 @@
   the robot, the first robot model whose base reaches the fast plan, `init_cell.choose_cell`)
   that `paintcell run` and `plan` accept as written; none reaches it: a one-line refusal.
 - generate KIND --out FILE: a CAD-like door/hood/fender/roof mesh in mm
-(`paintcell.surface.cad_like`).
+  (`paintcell.surface.cad_like`), or a part of a seeded family with its truth beside it
+  (`paintcell.surface.part_families`).
 """
 
 from __future__ import annotations
@@ -20,8 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.cli.common import number_option
+from paintcell.cli.common import RESOLUTION_M, SEED
 from paintcell.core.errors import PaintcellError
+from paintcell.surface.part_families import FAMILIES
 from paintcell.surface.part_spec import MeshPart
 
 __all__ = ["register"]
@@ -56,15 +58,23 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "when none does)")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
     n.set_defaults(func=_cmd_init)
-    g = add_parser("generate", help="write a CAD-like car-part mesh (mm)",
-                   description="Write a generated CAD-like part (outer skin hemmed onto an inner "
-                   "panel, crease; a door also has a handle recess and a window) in millimetres, "
-                   "with coarse uneven tessellation and a few slivers; seeded, deterministic.")
-    g.add_argument("kind", choices=("door", "hood", "fender", "roof"), help="part kind")
+    g = add_parser("generate", help="write a generated car-part mesh with its truth",
+                   description="Write a generated part, seeded and deterministic. The CAD-like "
+                   "kinds (door, hood, fender, roof) are an outer skin hemmed onto an inner panel "
+                   "in millimetres, with coarse uneven tessellation and a few slivers. The "
+                   "families (door_frame, door_pieces, door_solid, hood_rolled, tailgate, bumper, "
+                   "fender_arch, roof_sunroof) are the shapes a paint shop sends — window frames "
+                   "of narrow members, parts in pieces with stray clips, closed thin solids, "
+                   "rolled corners, recesses, wraps past 120°, arches and openings — with sizes, "
+                   "curvatures, member widths, tessellation, units (mm or m) and orientation "
+                   "drawn from the seed; their truth (areas, pieces, widths, openings, units, "
+                   "rotation) is written beside the mesh as <stem>.truth.json.")
+    kinds = ("door", "hood", "fender", "roof", *FAMILIES)   # cad_like.PART_KINDS, then families
+    g.add_argument("kind", choices=kinds, metavar="KIND", help=f"part kind: {', '.join(kinds)}")
     g.add_argument("--out", type=Path, required=True, help="mesh file to write (.stl/.ply/.obj)")
-    g.add_argument("--seed", type=number_option("--seed", int, low=0, high=2**32 - 1,
-                                                example="3"),
-                   default=0, help="tessellation seed")
+    g.add_argument("--seed", type=SEED, default=0,
+                   help="seed of the sizes, shape, tessellation, units and orientation "
+                   "(default 0)")
     g.set_defaults(func=_cmd_generate)
 
 
@@ -76,9 +86,7 @@ def _part_options(p: argparse.ArgumentParser) -> None:
                    help="pieces to keep: largest (by area), all, or indices like 0,2")
     p.add_argument("--side", default="auto",
                    help="painted side: auto (the convex skin) or a direction like 0,0,1")
-    p.add_argument("--resolution", default=0.025,
-                   type=number_option("--resolution", float, low=0.0, high=1.0, unit="m",
-                                      example="0.025", note="0: keep the tessellation"),
+    p.add_argument("--resolution", type=RESOLUTION_M, default=0.025,
                    help="remesh edge length [m] (0: keep the repaired tessellation)")
 
 
@@ -182,13 +190,25 @@ def _plot_regions(surf: Any, png: Path) -> None:
 
 
 def _cmd_generate(args: argparse.Namespace) -> int:
-    from paintcell.core.atomic_io import atomic_path
+    from paintcell.core.atomic_io import atomic_path, atomic_write_text
     from paintcell.surface.cad_like import make_part
+    from paintcell.surface.part_families import make_family_part
 
-    part = make_part(args.kind, args.seed)
     suffix = args.out.suffix.lower().lstrip(".")
     if suffix not in ("stl", "ply", "obj"):
         raise PaintcellError(f"--out {args.out}: write a .stl, .ply or .obj file")
+    if args.kind in FAMILIES:
+        fam = make_family_part(args.kind, args.seed)
+        truth_path = args.out.with_name(args.out.stem + ".truth.json")
+        with atomic_path(args.out) as tmp:
+            fam.mesh.export(tmp, file_type=suffix)
+        atomic_write_text(truth_path, json.dumps(fam.truth, indent=1) + "\n")
+        t = fam.truth
+        print(f"{args.kind} (seed {args.seed}): {len(fam.mesh.faces)} faces in {t['units']}, "
+              f"{t['up_axis']} up → {args.out}; painted side {t['painted_area_m2']:.4f} m², "
+              f"{len(t['pieces'])} piece(s); truth → {truth_path}")
+        return 0
+    part = make_part(args.kind, args.seed)
     with atomic_path(args.out) as tmp:
         part.mesh.export(tmp, file_type=suffix)
     t = part.truth
@@ -232,8 +252,9 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
     from paintcell.app.init_verify import ProgramCheck
     from paintcell.app.pipeline import make_plan
-    from paintcell.app.scenario import Placement, Scenario
+    from paintcell.app.scenario import Scenario
     from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.core.placement import Placement
     from paintcell.robots.catalog import ROBOT_NAMES
     from paintcell.surface.part_import import import_part
 

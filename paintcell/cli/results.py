@@ -24,9 +24,10 @@ def add_validate(add_parser: Any) -> None:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import RunResult, json_default, load_surface, metrics_dict
+    from paintcell.app.pipeline import RunResult, load_surface, metrics_dict
     from paintcell.app.run_files import load_run_dir, read_json
     from paintcell.core.atomic_io import atomic_write_text
+    from paintcell.core.json_values import json_default
     from paintcell.core.results_dir import lock_results, note_files, require_results
     from paintcell.output.report_film import FILM_NAME, save_film
     from paintcell.validation.validate import validate

@@ -77,7 +77,7 @@ def _run(args: argparse.Namespace) -> int:
         raise PaintcellError("--disturb applies to single-robot scenarios, not to a booth")
     if args.disturb:
         scn = replace(scn, disturbances={**scn.disturbances, **key_values(args.disturb)})
-        from paintcell.app.scenario_data import check_settings
+        from paintcell.app.scenario_checks import check_settings
 
         check_settings(scn, "--disturb")
     # `paintcell check` runs each scenario as `run --row-fd N` in its own process and

@@ -6,8 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from paintcell.cli.common import number_option
-from paintcell.sweeps.sweep_names import FACTORS, METHODS
+from paintcell.cli.common import SEED, number_option
+from paintcell.validation.sweep_names import FACTORS, METHODS
 
 
 def add_sweep_parser(add_parser: Any) -> None:
@@ -34,8 +34,7 @@ def add_sweep_parser(add_parser: Any) -> None:
                    help="number of samples (default: the scenario's sweep samples, else 100)")
     s.add_argument("--method", choices=METHODS, default=None,
                    help="design: lhs (Latin hypercube) or mc (Monte Carlo); default lhs")
-    s.add_argument("--seed", default=None,
-                   type=number_option("--seed", int, low=0, high=2**63 - 1, example="3"),
+    s.add_argument("--seed", type=SEED, default=None,
                    help="sweep seed: the design and every sample's own seed derive from it "
                    "(default: the scenario's, else 0)")
     s.add_argument("--workers", default=None,
@@ -61,7 +60,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """Run `paintcell sweep`; exit 0, or 1 when a sweep limit of the scenario is not met."""
     from paintcell.app.scenario_files import load_scenario
     from paintcell.sweeps.sweep import run_sweep
-    from paintcell.sweeps.sweep_spec import spec_from_scenario
+    from paintcell.validation.sweep_spec import spec_from_scenario
 
     scn = load_scenario(args.scenario)
     spec = spec_from_scenario(scn.sweep, fast=args.fast, vary=args.vary, samples=args.samples,
@@ -110,7 +109,7 @@ def sweep_checks(scn: Any, fast: bool, out: Path | None) -> list[dict[str, Any]]
     import tempfile
 
     from paintcell.sweeps.sweep import run_sweep
-    from paintcell.sweeps.sweep_spec import spec_from_scenario
+    from paintcell.validation.sweep_spec import spec_from_scenario
 
     if not scn.sweep.get("limits"):
         return []

@@ -21,3 +21,11 @@ class AxisTurnError(PlanError):
     """The bell axis cannot follow the surface along a pass within `max_axis_turn_rad_m` (a
     crease or fold tighter than the smoothing scale). `plan_coverage` with `smoothing_m = "auto"`
     plans again at larger smoothing scales when it meets this error."""
+
+
+class ScenarioError(PaintcellError):
+    """A scenario cannot be found, loaded or is inconsistent."""
+
+
+class ScenarioDataError(PaintcellError):
+    """A scenario file or snapshot holds an unknown key or an invalid value."""

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from paintcell.coverage.coverage_planner import _mirror, _PassGeom, _Planner
-from paintcell.coverage.coverage_timing import _time_pass
+from paintcell.coverage.coverage_planner import PassGeom, Planner, mirrored_curve
+from paintcell.coverage.coverage_timing import time_pass
 from paintcell.coverage.offset import (
     arc_length,
     indexing_curves,
@@ -28,7 +28,7 @@ from paintcell.coverage.offset import (
 )
 
 
-def back_fill(pl: _Planner, prev: _PassGeom, new: _PassGeom, sign: int, width_m: float,
+def back_fill(pl: Planner, prev: PassGeom, new: PassGeom, sign: int, width_m: float,
               extension_m: tuple[float, float]) -> bool:
     """Lengthen `prev` by the back-offset of `new`'s extension within the surface.
 
@@ -60,11 +60,11 @@ def back_fill(pl: _Planner, prev: _PassGeom, new: _PassGeom, sign: int, width_m:
     prev.curves, prev.timing = None, None
     prev.info.pop("feedback_mismatch", None)
     prev.info["back_fill_m"] = [round(a, 4) for a in added]
-    _time_pass(pl, prev, prev.width_m if np.isfinite(prev.width_m) else pl.nominal_width)
+    time_pass(pl, prev, prev.width_m if np.isfinite(prev.width_m) else pl.nominal_width)
     return True
 
 
-def _back_piece(pl: _Planner, new: _PassGeom, idx: np.ndarray, sign: int, width_m: float,
+def _back_piece(pl: Planner, new: PassGeom, idx: np.ndarray, sign: int, width_m: float,
                 prev_foot: np.ndarray, prev_nrm: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Points (K, 3), normals (K, 3), on-part flags (K,) beyond the end of `prev` (given with
@@ -75,10 +75,10 @@ def _back_piece(pl: _Planner, new: _PassGeom, idx: np.ndarray, sign: int, width_
         return None
     t = tangents(new.foot)[idx]
     curves = indexing_curves(pl.geom, new.foot[idx], t, new.normals[idx])
-    # a sample off the part has no indexing curve (as in `_Planner.curves_of`)
+    # a sample off the part has no indexing curve (as in `Planner.curves_of`)
     curves = [c if on else None for c, on in zip(curves, new.on_part[idx], strict=True)]
     if sign < 0:
-        curves = [_mirror(c) for c in curves]
+        curves = [mirrored_curve(c) for c in curves]
     pts, nrm, inside = walk(curves, -width_m)
     end = prev_foot[-1]
     out = unit(end - prev_foot[-3])

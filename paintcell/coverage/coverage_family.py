@@ -12,9 +12,9 @@ import numpy as np
 
 from paintcell.core.errors import AxisTurnError, PlanError
 from paintcell.coverage.back_fill import back_fill
-from paintcell.coverage.coverage_planner import _mirror, _PassGeom, _Planner
+from paintcell.coverage.coverage_planner import PassGeom, Planner, mirrored_curve
 from paintcell.coverage.coverage_settings import PlannerSettings
-from paintcell.coverage.coverage_timing import _time_pass, _time_passes
+from paintcell.coverage.coverage_timing import time_pass, time_passes
 from paintcell.coverage.family_geometry import (
     FamilyGeometry,
     geometry_key,
@@ -83,7 +83,7 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
             keep(key, geo)
     pl, passes, openings = geo.pl, geo.passes, geo.openings
     pl.speed_caps, pl.tool_x = caps, axes_x
-    plan_passes = _time_passes(pl, passes, st)     # the passes not timed yet (a kept geometry)
+    plan_passes = time_passes(pl, passes, st)     # the passes not timed yet (a kept geometry)
     bad = [f"pass {p.side}: {p.info['feedback_mismatch']}" for p in passes.values()
            if "feedback_mismatch" in p.info]
     if bad:
@@ -114,7 +114,7 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
         "planar_width_m": geo.planar_width_m,
         "cross_profiles_computed": geo.profiles[0],
         "cross_profile_cache_hits": geo.profiles[1],
-        "passes": [dict(side=p.side, **_jsonable(passes[p.side].info)) for p in plan_passes],
+        "passes": [dict(side=p.side, **jsonable(passes[p.side].info)) for p in plan_passes],
     }
     settings_dict = st.to_dict()
     settings_dict["report"] = report
@@ -133,7 +133,7 @@ def _geometry(surface: Surface, applicator: Applicator, st: PlannerSettings,
     surface = filled_surface(surface, openings)
     smooth_scale = smoothing_scale_m(surface, applicator.footprint_radius_m, st.smoothing_m)
     surface = smoothed_surface(surface, smooth_scale)
-    pl = _Planner(surface, applicator, st)
+    pl = Planner(surface, applicator, st)
     pl.smooth_scale = smooth_scale
     pl.speed_caps, pl.tool_x = caps, axes_x
     sc = select_start_curve(surface, st.orientation, st.start_position, st.sample_spacing_m,
@@ -162,8 +162,8 @@ def _geometry(surface: Surface, applicator: Applicator, st: PlannerSettings,
 
 
 
-def _plan_orders(pl: _Planner, name: str, sc: Any, orders: list[bool], planar_w: Any,
-                 axis_turn_fails_fast: bool) -> list[tuple[float, bool, dict[int, _PassGeom]]]:
+def _plan_orders(pl: Planner, name: str, sc: Any, orders: list[bool], planar_w: Any,
+                 axis_turn_fails_fast: bool) -> list[tuple[float, bool, dict[int, PassGeom]]]:
     """(predicted worst σ/μ [%], reversed start, passes) of each start order (`orders`: the start
     curve reversed or not) that plans, in the order given; raises the first order's PlanError
     when none does. The orders advance one pass at a time in turn (`_sweeps` steps): each
@@ -176,7 +176,7 @@ def _plan_orders(pl: _Planner, name: str, sc: Any, orders: list[bool], planar_w:
     for reverse in orders:
         pts, nrm = (sc.points[::-1], sc.normals[::-1]) if reverse else (sc.points, sc.normals)
         steps[reverse] = _sweeps(pl, name, pts, nrm, planar_w)
-    done: dict[bool, dict[int, _PassGeom]] = {}
+    done: dict[bool, dict[int, PassGeom]] = {}
     errors: dict[bool, PlanError] = {}
     while len(done) + len(errors) < len(orders):
         for reverse in orders:
@@ -197,16 +197,16 @@ def _plan_orders(pl: _Planner, name: str, sc: Any, orders: list[bool], planar_w:
     return [(_predicted_worst(done[r]), r, done[r]) for r in orders if r in done]
 
 
-def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarray,
-            planar_w: Any) -> Generator[None, None, dict[int, _PassGeom]]:
+def _sweeps(pl: Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarray,
+            planar_w: Any) -> Generator[None, None, dict[int, PassGeom]]:
     """Algorithm 1's two loops from the start curve: offsets to the right (s > 0 along the
     indexing curves, T × n), then to the left, until an offset lies completely outside. A
     generator that yields after each pass it adds and returns the passes {side: pass}."""
     st = pl.st
-    start = _PassGeom(start_pts, start_nrm, np.ones(len(start_pts), bool), 0, float("nan"))
+    start = PassGeom(start_pts, start_nrm, np.ones(len(start_pts), bool), 0, float("nan"))
     start.info = {"rule": "start curve"}
-    _time_pass(pl, start, pl.nominal_width)      # Algorithm 1: optimize the start curve's speed
-    passes: dict[int, _PassGeom] = {0: start}
+    time_pass(pl, start, pl.nominal_width)      # Algorithm 1: optimize the start curve's speed
+    passes: dict[int, PassGeom] = {0: start}
     yield
     right_widths: list[float] = []
     for sign in (1, -1):
@@ -214,7 +214,7 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
         widths_this_side: list[float] = []
         for k in range(1, st.max_passes + 1):
             curves = pl.curves_of(cur)
-            sweep_curves = curves if sign > 0 else [_mirror(c) for c in curves]
+            sweep_curves = curves if sign > 0 else [mirrored_curve(c) for c in curves]
             # known passes besides C0, as positions ≤ 0 in the sweep frame: back along this
             # side to the start curve, then (left sweep) across it to the right-side passes
             back = widths_this_side[::-1] + (right_widths if sign < 0 else [])
@@ -246,7 +246,7 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                 if st.edge_passes and ok.sum() >= 2:
                     foot, normals, on_part = pl.build_pass(pts, nrm, np.zeros(len(pts), bool),
                                                            extend=False)
-                    edge = _PassGeom(foot, normals, np.zeros(len(foot), bool), side, w0,
+                    edge = PassGeom(foot, normals, np.zeros(len(foot), bool), side, w0,
                                      edge=True)
                     # samples at the ends of the current pass whose indexing curves left the
                     # surface along the boundary it ends at have no offset: the edge pass goes
@@ -260,12 +260,12 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                     edge.info = dict(info, edge=True)
                     # its band lies on the part, between it and the previous pass
                     edge.source = (curves, sign * w0)
-                    _time_pass(pl, edge, w0)
+                    time_pass(pl, edge, w0)
                     passes[side] = edge
                     yield
                 break
             foot, normals, on_part = pl.build_pass(pts, nrm, inside)
-            new = _PassGeom(foot, normals, on_part, side, w0)
+            new = PassGeom(foot, normals, on_part, side, w0)
             new.info = info
             if st.edge_passes and back_fill(pl, cur, new, sign, w0, pl.last_extension_m) \
                     and cur is start and sign < 0 and 1 in passes:
@@ -273,7 +273,7 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
                 # on the part gets its neighbour on the right too (pass +1, or its edge pass)
                 first = passes[1]
                 back_fill(pl, first, start, -1, first.width_m, tuple(start.info["back_fill_m"]))
-            _time_pass(pl, new, w0)                 # Algorithm 1: optimize the new pass's speed
+            time_pass(pl, new, w0)                 # Algorithm 1: optimize the new pass's speed
             passes[side] = new
             widths_this_side.append(w0)
             cur = new
@@ -286,14 +286,16 @@ def _sweeps(pl: _Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarra
     return passes
 
 
-def _predicted_worst(passes: dict[int, _PassGeom]) -> float:
+def _predicted_worst(passes: dict[int, PassGeom]) -> float:
     """Largest predicted optimization-profile σ/μ [%] over the passes on the part."""
     vals = [p.info.get("worst_marker_nsd_pct", p.info.get("nsd_pct", 0.0))
             for p in passes.values() if not p.edge and p.side != 0]
     return float(max(vals)) if vals else 0.0
 
 
-def _jsonable(d: dict[str, Any]) -> dict[str, Any]:
+def jsonable(d: dict[str, Any]) -> dict[str, Any]:
+    """A copy of a flat dict of figures for JSON: numpy scalars as Python numbers, non-finite
+    floats as None."""
     out: dict[str, Any] = {}
     for k, v in d.items():
         if isinstance(v, np.generic):
@@ -319,7 +321,7 @@ def _blend(passes: list[PassPlan], alpha: float, base: list[np.ndarray]) -> list
     return out
 
 
-def _refine(pl: _Planner, surface: Surface, passes: list[PassPlan]
+def _refine(pl: Planner, surface: Surface, passes: list[PassPlan]
             ) -> tuple[list[PassPlan], dict[str, Any]]:
     """`film_refine.refine_speeds` on the plan, within the robot's speed caps."""
     from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
@@ -336,10 +338,10 @@ def _refine(pl: _Planner, surface: Surface, passes: list[PassPlan]
         caps.append(None if cap is None else (cap[::-1] if order % 2 == 1 else cap))
     out, info = refine_speeds(pl.app, surface, passes, st.v_min_m_s, st.v_max_m_s, interior,
                               caps)
-    return out, _jsonable(info)
+    return out, jsonable(info)
 
 
-def _film_guard(pl: _Planner, surface: Surface, passes: list[PassPlan]
+def _film_guard(pl: Planner, surface: Surface, passes: list[PassPlan]
                 ) -> tuple[list[PassPlan], dict[str, Any]]:
     """Keep the speed-optimized passes only as far as the simulated film on the part is no worse
     than at constant speed, on the whole part and on its interior (σ/μ, area weighted)."""

@@ -1,4 +1,4 @@
-"""Algorithm 1's state for one surface (`_Planner`) and a pass before timing (`_PassGeom`): mesh
+"""Algorithm 1's state for one surface (`Planner`) and a pass before timing (`PassGeom`): mesh
 connectivity, pass extension within the surface, indexing curves, geodesic fallback offsets and the
 index-width choice of paper §4 (lengths in m)."""
 
@@ -34,7 +34,7 @@ from paintcell.paint.applicator import Applicator
 
 
 @dataclass(eq=False)
-class _PassGeom:
+class PassGeom:
     """A pass in the surface before timing: foot points (on-part core with in-surface
     extensions), normals, on_part flags, side index, width from its predecessor."""
 
@@ -55,7 +55,8 @@ class _PassGeom:
     timing: dict[str, Any] | None = None
 
 
-def _mirror(c: IndexingCurve | None) -> IndexingCurve | None:
+def mirrored_curve(c: IndexingCurve | None) -> IndexingCurve | None:
+    """The indexing curve traversed the other way (None stays None)."""
     return None if c is None else c.reversed()
 
 
@@ -82,7 +83,7 @@ def outside_span(foot: np.ndarray, inside: np.ndarray, max_gap_m: float) -> tupl
     return lo, hi
 
 
-class _Planner:
+class Planner:
     """Algorithm 1 state for one surface (mesh connectivity, cross-profile cache)."""
 
     def __init__(self, surface: Any, app: Applicator, settings: PlannerSettings) -> None:
@@ -122,7 +123,7 @@ class _Planner:
                                                      st.u_max, st.width_tolerance_m).width_m
         return self._nominal_width
 
-    def geodesic_offset(self, p: _PassGeom, distance_m: float
+    def geodesic_offset(self, p: PassGeom, distance_m: float
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Heat-method offset of pass `p` at signed `distance_m` [m]: points, normals, inside
         (all True: a level set lies on the surface)."""
@@ -200,7 +201,7 @@ class _Planner:
                             "surface for narrow tips")
         return resample(foot, normals, self.st.sample_spacing_m, inside)
 
-    def curves_of(self, p: _PassGeom) -> list[IndexingCurve | None]:
+    def curves_of(self, p: PassGeom) -> list[IndexingCurve | None]:
         if p.curves is None:
             t = tangents(p.foot)
             curves = indexing_curves(self.geom, p.foot, t, p.normals)
@@ -208,7 +209,7 @@ class _Planner:
         return p.curves
 
     # --- index width --------------------------------------------------------------------------
-    def markers(self, p: _PassGeom, valid: np.ndarray) -> np.ndarray:
+    def markers(self, p: PassGeom, valid: np.ndarray) -> np.ndarray:
         """Indices of marker samples: equal steps of turning/marker_turn + length/spacing."""
         idx = np.flatnonzero(valid)
         if len(idx) < 3:
@@ -240,7 +241,7 @@ class _Planner:
             self.cache_hits += 1
         return film
 
-    def choose_width(self, p: _PassGeom, curves: list[IndexingCurve | None],
+    def choose_width(self, p: PassGeom, curves: list[IndexingCurve | None],
                      known_s: list[float], w_prev: float | None) -> tuple[float, dict[str, Any]]:
         valid = np.array([c is not None for c in curves])
         if not valid.any():

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from paintcell.core.errors import PlanError
-from paintcell.coverage.coverage_planner import _PassGeom, _Planner
+from paintcell.coverage.coverage_planner import PassGeom, Planner
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.offset import arc_length, geodesic_curvature, tangents, unit, walk
 from paintcell.coverage.plan import PassPlan, times_from_speeds
@@ -16,7 +16,7 @@ from paintcell.coverage.speed_qp import SubOffsetBand, optimize_pass_speed
 from paintcell.surface.surface import Surface
 
 
-def _band(pl: _Planner, p: _PassGeom, half_width_m: float) -> SubOffsetBand | None:
+def _band(pl: Planner, p: PassGeom, half_width_m: float) -> SubOffsetBand | None:
     """Sub-offset curves of a pass: curve 0 its foot points (on-part ones; all of them for an
     edge pass, which lies on the virtual extension), then ± offsets walked along indexing curves
     (the pass's own, or for an edge pass the previous pass's, shifted by the width); only points
@@ -59,7 +59,7 @@ def _band(pl: _Planner, p: _PassGeom, half_width_m: float) -> SubOffsetBand | No
     return SubOffsetBand(tuple(pts_l), tuple(nrm_l), tuple(len_l))
 
 
-def _time_pass(pl: _Planner, p: _PassGeom, w_local: float) -> None:
+def time_pass(pl: Planner, p: PassGeom, w_local: float) -> None:
     """Add overspray and TCP poses to a pass and optimize its speed (paper §3) — called as
     Algorithm 1 generates the pass. The band spans ± band_half_width · w_local [m] (the width to
     the pass it was offset from; for the start curve, the bell's planar Fig. 5 width)."""
@@ -159,14 +159,14 @@ def _off_part_ends_m(foot: np.ndarray, on_part: np.ndarray) -> tuple[float, floa
     return float(s[idx[0]]), float(s[-1] - s[idx[-1]])
 
 
-def _time_passes(pl: _Planner, passes: dict[int, _PassGeom],
-                 st: PlannerSettings) -> list[PassPlan]:
+def time_passes(pl: Planner, passes: dict[int, PassGeom],
+                st: PlannerSettings) -> list[PassPlan]:
     """Order the timed passes for execution (boustrophedon: every other pass reversed)."""
     out: list[PassPlan] = []
     for order, side in enumerate(sorted(passes)):
         p = passes[side]
         if p.timing is None:
-            _time_pass(pl, p, p.width_m if np.isfinite(p.width_m) else pl.nominal_width)
+            time_pass(pl, p, p.width_m if np.isfinite(p.width_m) else pl.nominal_width)
         tm = p.timing
         assert tm is not None
         pos, axes, travel = tm["pos"], tm["axes"], tm["travel"]

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.errors import PlanError
-from paintcell.coverage.coverage_planner import _PassGeom, _Planner
+from paintcell.coverage.coverage_planner import PassGeom, Planner
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.paint.applicator import Applicator
 from paintcell.surface.surface import Surface
@@ -49,8 +49,8 @@ class FamilyGeometry:
     planar_width_m; smooth_scale_m; smoothing_max_shift_m; openings: the part's openings;
     profiles: (cross profiles computed, cache hits) of the width searches."""
 
-    pl: _Planner
-    passes: dict[int, _PassGeom]
+    pl: Planner
+    passes: dict[int, PassGeom]
     reversed_start: bool
     candidates: list[float]
     start_rule: str
@@ -71,7 +71,7 @@ class FamilyGeometry:
             openings=self.openings, profiles=self.profiles)
 
 
-def _untimed(p: _PassGeom) -> _PassGeom:
+def _untimed(p: PassGeom) -> PassGeom:
     q = copy.copy(p)                 # arrays are replaced, never changed in place
     q.info = dict(p.info)
     q.info.pop("feedback_mismatch", None)    # caps of another plan's passes: timed again

@@ -24,9 +24,9 @@ from scipy.spatial import cKDTree
 from paintcell.coverage.offset_polyline import unit
 from paintcell.coverage.offset_sections import (
     SurfaceGeometry,
-    _crossings,
-    _dedupe,
-    _order_components,
+    dedupe_points,
+    order_components,
+    section_crossings,
 )
 
 
@@ -57,12 +57,12 @@ class HeatGeodesics:
         component as ordered points (M, 3) and unit normals (M, 3), running the same way as the
         pass (M = 0 when the level set misses the surface)."""
         phi = self.signed_distance(points, normals) - distance_m
-        cross, pts, nrm = _crossings(self.geom, phi)
+        cross, pts, nrm = section_crossings(self.geom, phi)
         if len(cross) < 2:
             return np.zeros((0, 3)), np.zeros((0, 3))
         comps = []
-        for order, _closed in _order_components(self.geom, phi, cross):
-            p, n = despike(*_dedupe(pts[order], nrm[order]))
+        for order, _closed in order_components(self.geom, phi, cross):
+            p, n = despike(*dedupe_points(pts[order], nrm[order]))
             if len(p) >= 2:
                 comps.append((float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()), p, n))
         if not comps:

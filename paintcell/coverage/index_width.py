@@ -46,6 +46,15 @@ def _dx(app: Applicator) -> float:
     return _DX_PER_SIGMA * min(sig)
 
 
+def profile_size(app: Applicator) -> tuple[int, int]:
+    """(gun samples, profile points) of the index-width curve's dense matrix for `app`, the
+    sizes `paintcell.core.budget.check_profile_budget` checks against the memory there is."""
+    r = app.footprint_radius_m
+    n_gun = int(2 * _X_RANGE_FACTOR * r / _dx(app)) + 1
+    n_pts = int(2 * r / min(5e-4, r / 400)) + 1
+    return n_gun, n_pts
+
+
 def search_range(w_min_m: float, w_max_m: float, w_res_m: float) -> np.ndarray:
     """(W,) the index-width search range SR: multiples of w_res in [w_min, w_max] [m]."""
     if not (0 < w_min_m <= w_max_m) or not w_res_m > 0:

@@ -39,11 +39,11 @@ from paintcell.coverage.offset_polyline import (
 from paintcell.coverage.offset_sections import (
     Section,
     SurfaceGeometry,
-    _crossings,
-    _dedupe,
-    _order_components,
-    _signed,
+    dedupe_points,
+    order_components,
     plane_sections,
+    section_crossings,
+    signed_distances,
 )
 
 __all__ = [
@@ -173,8 +173,8 @@ def curve_through(geom: SurfaceGeometry, point: npt.ArrayLike, plane_normal: npt
     """
     p = np.asarray(point, float)
     nrm = unit(np.asarray(plane_normal, float))
-    d = _signed(geom, p, nrm) if signed_d is None else signed_d
-    cross, pts, nn = _crossings(geom, d)
+    d = signed_distances(geom, p, nrm) if signed_d is None else signed_d
+    cross, pts, nn = section_crossings(geom, d)
     if len(cross) < 2:
         # a plane through a boundary edge of the mesh touches it without crossing: nudge it
         # inward by a negligible distance so the boundary row itself becomes the section
@@ -183,12 +183,12 @@ def curve_through(geom: SurfaceGeometry, point: npt.ArrayLike, plane_normal: npt
             d = d - eps
         elif d.max() <= eps:
             d = d + eps
-        cross, pts, nn = _crossings(geom, d)
+        cross, pts, nn = section_crossings(geom, d)
         if len(cross) < 2:
             return None
     near = int(np.argmin(np.linalg.norm(pts - p, axis=1)))
-    (order, closed), = _order_components(geom, d, cross, wanted=np.array([near]))
-    cp, cn = _dedupe(pts[order], nn[order])
+    (order, closed), = order_components(geom, d, cross, wanted=np.array([near]))
+    cp, cn = dedupe_points(pts[order], nn[order])
     if len(cp) < 2:
         return None
     if closed:  # cut the loop at the point farthest from the source point

@@ -111,11 +111,14 @@ class Section:
     closed: bool
 
 
-def _signed(geom: SurfaceGeometry, origin: np.ndarray, normal: np.ndarray) -> np.ndarray:
+def signed_distances(geom: SurfaceGeometry, origin: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """(N,) signed distances [m] of the surface vertices from the plane through `origin` with
+    unit `normal`."""
     return (geom.vertices - origin) @ normal
 
 
-def _crossings(geom: SurfaceGeometry, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def section_crossings(geom: SurfaceGeometry, d: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Crossing edges of the section with signed vertex distances d (N,).
 
     Returns (edge ids (C,), points (C, 3), normals (C, 3)). Zero distances count as positive, so
@@ -132,8 +135,8 @@ def _crossings(geom: SurfaceGeometry, d: np.ndarray) -> tuple[np.ndarray, np.nda
     return cross, pts, nrm
 
 
-def _order_components(geom: SurfaceGeometry, d: np.ndarray, cross: np.ndarray,
-                      wanted: np.ndarray | None = None) -> list[tuple[np.ndarray, bool]]:
+def order_components(geom: SurfaceGeometry, d: np.ndarray, cross: np.ndarray,
+                     wanted: np.ndarray | None = None) -> list[tuple[np.ndarray, bool]]:
     """Order crossing edges into polylines: each crossed face links its two crossed edges.
 
     Returns (indices into `cross` in order, closed) per component (only the components holding
@@ -189,7 +192,9 @@ def _crossing_graph(geom: SurfaceGeometry, cross: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((np.ones(len(cols)), cols, indptr), shape=(n_cross, n_cross))
 
 
-def _dedupe(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def dedupe_points(points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A polyline's points (K, 3) and normals (K, 3) without consecutive points closer than
+    `_MERGE_M`."""
     if len(points) < 2:
         return points, normals
     keep = np.ones(len(points), bool)
@@ -206,13 +211,13 @@ def plane_sections(geom: SurfaceGeometry, origin: npt.ArrayLike,
     """
     o = np.asarray(origin, float)
     nrm = unit(np.asarray(plane_normal, float))
-    d = _signed(geom, o, nrm)
-    cross, pts, nn = _crossings(geom, d)
+    d = signed_distances(geom, o, nrm)
+    cross, pts, nn = section_crossings(geom, d)
     if len(cross) < 2:
         return []
     secs = []
-    for order, closed in _order_components(geom, d, cross):
-        p, n = _dedupe(pts[order], nn[order])
+    for order, closed in order_components(geom, d, cross):
+        p, n = dedupe_points(pts[order], nn[order])
         if len(p) >= 2:
             secs.append(Section(p, n, closed))
     secs.sort(key=lambda s: -float(np.linalg.norm(np.diff(s.points, axis=0), axis=1).sum()))

@@ -13,8 +13,8 @@ hole and switches the gun off only where most of the spray would go through it. 
   applicator's emitted flow);
 - `brush_off_openings`: brush off every sample whose share exceeds `max_fraction` (0.5).
 
-Openings here are found from the mesh alone; issue 11's region detection (when present) is the
-source of truth for which loops are openings and which are the outer boundary.
+Openings here are found from the mesh alone; the part import's region detection (when present)
+is the source of truth for which loops are openings and which are the outer boundary.
 """
 
 from __future__ import annotations

@@ -344,7 +344,7 @@ def _refine_whole(app: Applicator, surface: Surface, passes: list[PassPlan],
     """`film_refine.refine_speeds` over the whole part (interior: beyond the film guard's band
     from the part's boundary), within the robot's speed caps (per pass in execution order, in
     its execution direction), as `coverage_family` refines one family."""
-    from paintcell.coverage.coverage_family import _jsonable
+    from paintcell.coverage.coverage_family import jsonable
     from paintcell.coverage.film_refine import refine_speeds
     from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
 
@@ -354,4 +354,4 @@ def _refine_whole(app: Applicator, surface: Surface, passes: list[PassPlan],
     if not interior.any():
         interior = np.ones(len(surface.vertices), bool)
     out, info = refine_speeds(app, surface, passes, st.v_min_m_s, st.v_max_m_s, interior, caps)
-    return out, _jsonable(info)
+    return out, jsonable(info)

@@ -141,6 +141,18 @@ class PassPlan:
         """Polyline length of the TCP path [m]."""
         return float(np.linalg.norm(np.diff(self.positions, axis=0), axis=1).sum())
 
+    @property
+    def max_turn_deg(self) -> float:
+        """Largest angle [°] between consecutive segments of the TCP path: the sharpest turn a
+        robot must follow between two samples (0 for a straight pass)."""
+        d = np.diff(self.positions, axis=0)
+        n = np.linalg.norm(d, axis=1)
+        d = d[n > 1e-12] / n[n > 1e-12, None]
+        if len(d) < 2:
+            return 0.0
+        c = np.clip(np.einsum("ij,ij->i", d[1:], d[:-1]), -1.0, 1.0)
+        return float(np.degrees(np.arccos(c)).max())
+
     def dwell_s(self) -> np.ndarray:
         """(M,) time attributed to each sample [s]: half of each adjacent interval (trapezoid)."""
         dt = np.diff(self.times_s)
@@ -229,6 +241,7 @@ class CoveragePlan:
                 "n_samples": len(p.times_s),
                 "duration_s": p.duration_s,
                 "length_m": p.length_m,
+                "max_turn_deg": p.max_turn_deg,
             })
         meta = {
             "format": _FORMAT,

@@ -29,7 +29,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from paintcell.core.errors import AxisTurnError, PlanError
-from paintcell.surface.curvature import _corner_geometry, boundary_vertex_mask
+from paintcell.surface.curvature import boundary_vertex_mask, corner_geometry
 from paintcell.surface.surface import Surface, surface_from_triangles
 
 #: the smoothing scale is this fraction of the spray footprint radius (a 0.33 m bell: 82 mm).
@@ -38,7 +38,7 @@ FOOTPRINT_FRACTION = 0.25
 
 def cotan_laplacian(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     """(N, N) positive semi-definite cotangent stiffness matrix L (L @ x = −2 H n · area)."""
-    _, cot, _, _ = _corner_geometry(vertices, faces)
+    _, cot, _, _ = corner_geometry(vertices, faces)
     cot = np.nan_to_num(cot, nan=0.0, posinf=0.0, neginf=0.0)
     i = faces[:, [1, 2, 0]].ravel()         # edge (i+1, i+2) is opposite corner i
     j = faces[:, [2, 0, 1]].ravel()

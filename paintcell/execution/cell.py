@@ -10,7 +10,7 @@ The booth is a floor plane (its own static body, so contacts name it). Sensors o
 the actuator forces and robot-vs-part / robot-vs-booth / robot-vs-robot (self-collision) contact
 detectors let `paintcell.execution.execute` roll the whole program out inside MuJoCo.
 
-Self-collision: every robot collision geom collides with every other (`_COLLISION_BIT` in both
+Self-collision: every robot collision geom collides with every other (`COLLISION_BIT` in both
 contype and conaffinity), except what MuJoCo filters (parent–child bodies, bodies welded together)
 and the excluded pairs — the robot MJCF's own `<contact><exclude>` neighbours, whose collision
 capsules overlap by construction at a joint, and the foot against its moving children (below).
@@ -49,7 +49,7 @@ TIMESTEP_S = 1e-3
 ROBOT_PREFIX = "robot/"
 #: contype/conaffinity bit shared by the robot's collision geoms, the part slabs and the floor
 #: (MuJoCo's default 1): any two of them collide, the robot's links with each other included.
-_COLLISION_BIT = 1
+COLLISION_BIT = 1
 
 
 class CellError(PaintcellError):
@@ -235,8 +235,8 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     # Only the robot's geoms exist at this point.
     for geom in spec.geoms:
         if geom.contype or geom.conaffinity:
-            geom.contype |= _COLLISION_BIT
-            geom.conaffinity |= _COLLISION_BIT
+            geom.contype |= COLLISION_BIT
+            geom.conaffinity |= COLLISION_BIT
 
     # --- part: visual mesh (exact surface) + thin convex collision slabs ---------------------
     part = spec.worldbody.add_body(name=PART_BODY, pos=T_world_part[:3, 3],
@@ -313,12 +313,15 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         raise CellError(f"the cell does not compile ({exc}); check the robot MJCF names "
                         f"(tcp site {robot.tcp_site_name!r}, base {robot.base_body_name!r})"
                         ) from exc
-    return _index_cell(model, spec, robot, surface, T_world_part, T_world_base, cams, booth)
+    return index_cell(model, spec, robot, surface, T_world_part, T_world_base, cams, booth)
 
 
-def _index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, surface: Surface,
-                T_world_part: np.ndarray, T_world_base: np.ndarray, cams: Sequence[CameraSpec],
-                booth: bool, prefix: str = ROBOT_PREFIX) -> Cell:
+def index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, surface: Surface,
+               T_world_part: np.ndarray, T_world_base: np.ndarray, cams: Sequence[CameraSpec],
+               booth: bool, prefix: str = ROBOT_PREFIX) -> Cell:
+    """The `Cell` of a compiled MuJoCo model: the ids of the robot's joints, actuators, TCP site,
+    sensors and geoms (names under `prefix`), with the part, its pose and the cameras; a booth
+    cell (`paintcell.booth.booth_cell`) indexes each robot with its own prefix."""
     def oid(kind: mujoco.mjtObj, name: str) -> int:
         i = mujoco.mj_name2id(model, kind, name)
         if i < 0:

@@ -47,22 +47,22 @@ import numpy as np
 
 from paintcell.core.transforms import matrix_from_quat_wxyz
 from paintcell.execution.cell import Cell
-from paintcell.execution.execute_contacts import _contacts
+from paintcell.execution.execute_contacts import named_contacts
 from paintcell.execution.execute_models import (
-    _controller_model,
-    _coulomb_friction,
-    _disturbed_model,
-    _joint_range,
-    _set_pd_actuators,
-    _set_torque_actuators,
+    controller_model,
+    disturbed_model,
     inverse_dynamics,
+    joint_friction_nm,
+    joint_range,
+    set_pd_actuators,
+    set_torque_actuators,
 )
 from paintcell.execution.execute_rollout import (
     CHUNK_STEPS,
     SETTLE_MAX_S,
     SETTLE_TOL_M,
-    _run_kinematic,
-    _run_servo,
+    run_kinematic,
+    run_servo,
 )
 from paintcell.execution.execute_settings import Disturbances, ExecutionError, ServoSettings
 from paintcell.execution.trace import ExecutedTrace
@@ -118,7 +118,7 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
     _check_inputs(cell, traj)
     servo = servo or ServoSettings()
     t0 = time.perf_counter()
-    model, T_actual, tcp_offset = _disturbed_model(cell, disturbances)
+    model, T_actual, tcp_offset = disturbed_model(cell, disturbances)
     kp, kd = servo.gains(cell)
     if disturbances is not None:
         kp, kd = kp * disturbances.gain_scale, kd * disturbances.gain_scale
@@ -127,13 +127,13 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
     if mode == "servo":
         # The plant: the robot MJCF plus joint Coulomb friction; the controller's feed-forward
         # model: a perturbed copy of it (model_error, payload_error), friction partly known.
-        fc = _coulomb_friction(cell, servo)
+        fc = joint_friction_nm(cell, servo)
         model.dof_frictionloss[cell.dof_adr] = fc
-        _set_torque_actuators(model, cell)
+        set_torque_actuators(model, cell)
         key = ("servo-id", repr(servo))
         tau_id = None if cache is None else cache.get(key)
         if tau_id is None or tau_id.shape != q_ref.shape:
-            tau_id = inverse_dynamics(_controller_model(model, cell, servo), cell, q_ref, qd_ref,
+            tau_id = inverse_dynamics(controller_model(model, cell, servo), cell, q_ref, qd_ref,
                                       qdd_ref)
             if cache is not None:
                 cache[key] = tau_id
@@ -141,22 +141,22 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         tau_ff = (tau_id - (1.0 - servo.friction_compensation) * damping * qd_ref
                   + servo.coulomb_compensation * fc * np.tanh(qd_ref / FRICTION_SMOOTH_RAD_S)
                   if servo.feedforward else np.zeros_like(q_ref))
-        q_all, qd_all, sens_all, tau_demand, warnings, settle_s = _run_servo(
+        q_all, qd_all, sens_all, tau_demand, warnings, settle_s = run_servo(
             model, cell, q_ref, qd_ref, tau_ff, kp, kd, int(servo.latency_steps), progress)
         K = len(q_ref)
         q, qd, sens = q_all[:K], qd_all[:K], sens_all[:K]
         tau = sens[:, cell.sensor_actuator_force]
         # Contacts of the program and of the settling hold after it (times past the end).
         t_all = traj.t_s[0] + np.arange(len(q_all)) * cell.model.opt.timestep
-        contacts = _contacts(model, cell, q_all, sens_all, t_all)
+        contacts = named_contacts(model, cell, q_all, sens_all, t_all)
     else:
-        _set_pd_actuators(model, cell, kp, kd)
+        set_pd_actuators(model, cell, kp, kd)
         tau_id = inverse_dynamics(model, cell, q_ref, qd_ref, qdd_ref)
-        q, qd, sens, warnings = _run_kinematic(model, cell, q_ref, qd_ref, progress)
+        q, qd, sens, warnings = run_kinematic(model, cell, q_ref, qd_ref, progress)
         tau = tau_id  # the torque the motors would need to follow the reference exactly
         tau_demand = tau_id
         settle_s = 0.0
-        contacts = _contacts(model, cell, q, sens, traj.t_s)
+        contacts = named_contacts(model, cell, q, sens, traj.t_s)
     wall = time.perf_counter() - t0
     fatal = {k: v for k, v in warnings.items() if k in _FATAL_WARNINGS}
     if fatal or not (np.all(np.isfinite(q)) and np.all(np.isfinite(qd))
@@ -178,8 +178,8 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         "realtime_factor": float((traj.t_s[-1] - traj.t_s[0] + cell.model.opt.timestep) / wall),
         "robot_name": cell.robot_name, "joint_names": list(cell.joint_names),
         "tau_max": cell.tau_max.tolist(),
-        "q_lower": _joint_range(model, cell)[0].tolist(),
-        "q_upper": _joint_range(model, cell)[1].tolist(),
+        "q_lower": joint_range(model, cell)[0].tolist(),
+        "q_upper": joint_range(model, cell)[1].tolist(),
     }
     return ExecutedTrace(
         t_s=np.asarray(traj.t_s, float).copy(), q=q, qd=qd, tau=np.ascontiguousarray(tau),

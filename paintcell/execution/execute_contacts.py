@@ -11,8 +11,8 @@ from paintcell.execution.cell import Cell
 from paintcell.execution.trace import Contact
 
 
-def _contacts(model: mujoco.MjModel, cell: Cell, q: np.ndarray, sens: np.ndarray,
-              t_s: np.ndarray) -> tuple[Contact, ...]:
+def named_contacts(model: mujoco.MjModel, cell: Cell, q: np.ndarray, sens: np.ndarray,
+                   t_s: np.ndarray) -> tuple[Contact, ...]:
     """Name the bodies of every robot-vs-part/booth and robot-vs-robot contact the sensors saw
     (deepest per body pair and step).
 

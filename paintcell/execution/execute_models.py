@@ -23,7 +23,7 @@ from paintcell.execution.execute_settings import Disturbances, ServoSettings
 SPLIT_MIN_SAMPLES = 2000
 
 
-def _disturbed_model(cell: Cell, dist: Disturbances | None) -> tuple[mujoco.MjModel, np.ndarray,
+def disturbed_model(cell: Cell, dist: Disturbances | None) -> tuple[mujoco.MjModel, np.ndarray,
                                                                        np.ndarray]:
     """Model copy with the part moved and the TCP site offset; T_world_part actually used."""
     model = copy.copy(cell.model)
@@ -45,7 +45,7 @@ def _disturbed_model(cell: Cell, dist: Disturbances | None) -> tuple[mujoco.MjMo
     return model, T_actual, tcp_offset
 
 
-def _set_pd_actuators(model: mujoco.MjModel, cell: Cell, kp: np.ndarray, kd: np.ndarray) -> None:
+def set_pd_actuators(model: mujoco.MjModel, cell: Cell, kp: np.ndarray, kd: np.ndarray) -> None:
     """Actuator force = ctrl − (Kp q + Kd q̇)/g², clamped to ±τ_max/g (g: gear)."""
     a = cell.actuator_ids
     g = model.actuator_gear[a, 0]
@@ -62,17 +62,17 @@ def _set_pd_actuators(model: mujoco.MjModel, cell: Cell, kp: np.ndarray, kd: np.
     model.actuator_forcerange[a, 1] = cell.tau_max / np.abs(g)
 
 
-def _set_torque_actuators(model: mujoco.MjModel, cell: Cell) -> None:
+def set_torque_actuators(model: mujoco.MjModel, cell: Cell) -> None:
     """Actuator force = ctrl (the whole servo law computed per step), clamped to ±τ_max/g."""
-    _set_pd_actuators(model, cell, np.zeros(cell.nq), np.zeros(cell.nq))
+    set_pd_actuators(model, cell, np.zeros(cell.nq), np.zeros(cell.nq))
 
 
-def _coulomb_friction(cell: Cell, servo: ServoSettings) -> np.ndarray:
+def joint_friction_nm(cell: Cell, servo: ServoSettings) -> np.ndarray:
     """(n,) joint Coulomb friction of the plant [N·m]."""
     return servo.coulomb_friction * np.asarray(cell.tau_max, float)
 
 
-def _controller_model(model: mujoco.MjModel, cell: Cell, servo: ServoSettings) -> mujoco.MjModel:
+def controller_model(model: mujoco.MjModel, cell: Cell, servo: ServoSettings) -> mujoco.MjModel:
     """The controller's idea of the plant `model`: link masses and inertias scaled by seeded
     factors in [1 − model_error, 1 + model_error], the tool body by (1 − payload_error)."""
     m = copy.copy(model)
@@ -155,7 +155,7 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
-def _joint_range(model: mujoco.MjModel, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
+def joint_range(model: mujoco.MjModel, cell: Cell) -> tuple[np.ndarray, np.ndarray]:
     """(q_lower, q_upper) (n,) [rad] of the robot joints; nan where a joint is unlimited."""
     j = model.dof_jntid[cell.dof_adr]
     limited = model.jnt_limited[j].astype(bool)

@@ -37,10 +37,10 @@ def _warnings(d: mujoco.MjData) -> dict[str, int]:
             if d.warning[int(mujoco.mjtWarning.__members__[w])].number > 0}
 
 
-def _run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.ndarray,
-               tau_ff: np.ndarray, kp: np.ndarray, kd: np.ndarray, latency: int,
-               progress: Callable[[float], None] | None,
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, int], float]:
+def run_servo(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.ndarray,
+              tau_ff: np.ndarray, kp: np.ndarray, kd: np.ndarray, latency: int,
+              progress: Callable[[float], None] | None,
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict[str, int], float]:
     """Roll the program out, then hold its last reference for SETTLE_MAX_S; (q, q̇, sensordata
     per step of the program and the hold (K + H rows), joint torque demanded before the clamp
     per program step (K, n) [N·m], warnings, settling time [s]). `model` has torque actuators
@@ -172,9 +172,11 @@ def _settle_time(model: mujoco.MjModel, cell: Cell, sens_hold: np.ndarray,
     return float((outside[-1] + 1) * model.opt.timestep)
 
 
-def _run_kinematic(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.ndarray,
-                   progress: Callable[[float], None] | None,
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int]]:
+def run_kinematic(model: mujoco.MjModel, cell: Cell, q_ref: np.ndarray, qd_ref: np.ndarray,
+                  progress: Callable[[float], None] | None,
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, int]]:
+    """Play the reference (K, n) joint positions and velocities straight into the model (no
+    dynamics): (q, qd, sensor data, per-step counters) as `run_servo` returns them."""
     K, _ = q_ref.shape
     d = mujoco.MjData(model)
     sens = np.empty((K, model.nsensordata))

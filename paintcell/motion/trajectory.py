@@ -73,14 +73,14 @@ from paintcell.motion.joint_trajectory import (
 )
 from paintcell.motion.moves import JointMove, plan_move
 from paintcell.motion.time_law import JointPath, PassTimeLaw, parameterize_pass
-from paintcell.motion.trajectory_paths import _ik_paths, _refined_path
-from paintcell.motion.trajectory_sampling import _sample, _Segment
+from paintcell.motion.trajectory_paths import ik_paths, refined_path
+from paintcell.motion.trajectory_sampling import Segment, sample_program
 from paintcell.motion.trajectory_settings import RobotLike, TrajectorySettings
 from paintcell.motion.trajectory_turnaround import (
-    _backed_off,
-    _through_via,
-    _turnaround,
-    _turnaround_dip,
+    backed_off_via,
+    through_via,
+    turnaround,
+    turnaround_dip,
 )
 from paintcell.robots.errors import UnreachableError
 
@@ -125,7 +125,7 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
     # carries the IK verdict; a partly unreachable plan that can be timed is (with warnings).
     T_world_tcp = [T_wp @ plan.tcp_frames(i) for i in range(len(plan.passes))]
     t0 = time.perf_counter()
-    q_paths, reachability = _ik_paths(robot, T_world_tcp, q_home, settings, ik_results)
+    q_paths, reachability = ik_paths(robot, T_world_tcp, q_home, settings, ik_results)
     timing["ik"] = time.perf_counter() - t0
     if reachability is not None and reachability["n_reachable"] == 0:
         raise UnreachableError(f"{reachability['verdict']}; {_MOVE_PART}")
@@ -165,7 +165,7 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
         p_plan = Tw[:, :3, 3]
         s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p_plan, axis=0),
                                                                  axis=1))])
-        path, dev = _refined_path(robot, fk_pos, s_plan, p_plan, qk, settings.path_tolerance_m)
+        path, dev = refined_path(robot, fk_pos, s_plan, p_plan, qk, settings.path_tolerance_m)
         if dev > _IK_WARN_ERROR_M:
             warnings.append(f"pass {len(paths)}: joint path {1e3 * dev:.1f} mm off the planned "
                             "TCP path (unreachable poses; see meta['reachability'])")
@@ -199,12 +199,12 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
         _, _, q, qd, qdd = law.joint_state(np.array([0.0, law.duration_s]))
         return (q[0], qd[0], qdd[0]), (q[1], qd[1], qdd[1])
 
-    segments: list[_Segment] = []
+    segments: list[Segment] = []
 
     def add_moves(kind: int, states: list[tuple[np.ndarray, ...]]) -> None:
         for x, y in zip(states[:-1], states[1:], strict=True):
             m = move(x, y)
-            segments.append(_Segment(kind, m.duration_s, move=m))
+            segments.append(Segment(kind, m.duration_s, move=m))
 
     def at_rest(q: np.ndarray) -> tuple[np.ndarray, ...]:
         return (q, zero, zero)
@@ -212,7 +212,7 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
     def vias(q: np.ndarray, clearance_m: float) -> list[tuple[np.ndarray, ...]]:
         """The backed-off via of q (none at 0 clearance) and, with `fold_moves`, before it (seen
         from home) the same via with the shoulder and elbow at home's values."""
-        out = [] if clearance_m == 0 else [at_rest(_backed_off(robot, q, clearance_m))]
+        out = [] if clearance_m == 0 else [at_rest(backed_off_via(robot, q, clearance_m))]
         wi = getattr(robot, "wrist_joint_index", None)
         if settings.fold_moves and wi is not None and wi >= 3:
             f = np.array(out[0][0] if out else q, float)
@@ -227,13 +227,13 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
     def approach_or_retract(kind: int, a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...],
                             q_pass: np.ndarray, clearance_m: float, T_pass: np.ndarray) -> None:
         """home → via(s) → pass start, or pass end → via(s) → home; a single via (no fold) is
-        passed moving where `_through_via` finds that faster and no closer to the part."""
+        passed moving where `through_via` finds that faster and no closer to the part."""
         vs = vias(q_pass, clearance_m)
         if kind == RETRACT:
             vs = vs[::-1]
         if settings.moving_vias and len(vs) == 1:
-            moves, record = _through_via(robot, move, a, vs[0][0], b, T_pass, settings, dt)
-            segments.extend(_Segment(kind, m.duration_s, move=m) for m in moves)
+            moves, record = through_via(robot, move, a, vs[0][0], b, T_pass, settings, dt)
+            segments.extend(Segment(kind, m.duration_s, move=m) for m in moves)
             via_records["approach" if kind == APPROACH else "retract"] = record
         else:
             add_moves(kind, [a, *vs, b])
@@ -242,13 +242,13 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
                         settings.approach_clearance_m, T_world_tcp[0][0])
     turnarounds: list[dict[str, Any]] = []
     for i, law in enumerate(laws):
-        segments.append(_Segment(PAINT, law.duration_s, pass_index=i, law=law))
+        segments.append(Segment(PAINT, law.duration_s, pass_index=i, law=law))
         _, end = ends(law)
         if i + 1 < len(laws):
             nxt, _ = ends(laws[i + 1])
-            moves, record = _turnaround(robot, move, end, nxt, T_world_tcp[i][-1],
+            moves, record = turnaround(robot, move, end, nxt, T_world_tcp[i][-1],
                                         T_world_tcp[i + 1][0], settings, dt)
-            segments.extend(_Segment(TURNAROUND, m.duration_s, move=m) for m in moves)
+            segments.extend(Segment(TURNAROUND, m.duration_s, move=m) for m in moves)
             turnarounds.append({"after_pass": i, **record})
             if record["dip_m"] > settings.turnaround_max_dip_m:
                 warnings.append(f"turn-around after pass {i} ({record['mode']}): the TCP comes "
@@ -261,10 +261,10 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
 
     # --- 4. sampling on one clock -----------------------------------------------------------
     t0 = time.perf_counter()
-    traj = _sample(robot, plan, segments, dt, knot_lists, settings, v_lim, a_lim)
+    traj = sample_program(robot, plan, segments, dt, knot_lists, settings, v_lim, a_lim)
     timing["sampling"] = time.perf_counter() - t0
 
-    dip = _turnaround_dip(traj, T_world_tcp)
+    dip = turnaround_dip(traj, T_world_tcp)
     meta = dict(traj.meta)
     meta.update({
         "settings": settings.to_dict(),

@@ -19,9 +19,9 @@ from paintcell.motion.trajectory_settings import RobotLike, TrajectorySettings
 from paintcell.robots.rail import RAIL_JOINT
 
 
-def _ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarray,
-              settings: TrajectorySettings, ik_results: Sequence[Any] | None
-              ) -> tuple[list[np.ndarray], dict[str, Any] | None]:
+def ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarray,
+             settings: TrajectorySettings, ik_results: Sequence[Any] | None
+             ) -> tuple[list[np.ndarray], dict[str, Any] | None]:
     """Joint paths (M_i, n) of every pass, from `ik_results` or `paintcell.robots.ik`, and the
     combined
     reachability summary (`ReachabilityReport.to_dict()` without per-pose arrays; None when the
@@ -59,8 +59,8 @@ def _ik_paths(robot: RobotLike, T_world_tcp: list[np.ndarray], q_home: np.ndarra
 
 
 # --- joint path refinement -----------------------------------------------------------------------
-def _refined_path(robot: RobotLike, fk_pos: Any, s_plan: np.ndarray, p_plan: np.ndarray,
-                  q_knots: np.ndarray, tol_m: float, max_rounds: int = 4) -> tuple[JointPath,
+def refined_path(robot: RobotLike, fk_pos: Any, s_plan: np.ndarray, p_plan: np.ndarray,
+                 q_knots: np.ndarray, tol_m: float, max_rounds: int = 4) -> tuple[JointPath,
                                                                                    float]:
     """Spline through the IK samples, with corrected midpoint knots where its FK strays.
 
@@ -93,7 +93,7 @@ def _refined_path(robot: RobotLike, fk_pos: Any, s_plan: np.ndarray, p_plan: np.
         q_new = path(s_new)
         p_target = _lerp_rows(s_plan, p_plan, s_new)
         for k in range(len(s_new)):  # loop over a few inserted knots, not samples
-            q_new[k] = _move_tcp_to(robot, q_new[k], p_target[k], hold=hold)
+            q_new[k] = move_tcp_to(robot, q_new[k], p_target[k], hold=hold)
         s = np.concatenate([s, s_new])
         q = np.concatenate([q, q_new])
         order = np.argsort(s)
@@ -106,9 +106,9 @@ def _lerp_rows(x: np.ndarray, Y: np.ndarray, xq: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(xq, x, Y[:, k]) for k in range(Y.shape[1])])
 
 
-def _move_tcp_to(robot: RobotLike, q: np.ndarray, p_target: np.ndarray,
-                 R_target: np.ndarray | None = None, iters: int = 8,
-                 hold: np.ndarray | None = None) -> np.ndarray:
+def move_tcp_to(robot: RobotLike, q: np.ndarray, p_target: np.ndarray,
+                R_target: np.ndarray | None = None, iters: int = 8,
+                hold: np.ndarray | None = None) -> np.ndarray:
     """Damped Newton steps moving the TCP to p_target (3,) [m], holding R_target (default: the
     orientation at q). hold: (n,) bool, joints kept where they are. Returns the new q (n,)."""
     q = np.array(q, float)

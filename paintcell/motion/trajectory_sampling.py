@@ -18,7 +18,10 @@ from paintcell.motion.trajectory_settings import RobotLike, TrajectorySettings
 
 
 @dataclass
-class _Segment:
+class Segment:
+    """One piece of the program in time order: a pass's time law or a joint move (`kind`: the
+    `JointTrajectory` segment code) lasting `duration_s` [s]."""
+
     kind: int
     duration_s: float
     pass_index: int = -1
@@ -26,9 +29,12 @@ class _Segment:
     law: PassTimeLaw | None = None
 
 
-def _sample(robot: RobotLike, plan: CoveragePlan, segments: list[_Segment], dt: float,
-            knot_lists: list[np.ndarray], settings: TrajectorySettings, v_lim: np.ndarray,
-            a_lim: np.ndarray) -> JointTrajectory:
+def sample_program(robot: RobotLike, plan: CoveragePlan, segments: list[Segment], dt: float,
+                   knot_lists: list[np.ndarray], settings: TrajectorySettings, v_lim: np.ndarray,
+                   a_lim: np.ndarray) -> JointTrajectory:
+    """The whole program sampled every `dt` [s] from its segments: q, q̇, q̈, the TCP pose and
+    speed and the paint trigger, with each pass's limit utilization (`knot_lists`: the passes'
+    IK knots; v_lim, a_lim (n,): the joint limits handed to TOPP-RA)."""
     n = int(robot.nq)
     starts = np.concatenate([[0.0], np.cumsum([sg.duration_s for sg in segments])])
     total = float(starts[-1])
@@ -75,7 +81,7 @@ def _sample(robot: RobotLike, plan: CoveragePlan, segments: list[_Segment], dt: 
                            slowdowns=tuple(slowdowns), pass_summary=tuple(summary))
 
 
-def _speed_report(plan: CoveragePlan, segments: list[_Segment], starts: np.ndarray,
+def _speed_report(plan: CoveragePlan, segments: list[Segment], starts: np.ndarray,
                   t: np.ndarray, s_pass: np.ndarray, sd_pass: np.ndarray, v_plan: np.ndarray,
                   pass_index: np.ndarray, robot: RobotLike, settings: TrajectorySettings,
                   v_lim: np.ndarray, a_lim: np.ndarray) -> tuple[list[dict[str, Any]],

@@ -13,16 +13,16 @@ import numpy as np
 
 from paintcell.motion.joint_trajectory import TURNAROUND, JointTrajectory, TrajectoryError
 from paintcell.motion.moves import JointMove
-from paintcell.motion.trajectory_paths import _move_tcp_to
+from paintcell.motion.trajectory_paths import move_tcp_to
 from paintcell.motion.trajectory_settings import RobotLike, TrajectorySettings
 
 
-def _backed_off(robot: RobotLike, q: np.ndarray, clearance_m: float) -> np.ndarray:
+def backed_off_via(robot: RobotLike, q: np.ndarray, clearance_m: float) -> np.ndarray:
     """Via joint position (n,) [rad]: the TCP of FK(q) moved by `clearance_m` [m] along −z of the
     tool (away from the part), same orientation."""
     T = robot.fk(q)
     target = T[:3, 3] - clearance_m * T[:3, 2]
-    q_via = _move_tcp_to(robot, q, target, T[:3, :3], iters=40)
+    q_via = move_tcp_to(robot, q, target, T[:3, :3], iters=40)
     miss = float(np.linalg.norm(robot.fk(q_via)[:3, 3] - target))
     if miss > 1e-3 or np.any(q_via < robot.q_lower) or np.any(q_via > robot.q_upper):
         raise TrajectoryError("a backed-off via pose is not reachable within the joint limits; "
@@ -30,9 +30,9 @@ def _backed_off(robot: RobotLike, q: np.ndarray, clearance_m: float) -> np.ndarr
     return q_via
 
 
-def _turnaround(robot: RobotLike, move: Any, end: tuple[np.ndarray, ...],
-                nxt: tuple[np.ndarray, ...], T_end: np.ndarray, T_next: np.ndarray,
-                settings: TrajectorySettings, dt: float) -> tuple[list[JointMove],
+def turnaround(robot: RobotLike, move: Any, end: tuple[np.ndarray, ...],
+               nxt: tuple[np.ndarray, ...], T_end: np.ndarray, T_next: np.ndarray,
+               settings: TrajectorySettings, dt: float) -> tuple[list[JointMove],
                                                                   dict[str, Any]]:
     """Moves from the state `end` of one pass to the state `nxt` of the next (see the module
     docstring), tried in order of speed until the TCP dip is within `turnaround_max_dip_m`:
@@ -61,7 +61,7 @@ def _turnaround(robot: RobotLike, move: Any, end: tuple[np.ndarray, ...],
         shallowest: tuple[float, list[JointMove]] | None = None  # if none is
         for f in VIA_CLEARANCE_FRACTIONS:
             target = 0.5 * (Ta[:3, 3] + Tb[:3, 3]) - f * c * z
-            q_via = _move_tcp_to(robot, q_mid, target, robot.fk(q_mid)[:3, :3], iters=40)
+            q_via = move_tcp_to(robot, q_mid, target, robot.fk(q_mid)[:3, :3], iters=40)
             if np.linalg.norm(robot.fk(q_via)[:3, 3] - target) > 1e-3:
                 continue
             for g in VIA_SPEED_FACTORS:
@@ -114,9 +114,9 @@ def _turnaround(robot: RobotLike, move: Any, end: tuple[np.ndarray, ...],
 VIA_DIP_TOLERANCE_M = 1e-6
 
 
-def _through_via(robot: RobotLike, move: Any, a: tuple[np.ndarray, ...], q_via: np.ndarray,
-                 b: tuple[np.ndarray, ...], T_pass: np.ndarray, settings: TrajectorySettings,
-                 dt: float) -> tuple[list[JointMove], dict[str, Any]]:
+def through_via(robot: RobotLike, move: Any, a: tuple[np.ndarray, ...], q_via: np.ndarray,
+                b: tuple[np.ndarray, ...], T_pass: np.ndarray, settings: TrajectorySettings,
+                dt: float) -> tuple[list[JointMove], dict[str, Any]]:
     """Approach or retract moves from state `a` through the backed-off via `q_via` (n,) [rad] to
     state `b`, one of them a pass end whose TCP pose is `T_pass` (4, 4).
 
@@ -170,7 +170,8 @@ def _backed_off_pair(robot: RobotLike, q_a: np.ndarray, q_b: np.ndarray, clearan
     when that leaves the joint limits: (q_via_a, q_via_b, clearance used [m]), or None."""
     for c in clearance_m * np.array([1.0, 0.5, 0.25]):
         try:
-            return _backed_off(robot, q_a, float(c)), _backed_off(robot, q_b, float(c)), float(c)
+            return (backed_off_via(robot, q_a, float(c)), backed_off_via(robot, q_b, float(c)),
+                    float(c))
         except TrajectoryError:
             continue
     return None
@@ -188,7 +189,7 @@ def _move_dip(robot: RobotLike, move: JointMove, T_end: np.ndarray, T_next: np.n
     return max(0.0, float(np.max((p - T_end[:3, 3]) @ z)) - deepest_end)
 
 
-def _turnaround_dip(traj: JointTrajectory, T_world_tcp: list[np.ndarray]) -> float:
+def turnaround_dip(traj: JointTrajectory, T_world_tcp: list[np.ndarray]) -> float:
     """Deepest excursion of the TCP toward the part during turn-arounds [m], beyond the deeper
     of the two pass ends it joins: displacement along the mean spray axis of the two ends
     (≤ 0: the turn-around stays behind both standoff points)."""

@@ -149,7 +149,7 @@ def tool_load(robot: Any) -> tuple[float, np.ndarray]:
     return float(model.body_mass[body]), cog_site
 
 
-def _segments(traj: JointTrajectory) -> list[tuple[bool, int, np.ndarray]]:
+def program_runs(traj: JointTrajectory) -> list[tuple[bool, int, np.ndarray]]:
     """Contiguous runs of the program in time order: (is_paint, pass index, sample indices)."""
     paint = traj.segment == PAINT
     key = np.where(paint, traj.pass_index, -1)
@@ -194,7 +194,7 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
     proc: list[str] = []
     n_via = 0
     n_pass = 0
-    segments = _segments(traj)
+    segments = program_runs(traj)
     for is_paint, k, idx in segments:
         if is_paint:
             n_pass += 1

@@ -42,7 +42,8 @@ def readable(path: Path) -> Path:
     return path
 
 
-def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
+def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:
+    """Write `fig` as a PNG at `path` atomically (DPI dots per inch); the path written."""
     path = Path(path)
     FigureCanvasAgg(fig)
     with atomic_path(path) as tmp:
@@ -128,7 +129,7 @@ def plot_thickness_maps(path: str | os.PathLike[str], surface: Any, planned_m: n
         ax.set_ylabel(yl)
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 # Time series are drawn with at most this many points (a 1 kHz trace of a minute has 60,000):
@@ -209,7 +210,7 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
     extra = f" (first {len(shown)} of {len(passes)} passes)" if len(shown) < len(passes) else ""
     ax.set_title(f"TCP speed along each pass, colour = pass{extra}")
     ax.grid(alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def tracking_error_m(trajectory: Any, trace: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -255,7 +256,7 @@ def plot_tracking_error(path: str | os.PathLike[str], trajectory: Any, trace: An
     ax.set_ylabel("tracking error [mm]")
     ax.legend(loc="upper right", fontsize=8)
     ax.grid(alpha=0.3)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_joints(path: str | os.PathLike[str], t_s: npt.ArrayLike, q: npt.ArrayLike,
@@ -309,7 +310,7 @@ def plot_joints(path: str | os.PathLike[str], t_s: npt.ArrayLike, q: npt.ArrayLi
     axs[-1, 0].set_xlabel("time [s]")
     axs[-1, 1].set_xlabel("time [s]")
     fig.suptitle("Joint positions and velocities; limits dashed red")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_index_width_curve(path: str | os.PathLike[str], widths_m: npt.ArrayLike,
@@ -341,4 +342,4 @@ def plot_index_width_curve(path: str | os.PathLike[str], widths_m: npt.ArrayLike
     ax.set_title("Uniformity vs index width" + (f" — {applicator_name}" if applicator_name else ""))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path)

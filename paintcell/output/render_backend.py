@@ -84,7 +84,7 @@ def _install_backend(name: str) -> None:
         else:
             raise RenderBackendError(f"unknown MUJOCO_GL={name!r}: use egl or osmesa")
     except (ImportError, OSError, RuntimeError) as e:
-        raise RenderBackendError(f"MUJOCO_GL={name} cannot be loaded ({_one_line(e)}): "
+        raise RenderBackendError(f"MUJOCO_GL={name} cannot be loaded ({one_line(e)}): "
                                  f"{_INSTALL_HINT}") from e
     glc.GLContext = GLContext  # type: ignore[attr-defined]
 
@@ -113,14 +113,18 @@ def backend_name() -> str:
     raise RenderBackendError(f"no offscreen OpenGL backend ({'; '.join(errors)}): {_INSTALL_HINT}")
 
 
-def _one_line(e: BaseException) -> str:
+def one_line(e: BaseException) -> str:
+    """The first line of an exception's message (at most 200 characters), for one-line
+    errors."""
     text = str(e).strip().splitlines()
     return text[0][:200] if text else type(e).__name__
 
 
-def _make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
+    """A MuJoCo offscreen renderer of `width` × `height` pixels, or a RenderBackendError naming
+    the GL backend and how to install one."""
     try:
         return mujoco.Renderer(model, height=height, width=width)
     except Exception as e:  # any GL failure: the backend is unusable
         raise RenderBackendError(f"offscreen renderer with MUJOCO_GL={backend_name()} failed "
-                                 f"({_one_line(e)}): {_INSTALL_HINT}") from e
+                                 f"({one_line(e)}): {_INSTALL_HINT}") from e

@@ -106,7 +106,7 @@ def part_cameras(surface: Any, T_world_part: npt.ArrayLike | None = None,
     travel_dir_part: (3,) pass travel direction in the part frame (e.g. the mean of a plan
     pass's `travel_dirs`), or None for the part's long axis.
     """
-    T = _pose(T_world_part)
+    T = pose_or_identity(T_world_part)
     verts = np.asarray(surface.vertices, float) @ T[:3, :3].T + T[:3, 3]
     areas = getattr(surface, "vertex_areas", None)
     normals = np.asarray(surface.normals, float)
@@ -116,7 +116,8 @@ def part_cameras(surface: Any, T_world_part: npt.ArrayLike | None = None,
     return camera_presets(verts, n_world, t_world, fovy_deg=fovy_deg)
 
 
-def _pose(T: npt.ArrayLike | None) -> np.ndarray:
+def pose_or_identity(T: npt.ArrayLike | None) -> np.ndarray:
+    """A checked finite (4, 4) pose, the identity for None (RenderError otherwise)."""
     if T is None:
         return np.eye(4)
     T = np.asarray(T, float)

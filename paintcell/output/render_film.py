@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from paintcell.output.render_backend import RenderError
-from paintcell.output.render_cameras import _pose
+from paintcell.output.render_cameras import pose_or_identity
 
 # Colour-map strip [texels]: 224 levels (finer than the eye separates on a render) padded with
 # 16 texels of each end colour, so that mipmaps (down to 1/16) and wrap-around filtering never
@@ -84,7 +84,7 @@ def film_from_surface(surface: Any, thickness_m: npt.ArrayLike, vmin_um: float, 
 
     thickness_m: (N,) film thickness per surface vertex [m]; vmin_um/vmax_um: colour range [µm].
     """
-    T = _pose(T_world_part)
+    T = pose_or_identity(T_world_part)
     R = T[:3, :3]
     return Film(
         vertices_world=np.asarray(surface.vertices, float) @ R.T + T[:3, 3],

@@ -14,7 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from paintcell.execution.cell import Cell
-from paintcell.output.render_backend import RenderError, _make_renderer, _one_line, backend_name
+from paintcell.output.render_backend import RenderError, backend_name, make_renderer, one_line
 from paintcell.output.render_cameras import CameraView
 from paintcell.output.render_film import FILM_OFFSET_M, Film, add_film
 
@@ -156,7 +156,7 @@ class SceneRenderer:
         home = getattr(scene, "q_home", None)
         if home is not None and self.qpos_adr is not None and len(home) == len(self.qpos_adr):
             self.set_q(home)
-        self._renderer = _make_renderer(model, width, height)
+        self._renderer = make_renderer(model, width, height)
         if spec is None and film is not None:
             fmodel = _compile(_film_spec_like(model, self.data, film))
             _fit_offscreen(fmodel, width, height)
@@ -169,7 +169,7 @@ class SceneRenderer:
             self._film_model = fmodel
             self._film_data = mujoco.MjData(fmodel)
             mujoco.mj_forward(fmodel, self._film_data)
-            self._film_r = _make_renderer(fmodel, width, height)
+            self._film_r = make_renderer(fmodel, width, height)
         self.set_shadows(shadows)
 
     def set_shadows(self, on: bool) -> None:
@@ -256,7 +256,7 @@ def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
     try:
         return spec.compile()
     except ValueError as e:
-        raise RenderError(f"scene does not compile for rendering: {_one_line(e)}") from e
+        raise RenderError(f"scene does not compile for rendering: {one_line(e)}") from e
 
 
 def _fit_offscreen(model: mujoco.MjModel, width: int, height: int) -> None:

@@ -30,21 +30,21 @@ from paintcell.paint.deposition_kernel import (
     BLOCK_POINTS,
     CHUNK_SAMPLES,
     MAX_PAIRS_PER_CALL,
-    _Blocks,
-    _candidate_blocks,
-    _kernel,
-    _make_blocks,
-    _projection_rows,
-    _rates,
-    _sample_chunks,
+    Blocks,
+    candidate_blocks,
+    film_kernel,
+    make_blocks,
+    projection_rows,
+    sample_chunks,
+    sample_rates,
 )
 from paintcell.paint.deposition_samples import (
     UNIT_NORMAL_TOL,
     DepositionError,
     GunSamples,
-    _as_normals,
-    _as_vectors,
-    _tool_axes,
+    as_normals,
+    as_vectors,
+    tool_axes,
 )
 
 __all__ = [
@@ -71,12 +71,12 @@ def deposition_rate(app: Applicator, positions: npt.ArrayLike, spray_axes: npt.A
     Every pair is evaluated (no culling), by the same in-place arithmetic as `thickness`, in
     calls of ≤ `MAX_PAIRS_PER_CALL` pairs; memory is the (S, N) result.
     """
-    g = _as_vectors(positions, "positions")
+    g = as_vectors(positions, "positions")
     s = len(g)
-    x_hat, y_hat, a = _tool_axes(_as_vectors(spray_axes, "spray_axes", s),
-                                 _as_vectors(travel_dirs, "travel_dirs", s))
-    p = _as_vectors(points, "points")
-    n = _as_normals(normals, len(p))
+    x_hat, y_hat, a = tool_axes(as_vectors(spray_axes, "spray_axes", s),
+                                 as_vectors(travel_dirs, "travel_dirs", s))
+    p = as_vectors(points, "points")
+    n = as_normals(normals, len(p))
     out = np.empty((s, len(p)))
     if s == 0 or len(p) == 0:
         return out
@@ -89,9 +89,9 @@ def deposition_rate(app: Applicator, positions: npt.ArrayLike, spray_axes: npt.A
     step_s = max(1, MAX_PAIRS_PER_CALL // step_p)
     for i in range(0, s, step_s):
         sl = slice(i, min(i + step_s, s))
-        w = _projection_rows(g[sl], x_hat[sl], y_hat[sl], a[sl])
+        w = projection_rows(g[sl], x_hat[sl], y_hat[sl], a[sl])
         for j in range(0, len(p), step_p):
-            out[sl, j:j + step_p] = _rates(app, w, feats[:, j:j + step_p])
+            out[sl, j:j + step_p] = sample_rates(app, w, feats[:, j:j + step_p])
     out *= 1.0 / app.standoff_m
     return out
 
@@ -102,12 +102,12 @@ def deposition_rate_reference(app: Applicator, positions: npt.ArrayLike,
     """`deposition_rate` written literally from DESIGN.md (ω, q, cosines): slow (memory
     O(S·N·3)), an independent reference for tests and checks.
     """
-    g = _as_vectors(positions, "positions")
+    g = as_vectors(positions, "positions")
     s = len(g)
-    x_hat, y_hat, a = _tool_axes(_as_vectors(spray_axes, "spray_axes", s),
-                                 _as_vectors(travel_dirs, "travel_dirs", s))
-    p = _as_vectors(points, "points")
-    n = _as_normals(normals, len(p))
+    x_hat, y_hat, a = tool_axes(as_vectors(spray_axes, "spray_axes", s),
+                                 as_vectors(travel_dirs, "travel_dirs", s))
+    p = as_vectors(points, "points")
+    n = as_normals(normals, len(p))
     h = app.standoff_m
     d = p[None, :, :] - g[:, None, :]                        # (S, N, 3)
     dist = np.linalg.norm(d, axis=2)
@@ -160,14 +160,14 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
         raise DepositionError(f"gun must be a GunSamples, got {type(gun).__name__}")
     if backend not in BACKENDS:
         raise DepositionError(f"backend {backend!r} is not one of {', '.join(BACKENDS)}")
-    p = _as_vectors(points, "points")
-    n = _as_normals(normals, len(p))
+    p = as_vectors(points, "points")
+    n = as_normals(normals, len(p))
     out = np.zeros(len(p))
     keep = gun.dwell_s > 0
     if len(p) == 0 or not np.any(keep):
         return out
     g = gun.positions[keep]
-    x_hat, y_hat, a = _tool_axes(gun.spray_axes[keep], gun.travel_dirs[keep])
+    x_hat, y_hat, a = tool_axes(gun.spray_axes[keep], gun.travel_dirs[keep])
     coef_all = gun.dwell_s[keep] / app.standoff_m
     tan_cone = app.footprint_radius_m / app.standoff_m
     kind = _pick_backend(backend, occluder, app)
@@ -176,7 +176,7 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
 
         return jit.film_cpu(p, n, g, x_hat, y_hat, a, gun.dwell_s[keep], CHUNK_SAMPLES, tan_cone,
                             jit.params(app), threads)[0]
-    blocks = _make_blocks(p, n, BLOCK_POINTS)
+    blocks = make_blocks(p, n, BLOCK_POINTS)
     if kind != "numpy":
         out[blocks.order] = _thickness_jit(kind, app, blocks, p, n, g, x_hat, y_hat, a,
                                            gun.dwell_s[keep], tan_cone, threads)[0]
@@ -191,11 +191,11 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
     def chunk(sl: slice) -> tuple[np.ndarray, np.ndarray]:
         gk, ak = g[sl], a[sl]
         kk = len(gk)
-        cand = _candidate_blocks(blocks, gk, ak, tan_cone)
+        cand = candidate_blocks(blocks, gk, ak, tan_cone)
         contrib = np.zeros((len(cand), BLOCK_POINTS))
         if len(cand) == 0:
             return cand, contrib
-        w = _projection_rows(gk, x_hat[sl], y_hat[sl], ak)
+        w = projection_rows(gk, x_hat[sl], y_hat[sl], ak)
         per_call = max(1, MAX_PAIRS_PER_CALL // (kk * BLOCK_POINTS))
         for j in range(0, len(cand), per_call):
             ids = cand[j:j + per_call]
@@ -208,11 +208,11 @@ def thickness(app: Applicator, gun: GunSamples, points: npt.ArrayLike, normals: 
                 vis = np.zeros(len(pts), bool)
                 vis[need] = _visible(mesh, pts[need], gk[kk // 2])
                 feats[:, 4:8, :] *= vis.reshape(len(ids), 1, BLOCK_POINTS)   # n = 0 ⇒ no paint
-            contrib[j:j + len(ids)] = _kernel(app, w, coef_all[sl], feats)
+            contrib[j:j + len(ids)] = film_kernel(app, w, coef_all[sl], feats)
         return cand, contrib
 
     out_blocks = np.zeros((len(blocks.centers), BLOCK_POINTS))
-    chunks = list(_sample_chunks(len(g), CHUNK_SAMPLES))
+    chunks = list(sample_chunks(len(g), CHUNK_SAMPLES))
     if threads <= 1 or len(chunks) < 2:
         for sl in chunks:
             ids, c = chunk(sl)
@@ -257,7 +257,7 @@ def _pick_backend(backend: str, occluder: Any, app: Applicator) -> str:
     return backend
 
 
-def _thickness_jit(kind: str, app: Applicator, blocks: _Blocks, p: np.ndarray, n: np.ndarray,
+def _thickness_jit(kind: str, app: Applicator, blocks: Blocks, p: np.ndarray, n: np.ndarray,
                    g: np.ndarray, x_hat: np.ndarray, y_hat: np.ndarray, a: np.ndarray,
                    dwell: np.ndarray, tan_cone: float, threads: int) -> tuple[np.ndarray, int]:
     """(film (N,) in Z-order [m], pairs evaluated) by the GPU kernel."""

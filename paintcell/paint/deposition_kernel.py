@@ -44,14 +44,19 @@ def _morton_order(p: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class _Blocks:
+class Blocks:
+    """Surface points sorted along a Morton curve into blocks of equal size, each with its
+    bounding sphere, so whole blocks outside a spray cone are skipped."""
+
     order: np.ndarray       # (N,) original index of each sorted point
     feats: np.ndarray       # (nb, 8, B): p (3), 1, n (3), n·p ; pads have n = 0, n·p = 0
     centers: np.ndarray     # (nb, 3) block bounding-sphere centres [m]
     radii: np.ndarray       # (nb,) bounding-sphere radii [m]
 
 
-def _make_blocks(p: np.ndarray, n: np.ndarray, block: int) -> _Blocks:
+def make_blocks(p: np.ndarray, n: np.ndarray, block: int) -> Blocks:
+    """Points p (N, 3) with unit normals n (N, 3) as `Blocks` of `block` points each (the last
+    block padded with zero-normal points, which receive no film)."""
     order = _morton_order(p)
     npts = len(p)
     nb = -(-npts // block)
@@ -71,10 +76,10 @@ def _make_blocks(p: np.ndarray, n: np.ndarray, block: int) -> _Blocks:
     lo, hi = pb.min(axis=1), pb.max(axis=1)
     centers = 0.5 * (lo + hi)
     radii = np.sqrt(np.max(np.sum((pb - centers[:, None, :]) ** 2, axis=2), axis=1))
-    return _Blocks(order, feats_t, centers, radii)
+    return Blocks(order, feats_t, centers, radii)
 
 
-def _candidate_blocks(blocks: _Blocks, g: np.ndarray, a: np.ndarray, tan_cone: float) -> np.ndarray:
+def candidate_blocks(blocks: Blocks, g: np.ndarray, a: np.ndarray, tan_cone: float) -> np.ndarray:
     """Blocks whose bounding sphere may meet the spray cone of any of the K samples (conservative).
 
     A point p is reached only if dz = (p−g)·a > 0 and its lateral distance ≤ tan_cone · dz. For
@@ -89,8 +94,8 @@ def _candidate_blocks(blocks: _Blocks, g: np.ndarray, a: np.ndarray, tan_cone: f
     return np.flatnonzero(ok.any(axis=0))
 
 
-def _projection_rows(g: np.ndarray, x_hat: np.ndarray, y_hat: np.ndarray,
-                     a: np.ndarray) -> np.ndarray:
+def projection_rows(g: np.ndarray, x_hat: np.ndarray, y_hat: np.ndarray,
+                    a: np.ndarray) -> np.ndarray:
     """(4, K, 8) rows that map point features (p, 1, n, n·p) to dx, dy, dz and −n·d of K samples.
     """
     w = np.zeros((4, len(g), 8))              # p·e − g·e for e = x̂, ŷ, â; then −n·d
@@ -102,15 +107,16 @@ def _projection_rows(g: np.ndarray, x_hat: np.ndarray, y_hat: np.ndarray,
     return w
 
 
-def _kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndarray) -> np.ndarray:
+def film_kernel(app: Applicator, w_mat: np.ndarray, coef: np.ndarray, feats: np.ndarray
+                ) -> np.ndarray:
     """Σ_k coef_k · (h · rate_k) for K samples and a batch of point blocks: (nb, B).
 
-    w_mat: (4, K, 8) from `_projection_rows`; coef: (K,) dwell / h [s/m]; feats: (nb, 8, B).
+    w_mat: (4, K, 8) from `projection_rows`; coef: (K,) dwell / h [s/m]; feats: (nb, 8, B).
     """
-    return np.matmul(coef, _rates(app, w_mat, feats))
+    return np.matmul(coef, sample_rates(app, w_mat, feats))
 
 
-def _rates(app: Applicator, w_mat: np.ndarray, feats: np.ndarray) -> np.ndarray:
+def sample_rates(app: Applicator, w_mat: np.ndarray, feats: np.ndarray) -> np.ndarray:
     """h · rate [m²/s] of K samples at points with features feats (..., 8, B): (..., K, B).
 
     Four (batched) (K, 8) @ (8, B) products into contiguous arrays (small GEMMs keep BLAS
@@ -165,7 +171,8 @@ def _rates(app: Applicator, w_mat: np.ndarray, feats: np.ndarray) -> np.ndarray:
     return t1
 
 
-def _sample_chunks(s: int, k: int) -> Iterator[slice]:
+def sample_chunks(s: int, k: int) -> Iterator[slice]:
+    """Slices of at most `k` of `s` gun samples, in order."""
     for i in range(0, s, k):
         yield slice(i, min(i + k, s))
 

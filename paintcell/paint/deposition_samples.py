@@ -34,10 +34,10 @@ class GunSamples:
     dwell_s: np.ndarray
 
     def __post_init__(self) -> None:
-        pos = _as_vectors(self.positions, "positions")
+        pos = as_vectors(self.positions, "positions")
         s = len(pos)
-        axes = _as_vectors(self.spray_axes, "spray_axes", s)
-        trav = _as_vectors(self.travel_dirs, "travel_dirs", s)
+        axes = as_vectors(self.spray_axes, "spray_axes", s)
+        trav = as_vectors(self.travel_dirs, "travel_dirs", s)
         dwell = np.asarray(self.dwell_s, float).reshape(-1)
         if len(dwell) != s:
             raise DepositionError(f"dwell_s has {len(dwell)} entries, expected {s} (one a sample)")
@@ -99,7 +99,8 @@ class GunSamples:
         return cls(pos, np.tile(z, (n, 1)), np.tile(x, (n, 1)), dwell)
 
 
-def _as_vectors(x: npt.ArrayLike, name: str, rows: int | None = None) -> np.ndarray:
+def as_vectors(x: npt.ArrayLike, name: str, rows: int | None = None) -> np.ndarray:
+    """`x` as a finite contiguous (rows, 3) float array, or a DepositionError naming `name`."""
     arr = np.ascontiguousarray(x, dtype=float)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise DepositionError(f"{name} must have shape (n, 3), got {arr.shape}")
@@ -115,8 +116,9 @@ def _as_vectors(x: npt.ArrayLike, name: str, rows: int | None = None) -> np.ndar
 UNIT_NORMAL_TOL = 1e-6
 
 
-def _as_normals(x: npt.ArrayLike, rows: int) -> np.ndarray:
-    n = _as_vectors(x, "normals", rows)
+def as_normals(x: npt.ArrayLike, rows: int) -> np.ndarray:
+    """`x` as (rows, 3) unit normals (within UNIT_NORMAL_TOL), or a DepositionError."""
+    n = as_vectors(x, "normals", rows)
     bad = np.abs(np.linalg.norm(n, axis=1) - 1.0) > UNIT_NORMAL_TOL
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
@@ -126,7 +128,7 @@ def _as_normals(x: npt.ArrayLike, rows: int) -> np.ndarray:
     return n
 
 
-def _tool_axes(spray_axes: np.ndarray, travel_dirs: np.ndarray) -> tuple[np.ndarray, ...]:
+def tool_axes(spray_axes: np.ndarray, travel_dirs: np.ndarray) -> tuple[np.ndarray, ...]:
     """Unit (x̂, ŷ, â) per sample: x̂ re-orthogonalized against â, ŷ = â × x̂."""
     a = spray_axes / np.linalg.norm(spray_axes, axis=1, keepdims=True)
     x = travel_dirs - np.sum(travel_dirs * a, axis=1, keepdims=True) * a

@@ -100,8 +100,8 @@ def fill_from_neighbours(values: np.ndarray, known: np.ndarray, edges: np.ndarra
     return out
 
 
-def _corner_geometry(vertices: np.ndarray, faces: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def corner_geometry(vertices: np.ndarray, faces: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per face: angles (F,3) [rad], cotangents (F,3), squared edge lengths opposite each corner
     (F,3) [m²], face areas (F,) [m²]."""
     p = vertices[faces]                       # (F, 3 corners, 3)
@@ -119,7 +119,7 @@ def _corner_geometry(vertices: np.ndarray, faces: np.ndarray
 
 def mixed_voronoi_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """(N,) mixed Voronoi area per vertex [m²] (Meyer et al. 2003); they sum to the mesh area."""
-    angles, cot, opp_sq, area = _corner_geometry(vertices, faces)
+    angles, cot, opp_sq, area = corner_geometry(vertices, faces)
     return _scatter(faces.ravel(), _corner_mixed_area(angles, cot, opp_sq, area).ravel(),
                     len(vertices))
 
@@ -146,7 +146,7 @@ def discrete_curvature(vertices: np.ndarray, faces: np.ndarray) -> DiscreteCurva
     f = np.asarray(faces, np.int64)
     n_v = len(v)
     normals = vertex_normals(v, f)
-    angles, cot, opp_sq, area = _corner_geometry(v, f)
+    angles, cot, opp_sq, area = corner_geometry(v, f)
     if np.any(area <= 0):
         raise SurfaceError(f"{int(np.sum(area <= 0))} faces have zero area; repair the mesh")
     corner_area = _corner_mixed_area(angles, cot, opp_sq, area)

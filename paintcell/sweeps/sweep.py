@@ -2,7 +2,7 @@
 
 The client plans the scenario once (surface, plan, 1 kHz program, planned and trajectory films),
 sends that payload to every worker once, runs the nominal sample first, then the design's samples
-(`paintcell.sweeps.sweep_spec`). Workers are a `distributed.LocalCluster` of processes by
+(`paintcell.validation.sweep_spec`). Workers are a `distributed.LocalCluster` of processes by
 default, or an existing cluster (`scheduler="tcp://host:8786"`).
 
 Results folder (written as samples finish; every file atomically):
@@ -32,8 +32,8 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.atomic_io import atomic_write_text
-from paintcell.sweeps.sweep_spec import SweepError, SweepSpec
 from paintcell.sweeps.sweep_worker import SweepPayload, run_sample
+from paintcell.validation.sweep_spec import SweepError, SweepSpec
 
 _log = logging.getLogger(__name__)
 
@@ -86,10 +86,10 @@ def check_factors_fit(scn: Any, spec: SweepSpec) -> None:
     varies the line speed and the body's placement on the skid; the single-robot cell has no
     line)."""
     from paintcell.booth.booth import Booth
-    from paintcell.sweeps.sweep_names import BOOTH_ONLY_FACTORS
+    from paintcell.validation.sweep_names import BOOTH_ONLY_FACTORS
 
     if isinstance(scn, Booth):
-        from paintcell.sweeps.sweep_booth import check_booth_factors
+        from paintcell.validation.sweep_spec import check_booth_factors
 
         check_booth_factors(spec.names)
         return

@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
-from paintcell.sweeps.sweep_names import BOOTH_FACTORS, BOOTH_METRICS, SAMPLE_METRICS
-from paintcell.sweeps.sweep_spec import SweepError
-from paintcell.sweeps.sweep_worker import _num, cached_context
+from paintcell.sweeps.sweep_worker import cached_context, finite_or_none
+from paintcell.validation.sweep_names import BOOTH_METRICS, SAMPLE_METRICS
+from paintcell.validation.sweep_spec import SweepError, check_booth_factors
 
 BOOTH_EXTRA = tuple(BOOTH_METRICS)
 
@@ -54,15 +54,6 @@ class BoothPayload:
     programs: Any
     films: tuple[np.ndarray, np.ndarray]
     names: tuple[str, ...]
-
-
-def check_booth_factors(names: tuple[str, ...]) -> None:
-    """One-line SweepError unless every factor is one a booth sweep models."""
-    bad = [n for n in names if n not in BOOTH_FACTORS]
-    if bad:
-        raise SweepError(f"factor(s) {bad} are not modelled in a booth sweep; a booth varies "
-                         f"{', '.join(BOOTH_FACTORS)} (sweep the single-robot scenario of the "
-                         "part for the other tolerances)")
 
 
 def prepare_booth_payload(booth: Any, names: tuple[str, ...], digest: str, fast: bool,
@@ -108,14 +99,14 @@ class _BoothContext:
 
 def _context(payload: BoothPayload) -> _BoothContext:
     def build() -> _BoothContext:
-        from paintcell.app.pipeline import settings_from
         from paintcell.booth.booth_cell import build_booth_cell
-        from paintcell.booth.booth_programs import _load_robots
+        from paintcell.booth.booth_programs import load_robots
+        from paintcell.core.settings import settings_from
         from paintcell.execution.execute import ServoSettings
 
         t0 = time.perf_counter()
         booth = payload.scenario
-        bcell = build_booth_cell(_load_robots(booth), payload.programs.body,
+        bcell = build_booth_cell(load_robots(booth), payload.programs.body,
                                  booth.body_placement.matrix, booth.conveyor)
         return _BoothContext(payload, bcell,
                              settings_from(ServoSettings, booth.servo, "servo"),
@@ -160,7 +151,7 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
     the nominal run). Booth figures beyond `SAMPLE_METRICS` are under `metrics` too."""
     from paintcell.booth.booth_film import gun_in_body, judged_body_mask
     from paintcell.booth.booth_results import booth_metrics
-    from paintcell.booth.booth_run import _robot_traces, robot_tcp
+    from paintcell.booth.booth_run import robot_tcp, robot_traces
     from paintcell.execution.execute import execute
     from paintcell.validation.validate import collision_events
 
@@ -179,7 +170,7 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
                         servo=ctx.servo, disturbances=placement(factors, seed))
         t2 = time.perf_counter()
         pos, rot = robot_tcp(bcell, trace.q)
-        traces = _robot_traces(bcell, trace, progs.trajs, pos, rot)
+        traces = robot_traces(bcell, trace, progs.trajs, pos, rot)
         films = _films(booth, bcell, payload, trace, traces, gun_in_body)
         rep = booth_metrics(booth, bcell, progs.body, films, progs.static, progs.trajs, traces,
                             trace, collision_events(trace), progs.record, progs.jobs,
@@ -203,7 +194,8 @@ def run_booth_sample(payload: BoothPayload, index: int, values: np.ndarray | Non
         for ex, tr in zip(traces, progs.trajs, strict=True))
     # the line speed MuJoCo's carrier really ran at: least-squares slope of its position [m/s]
     m["carrier_speed_m_s"] = float(np.polyfit(trace.t_s, trace.q[:, bcell.carrier_column], 1)[0])
-    rec["metrics"] = {k: _num(m[k]) if k in m else None for k in (*SAMPLE_METRICS, *BOOTH_EXTRA)}
+    rec["metrics"] = {k: finite_or_none(m[k]) if k in m else None
+                      for k in (*SAMPLE_METRICS, *BOOTH_EXTRA)}
     rec["passed"] = bool(rep.passed)
     rec["failed_checks"] = [c.name for c in rep.checks if not c.passed]
     rec["timing_s"] = {"context": t_ctx, "execute": t2 - t1, "validate": t3 - t2,

@@ -26,8 +26,8 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from paintcell.sweeps.sweep_names import record_metrics
-from paintcell.sweeps.sweep_spec import _LIMIT_RE, SweepSpec, check_limits
+from paintcell.validation.sweep_names import record_metrics
+from paintcell.validation.sweep_spec import LIMIT_RE, SweepSpec, check_limits
 
 QUANTILES = (5, 50, 95)
 CONFIDENCE = 0.95
@@ -120,7 +120,7 @@ def limit_checks(summary: dict[str, Any], records: list[dict[str, Any]],
         elif key == "min_yield_lower_pct":
             value, kind = summary["yield_ci_pct"][0], "min"
         else:
-            m = _LIMIT_RE.match(key)
+            m = LIMIT_RE.match(key)
             assert m is not None
             kind, q, fig = m.group(1), int(m.group(2)), m.group(3)
             vals = np.array([_f(r["metrics"].get(fig)) for r in records], float)

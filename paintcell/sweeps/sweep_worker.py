@@ -18,7 +18,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
-from paintcell.sweeps.sweep_names import SAMPLE_METRICS
+from paintcell.validation.sweep_names import SAMPLE_METRICS
 
 T = TypeVar("T")
 
@@ -75,14 +75,14 @@ def context(payload: SweepPayload) -> WorkerContext:
     """The worker's context for this payload (built on first use, then reused)."""
 
     def build() -> WorkerContext:
-        from paintcell.app.pipeline import _servo, load_robot_for
+        from paintcell.app.pipeline import load_robot_for, servo_settings
         from paintcell.execution.cell import build_cell
 
         t0 = time.perf_counter()
         scn = payload.scenario
         robot = load_robot_for(scn)
         cell = build_cell(robot, payload.surface, scn.part_placement.matrix)
-        ctx = WorkerContext(payload, robot, cell, _servo(scn))
+        ctx = WorkerContext(payload, robot, cell, servo_settings(scn))
         ctx.build_s = time.perf_counter() - t0
         return ctx
 
@@ -92,7 +92,7 @@ def context(payload: SweepPayload) -> WorkerContext:
 def disturbances_for(payload: SweepPayload, values: np.ndarray | None, seed: int) -> Any:
     """`Disturbances` of one sample: the scenario's own, with the sampled factors set and the
     sample's seed (values None: the nominal run, the scenario as declared)."""
-    from paintcell.app.pipeline import settings_from
+    from paintcell.core.settings import settings_from
     from paintcell.execution.execute_settings import Disturbances
 
     kw = dict(payload.scenario.disturbances)
@@ -141,7 +141,7 @@ def run_sample(payload: SweepPayload, index: int, values: np.ndarray | None,
         rec["worker"] = f"{os.uname().nodename}:{os.getpid()}"
         return rec
     m = rep.metrics
-    rec["metrics"] = {k: _num(m[k]) for k in SAMPLE_METRICS}
+    rec["metrics"] = {k: finite_or_none(m[k]) for k in SAMPLE_METRICS}
     rec["passed"] = bool(rep.passed)
     rec["failed_checks"] = [c.name for c in rep.checks if not c.passed]
     # cpu: this process's CPU time for the sample (a worker runs one sample at a time)
@@ -152,7 +152,8 @@ def run_sample(payload: SweepPayload, index: int, values: np.ndarray | None,
     return rec
 
 
-def _num(v: Any) -> float | None:
+def finite_or_none(v: Any) -> float | None:
+    """A figure as a float for a sample record, None when it is NaN or infinite."""
     v = float(v)
     return v if np.isfinite(v) else None
 

@@ -55,7 +55,7 @@ class HonestReachSettings:
     wrist_joint_index: int | None = 4
 
 
-def _pose_arc_lengths(plan: CoveragePlan) -> list[np.ndarray]:
+def pose_arc_lengths(plan: CoveragePlan) -> list[np.ndarray]:
     """Per pass, the arc length [m] of every plan pose along the pass's TCP polyline."""
     out = []
     for p in plan.passes:
@@ -64,7 +64,7 @@ def _pose_arc_lengths(plan: CoveragePlan) -> list[np.ndarray]:
     return out
 
 
-def _nearest_pose(s_poses: np.ndarray, s: np.ndarray) -> np.ndarray:
+def nearest_pose(s_poses: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Index of the pose nearest to each arc length in `s`."""
     mid = 0.5 * (s_poses[1:] + s_poses[:-1])
     return np.searchsorted(mid, s)
@@ -87,7 +87,7 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
     if reachability is None:
         return None
     st = settings or HonestReachSettings()
-    s_poses = _pose_arc_lengths(plan)
+    s_poses = pose_arc_lengths(plan)
     counts = [len(s) for s in s_poses]
     offsets = np.concatenate([[0], np.cumsum(counts)])
     n = int(offsets[-1])
@@ -119,7 +119,7 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
         sel = np.flatnonzero(paint & (pidx == i))
         if len(sel) == 0:
             continue
-        k = _nearest_pose(s, traj.s_pass_m[sel])
+        k = nearest_pose(s, traj.s_pass_m[sel])
         with np.errstate(invalid="ignore", divide="ignore"):
             deficit = 1.0 - v_act[sel] / v_plan[sel]
         bad = np.isfinite(deficit) & (v_plan[sel] > 1e-9) & (deficit > st.slowdown_fraction)
@@ -151,7 +151,7 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
         on = paint[j]
         for i in np.unique(pidx[j[on]]):              # during a pass: the poses painted then
             ji = j[on][pidx[j[on]] == i]
-            contact[offsets[i] + _nearest_pose(s_poses[i], traj.s_pass_m[ji])] = True
+            contact[offsets[i] + nearest_pose(s_poses[i], traj.s_pass_m[ji])] = True
         jm = j[~on]                                    # during a move: the poses it links
         b = np.searchsorted(paint_idx, jm) - 1         # last paint sample before
         a = b + 1                                      # first paint sample after

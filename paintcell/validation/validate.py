@@ -45,13 +45,13 @@ from paintcell.paint.metrics import transfer_efficiency, uniformity
 from paintcell.surface.surface import Surface
 from paintcell.validation.honest_reach import honest_reachability
 from paintcell.validation.region_film import region_film
-from paintcell.validation.validate_motion import _utilization, collision_events, tracking_errors
+from paintcell.validation.validate_motion import collision_events, tracking_errors, utilization
 from paintcell.validation.validate_report import (
     Check,
     Thresholds,
     ValidationError,
     ValidationReport,
-    _checks,
+    threshold_checks,
 )
 from paintcell.validation.validate_samples import executed_gun_samples, trajectory_gun_samples
 
@@ -135,7 +135,7 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     rms_diff = float(np.sqrt(np.dot(areas, diff**2) / areas.sum()))
 
     trk = tracking_errors(traj, trace)
-    q_use, tau_use, tau_sat = _utilization(trace)
+    q_use, tau_use, tau_sat = utilization(trace)
     reach_summary, _ = _reachability_summary(reachability)
     # Jumps, wrist flips, contacts and slowdowns count against reachability
     # (paintcell.validation.honest_reach).
@@ -203,7 +203,7 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     }
     # hems, flanges, turned edges: their film reported apart (not judged)
     metrics.update(region_film(surface, t_plan, t_exec, u_exec.mean_m))
-    checks = _checks(metrics, thresholds)
+    checks = threshold_checks(metrics, thresholds)
     return ValidationReport(
         metrics=metrics, checks=tuple(checks), reachability=reach_summary,
         collisions=tuple(events),

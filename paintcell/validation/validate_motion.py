@@ -73,7 +73,7 @@ def tracking_errors(traj: JointTrajectory, trace: ExecutedTrace) -> dict[str, fl
     }
 
 
-def _utilization(trace: ExecutedTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def utilization(trace: ExecutedTrace) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per joint: max |q − mid| / half-range, max |τ_demand| / τ_max and the share of steps with
     |τ_demand| > τ_max [%] (limits from `trace.meta`; traces without `tau_demand` fall back to
     the applied torque, which the clamp keeps ≤ τ_max)."""

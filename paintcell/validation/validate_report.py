@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from paintcell.core.atomic_io import atomic_write_text
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, ScenarioDataError
 
 
 class ValidationError(PaintcellError):
@@ -58,6 +58,57 @@ class Thresholds:
     def __post_init__(self) -> None:
         if not (0 < self.tolerance < 1):
             raise ValidationError(f"tolerance = {self.tolerance} must be a fraction in (0, 1)")
+
+
+# Threshold ranges: (low, high, low inclusive, what it is). +inf disables a `max_*` check.
+_THRESHOLD_RANGES: dict[str, tuple[float, float, bool, str]] = {
+    "reachability_pct": (0.0, 100.0, True, "a share of poses [%]"),
+    "max_collisions": (0.0, math.inf, True, "a count of collision events"),
+    "max_executed_nsd_pct": (0.0, math.inf, False, "σ/μ [%]"),
+    "max_loss_pp": (0.0, math.inf, True, "percentage points"),
+    "max_abs_loss_pp": (0.0, math.inf, True, "percentage points"),
+    "max_cycle_time_s": (0.0, math.inf, False, "seconds"),
+    "max_tracking_error_mm": (0.0, math.inf, True, "mm"),
+    "max_speed_error_pct": (0.0, math.inf, True, "%"),
+    "max_torque_utilization": (0.0, math.inf, False, "|τ|/τ_max"),
+    "max_joint_range_utilization": (0.0, math.inf, False, "a fraction of the joint range"),
+    "tolerance": (0.0, 1.0, False, "a fraction of the mean thickness"),
+    # a booth's (paintcell.booth.booth.BoothThresholds)
+    "max_robot_collisions": (0.0, math.inf, True, "a count of robot–robot collision events"),
+    "max_body_nsd_pct": (0.0, math.inf, False, "σ/μ [%]"),
+    "min_bell_distance_m": (0.0, math.inf, True, "a distance [m]"),
+}
+
+def _fmt_range(lo: float, hi: float, lo_incl: bool = True) -> str:
+    left = "[" if lo_incl else "("
+    right = "]" if math.isfinite(hi) else ")"
+    return f"{left}{lo:g}, {hi:g}{right}"
+
+
+def check_thresholds(th: Any, where: str = "thresholds") -> None:
+    """Refuse NaN, −inf, wrong types and out-of-range threshold values (ScenarioDataError).
+
+    A NaN limit would silently remove its check (every comparison with NaN is False), so the gate
+    could PASS without checking; `max_collisions = -1` could never pass. None or +inf disables a
+    `max_*` check explicitly.
+    """
+    for f in fields(th):
+        v = getattr(th, f.name)
+        if v is None and f.name != "tolerance":
+            continue
+        lo, hi, lo_incl, what = _THRESHOLD_RANGES.get(f.name, (-math.inf, math.inf, True, ""))
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            raise ScenarioDataError(f"{where}: {f.name} = {v!r} must be a number ({what})")
+        if math.isnan(v) or v == -math.inf or (v == math.inf and not f.name.startswith("max_")):
+            raise ScenarioDataError(f"{where}: {f.name} = {v!r} is not a finite number; valid: "
+                                    f"{_fmt_range(lo, hi, lo_incl)} ({what})")
+        if v < lo or (v == lo and not lo_incl) or (v > hi and math.isfinite(hi)) \
+                or (f.name == "tolerance" and v >= hi):
+            raise ScenarioDataError(f"{where}: {f.name} = {v!r} is out of range; valid: "
+                                    f"{_fmt_range(lo, hi, lo_incl)} ({what})")
+        if f.name in ("max_collisions", "max_robot_collisions") and math.isfinite(v) \
+                and v != int(v):
+            raise ScenarioDataError(f"{where}: {f.name} = {v!r} must be a whole number")
 
 
 @dataclass(frozen=True)
@@ -144,7 +195,9 @@ def _json_num(v: Any) -> Any:
     return v
 
 
-def _checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
+def threshold_checks(m: dict[str, Any], th: Thresholds) -> list[Check]:
+    """Each limit of `th` set (not None or inf) checked against the metrics `m`, in report
+    order."""
     spec = [  # (name, metric key, limit, unit, kind)
         ("reachability", "reachability_pct", th.reachability_pct, "%", "min"),
         ("collisions", "n_collisions", th.max_collisions, "events", "max"),

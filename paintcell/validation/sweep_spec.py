@@ -30,7 +30,8 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
-from paintcell.sweeps.sweep_names import (
+from paintcell.validation.sweep_names import (
+    BOOTH_FACTORS,
     BOOTH_METRICS,
     FACTORS,
     MAGNITUDE_FACTORS,
@@ -40,7 +41,7 @@ from paintcell.sweeps.sweep_names import (
 )
 
 #: a sweep limit key: max_pNN_<figure> or min_pNN_<figure>
-_LIMIT_RE = re.compile(r"^(max|min)_p(\d{1,2})_(.+)$")
+LIMIT_RE = re.compile(r"^(max|min)_p(\d{1,2})_(.+)$")
 
 
 class SweepError(PaintcellError):
@@ -257,13 +258,22 @@ def check_sweep_table(sweep: dict[str, Any]) -> None:
     check_limits(limits)
 
 
+def check_booth_factors(names: tuple[str, ...]) -> None:
+    """One-line SweepError unless every factor is one a booth sweep models."""
+    bad = [n for n in names if n not in BOOTH_FACTORS]
+    if bad:
+        raise SweepError(f"factor(s) {bad} are not modelled in a booth sweep; a booth varies "
+                         f"{', '.join(BOOTH_FACTORS)} (sweep the single-robot scenario of the "
+                         "part for the other tolerances)")
+
+
 def check_limits(limits: dict[str, Any] | None) -> dict[str, float]:
     """Validated limits (one-line SweepError naming the bad key and the valid forms)."""
     out: dict[str, float] = {}
     for key, val in (limits or {}).items():
         if isinstance(val, bool) or not isinstance(val, int | float) or not math.isfinite(val):
             raise SweepError(f"sweep limit {key} = {val!r} must be a finite number")
-        m = _LIMIT_RE.match(key)
+        m = LIMIT_RE.match(key)
         if key in ("min_yield_pct", "min_yield_lower_pct"):
             pass
         elif m is None or m.group(3) not in {**SAMPLE_METRICS, **BOOTH_METRICS}:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-from typing import Any
 
 from paintcell.core.errors import PaintcellError
 
@@ -69,25 +68,16 @@ def available_bytes() -> int:
     return int(avail)
 
 
-def profile_size(app: Any) -> tuple[int, int]:
-    """(gun samples, profile points) of the index-width curve's dense matrix for `app`."""
-    from paintcell.coverage import index_width as iw
-
-    r = app.footprint_radius_m
-    n_gun = int(2 * iw._X_RANGE_FACTOR * r / iw._dx(app)) + 1
-    n_pts = int(2 * r / min(5e-4, r / 400)) + 1
-    return n_gun, n_pts
-
-
-def check_profile_budget(app: Any, where: str) -> None:
-    """Refuse an applicator whose index-width curve would not fit in memory."""
-    n_gun, n_pts = profile_size(app)
+def check_profile_budget(n_gun: int, n_pts: int, footprint_radius_m: float, where: str) -> None:
+    """Refuse an index-width curve of `n_gun` gun samples × `n_pts` profile points
+    (`paintcell.coverage.index_width.profile_size` of an applicator of footprint radius
+    `footprint_radius_m` [m]) that would not fit in memory; `where` names the applicator."""
     need = 8.0 * n_gun * n_pts
     have = available_bytes()
     if need > 0.8 * have:
         raise BudgetError(
             f"the planner's index-width curve needs ~{gib(need)} ({n_gun:,} gun samples × "
-            f"{n_pts:,} profile points) for the applicator's {app.footprint_radius_m:.3g} m "
+            f"{n_pts:,} profile points) for the applicator's {footprint_radius_m:.3g} m "
             f"footprint radius, more than the {gib(have)} available; check sigma_x_m / "
             f"sigma_y_m / ring_* of {where} (a paint bell's pattern is ~0.3 m)")
 

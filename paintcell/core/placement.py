@@ -1,0 +1,47 @@
+"""`Placement`: where a rigid thing sits in the cell (a part, a robot base, a car body), as a
+position [m] and roll-pitch-yaw [rad], and `pose` that turns the pair into a (4, 4) transform."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from paintcell.core.errors import ScenarioError
+
+__all__ = ["Placement", "pose"]
+
+
+def pose(xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0),
+         rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+    """(4, 4) transform from a position [m] and roll-pitch-yaw (fixed XYZ axes) [rad]."""
+    r, p, y = rpy_rad
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    T = np.eye(4)
+    T[:3, :3] = np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+    T[:3, 3] = xyz_m
+    return T
+
+
+@dataclass(frozen=True)
+class Placement:
+    """A rigid placement in the cell: position [m] and roll-pitch-yaw [rad] (fixed XYZ axes)."""
+
+    xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        for name in ("xyz_m", "rpy_rad"):
+            v = np.asarray(getattr(self, name), float)
+            if v.shape != (3,) or not np.all(np.isfinite(v)):
+                raise ScenarioError(f"Placement.{name} = {getattr(self, name)!r} must be three "
+                                    "finite numbers")
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """(4, 4) homogeneous transform."""
+        return pose(self.xyz_m, self.rpy_rad)
