@@ -16,6 +16,7 @@ import argparse
 import errno
 import os
 import random
+import re
 import shutil
 import signal
 import subprocess
@@ -535,6 +536,44 @@ def test_timeout_stops_a_scenario_and_every_process_it_started(tmp_path: Path) -
     assert os.listdir(tmp_path / "tmp") == []
 
 
+def _xml_char(ch: str) -> bool:
+    """The Char production of XML 1.0 (section 2.2)."""
+    c = ord(ch)
+    return c in (0x9, 0xA, 0xD) or 0x20 <= c <= 0xD7FF or 0xE000 <= c <= 0xFFFD \
+        or 0x10000 <= c <= 0x10FFFF
+
+
+_ANY_TEXT = st.text(st.characters(codec=None, exclude_characters="\x1b"), max_size=40)
+
+
+@settings(max_examples=150, deadline=None)
+@given(name=_ANY_TEXT.filter(lambda t: any(map(_xml_char, t))), message=_ANY_TEXT,
+       failure=_ANY_TEXT, n_done=st.integers(0, 3))
+def test_junit_of_any_text_reads_back(tmp_path_factory: pytest.TempPathFactory, name: str,
+                                      message: str, failure: str, n_done: int) -> None:
+    """Generated names and messages (any code point but ESC): the file is well-formed, and an
+    independent reader gets back each text with exactly the characters XML cannot hold gone."""
+    from paintcell.cli.junit import write_junit
+
+    path = tmp_path_factory.mktemp("j") / "j.xml"
+    keep = "".join(filter(_xml_char, message))
+    checks = [{"name": failure, "value": 2.0, "limit": 1.0, "unit": "%", "passed": False}]
+    cases = [(f"{name}{i}", 1.0, checks, None) for i in range(n_done)]
+    cases.append((name, 0.5, [], message))
+    write_junit(path, cases, suite_error=("interrupted", message))
+    suite = _suite(path)
+    assert suite.tests == n_done + 2 and suite.errors == 2 and suite.failures == n_done
+    got = [(c.name, [(type(r).__name__, r.message) for r in c.result]) for c in suite]
+    clean_name = "".join(filter(_xml_char, name))
+    assert got[n_done] == (clean_name, [("Error", keep or None)]) or \
+        got[n_done] == (clean_name, [("Error", keep)])   # an empty attribute may read as None
+    assert got[-1][0] == "interrupted" and got[-1][1][0][0] == "Error"
+    for i in range(n_done):
+        assert got[i][0] == f"{clean_name}{i}" and got[i][1][0][0] == "Failure"
+        assert "".join(filter(_xml_char, failure)) in (got[i][1][0][1] or "")
+    assert not _green(path)
+
+
 def test_control_characters_in_an_error_make_a_well_formed_junit(tmp_path: Path) -> None:
     """ESC, NUL, BEL and unit separator in a scenario's error: gone from the JUnit (which a
     strict XML parser and junitparser read) and from the table; <, & and ]]> are escaped."""
@@ -639,6 +678,50 @@ def test_an_interrupt_kills_a_scenario_that_ignores_sigterm(tmp_path: Path, jobs
     errors = _errors(tmp_path / "j.xml")
     assert errors["a"] == "interrupted (SIGTERM) while running; no result"
     assert errors["interrupted"].startswith("interrupted (SIGTERM): ")
+
+
+@pytest.mark.fuzz_full
+def test_a_part_file_that_is_a_fifo_ends_within_the_timeout(tmp_path: Path) -> None:
+    """A TOML scenario (no code of its own) whose part file is a FIFO nobody writes: its run
+    blocks or is refused; either way check ends within the timeout with an error case and
+    nothing left."""
+    d = tmp_path / "scn"
+    d.mkdir()
+    os.mkfifo(d / "part.stl")
+    (d / "fifo.toml").write_text(FZ.replace('part = "panel"', 'part = "part.stl"'))
+    t0 = time.monotonic()
+    p, out, err, groups = _check(tmp_path, d, "--timeout", "20")
+    assert p.returncode == 1 and err == "" and time.monotonic() - t0 < 90, (out, err)
+    _assert_nothing_left(groups)
+    assert set(_errors(tmp_path / "j.xml")) == {"fifo"}
+
+
+@pytest.mark.fuzz_full
+def test_a_passing_check_is_green_and_only_then(tmp_path: Path) -> None:
+    """The positive control: a scenario that passes gives an all-green JUnit whose case carries
+    the figures of the table's row; the same with a failing twin is not green."""
+    d = tmp_path / "scn"
+    d.mkdir()
+    (d / "fz.toml").write_text(FZ)
+    p, out, err, groups = _check(tmp_path, d, "--fast", timeout=600)
+    assert p.returncode == 0, (out, err)
+    junit = tmp_path / "j.xml"
+    assert _green(junit) and [c.name for c in _suite(junit)] == ["fz"]
+    row = out.splitlines()[2]
+    assert row.split()[0] == "fz" and "PASS" in row
+    # Each threshold of the row is in the case's output, with the same value and limit.
+    system_out = list(_suite(junit))[0].system_out or ""
+    shown = re.findall(r"\s*(.+?) (\S+) [≤≥] (\S+)", row.split("PASS", 1)[1].replace(";", "\n"))
+    assert len(shown) == system_out.count("\n") + 1 >= 5, (shown, system_out)
+    for name, value, limit in shown:
+        assert f"{name}: {value} (limit {limit} " in system_out, (name, system_out)
+    (d / "fz_tight.toml").write_text(FZ.replace('name = "fz"', 'name = "fz_tight"')
+                                     .replace("max_executed_nsd_pct = 30.0",
+                                              "max_executed_nsd_pct = 0.01"))
+    p, out, err, groups = _check(tmp_path, d, "--fast", "--jobs", "2", timeout=600)
+    assert p.returncode == 1 and not _green(junit)
+    assert _suite(junit).failures == 1 and _suite(junit).errors == 0
+    _assert_nothing_left(groups)
 
 
 FZ = """\
