@@ -7,10 +7,9 @@ paintcell's, `sys.exit` on import, a MemoryError, a crash, a kill, a child proce
 hangs — becomes an ERROR row and a JUnit error case, and the check goes on to the next scenario.
 The whole group is stopped (SIGTERM, then SIGKILL after a grace period) when the scenario
 exceeds `--timeout`, when it ends (what it left running), when the check is interrupted and on
-every other way out of the check. The child asks the kernel for SIGTERM when the check dies
-(`PR_SET_PDEATHSIG`, so a SIGKILLed check leaves no scenario running on) and ends its own group
-on its way out. The check keeps no named temporary files: the row and the child's stderr travel
-through unnamed files.
+every other way out of the check; the child dies with the check, even a SIGKILLed one
+(`paintcell.cli.process_group`). The check keeps no named temporary files: the row and the
+child's stderr travel through unnamed files.
 
 The JUnit file fails closed: before the first scenario runs it holds an error case saying the
 check did not finish, so a killed check never leaves a green (or an earlier run's) file; an
@@ -31,20 +30,16 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from paintcell.cli.common import fmt_value, number_option, one_line
 from paintcell.cli.junit import clean_text, write_junit
+from paintcell.cli.process_group import Children, stop_group, wait_exit
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["add_check", "clean_text", "format_table", "row", "run_isolated", "scenario_worker",
-           "write_junit"]
-
-GRACE_S = 5.0   # between SIGTERM and SIGKILL of a scenario's process group [s]
+__all__ = ["add_check", "clean_text", "format_table", "row", "run_isolated", "write_junit"]
 
 _JOBS = number_option("--jobs", int, low=0, high=256, example="2",
                       note="0: one per CPU core")
@@ -86,58 +81,6 @@ def _jobs(text: str) -> int:
 _jobs.allowed, _jobs.example = _JOBS.allowed, _JOBS.example  # type: ignore[attr-defined]
 
 
-# --- process groups ---------------------------------------------------------------------------
-
-def _stop_group(proc: subprocess.Popen[bytes], grace_s: float = GRACE_S) -> None:
-    """Stop the process group that `proc` leads: SIGTERM (a paintcell run cleans up and exits),
-    SIGKILL after `grace_s`, and SIGKILL for whatever of the group is left once `proc` ended."""
-    if proc.poll() is None:
-        _signal_group(proc.pid, signal.SIGTERM)
-        try:
-            proc.wait(grace_s)
-        except subprocess.TimeoutExpired:
-            pass
-    _signal_group(proc.pid, signal.SIGKILL)
-    proc.wait()
-
-
-def _signal_group(pgid: int, sig: signal.Signals) -> None:
-    try:
-        os.killpg(pgid, sig)
-    except (ProcessLookupError, PermissionError):
-        pass   # the group is gone (a PermissionError: its last member is exiting)
-
-
-class _Children:
-    """The check's running scenario processes, so that every way out stops each group."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._procs: set[subprocess.Popen[bytes]] = set()
-        self.closed = False
-
-    def add(self, proc: subprocess.Popen[bytes]) -> None:
-        with self._lock:
-            self._procs.add(proc)
-            closed = self.closed
-        if closed:   # started while the check was stopping
-            _stop_group(proc)
-
-    def discard(self, proc: subprocess.Popen[bytes]) -> None:
-        with self._lock:
-            self._procs.discard(proc)
-
-    def stop_all(self) -> None:
-        with self._lock:
-            self.closed = True
-            procs = list(self._procs)
-        for proc in procs:   # SIGTERM to every group first, so that they stop in parallel
-            if proc.poll() is None:
-                _signal_group(proc.pid, signal.SIGTERM)
-        for proc in procs:
-            _stop_group(proc)
-
-
 # --- the command --------------------------------------------------------------------------------
 
 def _cmd_check(args: argparse.Namespace) -> int:
@@ -149,7 +92,7 @@ def _cmd_check(args: argparse.Namespace) -> int:
     scripts: list[Path] | None = None
     done: dict[int, tuple[dict[str, Any], float]] = {}
     started: dict[int, float] = {}
-    children = _Children()
+    children = Children()
     stopping = threading.Event()
 
     def one(i: int) -> None:
@@ -241,7 +184,7 @@ def _final_junit(path: Path, scripts: list[Path] | None,
 
 def run_isolated(script: Path, *, fast: bool, out_under: Path | None = None,
                  timeout_s: float | None = None,
-                 children: _Children | None = None) -> dict[str, Any]:
+                 children: Children | None = None) -> dict[str, Any]:
     """Run one scenario in a child process group; its table row, or an ERROR row saying what
     happened. `children`: where the running process is registered (so an interrupt can stop
     it). The group is stopped before this returns or raises."""
@@ -267,12 +210,9 @@ def run_isolated(script: Path, *, fast: bool, out_under: Path | None = None,
         try:
             if children is not None:
                 children.add(proc)
-            try:
-                proc.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                timed_out = True
+            timed_out = not wait_exit(proc, timeout_s)
         finally:
-            _stop_group(proc)   # on time-out, on an interrupt, and what it left running
+            stop_group(proc)   # on time-out, on an interrupt, and what it left running
             if children is not None:
                 children.discard(proc)
         if timed_out:
@@ -297,45 +237,6 @@ def run_isolated(script: Path, *, fast: bool, out_under: Path | None = None,
     else:
         why = f"exited with code {rc} without a result"
     return _error_row(script, why + (f" ({last})" if last else ""))
-
-
-@contextmanager
-def scenario_worker(parent_pid: int) -> Iterator[None]:
-    """What `paintcell run --parent-pid PID` (the check's child) does around its work: SIGTERM
-    when the check dies (Linux `PR_SET_PDEATHSIG`; a check already gone: at once), and on the
-    way out SIGKILL to every other process of its own group (what the scenario started)."""
-    _die_with_parent(parent_pid)
-    try:
-        yield
-    finally:
-        if os.getpgrp() == os.getpid():
-            _kill_own_group()
-
-
-def _die_with_parent(parent_pid: int) -> None:
-    if sys.platform.startswith("linux"):
-        import ctypes
-
-        pr_set_pdeathsig = 1
-        ctypes.CDLL(None, use_errno=True).prctl(pr_set_pdeathsig, int(signal.SIGTERM))
-    if os.getppid() != parent_pid:   # the check died before the request took effect
-        os.kill(os.getpid(), signal.SIGTERM)
-
-
-def _kill_own_group() -> None:
-    me, group = os.getpid(), os.getpgrp()
-    for entry in Path("/proc").iterdir() if Path("/proc/self").exists() else []:
-        if not entry.name.isdigit() or int(entry.name) == me:
-            continue
-        try:
-            stat = (entry / "stat").read_text()
-        except OSError:
-            continue
-        if int(stat.rpartition(")")[2].split()[2]) == group:
-            try:
-                os.kill(int(entry.name), signal.SIGKILL)
-            except OSError:
-                pass
 
 
 def _error_row(script: Path, msg: str) -> dict[str, Any]:

@@ -60,7 +60,7 @@ def add_run(add_parser: Any) -> None:
 def _cmd_run(args: argparse.Namespace) -> int:
     if args.parent_pid is None:
         return _run(args)
-    from paintcell.cli.check import scenario_worker
+    from paintcell.cli.process_group import scenario_worker
 
     with scenario_worker(args.parent_pid):
         return _run(args)
