@@ -5,6 +5,10 @@ Each tolerance carries a one-line justification. Append new entries; do not rewr
 
 from __future__ import annotations
 
+import json
+import struct
+from pathlib import Path
+
 import numpy as np
 
 # --- geometry (surfaces, curvature) -------------------------------------------------------------
@@ -166,3 +170,62 @@ def stand_in_program(passes, slow: dict[int, tuple[float, float, float]], first_
     return SimpleNamespace(t_s=np.concatenate(t_all), s_pass_m=np.concatenate(s_all),
                            pass_index=np.concatenate(i_all), tcp_pos_world=np.concatenate(x_all),
                            v_tcp_planned=np.concatenate(v_all), meta={})
+
+# --- 3-D film file (film.glb) -------------------------------------------------------------------
+# glTF stores positions as float32: half an ulp of coordinates below 4 m is 2.4e-7 m.
+GLB_POSITION_ATOL_M = 1e-6
+# Vertex colours as float32 in [0, 1]: half an ulp below 1 is 3e-8; the film in µm (< 1000) as
+# float32: half an ulp is 3e-5 µm.
+GLB_COLOUR_ATOL = 1e-6
+GLB_THICKNESS_ATOL_UM = 1e-4
+LINE_STRIP = 3
+# glTF is y-up: the world's (x, y, z) is glTF's (x, z, -y) (−90° about x).
+R_GLTF_WORLD = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
+
+
+def linear_from_srgb(c: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 sRGB decoding, written out here (glTF's COLOR_0 is linear)."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def glb_parts(path: Path) -> tuple[dict, bytes]:
+    """(JSON, BIN chunk) of a GLB file, by the container layout of glTF 2.0 §4.4."""
+    data = path.read_bytes()
+    magic, version, length = struct.unpack_from("<4sII", data, 0)
+    assert (magic, version, length) == (b"glTF", 2, len(data))
+    n_json, kind = struct.unpack_from("<I4s", data, 12)
+    assert kind == b"JSON"
+    doc = json.loads(data[20:20 + n_json])
+    n_bin, kind = struct.unpack_from("<I4s", data, 20 + n_json)
+    assert kind == b"BIN\0"
+    return doc, data[28 + n_json:28 + n_json + n_bin]
+
+
+def line_strips(path: Path) -> list[np.ndarray]:
+    """Every LINE_STRIP primitive's positions (M, 3) [m], as float32 VEC3 tightly packed."""
+    doc, blob = glb_parts(path)
+    out = []
+    for mesh in doc["meshes"]:
+        for prim in mesh["primitives"]:
+            if prim.get("mode") != LINE_STRIP:
+                continue
+            acc = doc["accessors"][prim["attributes"]["POSITION"]]
+            view = doc["bufferViews"][acc["bufferView"]]
+            assert (acc["componentType"], acc["type"]) == (5126, "VEC3")
+            start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+            out.append(np.frombuffer(blob, "<f4", acc["count"] * 3, start).reshape(-1, 3))
+    return out
+
+
+def spec_colours_linear(t_m: np.ndarray, target_m: float, tol: float) -> np.ndarray:
+    """Linear RGB (N, 3) of film t_m (N,) [m] on the report's spec map, recomputed here: the
+    window target ± tol, widened by one window width each side, clamped, through the registered
+    colour map."""
+    from matplotlib import colormaps
+
+    from paintcell.output.report_film import register_spec_cmap
+
+    lo, hi = 1e6 * target_m * (1 - tol), 1e6 * target_m * (1 + tol)
+    r0, r1 = lo - (hi - lo), hi + (hi - lo)
+    s = np.clip((1e6 * t_m - r0) / (r1 - r0), 0.0, 1.0)
+    return linear_from_srgb(np.asarray(colormaps[register_spec_cmap()](s))[:, :3])

@@ -641,3 +641,52 @@ def test_a_fixed_allocation_that_fails_says_so(monkeypatch):
         with pytest.raises(BoothError, match=re.escape(words)) as exc:
             bp._choose(booth, [None, None], [], [jobs], np.eye(4), [np.eye(4)], 0.0)
         assert "UNREACHABLE 75/145" in str(exc.value)
+
+
+def test_booth_film_file(roof_booth, tmp_path):
+    """The booth folder's film.npz and film.glb: the body with the summed executed film through
+    the spec scale (±10 % around the planned mean of the judged area, recomputed here from the
+    robots' films), every part's passes in the body frame, one base marker per robot."""
+    import json
+
+    import trimesh
+
+    from paintcell.booth.booth_results import write_booth_results
+    from tests.helpers import (
+        GLB_COLOUR_ATOL,
+        GLB_POSITION_ATOL_M,
+        R_GLTF_WORLD,
+        line_strips,
+        spec_colours_linear,
+    )
+
+    write_booth_results(roof_booth, tmp_path, load_robots(ROOF_BOOTH))
+    body = np.asarray(roof_booth.surface.vertices)
+    executed = roof_booth.films_m["executed"].sum(axis=0)
+    w = roof_booth.surface.vertex_areas * roof_booth.judged
+    target_m = float(roof_booth.films_m["plan"].sum(axis=0) @ w / w.sum())
+
+    scene = trimesh.load(tmp_path / "film.glb", force="scene")
+    mesh = scene.geometry["film"]
+    assert len(mesh.vertices) == len(body)
+    np.testing.assert_allclose(mesh.bounds, [body.min(0), body.max(0)], atol=GLB_POSITION_ATOL_M)
+    np.testing.assert_allclose(np.asarray(mesh.visual.vertex_attributes["color"])[:, :3],
+                               spec_colours_linear(executed, target_m, 0.10),
+                               atol=GLB_COLOUR_ATOL)
+    T_body = ROOF_BOOTH.parts[0].placement.matrix
+    strips = line_strips(tmp_path / "film.glb")
+    passes = [p.positions @ T_body[:3, :3].T + T_body[:3, 3] for p in roof_booth.plans[0].passes]
+    assert len(strips) == len(passes) > 0
+    for got, want in zip(strips, passes, strict=True):
+        np.testing.assert_allclose(got, want, atol=GLB_POSITION_ATOL_M)
+    for r in ROOF_BOOTH.robots:
+        np.testing.assert_allclose(scene.graph[f"robot base {r.name}"][0],
+                                   R_GLTF_WORLD @ r.base.matrix, atol=1e-12)
+    # film.npz's window gives the metrics' share of area inside it
+    with np.load(tmp_path / "film.npz") as z:
+        assert float(z["target_m"]) == pytest.approx(target_m, rel=1e-12)
+        inside = np.abs(z["executed_thickness_m"] - target_m) <= 0.10 * target_m
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    assert 100 * w[inside].sum() / w.sum() == pytest.approx(m["executed_within_tolerance_pct"],
+                                                            abs=1e-9)
+    assert 'id="film-3d"' in (tmp_path / "report.html").read_text(encoding="utf-8")

@@ -54,7 +54,11 @@ def test_the_wheel_holds_one_top_level_name_and_the_data(wheel: Path) -> None:
     assert sorted(n for n in names if n.endswith(".py")) == sorted(tracked)
     for data in ("paintcell/paint/data/default_bell.toml",
                  "paintcell/robots/abb_paint/abb_paint.xml",
-                 "paintcell/robots/abb_irb5500/abb_irb5500.xml"):
+                 "paintcell/robots/abb_irb5500/abb_irb5500.xml",
+                 # the report's 3-D film view
+                 "paintcell/output/viewer/three-film.min.js",
+                 "paintcell/output/viewer/film_view.js",
+                 "paintcell/output/viewer/LICENSE-three.txt"):
         assert data in names, data
 
 

@@ -54,7 +54,7 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_run_writes_every_result_file(run_dir: Path) -> None:
     res = run_dir / "res"
     for name in ("plan.json", "plan.npz", "trajectory.npz", "trajectory.csv", "trace.npz",
-                 "metrics.json", "scenario.json", "film.npz"):
+                 "metrics.json", "scenario.json", "film.npz", "film.glb"):
         assert (res / name).is_file(), name
     # No temp folders or temp files left behind.
     assert not [p for p in run_dir.iterdir() if p.name.startswith(".")]
@@ -82,10 +82,12 @@ def test_run_writes_every_result_file(run_dir: Path) -> None:
 def test_validate_export_and_report_on_the_results(run_dir: Path) -> None:
     res = run_dir / "res"
     before = json.loads((res / "metrics.json").read_text())
+    (res / "film.glb").unlink()
     out = _cli("validate", "res", cwd=run_dir)
     assert out.returncode == 0, out.stderr
     after = json.loads((res / "metrics.json").read_text())
     assert after["executed_nsd_pct"] == pytest.approx(before["executed_nsd_pct"], rel=1e-9)
+    assert (res / "film.glb").read_bytes()[:4] == b"glTF"  # validate writes the 3-D film again
     out = _cli("export", "res", "--rapid", "--style", "paintl", cwd=run_dir)
     assert out.returncode == 0, out.stderr
     text = (res / "small_panel.mod").read_text()

@@ -286,7 +286,7 @@ def test_results_use_the_snapshot_and_never_run_code_from_the_folder(good: Path,
     assert (res / "fz.mod").read_text() == (tmp_path / "before.mod").read_text()
     assert "VALIDATED in MuJoCo simulation: PASS" in (res / "fz.mod").read_text()
     marker = json.loads((res / MARKER).read_text())
-    assert {"fz.mod", "report.html", "metrics.json"} <= set(marker["files"])
+    assert {"fz.mod", "report.html", "metrics.json", "film.npz", "film.glb"} <= set(marker["files"])
 
 
 @pytest.mark.slow

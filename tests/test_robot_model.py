@@ -161,11 +161,10 @@ def test_generated_mjcf_write_leaves_no_temp_file_on_failure(tmp_path, monkeypat
     the
     temp file instead of leaking it."""
     import os
-    import tempfile
 
     from paintcell.robots.robot import write_generated_mjcf
 
-    monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
 
     def fail(*_args, **_kwargs):
         raise OSError("disk full")
@@ -173,12 +172,12 @@ def test_generated_mjcf_write_leaves_no_temp_file_on_failure(tmp_path, monkeypat
     monkeypatch.setattr(os, "replace", fail)
     with pytest.raises(OSError, match="disk full"):
         write_generated_mjcf("<mujoco/>", "leak")
-    assert list((tmp_path / "paintcell-robots").iterdir()) == []
+    assert list((tmp_path / "paintcell" / "robots").iterdir()) == []
     monkeypatch.undo()
-    monkeypatch.setattr(tempfile, "gettempdir", lambda: str(tmp_path))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     path = write_generated_mjcf("<mujoco/>", "leak")
     assert path.read_text() == "<mujoco/>"
-    assert [p.name for p in (tmp_path / "paintcell-robots").iterdir()] == [path.name]
+    assert [p.name for p in (tmp_path / "paintcell" / "robots").iterdir()] == [path.name]
 
 
 def test_tcp_offset_must_be_rigid():

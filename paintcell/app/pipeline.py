@@ -276,10 +276,8 @@ def metrics_dict(result: RunResult) -> dict[str, Any]:
 
 
 def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = False) -> None:
-    """Write plan, trajectory, trace, metrics, film (and report files when `cell` is given; the
-    execution GIF too with `video`) into `out`."""
-    from paintcell.output.report_film import FILM_NAME, save_film
-
+    """Write plan, trajectory, trace, metrics, the film (`film.npz`, `film.glb`) and, when `cell`
+    is given, the report files (the execution GIF too with `video`) into `out`."""
     result.plan.save(out / "plan.json")
     result.trajectory.save_npz(out / "trajectory.npz")
     result.trajectory.save_csv(out / "trajectory.csv")
@@ -288,10 +286,26 @@ def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = 
                                                            result.mode))
     atomic_write_text(out / "metrics.json", json.dumps(metrics_dict(result), indent=2,
                                                        default=json_default))
-    save_film(out / FILM_NAME, result.surface, result.report)
+    write_film_files(out, result.scenario, result.surface, result.plan, result.report)
     if cell is not None:
         from paintcell.output.report import make_figures, write_report
 
         make_figures(out, surface=result.surface, plan=result.plan, trajectory=result.trajectory,
                      trace=result.trace, report=result.report, cell=cell, video=video)
         write_report(out, video=video)
+
+
+def write_film_files(out: Path, scn: Scenario, surface: Surface, plan: CoveragePlan,
+                     report: Any) -> list[str]:
+    """Write the run's film into results folder `out`: `film.npz` (the arrays and the spec
+    window) and `film.glb` (the part with the film, the passes and the robot base in 3-D);
+    return the names written."""
+    from paintcell.output.gltf_film import FILM_GLB_NAME, run_film_scene, write_film_glb
+    from paintcell.output.report_film import FILM_NAME, film_data, save_film_data
+
+    film = film_data(surface, report)
+    save_film_data(out / FILM_NAME, film)
+    write_film_glb(out / FILM_GLB_NAME, run_film_scene(
+        surface, film, plan, scn.part_placement.matrix, scn.robot, scn.base.matrix))
+    return [FILM_NAME, FILM_GLB_NAME]
+

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from paintcell.core.errors import PaintcellError
+from paintcell.core.safe_paths import read_regular_bytes
 
 __all__ = ["load_run_dir", "read_json"]
 
@@ -22,7 +23,7 @@ def read_json(path: Path) -> dict[str, Any]:
     """A JSON object file; a missing, corrupt or non-object file is named in the error."""
     path = Path(path)
     try:
-        d = json.loads(path.read_text(encoding="utf-8"))
+        d = json.loads(read_regular_bytes(path).decode("utf-8"))
     except FileNotFoundError:
         raise PaintcellError(f"{path} is missing; re-run `paintcell run`") from None
     except (ValueError, UnicodeDecodeError) as exc:
@@ -59,10 +60,9 @@ def load_run_dir(d: Path) -> dict[str, Any]:
             raise PaintcellError(f"{path} is missing; {d} was not written by `paintcell run` "
                                  "(re-run it)")
         if path.suffix == ".npz":
-            with open(path, "rb") as fh:
-                if fh.read(4) != _ZIP_MAGIC:
-                    raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
-                                         "corrupt or replaced); re-run `paintcell run`")
+            if read_regular_bytes(path, head_bytes=4) != _ZIP_MAGIC:
+                raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
+                                     "corrupt or replaced); re-run `paintcell run`")
         try:
             return loader(path)
         except PaintcellError:
@@ -97,8 +97,7 @@ def check_folder_files(d: Path) -> None:
             read_json(d / name)
     for name in ("plan.npz", "trajectory.npz", "trace.npz"):
         path = d / name
-        if path.exists():
-            with open(path, "rb") as fh:
-                if fh.read(4) != _ZIP_MAGIC:
-                    raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
-                                         "corrupt or replaced); re-run `paintcell run`")
+        if path.exists() or path.is_symlink():
+            if read_regular_bytes(path, head_bytes=4) != _ZIP_MAGIC:
+                raise PaintcellError(f"{path} is not an .npz archive (no zip header; "
+                                     "corrupt or replaced); re-run `paintcell run`")

@@ -14,6 +14,7 @@ from paintcell.app.scenario_data import load_toml_scenario
 from paintcell.booth.booth import Booth
 from paintcell.booth.booth_data import load_toml_booth
 from paintcell.core.errors import PaintcellError, ScenarioError
+from paintcell.core.safe_paths import kind_of
 
 __all__ = ["find_scenarios", "load_scenario"]
 
@@ -30,6 +31,9 @@ def load_scenario(path: str | Path) -> Any:
     if path.is_dir():
         raise ScenarioError(f"scenario {path} is a folder; pass one scenario file (`paintcell "
                             "check` takes folders)")
+    if not path.is_file():   # a FIFO would block the reader until someone writes to it
+        raise ScenarioError(f"scenario {path} is a {kind_of(path.stat().st_mode)}, not a "
+                            "regular file; pass the scenario file itself")
     if path.suffix == ".toml":
         if _is_booth_toml(path):   # several robots: imported only for a booth
             return load_toml_booth(path)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.output.export_rapid import program_runs, rapid_module
+from paintcell.output.export_rapid import program_runs, rapid_ident, rapid_module
 
 _EXT_RE = r"\[9E9,9E9,9E9,9E9,9E9,9E9\]"
 
@@ -128,7 +128,8 @@ def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[
 def booth_rapid_modules(result: Any, robots: list[Any]) -> dict[str, str]:
     """{task name: module text} for every robot of a `BoothResult` (its static programs)."""
     booth = result.scenario
-    names = [f"T_{r.name.upper()}" for r in booth.robots]
+    # task and module names, also the .mod file names: RAPID identifiers (no path, no keyword)
+    names = [rapid_ident(f"T_{r.name.upper()}") for r in booth.robots]
     delays = result.report.metrics["allocation"].get("start_delays_s", [0.0] * len(names))
     build = result.report.metrics.get("film_build", {}).get("parts", {})
     flows: list[Any] = []

@@ -22,6 +22,7 @@ from matplotlib.tri import Triangulation
 
 from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S
 from paintcell.core.atomic_io import atomic_write_text
+from paintcell.output.gltf_film import FILM_GLB_NAME
 from paintcell.output.plots import THICKNESS_CMAP, save_figure, thickness_range_um
 
 _AXES = "xyz"
@@ -141,9 +142,10 @@ def _span(passes: list[Any]) -> str:
 
 
 def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
-                      images: list[str]) -> str:
+                      images: list[str], film_3d: str = "") -> str:
     """The report's HTML from a booth's metrics.json and scenario.json dicts; images: figure
-    file names in the same folder, shown in order."""
+    file names in the same folder, shown in order; film_3d: the 3-D film view's HTML
+    (`paintcell.output.film_view.film_view_html`), shown after the film figures."""
     m = metrics
     names = [r["name"] for r in scenario["robots"]]
     parts = [p["part"] for p in scenario["parts"]]
@@ -253,6 +255,8 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
     s.append(f"<p>{m['n_collisions']} collision events, {m['n_robot_robot_collisions']} "
              f"robot–robot; closest bells while both paint {_fmt(m['min_bell_distance_m'])} m; "
              f"torque utilization {_fmt(m['max_torque_utilization'])}.</p>")
+    if film_3d:
+        s.append("<h2>The film in 3-D</h2>" + film_3d)
     for img in images:
         s.append(f"<figure><img src='{html.escape(img)}' alt='{html.escape(img)}'></figure>")
     style = ("body{font-family:sans-serif;max-width:1100px;margin:auto}table{border-collapse:"
@@ -265,11 +269,20 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
 
 def write_booth_report(out: Path) -> Path:
     """Write `report.html` into a booth results folder from its metrics.json and scenario.json
-    (figures booth.png and body_film.png linked when present); returns its path."""
+    (figures booth.png and body_film.png linked when present, the 3-D view of film.glb
+    embedded); returns its path."""
     out = Path(out)
     metrics = json.loads((out / "metrics.json").read_text())
     scenario = json.loads((out / "scenario.json").read_text())
     images = [n for n in ("booth.png", "body_film.png") if (out / n).exists()]
+    film_3d = ""
+    from paintcell.output.report_sections import embeddable
+
+    if embeddable(out / FILM_GLB_NAME):
+        from paintcell.output.film_view import film_view_html
+        from paintcell.output.report_film import load_film
+
+        film_3d = film_view_html(out / FILM_GLB_NAME, load_film(out))
     path = out / "report.html"
-    atomic_write_text(path, booth_report_html(metrics, scenario, images))
+    atomic_write_text(path, booth_report_html(metrics, scenario, images, film_3d))
     return path

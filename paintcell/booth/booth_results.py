@@ -29,8 +29,14 @@ from paintcell.core.json_values import json_default
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.output.gltf_film import FilmScene
+from paintcell.output.report_film import FilmData
 from paintcell.surface.surface import Surface
 from paintcell.validation.validate_report import Check, ValidationReport
+
+#: half-width of the body's spec window as a fraction of its planned mean film (±10 %, as a
+#: one-robot run's default `tolerance_fraction`): `executed_within_tolerance_pct` and `film.glb`.
+FILM_TOLERANCE = 0.10
 
 
 def _nsd(film: np.ndarray, areas: np.ndarray, mask: np.ndarray | None = None) -> float:
@@ -53,7 +59,8 @@ def _within(film: np.ndarray, plan: np.ndarray, areas: np.ndarray) -> float:
     from paintcell.paint.metrics import uniformity
 
     target = float(plan @ areas / areas.sum())
-    return 100.0 * uniformity(film, areas, target_m=target).within_tolerance_fraction
+    return 100.0 * uniformity(film, areas, target_m=target,
+                              tolerance=FILM_TOLERANCE).within_tolerance_fraction
 
 
 def _least(honest: list[dict[str, Any] | None], key: str) -> float:
@@ -214,7 +221,8 @@ def trajs_carrier(trace: ExecutedTrace, booth: Booth, trajs: list[JointTrajector
 
 def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     """metrics.json (booth metrics, per-robot credit, allocation, film build), per-robot
-    trajectories and traces, one RAPID module per robot, `booth.png`
+    trajectories and traces, one RAPID module per robot, the body's film (`film.npz`,
+    `film.glb`: `booth_film`), `booth.png`
     (`paintcell.booth.booth_plots`),
     `body_film.png` and `report.html` (`paintcell.booth.booth_report`)."""
     from paintcell.booth.booth_plots import booth_figure
@@ -241,7 +249,38 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
                      band=overlap_mask(ex),
                      title=f"{result.scenario.name}: executed film over the whole body "
                            f"(σ/μ {result.report.metrics['executed_nsd_pct']:.2f} %)")
+    from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
+    from paintcell.output.report_film import FILM_NAME, save_film_data
+
+    film, scene = booth_film(result)
+    save_film_data(out / FILM_NAME, film)
+    write_film_glb(out / FILM_GLB_NAME, scene)
     write_booth_report(out)
+
+
+def booth_film(result: Any) -> tuple[FilmData, FilmScene]:
+    """The body's film (the robots' films summed; spec window ±`FILM_TOLERANCE` around the
+    planned area-weighted mean of the judged area, the window of
+    `executed_within_tolerance_pct`) and its 3-D scene: the body at conveyor position 0, every
+    part's passes moved into the body frame, every robot's base."""
+    booth = result.scenario
+    body = result.surface
+    n = len(body.vertices)
+    judged = np.ones(n, bool) if result.judged is None else np.asarray(result.judged, bool)
+    areas = np.asarray(body.vertex_areas, float)
+    planned = result.films_m["plan"].sum(axis=0)
+    w = areas * judged
+    film = FilmData(planned, result.films_m["executed"].sum(axis=0), areas, judged,
+                    float(planned @ w / w.sum()), FILM_TOLERANCE)
+    passes = []
+    for bp, plan in zip(booth.parts, result.plans, strict=True):
+        T = bp.placement.matrix
+        passes += [np.asarray(p.positions, float) @ T[:3, :3].T + T[:3, 3] for p in plan.passes]
+    scene = FilmScene(np.asarray(body.vertices, float), np.asarray(body.faces, np.int64),
+                      np.asarray(body.normals, float), film, passes,
+                      booth.body_placement.matrix, {r.name: r.base.matrix for r in booth.robots},
+                      frame="body")
+    return film, scene
 
 
 def json_dump(d: dict[str, Any]) -> str:

@@ -59,6 +59,8 @@ class BoothResult:
     timings_s: dict[str, float] = field(default_factory=dict)
     part_vertex_counts: list[int] = field(default_factory=list)
     """The parts' vertex counts, in the order they are stacked in `surface`."""
+    judged: np.ndarray | None = None
+    """(N,) bool: the body's vertices the film is judged on (None: every vertex)."""
 
     @property
     def passed(self) -> bool:
@@ -130,15 +132,15 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     traces = robot_traces(bcell, trace, trajs, pos, rot)
     films = robot_films(booth, bcell, body, plans, jobs, progs.T_body_parts, trajs, traces, trace,
                         t_ref)
+    judged = judged_body_mask(surfaces)
     report = booth_metrics(booth, bcell, body, films, static, trajs, traces, trace,
                            collision_events(trace), progs.record, jobs,
-                           [len(x.vertices) for x in surfaces], plans,
-                           judged_body_mask(surfaces))
+                           [len(x.vertices) for x in surfaces], plans, judged)
     report.metrics["film_build"] = progs.film_build
     report.metrics["seams"] = progs.seams
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
-                         timings, [len(x.vertices) for x in surfaces])
+                         timings, [len(x.vertices) for x in surfaces], judged)
     with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         if tmp is not None:
             write_booth_results(result, tmp, robots)

@@ -1,5 +1,5 @@
-"""What the `paintcell` sub-command modules share: exit codes, option help and option types,
-error lines, KEY=VALUE.
+"""What the `paintcell` sub-command modules share: exit codes, option help and range-checked
+option types, error lines, KEY=VALUE, the --out/--force pair of commands that write one file.
 
 `paintcell.cli.main` and the sub-command modules (`paintcell.cli.run`,
 `paintcell.cli.results`) import these, so no
@@ -24,6 +24,14 @@ FAST_HELP = ("the scenario's coarse mesh resolution (fast_resolution_m, 25 mm un
              "scenario says otherwise) and fast planner overrides (CI budget)")
 SCENARIO_HELP = "scenario file: TOML (e.g. scenarios/door.toml) or a Python script"
 DIR_HELP = "results folder written by `paintcell run`"
+
+
+def add_out_force(p: Any, what: str, required: bool = True, default: Any = None) -> None:
+    """`--out` (the file written: `what`) and `--force` on parser `p`: an existing file is
+    replaced only with --force (`paintcell.core.safe_paths.check_new_target`)."""
+    p.add_argument("--out", type=Path, required=required, default=default,
+                   help=f"{what}; an existing file is refused unless --force")
+    p.add_argument("--force", action="store_true", help="replace an existing --out file")
 
 
 def one_line(exc: BaseException) -> str:

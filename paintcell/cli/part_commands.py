@@ -5,9 +5,8 @@
 - init PART_FILE --out scenarios/NAME.toml: a commented TOML scenario (part, placement in front of
   the robot, the first robot model whose base reaches the fast plan, `init_cell.choose_cell`)
   that `paintcell run` and `plan` accept as written; none reaches it: a one-line refusal.
-- generate KIND --out FILE: a CAD-like door/hood/fender/roof mesh in mm
-  (`paintcell.surface.cad_like`), or a part of a seeded family with its truth beside it
-  (`paintcell.surface.part_families`).
+- generate KIND --out FILE: a CAD-like or seeded-family mesh with its truth
+  (`paintcell.cli.generate`).
 """
 
 from __future__ import annotations
@@ -21,9 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.cli.common import RESOLUTION_M, SEED
+from paintcell.cli.common import RESOLUTION_M, add_out_force
+from paintcell.cli.generate import add_generate
 from paintcell.core.errors import PaintcellError
-from paintcell.surface.part_families import FAMILIES
+from paintcell.core.safe_paths import check_new_target, check_write_target
 from paintcell.surface.part_spec import MeshPart
 
 __all__ = ["register"]
@@ -50,7 +50,7 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "fast plan. `paintcell run` and `paintcell plan` accept it as written; when "
                    "no robot reaches the part, init says so in one line and writes nothing.")
     _part_options(n)
-    n.add_argument("--out", type=Path, required=True, help="scenario file to write (.toml)")
+    add_out_force(n, "scenario file to write (.toml)")
     n.add_argument("--robot", default="auto",
                    help="robot name (abb_paint, irb5500, ur10, abb_paint_rail, irb5500_rail), or "
                    "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
@@ -58,24 +58,7 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "when none does)")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
     n.set_defaults(func=_cmd_init)
-    g = add_parser("generate", help="write a generated car-part mesh with its truth",
-                   description="Write a generated part, seeded and deterministic. The CAD-like "
-                   "kinds (door, hood, fender, roof) are an outer skin hemmed onto an inner panel "
-                   "in millimetres, with coarse uneven tessellation and a few slivers. The "
-                   "families (door_frame, door_pieces, door_solid, hood_rolled, tailgate, bumper, "
-                   "fender_arch, roof_sunroof) are the shapes a paint shop sends — window frames "
-                   "of narrow members, parts in pieces with stray clips, closed thin solids, "
-                   "rolled corners, recesses, wraps past 120°, arches and openings — with sizes, "
-                   "curvatures, member widths, tessellation, units (mm or m) and orientation "
-                   "drawn from the seed; their truth (areas, pieces, widths, openings, units, "
-                   "rotation) is written beside the mesh as <stem>.truth.json.")
-    kinds = ("door", "hood", "fender", "roof", *FAMILIES)   # cad_like.PART_KINDS, then families
-    g.add_argument("kind", choices=kinds, metavar="KIND", help=f"part kind: {', '.join(kinds)}")
-    g.add_argument("--out", type=Path, required=True, help="mesh file to write (.stl/.ply/.obj)")
-    g.add_argument("--seed", type=SEED, default=0,
-                   help="seed of the sizes, shape, tessellation, units and orientation "
-                   "(default 0)")
-    g.set_defaults(func=_cmd_generate)
+    add_generate(add_parser)
 
 
 def _part_options(p: argparse.ArgumentParser) -> None:
@@ -111,6 +94,8 @@ def _spec(args: argparse.Namespace) -> MeshPart:
 def _cmd_inspect(args: argparse.Namespace) -> int:
     from paintcell.surface.part_import import import_part
 
+    if args.png is not None:  # before the import's work, not after
+        check_write_target(args.png, "--png")
     res = args.resolution if args.resolution > 0 else None
     surf, rep = import_part(_spec(args), resolution_m=res)
     print(_describe(rep, surf))
@@ -189,35 +174,6 @@ def _plot_regions(surf: Any, png: Path) -> None:
     plt.close(fig)
 
 
-def _cmd_generate(args: argparse.Namespace) -> int:
-    from paintcell.core.atomic_io import atomic_path, atomic_write_text
-    from paintcell.surface.cad_like import make_part
-    from paintcell.surface.part_families import make_family_part
-
-    suffix = args.out.suffix.lower().lstrip(".")
-    if suffix not in ("stl", "ply", "obj"):
-        raise PaintcellError(f"--out {args.out}: write a .stl, .ply or .obj file")
-    if args.kind in FAMILIES:
-        fam = make_family_part(args.kind, args.seed)
-        truth_path = args.out.with_name(args.out.stem + ".truth.json")
-        with atomic_path(args.out) as tmp:
-            fam.mesh.export(tmp, file_type=suffix)
-        atomic_write_text(truth_path, json.dumps(fam.truth, indent=1) + "\n")
-        t = fam.truth
-        print(f"{args.kind} (seed {args.seed}): {len(fam.mesh.faces)} faces in {t['units']}, "
-              f"{t['up_axis']} up → {args.out}; painted side {t['painted_area_m2']:.4f} m², "
-              f"{len(t['pieces'])} piece(s); truth → {truth_path}")
-        return 0
-    part = make_part(args.kind, args.seed)
-    with atomic_path(args.out) as tmp:
-        part.mesh.export(tmp, file_type=suffix)
-    t = part.truth
-    print(f"{args.kind} (seed {args.seed}): {len(part.mesh.faces)} faces in mm → {args.out}; "
-          f"truth: skin {t['skin_m2']:.4f} m², hem {t['hem_m2']:.4f} m², inner panel "
-          f"{t['inner_m2']:.4f} m², window {t['window_m2']:.4f} m²")
-    return 0
-
-
 def _rpy(R: np.ndarray) -> tuple[float, float, float]:
     from scipy.spatial.transform import Rotation
 
@@ -261,6 +217,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     out: Path = args.out
     if out.suffix != ".toml":
         raise PaintcellError(f"--out {out}: a scenario file ends in .toml")
+    check_new_target(out, "--out", args.force)  # before minutes of planning, and again below
     if args.robot != "auto" and args.robot not in ROBOT_NAMES:  # before minutes of planning
         raise PaintcellError(f"--robot {args.robot!r} is not a robot paintcell ships; write "
                              f"--robot auto or one of {', '.join(ROBOT_NAMES)}")
@@ -311,6 +268,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
                           f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried,
                           trajectory, check.clearance_m.get(cell.robot))
+    check_new_target(out, "--out", args.force)
     atomic_write_text(out, text)
     print(_describe(rep, surf))
     print(f"cell: {cell.why}")

@@ -10,7 +10,14 @@ from pathlib import Path
 from typing import Any
 
 from paintcell.cli.check import format_table, row
-from paintcell.cli.common import DIR_HELP, EXIT_FAIL, EXIT_OK, number_option, one_line
+from paintcell.cli.common import (
+    DIR_HELP,
+    EXIT_FAIL,
+    EXIT_OK,
+    add_out_force,
+    number_option,
+    one_line,
+)
 from paintcell.core.errors import PaintcellError
 
 
@@ -23,23 +30,31 @@ def add_validate(add_parser: Any) -> None:
     v.set_defaults(func=_cmd_validate)
 
 
+def _revalidate(f: dict[str, Any]) -> tuple[Any, Any]:
+    """(surface, `ValidationReport`) of a loaded results folder (`load_run_dir`), recomputed from
+    its plan, trajectory and trace with the thresholds of its scenario.json."""
+    from paintcell.app.pipeline import load_surface
+    from paintcell.validation.validate import validate
+
+    scn, plan, traj, trace = f["scenario"], f["plan"], f["trajectory"], f["trace"]
+    surface = load_surface(scn, bool(f["run"]["fast"]))
+    return surface, validate(plan, surface, traj, trace, scn.part_placement.matrix,
+                             scn.thresholds, reachability=traj.meta.get("reachability"))
+
+
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import RunResult, load_surface, metrics_dict
+    from paintcell.app.pipeline import RunResult, metrics_dict, write_film_files
     from paintcell.app.run_files import load_run_dir, read_json
     from paintcell.core.atomic_io import atomic_write_text
     from paintcell.core.json_values import json_default
     from paintcell.core.results_dir import lock_results, note_files, require_results
-    from paintcell.output.report_film import FILM_NAME, save_film
-    from paintcell.validation.validate import validate
 
     require_results(args.dir)
     with lock_results(args.dir, "validate"):
         f = load_run_dir(args.dir)
         scn, plan, traj, trace = f["scenario"], f["plan"], f["trajectory"], f["trace"]
         fast, mode = bool(f["run"]["fast"]), str(f["run"]["mode"])
-        surface = load_surface(scn, fast)
-        rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
-                       reachability=traj.meta.get("reachability"))
+        surface, rep = _revalidate(f)
         old = args.dir / "metrics.json"
         stage_times: dict[str, Any] = {}
         if old.exists():
@@ -51,8 +66,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, timings_s=stage_times,
                         fast=fast, mode=mode)
         atomic_write_text(old, json.dumps(metrics_dict(res), indent=2, default=json_default))
-        save_film(args.dir / FILM_NAME, surface, rep)
-        note_files(args.dir, ["metrics.json", FILM_NAME])
+        note_files(args.dir, ["metrics.json",
+                              *write_film_files(args.dir, scn, surface, plan, rep)])
     print(format_table([row(scn.name, rep)]))
     return EXIT_OK if rep.passed else EXIT_FAIL
 
@@ -60,17 +75,19 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 def add_export(add_parser: Any) -> None:
     e = add_parser("export", help="export the robot program", description=(
         "Export the validated program of a results folder, from its files and scenario "
-        "snapshot. A run that did not pass validation is refused unless --allow-failed, which "
-        "writes a module whose header says it FAILED and why."))
+        "snapshot. The verdict is re-derived first: the validation is recomputed from plan.json, "
+        "trajectory.npz and trace.npz with the thresholds of scenario.json and compared with "
+        "metrics.json. A run that does not pass, or whose metrics.json disagrees with its data, "
+        "is refused unless --allow-failed, which writes a module whose header says it is NOT "
+        "VALIDATED and why."))
     e.add_argument("dir", type=Path, help=DIR_HELP)
     e.add_argument("--rapid", action="store_true", required=True,
                    help="write an ABB RAPID module (.mod)")
     e.add_argument("--style", choices=("trigg", "paintl"), default="trigg",
                    help="brush events as TriggL + TriggIO on a digital output (trigg), or as "
                    "PaintL + SetBrush (paintl, ABB paint option)")
-    e.add_argument("--out", type=Path, default=None,
-                   help="module file (default: DIR/<scenario>.mod); an existing file is replaced "
-                   "only if paintcell wrote it")
+    add_out_force(e, "module file (default: DIR/<scenario>.mod, which is replaced: the "
+                  "folder's own)", required=False)
     e.add_argument("--spacing", default=0.05,
                    type=number_option("--spacing", float, low=0.0, low_open=True, high=10.0,
                                       unit="m", example="0.05"),
@@ -84,29 +101,50 @@ def _cmd_export(args: argparse.Namespace) -> int:
     from paintcell.app.pipeline import load_robot_for
     from paintcell.app.run_files import load_run_dir, read_json
     from paintcell.core.atomic_io import atomic_write_text
-    from paintcell.core.results_dir import lock_results, note_files, require_results
-    from paintcell.output.export_rapid import rapid_module, validation_header
+    from paintcell.core.results_dir import (
+        MARKER,
+        lock_results,
+        marker_files,
+        note_files,
+        require_results,
+    )
+    from paintcell.core.safe_paths import check_new_target, check_write_target
+    from paintcell.output.export_rapid import (
+        rapid_ident,
+        rapid_module,
+        recorded_mismatches,
+        validation_header,
+    )
 
-    require_results(args.dir)
+    marker = require_results(args.dir)
     with lock_results(args.dir, "export"):
         metrics = read_json(args.dir / "metrics.json")
         f = load_run_dir(args.dir)
-        header = validation_header(metrics, f["plan"].content_digest())
+        scn = f["scenario"]
+        out = args.out or args.dir / f"{rapid_ident(scn.name)}.mod"
+        inside = out.parent.resolve() == args.dir.resolve()
+        if inside and (out.name == MARKER or (out.name in marker_files(marker)
+                                              and not out.name.endswith(".mod"))):
+            raise PaintcellError(f"--out {out} is a file of the results folder {args.dir}; "
+                                 "write the module to a .mod file")
+        if inside and out.name in marker_files(marker):
+            check_write_target(out, "--out")  # the folder's own module: replaced
+        else:
+            check_new_target(out, "--out", args.force)
+        _, rep = _revalidate(f)
+        checks = list(rep.checks)
+        mismatches = recorded_mismatches(metrics, checks, rep.passed)
+        header = validation_header(checks, f["plan"].content_digest(), mismatches)
         if not header[0].startswith("VALIDATED"):
             if not args.allow_failed:
                 raise PaintcellError(f"{args.dir} did not pass validation ({header[1][8:-1]}); "
-                                     "no program exported — fix the scenario and re-run, or "
-                                     "pass --allow-failed for a module marked FAILED")
-            sys.stderr.write(f"paintcell: warning: exporting a FAILED run ({header[1]})\n")
-        scn = f["scenario"]
+                                     "no program exported — fix the scenario and re-run (or "
+                                     "`paintcell validate` a stale metrics.json), or pass "
+                                     "--allow-failed for a module marked NOT VALIDATED")
+            sys.stderr.write(f"paintcell: warning: exporting a FAILED run ({one_line(header[1])})"
+                             "\n")
         text = rapid_module(f["trajectory"], load_robot_for(scn), module_name=scn.name,
                             style=args.style, max_spacing_m=args.spacing, validation=header)
-        out = args.out or args.dir / f"{scn.name}.mod"
-        inside = out.resolve().parent == args.dir.resolve()
-        if out.exists() and not inside and "Generated by paintcell" not in \
-                out.read_text(errors="replace")[:400]:
-            raise PaintcellError(f"--out {out} exists and was not written by paintcell; choose "
-                                 "another file")
         atomic_write_text(out, text)
         if inside:
             note_files(args.dir, [out.name])

@@ -67,12 +67,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import run_scenario
     from paintcell.app.scenario_files import load_scenario
+
+    scn = load_scenario(args.scenario)   # before the pipeline's imports: a bad file is told at once
+    from paintcell.app.pipeline import run_scenario
     from paintcell.booth.booth import Booth
     from paintcell.booth.booth_run import run_booth
 
-    scn = load_scenario(args.scenario)
     if args.disturb and not hasattr(scn, "disturbances"):
         raise PaintcellError("--disturb applies to single-robot scenarios, not to a booth")
     if args.disturb:

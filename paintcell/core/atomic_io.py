@@ -1,14 +1,28 @@
-"""Atomic file writes: a temp file in the target folder, then a rename (never half-written)."""
+"""Atomic file writes: a temp file in the target folder, then a rename (never half-written).
+
+The target must be absent or a regular file (`paintcell.core.safe_paths.check_write_target`):
+a link, device node, FIFO or folder there is refused before anything is written. The temp file is
+created with `O_EXCL | O_NOFOLLOW` (`tempfile.mkstemp`) and named `.NAME.tmp-PID-RANDOM[.SUFFIX]`,
+so the next writer of a results folder can tell a killed writer's temp file (its PID is the one
+the stale lock records, `paintcell.core.results_dir`) from a user's file of a similar name.
+"""
 
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+
+from paintcell.core.safe_paths import check_write_target
+
+#: A temp file of `atomic_*`: base name, writer PID, mkstemp's random part, optional suffix.
+TEMP_NAME = re.compile(
+    r"^\.(?P<base>.+)\.tmp-(?P<pid>\d+)-[a-z0-9_]{8}(?P<suffix>\.[A-Za-z0-9]+)?$")
 
 
 def _umask_mode() -> int:
@@ -24,16 +38,26 @@ def _name_path(exc: BaseException, path: Path) -> None:
         exc.filename = str(path)
 
 
+def _temp(path: Path, base: str, suffix: str) -> tuple[int, str]:
+    check_write_target(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return tempfile.mkstemp(dir=path.parent, prefix=f".{base}.tmp-{os.getpid()}-", suffix=suffix)
+
+
+def _commit(tmp: str, path: Path) -> None:
+    os.chmod(tmp, _umask_mode())
+    check_write_target(path)  # again: something may have been planted while we wrote
+    os.replace(tmp, path)
+
+
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     """Write text to `path` via a temp file in the same folder and a rename (never half-written)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = _temp(path, path.name, "")
     try:
         with os.fdopen(fd, "w") as f:
             f.write(text)
-        os.chmod(tmp, _umask_mode())
-        os.replace(tmp, path)
+        _commit(tmp, path)
     except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
         _name_path(exc, path)
@@ -43,13 +67,11 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
 def atomic_write_npz(path: str | os.PathLike[str], arrays: dict[str, np.ndarray]) -> None:
     """Write an `.npz` atomically (temp file + rename)."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".npz")
-    os.close(fd)
+    fd, tmp = _temp(path, path.name, ".npz")
     try:
-        np.savez_compressed(tmp, **arrays)  # type: ignore[arg-type]
-        os.chmod(tmp, _umask_mode())
-        os.replace(tmp, path)
+        with os.fdopen(fd, "wb") as f:
+            np.savez_compressed(f, **arrays)  # type: ignore[arg-type]
+        _commit(tmp, path)
     except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
         _name_path(exc, path)
@@ -64,13 +86,11 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     as tmp: fig.savefig(tmp)`. The temp name keeps the suffix so format detection still works.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
+    fd, tmp = _temp(path, path.stem, path.suffix)
     os.close(fd)
     try:
         yield Path(tmp)
-        os.chmod(tmp, _umask_mode())
-        os.replace(tmp, path)
+        _commit(tmp, path)
     except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
         _name_path(exc, path)

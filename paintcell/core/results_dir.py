@@ -16,8 +16,14 @@ Every paintcell command that writes into a results folder goes through this modu
   results folder into a link and leave versioned folders beside it). Where the exchange is not
   supported the old folder is renamed aside and the new one renamed in (a moment without `NAME`).
   Single files are written by temp file + `os.replace`.
-- **Leftovers.** Hidden `.NAME.tmp-PID-*` / `.NAME.old-PID-*` folders of a killed writer are
-  removed by the next writer of that folder, and only when process PID is gone.
+- **Leftovers.** The lock file records its holder ("paintcell run (pid PID, …)"); a holder that
+  ends normally removes it, so a lock file found with a record means its writer was killed. The
+  next writer removes exactly what that record owns: the hidden siblings `.NAME.tmp-PID-*` /
+  `.NAME.old-PID-*` and, inside a marked folder, the temp files `.FILE.tmp-PID-*` of in-place
+  writes (`paintcell.core.atomic_io.TEMP_NAME`) of files the marker lists. Nothing else is
+  removed: a user's `.metrics.json.bak` survives.
+- **No write through a link.** The lock file and the marker are opened with `O_NOFOLLOW` and
+  only when they are regular files or absent (`paintcell.core.safe_paths`).
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ import os
 import re
 import secrets
 import shutil
+import stat
 import time
 import uuid
 from collections.abc import Iterator
@@ -37,15 +44,17 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from paintcell.core.atomic_io import atomic_write_text
+from paintcell.core.atomic_io import TEMP_NAME, atomic_write_text
 from paintcell.core.errors import PaintcellError
 from paintcell.core.interrupts import raise_if_interrupted
+from paintcell.core.safe_paths import kind_of, read_regular_bytes
 
-__all__ = ["MARKER", "ResultsDirError", "exchange_dirs", "lock_results", "new_results",
-           "note_files", "read_marker", "require_results"]
+__all__ = ["MARKER", "ResultsDirError", "exchange_dirs", "lock_results", "marker_files",
+           "new_results", "note_files", "read_marker", "require_results"]
 
 MARKER = ".paintcell-results"
 _LEFTOVER = re.compile(r"^\.(?P<name>.+)\.(?:tmp|old)-(?P<pid>\d+)-[0-9a-f]+$")
+_HOLDER_PID = re.compile(rb"\(pid (\d+)")
 _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
 
@@ -55,51 +64,83 @@ class ResultsDirError(PaintcellError):
 
 
 def read_marker(d: Path) -> dict[str, Any] | None:
-    """The ownership marker of folder `d` (None when there is none or it is unreadable)."""
+    """The ownership marker of folder `d` (None when there is none, it is unreadable, or it is
+    not a regular file: a linked marker is never believed)."""
     try:
-        m = json.loads((d / MARKER).read_text())
-    except (OSError, ValueError):
+        m = json.loads(read_regular_bytes(Path(d) / MARKER, limit_bytes=16 << 20))
+    except (OSError, ValueError, RecursionError, PaintcellError):
         return None
     return m if isinstance(m, dict) and isinstance(m.get("run_id"), str) else None
 
 
-def _pid_alive(pid: int) -> bool:
-    if pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+def marker_files(marker: dict[str, Any]) -> set[str]:
+    """The file names (relative to the folder) a marker records as paintcell's."""
+    files = marker.get("files")
+    return {f for f in files if isinstance(f, str)} if isinstance(files, list) else set()
 
 
-def _clean_leftovers(out: Path) -> list[Path]:
-    """Remove `.NAME.tmp-PID-*` / `.NAME.old-PID-*` beside `out` whose process is gone."""
+def _stale_pid(record: bytes) -> int | None:
+    """The PID a lock file's record names (None: no record, or not a paintcell record)."""
+    m = _HOLDER_PID.search(record)
+    return int(m.group(1)) if m else None
+
+
+def _clean_leftovers(out: Path, pid: int | None) -> list[Path]:
+    """Remove what the killed writer `pid` (the stale lock's record) left of results folder
+    `out`: its hidden sibling folders and, inside a marked folder, its temp files of files the
+    marker lists. Nothing whose name does not carry `pid` is touched."""
     removed: list[Path] = []
-    if not out.parent.is_dir():
+    if pid is None or pid == os.getpid() or not out.parent.is_dir():
         return removed
     for p in out.parent.iterdir():
         m = _LEFTOVER.match(p.name)
-        if m is None or m["name"] != out.name or _pid_alive(int(m["pid"])):
+        if m is None or m["name"] != out.name or int(m["pid"]) != pid:
             continue
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p, ignore_errors=True)
         else:
             p.unlink(missing_ok=True)
         removed.append(p)
-    # Half-written single files of a killed in-place writer (atomic_io temp names).
-    marker = read_marker(out) if out.is_dir() else None
+    marker = read_marker(out) if out.is_dir() and not out.is_symlink() else None
     if marker is not None:
-        known = set(marker.get("files", []))
+        known = marker_files(marker) | {MARKER}
+        known |= {Path(k).stem for k in known}
         for p in out.iterdir():
-            if p.name.startswith(".") and p.name != MARKER and \
-                    any(p.name.startswith(f".{k}.") or p.name.startswith(f".{Path(k).stem}.")
-                        for k in known):
+            m = TEMP_NAME.match(p.name)
+            if m is None or int(m["pid"]) != pid or m["base"] not in known:
+                continue
+            if p.is_symlink() or p.is_file():
                 p.unlink(missing_ok=True)
                 removed.append(p)
     return removed
+
+
+def _open_lock(lock_path: Path, out: Path) -> int:
+    """Open (create) the lock file without following a link; refuse anything but a regular
+    file."""
+    try:
+        st = os.lstat(lock_path)
+    except FileNotFoundError:
+        st = None
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        raise ResultsDirError(f"the lock file {lock_path} of {out} is a {kind_of(st.st_mode)}, "
+                              "not a regular file; paintcell never writes through it — remove "
+                              "it and run again")
+    try:
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK
+                     | os.O_CLOEXEC, 0o666)
+    except OSError as exc:
+        if exc.errno != errno.ELOOP:
+            raise
+        raise ResultsDirError(f"the lock file {lock_path} of {out} is a symbolic link; "
+                              "paintcell never writes through it — remove it and run again") \
+            from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        kind = kind_of(os.fstat(fd).st_mode)
+        os.close(fd)
+        raise ResultsDirError(f"the lock file {lock_path} of {out} is a {kind}, not a regular "
+                              "file; remove it and run again")
+    return fd
 
 
 @contextmanager
@@ -115,11 +156,12 @@ def lock_results(out: Path, command: str) -> Iterator[None]:
     out.parent.mkdir(parents=True, exist_ok=True)
     lock_path = out.parent / f".{out.name}.lock"
     while True:
-        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o666)
+        fd = _open_lock(lock_path, out)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
-            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
+            holder = "".join(c if c.isprintable() else " " for c in os.pread(fd, 200, 0).decode(
+                errors="replace")).strip() or "another process"
             os.close(fd)
             if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
                 raise
@@ -133,10 +175,11 @@ def lock_results(out: Path, command: str) -> Iterator[None]:
             break
         os.close(fd)
     try:
+        stale = _stale_pid(os.pread(fd, 4096, 0))  # a record left means its writer was killed
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"paintcell {command} (pid {os.getpid()}, since "
                       f"{time.strftime('%H:%M:%S')})".encode(), 0)
-        _clean_leftovers(out)
+        _clean_leftovers(out, stale)
         yield
     finally:
         lock_path.unlink(missing_ok=True)
@@ -157,7 +200,7 @@ def _check_replaceable(out: Path) -> None:
         raise ResultsDirError(f"--out {out} exists and is not a paintcell results folder (no "
                               f"{MARKER} marker; results of paintcell before this marker lack "
                               "it too); choose another folder, or empty or delete it yourself")
-    foreign = sorted(entries - set(marker.get("files", [])) - {MARKER})
+    foreign = sorted(entries - marker_files(marker) - {MARKER})
     if foreign:
         shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
         raise ResultsDirError(f"--out {out} holds files paintcell did not write ({shown}); move "
@@ -248,6 +291,6 @@ def note_files(d: Path, names: list[str]) -> None:
     """Record files written into results folder `d` in place (`validate`, `export`, `report`),
     so a later `run` may replace them. Call while holding the lock."""
     marker = require_results(d)
-    files = sorted(set(marker.get("files", [])) | set(names))
+    files = sorted(marker_files(marker) | set(names))
     if files != marker.get("files"):
         atomic_write_text(d / MARKER, json.dumps({**marker, "files": files}, indent=2))

@@ -9,7 +9,8 @@ the HTML references nothing outside itself.
 
 The first screen (1280×800) holds the verdict with the reasons for any failure, the executed film
 map, the film histogram against the spec window with the share of area inside it, and the
-per-pass table (`paintcell.output.report_sections`); the detail follows: thresholds, headline
+per-pass table (`paintcell.output.report_sections`); below it the interactive 3-D view of
+`film.glb` (`paintcell.output.film_view`); the detail follows: thresholds, headline
 metrics under
 human names with units (`paintcell.output.report_names`), collisions, slowdowns, every figure,
 the plan, the
@@ -30,12 +31,16 @@ import numpy as np
 
 from paintcell.core.atomic_io import atomic_path
 from paintcell.core.errors import PaintcellError
+from paintcell.core.safe_paths import read_regular_bytes
+from paintcell.output.film_view import film_view_html
+from paintcell.output.gltf_film import FILM_GLB_NAME
 from paintcell.output.report_figures import FIGURES_JSON, make_figures
 from paintcell.output.report_film import FILM_NAME, load_film
 from paintcell.output.report_sections import (
     FILM_MAP_FILES,
     checks_table,
     collisions_html,
+    embeddable,
     figure,
     first_screen,
     format_value,
@@ -176,8 +181,8 @@ details { margin: 0.5em 0; }
 
 def _read_json(path: Path) -> Any:
     try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as e:
+        return json.loads(read_regular_bytes(path))
+    except (OSError, ValueError) as e:
         raise ReportError(f"{path} is not readable JSON ({e}); re-run `paintcell run`") from e
 
 
@@ -185,8 +190,9 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
                  video: bool = False) -> Path:
     """Write `results_dir/report.html` from the folder's files; return its path.
 
-    Needs `metrics.json`; uses `film.npz`, `scenario.json`, `plan.json`, `trajectory.npz`,
-    `trace.npz`, `figures.json` and the folder's `*.png` (embedded as data URIs).
+    Needs `metrics.json`; uses `film.npz`, `film.glb` (the 3-D view), `scenario.json`,
+    `plan.json`, `trajectory.npz`, `trace.npz`, `figures.json` and the folder's `*.png`
+    (embedded as data URIs).
     video: also embed the execution video `execution.gif` (a few MB); without it the report
     names the file and how to embed it.
     """
@@ -198,7 +204,7 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     metrics = _read_json(mpath)
     if not isinstance(metrics, dict):
         raise ReportError(f"{mpath} must hold a JSON object (the validation report)")
-    if video and not (d / VIDEO_NAME).is_file():
+    if video and not embeddable(d / VIDEO_NAME):
         raise ReportError(f"{d / VIDEO_NAME} is missing; make it with `paintcell run --video`")
     scenario = _read_json(d / "scenario.json") if (d / "scenario.json").exists() else None
     name = (metrics.get("scenario") or {}).get("name") if isinstance(metrics.get("scenario"),
@@ -210,6 +216,9 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     film = load_film(d)
 
     parts = [f"<h1>{html.escape(title)}</h1>", first_screen(d, metrics, film, captions)]
+    if embeddable(d / FILM_GLB_NAME):
+        parts.append("<h2>The film in 3-D</h2>")
+        parts.append(film_view_html(d / FILM_GLB_NAME, film))
     parts.append("<h2>Thresholds (pass/fail)</h2>")
     parts.append(checks_table(list(metrics.get("checks") or [])))
     parts.append("<h2>Key figures</h2>")
@@ -230,8 +239,8 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     # figures.json order first (how make_figures grouped them), then any other image by name;
     # the film map shown on the first screen is not repeated.
     order = {f["file"]: i for i, f in enumerate(figures.get("figures", []))}
-    shown = next((n for n in FILM_MAP_FILES if (d / n).is_file()), None)
-    images = sorted((p for p in d.iterdir() if p.suffix.lower() in _IMAGES and p.is_file()
+    shown = next((n for n in FILM_MAP_FILES if embeddable(d / n)), None)
+    images = sorted((p for p in d.iterdir() if p.suffix.lower() in _IMAGES and embeddable(p)
                      and not p.name.startswith(".") and p.name != shown
                      and (video or p.name != VIDEO_NAME)),
                     key=lambda p: (order.get(p.name, len(order)), p.name))

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from paintcell.core.atomic_io import atomic_write_npz
 from paintcell.core.errors import PaintcellError
@@ -74,25 +75,37 @@ class FilmData:
                 100.0 * float(w[t > hi].sum() / w.sum()))
 
 
-def save_film(path: str | os.PathLike[str], surface: Any, report: Any) -> Path:
-    """Write `film.npz` (atomically) from a `Surface` and its `ValidationReport`; return the path.
+def film_data(surface: Any, report: Any) -> FilmData:
+    """`FilmData` of a `Surface` and its `ValidationReport`.
 
     The window's centre is the report's planned mean film (`planned_mean_um`) and its half-width
-    the report's `tolerance_fraction`, so the file agrees with metrics.json.
+    the report's `tolerance_fraction`, so the data agree with metrics.json.
     """
     m = report.metrics
     judged = surface.judged_vertex_mask()  # None: every vertex is judged
+    return FilmData(np.asarray(report.planned_thickness_m, float).reshape(-1),
+                    np.asarray(report.executed_thickness_m, float).reshape(-1),
+                    np.asarray(surface.vertex_areas, float).reshape(-1),
+                    (np.ones(len(surface.vertices), bool) if judged is None
+                     else np.asarray(judged, bool).reshape(-1)),
+                    1e-6 * float(m["planned_mean_um"]), float(m["tolerance_fraction"]))
+
+
+def save_film_data(path: str | os.PathLike[str], film: FilmData) -> Path:
+    """Write `film` as `film.npz` (atomically); return the path."""
     arrays = {
-        "planned_thickness_m": np.asarray(report.planned_thickness_m, float),
-        "executed_thickness_m": np.asarray(report.executed_thickness_m, float),
-        "vertex_areas_m2": np.asarray(surface.vertex_areas, float),
-        "judged": (np.ones(len(surface.vertices), bool) if judged is None
-                   else np.asarray(judged, bool)),
-        "target_m": np.asarray(1e-6 * float(m["planned_mean_um"])),
-        "tolerance": np.asarray(float(m["tolerance_fraction"])),
+        "planned_thickness_m": film.planned_m, "executed_thickness_m": film.executed_m,
+        "vertex_areas_m2": film.areas_m2, "judged": film.judged,
+        "target_m": np.asarray(film.target_m), "tolerance": np.asarray(film.tolerance),
     }
     atomic_write_npz(Path(path), arrays)
     return Path(path)
+
+
+def save_film(path: str | os.PathLike[str], surface: Any, report: Any) -> Path:
+    """Write `film.npz` (atomically) from a `Surface` and its `ValidationReport` (`film_data`);
+    return the path."""
+    return save_film_data(path, film_data(surface, report))
 
 
 def load_film(results_dir: str | os.PathLike[str]) -> FilmData | None:
@@ -186,3 +199,15 @@ def register_spec_cmap() -> str:
                             ("#fcbba1", "#67000d"))]
         colormaps.register(ListedColormap(np.vstack(thirds), name=SPEC_CMAP))
     return SPEC_CMAP
+
+
+def spec_rgb(thickness_m: npt.ArrayLike, target_um: float, tolerance: float) -> np.ndarray:
+    """(N, 3) sRGB colours in [0, 1] of film thickness_m (N,) [m] on the spec map: `SPEC_CMAP`
+    over `spec_range_um(target_um, tolerance)`, clamped at both ends (the scale of the report's
+    spec render and its colour bar). NaN is drawn as the low end."""
+    from matplotlib import colormaps
+
+    lo, hi = spec_range_um(target_um, tolerance)
+    t_um = np.nan_to_num(1e6 * np.asarray(thickness_m, float).reshape(-1), nan=lo)
+    s = np.clip((t_um - lo) / (hi - lo), 0.0, 1.0)
+    return np.asarray(colormaps[register_spec_cmap()](s), float)[:, :3]

@@ -4,7 +4,9 @@ First screen (`first_screen`): the verdict with the reasons for any failure, the
 map, the film histogram against the spec window with the share of area inside it, and the
 per-pass table (speed, index width, slowdowns). Detail: thresholds, the headline metrics under
 human names, collisions, slowdowns, the coverage plan. Every piece reads the results folder's
-files only (metrics.json, plan.json, trajectory.npz, trace.npz, film.npz, the images).
+files only (metrics.json, plan.json, trajectory.npz, trace.npz, film.npz, the images); an image
+is embedded only when it is a regular file the folder's marker lists (`embeddable`), read without
+following a link, so a link planted in the folder never carries its target into the report.
 """
 
 from __future__ import annotations
@@ -12,12 +14,16 @@ from __future__ import annotations
 import base64
 import html
 import io
+import os
+import stat
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from paintcell.core.results_dir import marker_files, read_marker
+from paintcell.core.safe_paths import read_regular_bytes
 from paintcell.output.report_film import FilmData, histogram_png
 from paintcell.output.report_names import (
     check_cells,
@@ -58,16 +64,28 @@ def table(headers: Iterable[str], rows: Iterable[Iterable[str]], cls: str = "",
     return f"<table{i}{c}>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
 
 
+def embeddable(path: Path) -> bool:
+    """Whether the report may embed `path`: a regular file (not a link, FIFO or device) that the
+    folder's marker lists (a folder being built, with no marker yet: any regular file)."""
+    try:
+        if not stat.S_ISREG(os.lstat(path).st_mode):
+            return False
+    except OSError:
+        return False
+    marker = read_marker(path.parent)
+    return marker is None or path.name in marker_files(marker)
+
+
 def compact_png(path: Path) -> bytes:
     """The PNG's bytes for embedding: re-encoded with a 256-colour palette (median cut, no
     dithering; Pillow) when that is smaller, which is a third of the size for renders and plots.
     The file in the results folder keeps its full colour depth."""
-    raw = path.read_bytes()
+    raw = read_regular_bytes(path)
     if len(raw) < PALETTE_MIN_BYTES:
         return raw
     from PIL import Image
 
-    with Image.open(path) as im:
+    with Image.open(io.BytesIO(raw)) as im:
         pal = im.convert("RGB").quantize(256, method=Image.Quantize.MEDIANCUT,
                                          dither=Image.Dither.NONE)
     buf = io.BytesIO()
@@ -78,7 +96,7 @@ def compact_png(path: Path) -> bytes:
 def data_uri(path: Path) -> str:
     """The file as a base64 data URI (png, gif, jpeg); PNGs through `compact_png`."""
     mime = _MIME[path.suffix.lower()]
-    data = compact_png(path) if mime == "image/png" else path.read_bytes()
+    data = compact_png(path) if mime == "image/png" else read_regular_bytes(path)
     return f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
 
 
@@ -120,7 +138,7 @@ def film_map_html(d: Path, captions: dict[str, str]) -> str:
     """The executed film map (the first of `FILM_MAP_FILES` the folder has)."""
     for name in FILM_MAP_FILES:
         p = d / name
-        if p.is_file():
+        if embeddable(p):
             cap = captions.get(name, "film thickness [µm]")
             return (f'<figure id="film-map"><img src="{data_uri(p)}" alt="{name}">'
                     f"<figcaption>Film map: {html.escape(cap)}</figcaption></figure>")

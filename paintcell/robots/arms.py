@@ -65,7 +65,7 @@ def load_arm(name: str, T_world_base: npt.ArrayLike | None = None,
     identity).
 
     tcp_offset: optional (4,4) T_flange_tcp [m] replacing the MJCF's tool offset (the TCP site
-    moves; a generated MJCF in the temp dir becomes `mjcf_path`).
+    moves; a generated MJCF in the private robot-model cache becomes `mjcf_path`).
     """
     if name in _MJCF_ARMS:
         path, v_max, a_max, opw = _MJCF_ARMS[name]

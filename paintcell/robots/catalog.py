@@ -24,7 +24,7 @@ def load_robot(name: str, T_world_base: npt.ArrayLike | None = None,
     for "<arm>_rail" names `T_world_base` is the rail frame.
 
     tcp_offset: optional (4,4) T_flange_tcp [m] replacing the MJCF's tool offset (the TCP site
-    moves; a generated MJCF in the temp dir becomes `mjcf_path`).
+    moves; a generated MJCF in the private robot-model cache becomes `mjcf_path`).
     """
     if name.endswith("_rail") and name[:-5] in ("abb_paint", "irb5500"):
         return load_rail_robot(name[:-5], T_world_rail=T_world_base, tcp_offset=tcp_offset)

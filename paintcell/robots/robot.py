@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import stat
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,6 +22,8 @@ import numpy.typing as npt
 import pinocchio as pin
 
 from paintcell.core.atomic_io import atomic_write_text
+from paintcell.core.errors import PaintcellError
+from paintcell.core.safe_paths import read_regular_bytes
 from paintcell.core.transforms import check_pose, quat_wxyz_from_matrix
 from paintcell.robots.errors import RobotError
 from paintcell.robots.opw import OPWParameters
@@ -46,16 +49,49 @@ def _mj_pose(pos: np.ndarray, quat: np.ndarray) -> np.ndarray:
     return T
 
 
-def write_generated_mjcf(xml: str, stem: str) -> Path:
-    """Write generated MJCF text to a content-addressed file in the temp dir and return its path.
+def cache_dir() -> Path:
+    """The per-user private folder of generated robot models (mode 0700, owned by this user):
+    `$XDG_CACHE_HOME/paintcell/robots`, else `~/.cache/paintcell/robots`; where neither can be
+    made, a fresh private temp folder of this process."""
+    base = os.environ.get("XDG_CACHE_HOME", "")
+    root = Path(base) if os.path.isabs(base) else Path.home() / ".cache"
+    d = root / "paintcell" / "robots"
+    try:
+        d.mkdir(parents=True, exist_ok=True, mode=0o700)
+        st = os.lstat(d)
+        if stat.S_ISDIR(st.st_mode) and st.st_uid == os.geteuid():
+            if stat.S_IMODE(st.st_mode) & 0o077:
+                os.chmod(d, 0o700)
+            return d
+    except OSError:
+        pass
+    global _PRIVATE_FALLBACK
+    if _PRIVATE_FALLBACK is None:  # mkdtemp: 0700, created by this process, never shared
+        _PRIVATE_FALLBACK = Path(tempfile.mkdtemp(prefix="paintcell-robots-"))
+    return _PRIVATE_FALLBACK
 
-    Atomic (write + rename), so parallel processes may generate the same model at once.
+
+_PRIVATE_FALLBACK: Path | None = None
+
+
+def write_generated_mjcf(xml: str, stem: str) -> Path:
+    """Write generated MJCF text to a content-addressed file in `cache_dir()`; return its path.
+
+    The file is named by the SHA-256 of the text, and a file found under that name is used only
+    when its content has that digest: a cache file edited by anyone (joint ranges, masses) is
+    rewritten from `xml`, never loaded. Atomic (write + rename), so parallel processes may
+    generate the same model at once.
     """
-    out_dir = Path(tempfile.gettempdir()) / "paintcell-robots"
-    out_dir.mkdir(parents=True, exist_ok=True)
-    digest = hashlib.sha1(xml.encode()).hexdigest()[:12]
-    path = out_dir / f"{stem}_{digest}.xml"
-    if not path.exists():
+    data = xml.encode()
+    digest = hashlib.sha256(data).hexdigest()
+    path = cache_dir() / f"{stem}_{digest[:16]}.xml"
+    try:
+        ok = hashlib.sha256(read_regular_bytes(path)).hexdigest() == digest
+    except (OSError, PaintcellError):
+        ok = False
+    if not ok:
+        if path.is_symlink() or (path.exists() and not path.is_file()):
+            path.unlink()  # a link or special file in our private cache: replace it
         atomic_write_text(path, xml)
     return path
 

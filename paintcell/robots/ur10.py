@@ -5,8 +5,9 @@ uses `package://` mesh paths and `.dae` visuals MuJoCo cannot read; MuJoCo's URD
 with `discardvisual` and the STL collision meshes (found through `meshdir`, `strippath`), then the
 model is completed with MjSpec: the ROS helper frames (ee_link, tool0, base) are replaced by one
 `flange` body holding the bell (mass, geoms, `flange_site`, `tcp`), joint armature and damping,
-torque motors and a `home` keyframe. The generated MJCF (temp dir) is what MuJoCo and Pinocchio
-both load. The UR10 is not ortho-parallel: IK is DLS only.
+torque motors and a `home` keyframe. The generated MJCF (in the private robot-model cache,
+`paintcell.robots.robot.cache_dir`) is what MuJoCo and Pinocchio both load. The UR10 is not
+ortho-parallel: IK is DLS only.
 """
 
 from __future__ import annotations

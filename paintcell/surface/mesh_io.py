@@ -21,6 +21,7 @@ import numpy as np
 import trimesh
 
 from paintcell.core.errors import SurfaceError
+from paintcell.core.safe_paths import kind_of
 from paintcell.surface.part_spec import CAD_SUFFIXES, UNITS_M
 
 __all__ = ["PLAUSIBLE_SIZE_M", "RawMesh", "UnitChoice", "choose_units", "read_part_file"]
@@ -57,6 +58,9 @@ def read_part_file(path: str | os.PathLike[str], chord_tolerance_m: float = 5e-5
     """
     path = Path(path)
     if not path.is_file():
+        if path.exists():  # a FIFO would block the reader, a device never ends: refuse at once
+            raise SurfaceError(f"part file {path} is a {kind_of(path.stat().st_mode)}, not a "
+                               "regular file; give the mesh or CAD file itself")
         raise SurfaceError(f"part file {path} does not exist; check [part] file (relative to "
                            "the scenario file)")
     if path.suffix.lower() in CAD_SUFFIXES:

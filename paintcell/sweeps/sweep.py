@@ -156,10 +156,24 @@ def run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool = Fa
               on_sample: Callable[[dict[str, Any]], None] | None = None) -> SweepResult:
     """Run (or resume) the sweep; write its results into `out_dir` as they finish.
 
+    One writer at a time: the sweep holds the results-folder lock of `out_dir`
+    (`paintcell.core.results_dir.lock_results`), so a second sweep into the same folder is
+    refused at once, naming the first.
     workers: processes of the local cluster (0: run in this process, no Dask — for debugging
     and tiny sweeps); ignored when `scheduler` (a Dask scheduler address) is given.
     on_sample: called with each record as it is written (tests use it to interrupt a sweep).
     """
+    from paintcell.core.results_dir import lock_results
+
+    with lock_results(Path(out_dir), "sweep"):
+        return _run_sweep(scn, spec, out_dir, fast=fast, mode=mode, workers=workers,
+                          scheduler=scheduler, progress=progress, report=report,
+                          on_sample=on_sample)
+
+
+def _run_sweep(scn: Any, spec: SweepSpec, out_dir: str | Path, *, fast: bool, mode: str,
+               workers: int, scheduler: str | None, progress: bool, report: bool,
+               on_sample: Callable[[dict[str, Any]], None] | None) -> SweepResult:
     from tqdm import tqdm
 
     from paintcell.sweeps.sweep_stats import summarize

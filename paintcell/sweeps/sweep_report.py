@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.core.atomic_io import atomic_write_text
+from paintcell.core.atomic_io import atomic_path, atomic_write_text
 
 #: figures plotted as histograms (the headline ones).
 HIST_FIGURES = ("executed_nsd_pct", "executed_within_tolerance_pct", "executed_min_um",
@@ -31,9 +31,8 @@ def _records(out: Path) -> list[dict[str, Any]]:
 
 
 def _savefig(fig: Any, path: Path) -> None:
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=90)
-    tmp.replace(path)
+    with atomic_path(path) as tmp:  # a fixed temp name would be written through a planted link
+        fig.savefig(tmp, dpi=90, format="png")
 
 
 def make_sweep_figures(out: Path, summary: dict[str, Any],
