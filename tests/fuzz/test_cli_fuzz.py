@@ -339,9 +339,10 @@ def test_full_disk_and_read_only_mounts(tmp_path: Path) -> None:
     assert out.returncode == EXIT_USAGE and f"{tmp_path}/full2/" in _one_line(out.stderr)
     assert "no space left on the device; free space there" in out.stderr
     ro = tmp_path / "ro"
-    out = _in_tmpfs(tmp_path, ro, "size=1m,ro", f"{py} generate door --out {ro}/door.stl")
-    assert out.returncode == EXIT_USAGE and f"{ro}/" in _one_line(out.stderr)
-    assert "read-only file system" in out.stderr
+    out = _in_tmpfs(tmp_path, ro, "size=1m,ro", f"{py} check {d} --junit {ro}/j.xml")
+    assert out.returncode == EXIT_USAGE and f"--junit {ro}/j.xml cannot be written ({ro}/" in \
+        _one_line(out.stderr)
+    assert "read-only file system; write to another folder" in out.stderr
 
 
 def test_unwritable_junit_paths_are_refused_before_any_scenario(tmp_path: Path) -> None:
@@ -372,17 +373,18 @@ def _without_root_powers() -> list[str] | None:
 @pytest.mark.skipif(_without_root_powers() is None, reason="root without setpriv: permission "
                     "bits do not apply")
 def test_permission_denied_names_the_path(tmp_path: Path) -> None:
-    """EACCES: a folder without write permission."""
+    """EACCES: a folder without write permission for the --junit file."""
     locked = tmp_path / "locked"
     locked.mkdir()
     locked.chmod(0o555)
+    d = _scenarios(tmp_path, a=HANG)
     prefix = _without_root_powers() or []
-    cmd = [*prefix, sys.executable, "-m", "paintcell", "generate", "door", "--out",
-           str(locked / "door.stl")]
+    cmd = [*prefix, sys.executable, "-m", "paintcell", "check", str(d), "--junit",
+           str(locked / "j.xml")]
     out = subprocess.run(cmd, capture_output=True, text=True, cwd=tmp_path, env=_env(tmp_path),
                          timeout=120)
     assert out.returncode == EXIT_USAGE, out
-    assert f"{locked}" in _one_line(out.stderr) and "permission denied" in out.stderr
+    assert f"({locked}/j.xml: permission denied; make it" in _one_line(out.stderr), out.stderr
     assert os.listdir(locked) == []
 
 
