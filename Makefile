@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast fuzz lint bench results clean
+.PHONY: demo test test-fast fuzz lint docs bench results clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -31,6 +31,11 @@ lint: $(STAMP)
 	$(BIN)/ruff check paintcell tests benchmarks
 	$(BIN)/mypy
 
+# The documentation site (mkdocs.yml) into site/; --strict: a broken link, a public API object
+# without a docstring or a scenario key without a description fails the build.
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict
+
 # results.py writes docs/results.md (every scenario and the paper tables): `make results`.
 bench: $(STAMP)
 	for b in benchmarks/*.py; do [ $$b = benchmarks/results.py ] && continue; \
@@ -40,4 +45,4 @@ results: $(STAMP)
 	$(BIN)/python benchmarks/results.py --jobs 2
 
 clean:
-	rm -rf $(VENV) results build *.egg-info
+	rm -rf $(VENV) results build site *.egg-info

@@ -71,8 +71,6 @@ def _run(args: argparse.Namespace) -> int:
 
     scn = load_scenario(args.scenario)   # before the pipeline's imports: a bad file is told at once
     from paintcell.app.pipeline import run_scenario
-    from paintcell.booth.booth import Booth
-    from paintcell.booth.booth_run import run_booth
 
     if args.disturb and not hasattr(scn, "disturbances"):
         raise PaintcellError("--disturb applies to single-robot scenarios, not to a booth")
@@ -86,12 +84,9 @@ def _run(args: argparse.Namespace) -> int:
     worker = args.row_fd is not None
     out = args.out or (args.out_under / scn.name if args.out_under is not None
                        else None if worker else default_out(scn.name))
-    if isinstance(scn, Booth):   # several robots on a conveyor
-        res: Any = run_booth(scn, out, fast=args.fast, mode=args.mode)
-    else:
-        res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
-                           report=not (args.no_report or worker), progress=not worker,
-                           video=args.video)
+    res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
+                       report=not (args.no_report or worker), progress=not worker,
+                       video=args.video)
     r = row(scn.name, res.report)
     if worker:
         from paintcell.cli.sweep import (
@@ -104,7 +99,7 @@ def _run(args: argparse.Namespace) -> int:
         return EXIT_OK if r["passed"] else EXIT_FAIL
     print(format_table([r]))
     if out is not None:
-        html = (out / "report.html").exists()   # a booth writes no HTML report (yet)
+        html = (out / "report.html").exists()
         print(f"results: {out}" + (f" (report: {out / 'report.html'})" if html else ""))
     return EXIT_OK if res.passed else EXIT_FAIL
 
@@ -115,7 +110,8 @@ def add_plan(add_parser: Any) -> None:
     pl = add_parser("plan", help="plan only: write plan.json/.npz", description=(
         "Run the coverage planner of a scenario and write plan.json (+ plan.npz) and "
         "scenario.json into a fresh results folder --out (replacing an earlier one "
-        "atomically; a failed plan leaves it as it was)."))
+        "atomically; a failed plan leaves it as it was). A booth: each part's plan as its "
+        "robots get it, plan_<part index>.json."))
     pl.add_argument("scenario", help=SCENARIO_HELP)
     pl.add_argument("--out", type=Path, default=None,
                     help="output folder (default: results/<scenario name>); replaced only if "
@@ -125,25 +121,22 @@ def add_plan(add_parser: Any) -> None:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import load_surface, make_plan, scenario_json
+    from paintcell.app.pipeline import cell_plans, scenario_json
     from paintcell.app.scenario_files import load_scenario
-    from paintcell.booth.booth import Booth
     from paintcell.core.atomic_io import atomic_write_text
     from paintcell.core.results_dir import new_results
 
     scn = load_scenario(args.scenario)
-    if isinstance(scn, Booth):   # it said "part 'fender+door+…' is neither a library part …"
-        raise PaintcellError(f"{args.scenario} is a booth (several robots): `paintcell plan` "
-                             "plans a one-robot scenario; plan and run the booth with "
-                             f"`paintcell run {args.scenario}`")
     out = args.out or default_out(scn.name)
     with new_results(out, "plan") as tmp:
         assert tmp is not None
-        surface = load_surface(scn, args.fast)
-        plan = make_plan(scn, surface, args.fast)
-        plan.save(tmp / "plan.json")
+        plans = cell_plans(scn, args.fast)
+        for stem, plan in plans.items():
+            plan.save(tmp / f"{stem}.json")
         atomic_write_text(tmp / "scenario.json", scenario_json(scn, args.fast, "none"))
-    print(f"{scn.name}: {len(plan.passes)} passes, paint time {plan.paint_time_s:.1f} s, "
-          f"start curve: {plan.start_rule}")
-    print(f"plan: {out / 'plan.json'}")
+    for stem, plan in plans.items():
+        label = scn.name if stem == "plan" else f"{scn.name}: {stem}"
+        print(f"{label}: {len(plan.passes)} passes, paint time "
+              f"{plan.paint_time_s:.1f} s, start curve: {plan.start_rule}")
+        print(f"plan: {out / (stem + '.json')}")
     return EXIT_OK

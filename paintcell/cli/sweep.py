@@ -60,13 +60,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """Run `paintcell sweep`; exit 0, or 1 when a sweep limit of the scenario is not met."""
     from paintcell.app.scenario_files import load_scenario
     from paintcell.sweeps.sweep import run_sweep
-    from paintcell.validation.sweep_spec import spec_from_scenario
+    from paintcell.validation.sweep_spec import SCENARIO_DEFAULTS, spec_from_scenario
 
     scn = load_scenario(args.scenario)
     spec = spec_from_scenario(scn.sweep, fast=args.fast, vary=args.vary, samples=args.samples,
                               method=args.method, seed=args.seed)
     out = args.out or Path("results") / f"{scn.name}-sweep"
-    workers = args.workers if args.workers is not None else scn.sweep.get("workers", 2)
+    workers = args.workers if args.workers is not None else \
+        scn.sweep.get("workers", SCENARIO_DEFAULTS["workers"])
     res = run_sweep(scn, spec, out, fast=args.fast, mode=args.mode, workers=workers,
                     scheduler=args.scheduler, report=not args.no_report)
     print(format_summary(res.summary))
@@ -109,12 +110,12 @@ def sweep_checks(scn: Any, fast: bool, out: Path | None) -> list[dict[str, Any]]
     import tempfile
 
     from paintcell.sweeps.sweep import run_sweep
-    from paintcell.validation.sweep_spec import spec_from_scenario
+    from paintcell.validation.sweep_spec import SCENARIO_DEFAULTS, spec_from_scenario
 
     if not scn.sweep.get("limits"):
         return []
     spec = spec_from_scenario(scn.sweep, fast=fast)
-    workers = scn.sweep.get("workers", 2)
+    workers = scn.sweep.get("workers", SCENARIO_DEFAULTS["workers"])
     with tempfile.TemporaryDirectory() as tmp:
         folder = (out / f"{scn.name}-sweep") if out is not None else Path(tmp) / "sweep"
         res = run_sweep(scn, spec, folder, fast=fast, workers=workers, progress=False,
