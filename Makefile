@@ -18,7 +18,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
-	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml
+	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml --out results/check
 
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow and not fuzz_full"
@@ -36,7 +36,8 @@ lint: $(STAMP)
 docs: $(STAMP)
 	$(BIN)/mkdocs build --strict
 
-# results.py writes docs/results.md (every scenario and the paper tables): `make results`.
+# results.py writes docs/results.md (every scenario and the paper tables): `make results`;
+# after `make test`, `benchmarks/results.py --from results/check` reads the check's runs instead.
 bench: $(STAMP)
 	for b in benchmarks/*.py; do [ $$b = benchmarks/results.py ] && continue; \
 		echo "== $$b"; $(BIN)/python $$b || exit 1; done
