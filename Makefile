@@ -17,15 +17,15 @@ demo: $(STAMP)
 	@echo "Results: results/door (report.html, metrics.json, plan.json, trajectory.npz/.csv, trace.npz)"
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not fuzz_full"
-	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml
+	$(BIN)/python -m pytest -q
+	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml --out results/check
 
 test-fast: $(STAMP)
 	$(BIN)/python -m pytest -q -m "not slow and not fuzz_full"
 
-# The whole fuzz suite (tests/fuzz/), its long cases too; `make test` runs its fast slice.
+# The whole fuzz suite, its long cases (marker fuzz_full) included; `make test` runs its fast slice.
 fuzz: $(STAMP)
-	$(BIN)/python -m pytest -q tests/fuzz
+	$(BIN)/python -m pytest -q -m "" tests/fuzz
 
 lint: $(STAMP)
 	$(BIN)/ruff check paintcell tests benchmarks
@@ -36,7 +36,8 @@ lint: $(STAMP)
 docs: $(STAMP)
 	$(BIN)/mkdocs build --strict
 
-# results.py writes docs/results.md (every scenario and the paper tables): `make results`.
+# results.py writes docs/results.md (every scenario and the paper tables): `make results`;
+# after `make test`, `benchmarks/results.py --from results/check` reads the check's runs instead.
 bench: $(STAMP)
 	for b in benchmarks/*.py; do [ $$b = benchmarks/results.py ] && continue; \
 		echo "== $$b"; $(BIN)/python $$b || exit 1; done

@@ -3,8 +3,9 @@
 A parser recurses once per nesting level, so `a = [[[[…]]]]` a few thousand deep (or a
 `metrics.json` written that way) ends in RecursionError instead of an error naming the file;
 a UTF-8 byte-order mark (Windows editors write one) is not TOML; non-UTF-8 bytes come back as a
-codec's message without the file. These readers strip the mark, name the file in every error,
-and refuse data nested deeper than `MAX_DEPTH` (no paintcell file nests more than 4 levels).
+codec's message without the file. These readers strip the mark (a TOML file's text comes from
+`paintcell.core.toml_text`), name the file in every error, and refuse data nested deeper than
+`MAX_DEPTH` (no paintcell file nests more than 4 levels).
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from paintcell.core.errors import PaintcellError
+from paintcell.core.toml_text import toml_text
 
 __all__ = ["MAX_DEPTH", "DataTextError", "check_depth", "parse_json", "parse_toml", "read_toml"]
 
@@ -71,13 +73,7 @@ def parse_toml(text: str, where: str) -> dict[str, Any]:
 
 def read_toml(path: str | Path) -> dict[str, Any]:
     """The table of a TOML file (UTF-8, an optional byte-order mark); one-line errors."""
-    path = Path(path)
-    try:
-        text = path.read_bytes().decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise DataTextError(f"{path} is not UTF-8 text (byte {exc.start}: {exc.reason}); save "
-                            "it as UTF-8") from exc
-    return parse_toml(text, str(path))
+    return parse_toml(toml_text(path, DataTextError), str(Path(path)))
 
 
 def parse_json(text: str, where: str) -> Any:

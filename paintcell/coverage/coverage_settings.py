@@ -75,7 +75,9 @@ class PlannerSettings:
     patches: split the part into normal-cone patches, plan each, blend the seams and order them
         (`paintcell.coverage.patches.plan_patches`; ordered from the part frame's origin).
     max_opening_fraction: brush off every sample that would send more than this share of the
-        paint it emits into an opening [-].
+        paint it emits into an opening [-]. 0.8 keeps the bell on until its centre is well past
+        the rim, so the rim gets the film of both sides' footprints (at 0.5 the rim gets about
+        half, a thin ring round every window, sunroof or arch).
     max_axis_turn_rad_m: bound on how fast the bell axis, and its spin (the travel direction),
         may turn along a pass, per metre of TCP travel [rad/m] (4 rad/m ≈ 230 °/m: above every
         smooth library part, below a crease).
@@ -116,7 +118,7 @@ class PlannerSettings:
     geodesic_fallback: bool = True
     plan_across_openings: bool = True
     patches: bool = False
-    max_opening_fraction: float = 0.5
+    max_opening_fraction: float = 0.8
     max_axis_turn_rad_m: float = 4.0
 
     def __post_init__(self) -> None:
