@@ -161,7 +161,7 @@ def test_check_reports_broken_scenarios_as_errors_and_still_writes_junit(tmp_pat
     assert [c.get("name") for c in ET.parse(tmp_path / "k.xml").getroot().iter("testcase")] \
         == names == sorted(names)
     bad = _run("check", str(tmp_path), "--jobs", "two")
-    assert bad.returncode == 2 and "--jobs 'two' must be a whole number" in bad.stderr
+    assert bad.returncode == 2 and "argument --jobs/-j: 'two' is out of range" in bad.stderr
 
 
 def test_help_shows_only_meaningful_defaults() -> None:

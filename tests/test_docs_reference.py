@@ -324,7 +324,13 @@ def _a_value(r: dict[str, str]) -> str:
     m = re.search(r"\(choices: (.*)\)$", r["help"])
     if m:
         return next(c for c in re.findall(r"`([^`]+)`", m.group(1)) if c != default)
-    return "3"
+    try:                 # a number other than the default, inside any range it documents
+        d = float(default)
+    except ValueError:
+        return "3"
+    if default.lstrip("-").isdigit():
+        return str(int(d) + 1)
+    return repr(d / 2) if d else "0.5"
 
 
 def test_the_commands_are_the_documented_ones() -> None:

@@ -10,8 +10,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from paintcell.app.scenario_checks import ScenarioDataError
 from paintcell.app.scenario_data import scenario_from_dict
+from paintcell.core.errors import ScenarioDataError
 from paintcell.paint.metrics import uniformity
 from paintcell.surface.surface import surface_from_triangles
 from paintcell.validation.paint_spec import (

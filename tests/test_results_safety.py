@@ -100,7 +100,7 @@ def _snapshot(d: Path) -> dict[str, bytes]:
     ("[thresholds]\nmax_executed_nsd_pct = nan", "max_executed_nsd_pct = nan"),
     ("[thresholds]\nmax_collisions = -1", "max_collisions = -1 is out of range; valid: [0, inf)"),
     ("[thresholds]\nreachability_pct = 101.0", "reachability_pct = 101.0 is out of range"),
-    ("[planner]\nu_max = 5.0", "u_max = 5.0 is out of range; valid: 0 < u_max < 1"),
+    ("[planner]\nu_max = 5.0", "u_max = 5.0 is out of range; valid: [1e-06, 0.999]"),
     ("[planner]\nv_nominal_m_s = inf", "v_nominal_m_s = inf is not a finite number"),
     ("[planner]\nu_maxx = 0.04", "unknown planner setting(s) ['u_maxx']; valid: "),
     ("[robot_base]\nxyz_m = [0, 0, 0]", "unknown key(s) ['robot_base']; valid: "),
@@ -435,4 +435,8 @@ def test_an_interrupted_check_stops_its_scenario_and_still_writes_junit(good: Pa
     _, err = p.communicate(timeout=60)
     assert p.returncode == EXIT_INTERRUPTED and "interrupted (SIGTERM)" in err, err
     assert not Path(f"/proc/{child}").exists()  # the scenario's process was stopped and reaped
-    assert ET.parse(tmp_path / "j.xml").getroot().get("tests") == "0"
+    # The JUnit is not green: the stopped scenario is an error case, and so is the interruption.
+    root = ET.parse(tmp_path / "j.xml").getroot()
+    cases = {c.get("name"): c.find("error") for c in root.iter("testcase")}
+    assert root.get("errors") == "2" and set(cases) == {"fz", "interrupted"}, cases
+    assert "interrupted (SIGTERM): 0 scenario(s) not run" in cases["interrupted"].get("message")

@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from paintcell.core.data_text import DataTextError, parse_json
 from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import read_regular_bytes
 
@@ -27,10 +28,10 @@ def read_json(path: Path) -> dict[str, Any]:
     """A JSON object file; a missing, corrupt or non-object file is named in the error."""
     path = Path(path)
     try:
-        d = json.loads(read_regular_bytes(path).decode("utf-8"))
+        d = parse_json(read_regular_bytes(path).decode("utf-8"), str(path))
     except FileNotFoundError:
         raise PaintcellError(f"{path} is missing; re-run `paintcell run`") from None
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (DataTextError, UnicodeDecodeError) as exc:
         raise PaintcellError(f"{path} is not readable JSON ({_first(exc)}); re-run "
                              "`paintcell run`") from exc
     if not isinstance(d, dict):

@@ -24,7 +24,11 @@ from paintcell.surface.part_spec import MeshPart
 from paintcell.validation.paint_spec import PaintSpec
 from paintcell.validation.validate_report import Thresholds, check_thresholds
 
-__all__ = ["Scenario", "facing_robot"]
+__all__ = ["MAX_NAME_CHARS", "Scenario", "facing_robot"]
+
+#: Longest scenario name: it names the results folder and its hidden siblings (a file name holds
+#: at most 255 bytes).
+MAX_NAME_CHARS = 100
 
 
 def facing_robot() -> tuple[float, float, float]:
@@ -96,9 +100,11 @@ class Scenario:
     source: str | None = None
 
     def __post_init__(self) -> None:
-        if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
-            raise ScenarioError(f"scenario name {self.name!r} must be non-empty letters, digits, "
-                                "'_' or '-' (it names the results folder)")
+        if not isinstance(self.name, str) or not self.name or len(self.name) > MAX_NAME_CHARS \
+                or not all(c.isalnum() or c in "_-" for c in self.name):
+            shown = self.name if len(str(self.name)) <= 40 else f"{str(self.name)[:40]}…"
+            raise ScenarioError(f"scenario name {shown!r} must be 1 to {MAX_NAME_CHARS} letters, "
+                                "digits, '_' or '-' (it names the results folder)")
         if isinstance(self.part, dict):
             object.__setattr__(self, "part", MeshPart.from_dict(self.part))
         if not self.part or not isinstance(self.part, str | MeshPart):

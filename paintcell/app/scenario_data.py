@@ -22,13 +22,13 @@ what is valid. The same reader turns a results folder's `scenario.json` snapshot
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
 from paintcell.app.scenario_checks import check_settings
 from paintcell.app.scenario_keys import LENGTH_RANGE_M, PLACEMENTS, SETTINGS, TABLES, TOP_LEVEL
+from paintcell.core.data_text import DataTextError, read_toml
 from paintcell.core.errors import PaintcellError, ScenarioDataError
 from paintcell.validation.validate_report import check_thresholds
 
@@ -76,6 +76,11 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
     for key in ("name", "robot"):
         if key in kw and not isinstance(kw[key], str):
             raise ScenarioDataError(f"{where}: {key} = {kw[key]!r} must be a string")
+    from paintcell.robots.catalog import ROBOT_NAMES
+
+    if kw.get("robot", "abb_paint") not in ROBOT_NAMES:
+        raise ScenarioDataError(f"{where}: robot = {kw['robot']!r} is not a known robot; valid: "
+                                f"{', '.join(ROBOT_NAMES)}")
     for key in ("resolution_m", "fast_resolution_m"):
         v = kw.get(key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
@@ -169,11 +174,9 @@ def load_toml_scenario(path: str | Path) -> Any:
     """Read a TOML scenario file (no code runs); relative paths are relative to the file."""
     path = Path(path)
     try:
-        d = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioDataError(f"{path}: not valid TOML ({exc}); fix the line named") from exc
-    except UnicodeDecodeError as exc:
-        raise ScenarioDataError(f"{path}: not a UTF-8 text file ({exc.reason})") from exc
+        d = read_toml(path)
+    except DataTextError as exc:
+        raise ScenarioDataError(str(exc)) from exc
     d.setdefault("name", path.stem)
     return scenario_from_dict(d, str(path), base_dir=path.resolve().parent,
                               source=str(path.resolve()))

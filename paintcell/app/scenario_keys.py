@@ -187,7 +187,7 @@ def _part() -> list[ScenarioKey]:
 
 
 def _settings(table: str) -> list[ScenarioKey]:
-    from paintcell.app.scenario_checks import SETTING_RANGES
+    from paintcell.core.setting_ranges import RANGES
     from paintcell.validation.validate_report import THRESHOLD_RANGES
 
     cls = table_class(table)
@@ -203,9 +203,9 @@ def _settings(table: str) -> list[ScenarioKey]:
             if f.name.startswith("max_"):
                 key = _replace(key, valid="inf: not checked" if key.default is not None
                                else "unset or inf: not checked")
-        rng = SETTING_RANGES.get(("planner" if table == "fast_planner" else table, f.name))
-        if rng is not None:
-            key = _with_range(key, rng[0], rng[1], False, False)
+        rng = RANGES.get(("planner" if table == "fast_planner" else table, f.name))
+        if rng is not None and f.name != "seed":     # a seed is any 64-bit integer
+            key = _ranged(key, table, f.name, rng)
         out.append(key)
     return out
 
@@ -223,6 +223,35 @@ def _spec() -> list[ScenarioKey]:
                                default_text="the plan's own target film"
                                if f.name == "target_film_um" else "", owner=PaintSpec))
     return out
+
+
+#: Settings whose range holds together with another key's (v_min ≤ v_nominal ≤ v_max, w_min ≤
+#: w_max on multiples of w_res, band_curves odd, the width search's memory): their range is
+#: written in words, since a bound alone is not always a valid file.
+_COUPLED = {"v_nominal_m_s": "v_min_m_s ≤ v_nominal_m_s ≤ v_max_m_s",
+            "v_min_m_s": "v_min_m_s ≤ v_nominal_m_s ≤ v_max_m_s",
+            "v_max_m_s": "v_min_m_s ≤ v_nominal_m_s ≤ v_max_m_s",
+            "w_min_m": "w_min_m ≤ w_max_m, a multiple of w_res_m between them",
+            "w_max_m": "w_min_m ≤ w_max_m, a multiple of w_res_m between them",
+            "w_res_m": "a multiple of it between w_min_m and w_max_m",
+            "n_future": "future_grid_n^(n_future − 1) widths sets within the memory budget",
+            "future_grid_n": "future_grid_n^(n_future − 1) widths sets within the memory budget",
+            "band_curves": "odd"}
+
+
+def _ranged(key: ScenarioKey, table: str, name: str,
+            rng: tuple[float, float, str]) -> ScenarioKey:
+    """`key` with the range of `paintcell.core.setting_ranges` (both bounds included): as an
+    interval where a value at either bound alone is a valid file, else in words."""
+    from paintcell.core.setting_ranges import INF_ALLOWED
+
+    lo, hi, what = rng
+    listy = key.kind.startswith("array")
+    if name in _COUPLED or key.kind == "integer" or listy or (table, name) in INF_ALLOWED:
+        words = f"{'each ' if listy else ''}{lo:g} to {hi:g} {what}".replace("inf", "∞")
+        extra = _COUPLED.get(name, "")
+        return _replace(key, valid="; ".join(x for x in (key.valid, words, extra) if x))
+    return _with_range(key, lo, hi, True, True)
 
 
 def _with_range(key: ScenarioKey, lo: float, hi: float, lo_closed: bool,

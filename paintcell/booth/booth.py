@@ -84,6 +84,17 @@ class BoothRobot:
     def __post_init__(self) -> None:
         if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
             raise BoothError(f"robot name {self.name!r} must be letters, digits, '_' or '-'")
+        from paintcell.robots.catalog import ROBOT_NAMES
+
+        if self.model not in ROBOT_NAMES:
+            raise BoothError(f"robot {self.name!r}: model {self.model!r} is not a known robot; "
+                             f"valid: {', '.join(ROBOT_NAMES)}")
+        r = self.rail_m
+        if r is not None and not (isinstance(r, tuple | list) and len(r) == 2
+                                  and all(isinstance(x, int | float) and not isinstance(x, bool)
+                                          and np.isfinite(x) for x in r) and r[0] < r[1]):
+            raise BoothError(f"robot {self.name!r}: rail_m = {r!r} must be (lower, upper) "
+                             "carriage travel [m] with lower < upper")
 
 
 @dataclass(frozen=True)

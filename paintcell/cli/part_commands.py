@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.cli.common import add_out_force
+from paintcell.cli.common import RESOLUTION_M, add_out_force
 from paintcell.cli.generate import add_generate
 from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import check_new_target, check_write_target
@@ -73,7 +73,7 @@ def _part_options(p: argparse.ArgumentParser) -> None:
                    "[m] (default 0.04)")
     p.add_argument("--side", default="auto",
                    help="painted side: auto (the convex skin) or a direction like 0,0,1")
-    p.add_argument("--resolution", type=float, default=0.025,
+    p.add_argument("--resolution", type=RESOLUTION_M, default=0.025,
                    help="remesh edge length [m] (0: keep the repaired tessellation)")
 
 
@@ -102,7 +102,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     if args.png is not None:  # before the import's work, not after
         check_write_target(args.png, "--png")
     res = args.resolution if args.resolution > 0 else None
-    surf, rep = import_part(_spec(args), resolution_m=res)
+    surf, rep = import_part(_spec(args), resolution_m=res, setting="--resolution")
     print(_describe(rep, surf))
     png = args.png or Path(f"{surf.name}_regions.png")
     _plot_regions(surf, png)

@@ -9,7 +9,14 @@ from pathlib import Path
 from typing import Any
 
 from paintcell.cli.check import format_table, row
-from paintcell.cli.common import DIR_HELP, EXIT_FAIL, EXIT_OK, add_out_force, one_line
+from paintcell.cli.common import (
+    DIR_HELP,
+    EXIT_FAIL,
+    EXIT_OK,
+    add_out_force,
+    number_option,
+    one_line,
+)
 from paintcell.core.errors import PaintcellError
 
 
@@ -51,7 +58,9 @@ def add_export(add_parser: Any) -> None:
     add_out_force(e, "module file (default: DIR/<scenario>.mod, which is replaced: the "
                   "folder's own); a booth's modules, one per robot, go into this folder "
                   "(default: DIR) as <task>.mod", required=False)
-    e.add_argument("--spacing", type=float, default=0.05,
+    e.add_argument("--spacing", default=0.05,
+                   type=number_option("--spacing", float, low=0.0, low_open=True, high=10.0,
+                                      unit="m", example="0.05"),
                    help="maximum distance between exported targets along a pass [m]")
     e.add_argument("--allow-failed", action="store_true",
                    help="export a run that failed validation anyway, marked FAILED in the header")

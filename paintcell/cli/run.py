@@ -16,6 +16,7 @@ from paintcell.cli.common import (
     SCENARIO_HELP,
     default_out,
     key_values,
+    number_option,
 )
 from paintcell.core.errors import PaintcellError
 
@@ -46,16 +47,31 @@ def add_run(add_parser: Any) -> None:
                    "tcp_offset_m [m], gain_scale [-], standoff_error_m [m], trigger_delay_s [s], "
                    "flow_scale [-], flow_drift [-], seed [int]; e.g. --disturb "
                    "part_offset_m=0.005 --disturb seed=3")
-    # Internal, for `paintcell check`: write the table row as JSON; results under a folder.
-    r.add_argument("--row-json", type=Path, default=None, help=argparse.SUPPRESS)
+    # Internal, for `paintcell check`: write the table row as JSON to an open file descriptor;
+    # results under a folder; the check's pid (its child stops when the check dies).
+    r.add_argument("--row-fd", default=None, help=argparse.SUPPRESS,
+                   type=number_option("--row-fd", int, low=0, example="3"))
     r.add_argument("--out-under", type=Path, default=None, help=argparse.SUPPRESS)
+    r.add_argument("--parent-pid", default=None, help=argparse.SUPPRESS,
+                   type=number_option("--parent-pid", int, low=1, example="1234"))
     r.set_defaults(func=_cmd_run)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import run_scenario
+    if args.parent_pid is None:
+        return _run(args)
+    from paintcell.cli.process_group import scenario_worker
+
+    with scenario_worker(args.parent_pid):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     from paintcell.app.scenario_files import load_scenario
-    scn = load_scenario(args.scenario)
+
+    scn = load_scenario(args.scenario)   # before the pipeline's imports: a bad file is told at once
+    from paintcell.app.pipeline import run_scenario
+
     if args.disturb and not hasattr(scn, "disturbances"):
         raise PaintcellError("--disturb applies to single-robot scenarios, not to a booth")
     if args.disturb:
@@ -63,9 +79,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from paintcell.app.scenario_checks import check_settings
 
         check_settings(scn, "--disturb")
-    # `paintcell check` runs each scenario as `run --row-json FILE` in its own process and
+    # `paintcell check` runs each scenario as `run --row-fd N` in its own process and
     # writes results only when it was given --out.
-    worker = args.row_json is not None
+    worker = args.row_fd is not None
     out = args.out or (args.out_under / scn.name if args.out_under is not None
                        else None if worker else default_out(scn.name))
     res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
@@ -76,11 +92,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from paintcell.cli.sweep import (
             sweep_checks,  # the limits of the scenario's sweep, if any
         )
-        from paintcell.core.atomic_io import atomic_write_text
-
         r["checks"] += sweep_checks(scn, args.fast, args.out_under)
         r["passed"] = bool(r["passed"]) and all(c["passed"] for c in r["checks"])
-        atomic_write_text(args.row_json, json.dumps(r))
+        with open(args.row_fd, "w", encoding="utf-8", closefd=False) as f:
+            f.write(json.dumps(r))
         return EXIT_OK if r["passed"] else EXIT_FAIL
     print(format_table([r]))
     if out is not None:

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from paintcell.cli.common import SEED, number_option
 from paintcell.validation.sweep_names import FACTORS, METHODS
 
 
@@ -28,14 +29,17 @@ def add_sweep_parser(add_parser: Any) -> None:
                    "'part_offset_m=normal(0, 0.005)'. DIST: normal(mean, sd), uniform(low, "
                    "high), triangular(low, mode, high), truncnormal(mean, sd, low, high) or a "
                    f"number, in the factor's unit. Factors: {factors}")
-    s.add_argument("--samples", type=int, default=None,
+    s.add_argument("--samples", default=None,
+                   type=number_option("--samples", int, low=1, example="100"),
                    help="number of samples (default: the scenario's sweep samples, else 100)")
     s.add_argument("--method", choices=METHODS, default=None,
                    help="design: lhs (Latin hypercube) or mc (Monte Carlo); default lhs")
-    s.add_argument("--seed", type=int, default=None,
+    s.add_argument("--seed", type=SEED, default=None,
                    help="sweep seed: the design and every sample's own seed derive from it "
                    "(default: the scenario's, else 0)")
-    s.add_argument("--workers", type=int, default=None,
+    s.add_argument("--workers", default=None,
+                   type=number_option("--workers", int, low=0, high=1024, example="2",
+                                      note="0: run in this process"),
                    help="worker processes of the local Dask cluster (0: run in this process; "
                    "default: the scenario's sweep workers, else 2)")
     s.add_argument("--scheduler", default=None, metavar="ADDRESS",

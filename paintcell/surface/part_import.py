@@ -16,9 +16,11 @@ from typing import Any
 import numpy as np
 import trimesh
 
+from paintcell.core.budget import check_surface_budget
 from paintcell.core.errors import SurfaceError
 from paintcell.surface.mesh_io import UnitChoice, choose_units, read_part_file
 from paintcell.surface.mesh_repair import RepairReport, fill_small_holes, remesh, repair
+from paintcell.surface.mesh_thinning import thin_for_resolution
 from paintcell.surface.part_spec import MeshPart
 from paintcell.surface.pieces import choose_pieces
 from paintcell.surface.regions import (
@@ -171,18 +173,44 @@ def _orient(v: np.ndarray, f: np.ndarray, groups: list[np.ndarray], side: np.nda
     return f, d, "auto: " + (reasons[0] if reasons else "the convex side"), closed_any
 
 
-def import_part(spec: MeshPart, resolution_m: float | None = 0.01) -> tuple[Surface, ImportReport]:
+def import_part(spec: MeshPart, resolution_m: float | None = 0.01,
+                setting: str = "resolution_m") -> tuple[Surface, ImportReport]:
     """Read, check, repair, orient, classify and remesh a part file (see the module docstring).
 
     resolution_m: target edge length of the isotropic remesh [m]; None keeps the repaired
-    tessellation. Raises SurfaceError with a one-line fix on any bad file or setting.
+    tessellation. setting: the name of resolution_m in the caller's input, for the budget's
+    error. Raises SurfaceError (BudgetError for a surface too fine to fit in memory) with a
+    one-line fix on any bad file or setting; MeshLab's own failures are named with the file.
     """
+    import pymeshlab
+
+    try:
+        return _import_part(spec, resolution_m, setting)
+    except SurfaceError as exc:      # every refusal names the file
+        if str(spec.file) in str(exc):
+            raise
+        raise SurfaceError(f"{spec.file}: {exc}") from exc
+    except pymeshlab.PyMeshLabException as exc:
+        msg = (str(exc).strip().splitlines() or ["no message"])[0]
+        raise SurfaceError(f"mesh {spec.file} cannot be repaired ({msg}); re-export the part "
+                           "surface from your CAD/scan tool") from exc
+
+
+def _import_part(spec: MeshPart, resolution_m: float | None, setting: str
+                 ) -> tuple[Surface, ImportReport]:
     raw = read_part_file(spec.file, spec.chord_tolerance_m)
     units = choose_units(np.ptp(raw.vertices, axis=0), spec.units, raw.cad)
     v0 = raw.vertices * units.scale_m
     f_raw = raw.faces
+    if resolution_m is not None:
+        check_surface_budget(float(face_areas(v0, f_raw).sum()), resolution_m, setting,
+                             spec.file)
+    n_file = len(f_raw)
+    v0, f_raw, cell = thin_for_resolution(v0, f_raw, resolution_m)
     nr = np.cross(v0[f_raw[:, 1]] - v0[f_raw[:, 0]], v0[f_raw[:, 2]] - v0[f_raw[:, 0]]).sum(0)
     v, f, rep = repair(v0, f_raw)
+    if cell is not None:
+        rep = replace(rep, thinned_from=n_file, thin_cell_m=cell)
     groups = split_pieces(v, f)
     a = face_areas(v, f)
     side = None
