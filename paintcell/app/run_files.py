@@ -180,7 +180,7 @@ def program_modules(files: dict[str, Any], metrics: dict[str, Any], header: list
     validation lines each module starts with; style, spacing_m: `rapid_module`'s style and
     max_spacing_m [m]."""
     scn = files["scenario"]
-    options = {"style": style, "max_spacing_m": spacing_m, "validation": header}
+    options: dict[str, Any] = {"style": style, "max_spacing_m": spacing_m, "validation": header}
     if files["kind"] == "booth":
         from paintcell.booth.booth_programs import load_robots
         from paintcell.booth.booth_rapid import booth_rapid_modules

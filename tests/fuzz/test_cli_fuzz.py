@@ -231,7 +231,7 @@ def test_every_numeric_option_is_range_checked() -> None:
             ("sweep", "--seed"), ("sweep", "--workers"), ("generate", "--seed")} <= names
 
 
-BAD = ["-1", "-5", "nan", "inf", "-inf", "1e400", "abc", "", "1e999999", "0x10", "-0.0", "1.5e"]
+BAD = ["-1", "-5", "nan", "inf", "-inf", "1e400", "abc", "", "1e5000", "0x10", "-0.0", "1.5e"]
 
 
 @pytest.mark.parametrize("cmd,opt,good", _numeric_options())
