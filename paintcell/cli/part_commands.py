@@ -304,8 +304,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
 
 def _init_multi(args: argparse.Namespace, name: str, spec: MeshPart, spec_rel: MeshPart,
                 surf: Any, rep: Any, counts: tuple[int, ...], why_n: str) -> int:
-    """`init` with several robots (`paintcell.app.init_layout`): the booth file, written once
-    the booth has built its programs."""
+    """`init` with several robots (`paintcell.app.init_layout`): the booth file, once built."""
     from paintcell.app.init_booth_file import booth_toml
     from paintcell.app.init_layout import ARM, choose_layout
     from paintcell.core.atomic_io import atomic_write_text
