@@ -57,29 +57,37 @@ def arch(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, object]:
     return path, import_part(MeshPart(file=str(path), units="m"), resolution_m=0.025)[0]
 
 
-def _capsule_gap_m(robot_file: Path, T_world_base: np.ndarray, q: np.ndarray,
-                   part: trimesh.Trimesh) -> float:
-    """Smallest distance [m] between the robot's collision capsules/spheres at joint values q
-    (MuJoCo kinematics of its own file) and the part's triangles (trimesh), negative inside."""
+def _arm_gap_m(robot_file: Path, T_world_base: np.ndarray, q: np.ndarray,
+               part: trimesh.Trimesh) -> float:
+    """Smallest distance [m] between the robot's collision geoms (capsules, cylinders, boxes,
+    spheres) at joint values q — posed by MuJoCo's kinematics of its own file, each drawn as a
+    trimesh solid and sampled on its surface — and the part's triangles (trimesh)."""
     m = mujoco.MjModel.from_xml_path(str(robot_file))
     d = mujoco.MjData(m)
     d.qpos[:len(q)] = q
     mujoco.mj_kinematics(m, d)
-    pts, rad = [], []
+    G = mujoco.mjtGeom
+    pts = []
     for g in range(m.ngeom):
         if (m.geom_contype[g] | m.geom_conaffinity[g]) == 0:
             continue
-        if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE:
-            axis = d.geom_xmat[g].reshape(3, 3)[:, 2] * m.geom_size[g, 1]
-            for t in np.linspace(-1.0, 1.0, 9):
-                pts.append(d.geom_xpos[g] + t * axis)
-                rad.append(m.geom_size[g, 0])
-        elif m.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE:
-            pts.append(d.geom_xpos[g].copy())
-            rad.append(m.geom_size[g, 0])
-    P = np.asarray(pts) @ T_world_base[:3, :3].T + T_world_base[:3, 3]
-    _, dist, _ = trimesh.proximity.closest_point(part, P)
-    return float(np.min(dist - np.asarray(rad)))
+        size, kind = m.geom_size[g], m.geom_type[g]
+        if kind == G.mjGEOM_CAPSULE:
+            solid = trimesh.creation.capsule(height=2 * size[1], radius=size[0], count=[16, 24])
+            solid.apply_translation(-solid.bounds.mean(0))   # centred, as MuJoCo's
+        elif kind == G.mjGEOM_CYLINDER:
+            solid = trimesh.creation.cylinder(radius=size[0], height=2 * size[1], sections=32)
+        elif kind == G.mjGEOM_BOX:
+            solid = trimesh.creation.box(extents=2 * size[:3]).subdivide().subdivide()
+        elif kind == G.mjGEOM_SPHERE:
+            solid = trimesh.creation.icosphere(subdivisions=3, radius=size[0])
+        else:
+            raise AssertionError(f"collision geom type {kind} not drawn here")
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = d.geom_xmat[g].reshape(3, 3), d.geom_xpos[g]
+        pts.append(trimesh.transform_points(solid.vertices, T_world_base @ T))
+    _, dist, _ = trimesh.proximity.closest_point(part, np.concatenate(pts))
+    return float(dist.min())
 
 
 def test_an_arch_turned_off_the_files_axes_lies_with_its_axis_along_x_and_crown_up(tmp_path):
@@ -143,12 +151,18 @@ def test_a_clear_layout_is_clear_when_measured_independently(planned):
     assert problem is None
     n = len(pp.plans[0].passes)
     assert all(0 < k <= n for k in reach) and sum(reach) >= n
+    from paintcell.booth.booth_clearance import BodyProbe
+
     origins = []
+    T_part = booth.parts[0].placement.matrix
     for robot, br in zip(load_robots(booth), booth.robots, strict=True):
+        probe = BodyProbe(robot, pp.surfaces[0], T_part, np.zeros(len(pp.surfaces[0].vertices)))
         for s in (br.rail_m[0], 0.0, br.rail_m[1]):
             q = np.array([s, *HOME[1:]])
-            assert _capsule_gap_m(robot.mjcf_path, br.base.matrix, q, mesh) \
-                >= HOME_CLEARANCE_M - 0.01
+            gap = _arm_gap_m(robot.mjcf_path, br.base.matrix, q, mesh)
+            assert gap >= HOME_CLEARANCE_M - 0.01
+            # the booth's MuJoCo distance and this one agree where the arm is near the part
+            assert gap == pytest.approx(probe.distance(q[None], 2.0), abs=0.03)
         robot.fk(np.array([0.0, *HOME[1:]]))
         origins.append(np.array([o.translation for o in robot.pin_data.oMi[1:]]))
     # the two arms at home, joint origin to joint origin, farther than the bell distance
@@ -156,22 +170,41 @@ def test_a_clear_layout_is_clear_when_measured_independently(planned):
     assert gap >= booth.thresholds.min_bell_distance_m
 
 
-def test_a_rail_against_the_part_is_refused_and_the_arm_is_indeed_close(planned):
-    from dataclasses import replace
+def test_an_arm_at_home_near_the_part_is_refused_with_the_distance_measured_here(
+        planned, monkeypatch):
+    import re
 
     from paintcell.booth.booth_programs import load_robots
 
     booth, pp, lo, hi, mesh = planned
-    tight = replace(booth, robots=tuple(rail_robots(2, lo, hi, gap_m=0.05, drop_m=-0.2)))
-    problem, _ = layout_problem(tight, pp)
-    assert problem is not None
-    assert "from the part" in problem or "out of every robot's reach" in problem \
-        or "no allocation" in problem
-    if "from the part" in problem:
-        r = load_robots(tight)
-        gaps = [_capsule_gap_m(r[i].mjcf_path, br.base.matrix, np.array([s, *HOME[1:]]), mesh)
-                for i, br in enumerate(tight.robots) for s in (br.rail_m[0], 0.0, br.rail_m[1])]
-        assert min(gaps) < HOME_CLEARANCE_M + 0.02
+    monkeypatch.setattr(init_layout, "HOME", (0.0, 0.0, 0.9, 0.0, 0.0, 0.0, 0.0))  # leaning out
+    problem, _ = layout_problem(booth, pp)
+    found = re.fullmatch(r"left at home comes (-?\d+) mm from the part", problem or "")
+    assert found, problem
+    robot, br = load_robots(booth)[0], booth.robots[0]
+    gap = min(_arm_gap_m(robot.mjcf_path, br.base.matrix, np.array([s, *init_layout.HOME[1:]]),
+                         mesh) for s in (br.rail_m[0], 0.0, br.rail_m[1]))
+    assert gap < HOME_CLEARANCE_M
+    assert gap == pytest.approx(int(found[1]) / 1e3, abs=0.03)
+
+
+def test_arms_at_home_that_meet_each_other_are_refused(planned, monkeypatch):
+    import re
+
+    from paintcell.booth.booth_programs import load_robots
+
+    booth, pp, lo, hi, mesh = planned
+    monkeypatch.setattr(init_layout, "HOME", (0.0, 0.0, 0.6, 0.3, 0.0, 0.9, 0.0))  # bells out
+    problem, _ = layout_problem(booth, pp)
+    found = re.fullmatch(r"left and right at home come (\d+\.\d+) m apart \(< 0.8 m\)",
+                         problem or "")
+    assert found, problem
+    points = []
+    for robot in load_robots(booth):
+        tcp = robot.fk(np.array([0.0, *init_layout.HOME[1:]]))[:3, 3]
+        points.append(np.vstack([[o.translation for o in robot.pin_data.oMi[1:]], tcp]))
+    apart = np.linalg.norm(points[0][:, None] - points[1][None], axis=2).min()
+    assert apart <= float(found[1]) + 0.005 and apart < 0.8
 
 
 def test_no_layout_up_to_the_cap_is_refused_in_one_line(arch, monkeypatch):
