@@ -47,8 +47,8 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    description="Write a commented TOML scenario for a part file: units, pieces, "
                    "side, placement in front of the robot, and the first robot model whose base "
                    "(paintcell.robots.placement.find_base_pose) or rail reaches every pose of a "
-                   "fast plan. `paintcell run` and `paintcell plan` accept it as written; when "
-                   "no robot reaches the part, init says so in one line and writes nothing.")
+                   "fast plan, else a booth of 2-4 rail robots (--robots). `paintcell run` "
+                   "accepts it as written; when nothing works: one line, no file.")
     _part_options(n)
     add_out_force(n, "scenario file to write (.toml)")
     n.add_argument("--robot", default="auto",
