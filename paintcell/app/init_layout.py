@@ -212,11 +212,12 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
                 cell.why["plan"] = "; ".join(t for t in tried_n if t.startswith("planner"))
                 return cell
         failed.append(f"{n} robots: {'; '.join(tried_n)}")
+    more = (f", or try `--robots N` with more robots (at most {MAX_ROBOTS})"
+            if counts[-1] < MAX_ROBOTS else "")
     raise PaintcellError(
         f"no layout of {counts[0]} to {counts[-1]} {model} robots on rails paints {mesh.file}: "
-        f"{' | '.join(failed)}; write the cell by hand (a [[robots]] booth, as "
-        "scenarios/crs_cowling_3_holes.toml), or try `--robots N` with more robots (at most "
-        f"{MAX_ROBOTS})")
+        f"{' | '.join(failed)}; paint it in pieces (`--pieces`), or write the cell by hand (a "
+        f"[[robots]] booth, as scenarios/crs_cowling_3_holes.toml){more}")
 
 
 def _pass_length(plan: Any, i: int) -> float:
