@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast lint bench results clean
+.PHONY: demo test test-fast fuzz lint docs bench results clean
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PY) -m venv $(VENV)
@@ -18,16 +18,26 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
-	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml
+	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml --out results/check
 
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow and not fuzz_full"
+
+# The whole fuzz suite, its long cases (marker fuzz_full) included; `make test` runs its fast slice.
+fuzz: $(STAMP)
+	$(BIN)/python -m pytest -q -m "" tests/fuzz
 
 lint: $(STAMP)
 	$(BIN)/ruff check paintcell tests benchmarks
 	$(BIN)/mypy
 
-# results.py writes docs/results.md (every scenario and the paper tables): `make results`.
+# The documentation site (mkdocs.yml) into site/; --strict: a broken link, a public API object
+# without a docstring or a scenario key without a description fails the build.
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict
+
+# results.py writes docs/results.md (every scenario and the paper tables): `make results`;
+# after `make test`, `benchmarks/results.py --from results/check` reads the check's runs instead.
 bench: $(STAMP)
 	for b in benchmarks/*.py; do [ $$b = benchmarks/results.py ] && continue; \
 		echo "== $$b"; $(BIN)/python $$b || exit 1; done
@@ -36,4 +46,4 @@ results: $(STAMP)
 	$(BIN)/python benchmarks/results.py --jobs 2
 
 clean:
-	rm -rf $(VENV) results build *.egg-info
+	rm -rf $(VENV) results build site *.egg-info

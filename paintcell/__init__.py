@@ -8,6 +8,7 @@ The names a Python user needs, importable from the package itself::
     print(result.passed, result.report.metrics["executed_nsd_pct"], "% executed σ/μ")
 
 The plan step alone: `surface = load_surface(scenario)`, `plan = make_plan(scenario, surface)`.
+A booth file (several robots, `Booth`) loads and runs the same way; its run is a `BoothResult`.
 Each name is imported on first use, so `import paintcell` (and the `paintcell` command, which
 starts by importing this package) stays light: the stages behind them import numpy, MuJoCo,
 Pinocchio and numba.
@@ -29,6 +30,7 @@ _WHERE = {
     "RunResult": "paintcell.app.pipeline",
     "Scenario": "paintcell.app.scenario",
     "Booth": "paintcell.booth.booth",
+    "BoothResult": "paintcell.booth.booth_run",
     "Placement": "paintcell.core.placement",
     "PaintcellError": "paintcell.core.errors",
     "Surface": "paintcell.surface.surface_data",
@@ -38,15 +40,16 @@ _WHERE = {
     "ValidationReport": "paintcell.validation.validate_report",
 }
 
-__all__ = ["CoveragePlan", "Booth", "ExecutedTrace", "JointTrajectory", "PaintcellError",
-           "Placement", "RunResult", "Scenario", "Surface", "ValidationReport", "__version__",
-           "load_scenario", "load_surface", "make_plan", "run_scenario"]
+__all__ = ["Booth", "BoothResult", "CoveragePlan", "ExecutedTrace", "JointTrajectory",
+           "PaintcellError", "Placement", "RunResult", "Scenario", "Surface", "ValidationReport",
+           "__version__", "load_scenario", "load_surface", "make_plan", "run_scenario"]
 
 if TYPE_CHECKING:   # for type checkers and editors; at run time `__getattr__` imports them
     from paintcell.app.pipeline import RunResult, load_surface, make_plan, run_scenario
     from paintcell.app.scenario import Scenario
     from paintcell.app.scenario_files import load_scenario
     from paintcell.booth.booth import Booth
+    from paintcell.booth.booth_run import BoothResult
     from paintcell.core.errors import PaintcellError
     from paintcell.core.placement import Placement
     from paintcell.coverage.plan import CoveragePlan

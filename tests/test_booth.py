@@ -29,7 +29,7 @@ from paintcell.booth.booth import (
 from paintcell.booth.booth_film import gun_in_body, plan_gun_in_body
 from paintcell.booth.booth_programs import load_robots
 from paintcell.booth.booth_rapid import booth_rapid_modules
-from paintcell.booth.booth_run import run_booth
+from paintcell.booth.booth_run import BoothResult
 from paintcell.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagger_starts
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.placement import Placement
@@ -60,7 +60,13 @@ ROOF_BOOTH = Booth(
 
 @pytest.fixture(scope="module")
 def roof_booth():
-    return run_booth(ROOF_BOOTH, fast=True, mode="kinematic")
+    """The roof booth's run, through the public API's `run_scenario` (a booth is a cell of
+    several robots: it runs `run_booth`)."""
+    from paintcell import run_scenario
+
+    res = run_scenario(ROOF_BOOTH, fast=True, mode="kinematic", progress=False)
+    assert isinstance(res, BoothResult) and res.fast and res.mode == "kinematic"
+    return res
 
 
 def test_two_robots_film_is_one_robot_running_all_passes(roof_booth):
@@ -222,7 +228,8 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
 
 def test_rapid_modules_are_synchronised_and_conveyor_coordinated(roof_booth):
     robots = load_robots(ROOF_BOOTH)
-    mods = booth_rapid_modules(roof_booth, robots)
+    mods = booth_rapid_modules(roof_booth.scenario, roof_booth.report.metrics, roof_booth.jobs,
+                               roof_booth.static_trajectories, robots)
     assert set(mods) == {"T_ROOF_L", "T_ROOF_R"}
     for text, traj in zip(mods.values(), roof_booth.static_trajectories, strict=True):
         syncs = [ln.strip() for ln in text.splitlines() if ln.strip().startswith("WaitSync")]
@@ -641,6 +648,103 @@ def test_a_fixed_allocation_that_fails_says_so(monkeypatch):
         with pytest.raises(BoothError, match=re.escape(words)) as exc:
             bp._choose(booth, [None, None], [], [jobs], np.eye(4), [np.eye(4)], 0.0)
         assert "UNREACHABLE 75/145" in str(exc.value)
+
+
+# --- a booth's results folder: read back by validate, export and report ------------------------
+
+def test_booth_snapshot_round_trips_and_refuses_another_version() -> None:
+    import json
+
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth_data import BoothDataError, booth_from_snapshot, booth_snapshot
+
+    booth = load_scenario(Path(__file__).resolve().parents[1] / "scenarios" / "booth.toml")
+    d = json.loads(json.dumps(booth_snapshot(booth, {"fast": True, "mode": "servo"})))
+    assert d["kind"] == "booth" and d["run"] == {"fast": True, "mode": "servo"}
+    assert booth_from_snapshot(d, "scenario.json") == booth
+    for bad in ({**d, "snapshot_version": 0}, {**d, "kind": None}, {**d, "parts": "roof"}):
+        with pytest.raises(BoothDataError, match=r"^scenario\.json.*re-run `paintcell run`$"):
+            booth_from_snapshot(bad, "scenario.json")
+
+
+@pytest.fixture(scope="module")
+def roof_booth_dir(roof_booth, tmp_path_factory):
+    from paintcell.booth.booth_results import write_booth_results
+    from paintcell.core.results_dir import new_results
+
+    out = tmp_path_factory.mktemp("booth") / "bo"
+    with new_results(out, "run") as tmp:
+        write_booth_results(roof_booth, tmp, load_robots(ROOF_BOOTH))
+    return out
+
+
+def test_validate_recomputes_a_booth_folder_from_its_files(roof_booth, roof_booth_dir):
+    """`paintcell validate` on a booth folder rebuilds the body cell and the films from the
+    files alone (plans, programs, traces): every metric and check the run computed in memory
+    comes back, and the exit code is the verdict."""
+    import json
+
+    from paintcell.cli.common import EXIT_FAIL, EXIT_OK
+    from paintcell.cli.main import main
+
+    before = json.loads((roof_booth_dir / "metrics.json").read_text())
+    (roof_booth_dir / "metrics.json").write_text(json.dumps({**before, "executed_nsd_pct": -1}))
+    rc = main(["validate", str(roof_booth_dir)])
+    assert rc == (EXIT_OK if roof_booth.passed else EXIT_FAIL)
+    after = json.loads((roof_booth_dir / "metrics.json").read_text())
+    assert after == before
+    assert after["executed_nsd_pct"] == pytest.approx(roof_booth.report.metrics["executed_nsd_pct"],
+                                                      rel=1e-12)
+
+
+def test_export_writes_one_synchronised_module_per_booth_robot(roof_booth, roof_booth_dir,
+                                                               tmp_path):
+    """`paintcell export --rapid` on a booth folder: one module per robot with the validation
+    header, each the module the run wrote (its programs read back from the files) below it."""
+    from paintcell.cli.common import EXIT_OK, EXIT_USAGE
+    from paintcell.cli.main import main
+
+    run_mods = {p.stem: p.read_text() for p in roof_booth_dir.glob("T_*.mod")}
+    assert set(run_mods) == {"T_ROOF_L", "T_ROOF_R"}
+    out = tmp_path / "rapid"
+    args = ["export", str(roof_booth_dir), "--rapid", "--out", str(out)]
+    if not roof_booth.passed:
+        assert main(args) == EXIT_USAGE and not out.exists()
+        args.append("--allow-failed")
+    assert main(args) == EXIT_OK
+    for name, text in run_mods.items():
+        got = (out / f"{name}.mod").read_text().splitlines()
+        head = [ln for ln in got if ln.startswith("  ! ") and ("VALIDATED" in ln
+                or "Failed:" in ln or "--allow-failed" in ln)]
+        assert head and (("PASS" in head[0]) == roof_booth.passed)
+        assert [ln for ln in got if ln not in head] == text.splitlines()
+        assert sum(ln.strip().startswith("WaitSyncTask") for ln in got) == 2
+    assert main(["export", str(roof_booth_dir), "--rapid", "--allow-failed", "--out",
+                 str(tmp_path / "one.mod")]) == EXIT_USAGE
+    # a metrics.json that states another figure than the files give: refused, nothing written
+    import json
+
+    path = roof_booth_dir / "metrics.json"
+    kept = path.read_text()
+    m = json.loads(kept)
+    m["checks"][0]["value"] = m["checks"][0]["value"] + 1.0
+    path.write_text(json.dumps(m))
+    try:
+        assert main(["export", str(roof_booth_dir), "--rapid", "--out",
+                     str(tmp_path / "tampered")]) == EXIT_USAGE
+        assert not (tmp_path / "tampered").exists()
+    finally:
+        path.write_text(kept)
+
+
+def test_report_rebuilds_a_booth_folder_report(roof_booth_dir):
+    from paintcell.cli.common import EXIT_OK
+    from paintcell.cli.main import main
+
+    (roof_booth_dir / "report.html").unlink()
+    assert main(["report", str(roof_booth_dir)]) == EXIT_OK
+    html = (roof_booth_dir / "report.html").read_text()
+    assert "roof_l" in html and "roof_r" in html and "body_film.png" in html
 
 
 def test_booth_film_file(roof_booth, tmp_path):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.cli.main import EXIT_USAGE, build_parser, main, write_junit
+from paintcell.cli.main import EXIT_OK, EXIT_USAGE, build_parser, main, write_junit
 
 COMMANDS = ["run", "check", "plan", "validate", "export", "report"]
 
@@ -47,16 +47,62 @@ def test_script_without_scenario_and_bad_option(tmp_path: Path) -> None:
     assert out.returncode == EXIT_USAGE and "metrics.json" in out.stderr
 
 
-def test_plan_of_a_booth_is_refused_in_one_line(tmp_path: Path,
+_PAIR = """name = "roof_pair"
+fast_resolution_m = 0.025
+common_film_build = false
+[planner]
+orientation = "zero-curvature"
+[[parts]]
+part = "roof"
+xyz_m = [0.0, 0.0, 1.45]
+[[robots]]
+name = "left"
+[robots.base]
+xyz_m = [0.0, 1.8, 0.0]
+[[robots]]
+name = "right"
+[robots.base]
+xyz_m = [0.0, -1.8, 0.0]
+"""
+_ROOF = """name = "roof_one"
+part = "roof"
+fast_resolution_m = 0.025
+[part_placement]
+xyz_m = [1.4, 0.0, 1.0]
+[planner]
+orientation = "zero-curvature"
+"""
+
+
+def test_plan_of_a_booth_writes_each_parts_plan(tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
-    """`paintcell plan` plans one robot's scenario; given a booth it says so and names the
-    command that plans and runs it (it said "part 'fender+door+roof+hood' is neither a library
-    part …"), and writes nothing."""
-    booth = Path(__file__).resolve().parents[1] / "scenarios" / "booth.toml"
-    assert main(["plan", str(booth), "--fast", "--out", str(tmp_path / "p")]) == EXIT_USAGE
+    """`paintcell plan` on a booth writes each part's plan as its robots get it and the booth's
+    snapshot: a one-part booth without a common film build plans exactly what a one-robot
+    scenario of that part plans; validate on the plan-only folder names the missing file."""
+    import json
+
+    from paintcell.booth.booth_data import booth_from_snapshot
+    from paintcell.coverage.plan import CoveragePlan
+
+    (tmp_path / "pair.toml").write_text(_PAIR)
+    (tmp_path / "one.toml").write_text(_ROOF)
+    assert main(["plan", str(tmp_path / "pair.toml"), "--fast", "--out", str(tmp_path / "p")]) \
+        == EXIT_OK
+    assert main(["plan", str(tmp_path / "one.toml"), "--fast", "--out", str(tmp_path / "q")]) \
+        == EXIT_OK
+    out = capsys.readouterr().out
+    assert "roof_pair: plan_0: " in out and "roof_one: " in out
+    booth_plan = CoveragePlan.load(tmp_path / "p" / "plan_0.json")
+    one_plan = CoveragePlan.load(tmp_path / "q" / "plan.json")
+    assert len(booth_plan.passes) == len(one_plan.passes) > 0
+    assert booth_plan.content_digest() == one_plan.content_digest()
+    snap = json.loads((tmp_path / "p" / "scenario.json").read_text())
+    assert snap["run"] == {"fast": True, "mode": "none"}
+    assert [r.name for r in booth_from_snapshot(snap, "scenario.json").robots] == \
+        ["left", "right"]
+    assert main(["validate", str(tmp_path / "p")]) == EXIT_USAGE
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "is a booth" in err and f"paintcell run {booth}" in err
-    assert not (tmp_path / "p").exists()
+    assert err.count("\n") == 1 and "cell.npz is missing" in err
 
 
 def test_debug_shows_traceback(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -115,7 +161,7 @@ def test_check_reports_broken_scenarios_as_errors_and_still_writes_junit(tmp_pat
     assert [c.get("name") for c in ET.parse(tmp_path / "k.xml").getroot().iter("testcase")] \
         == names == sorted(names)
     bad = _run("check", str(tmp_path), "--jobs", "two")
-    assert bad.returncode == 2 and "--jobs 'two' must be a whole number" in bad.stderr
+    assert bad.returncode == 2 and "argument --jobs/-j: 'two' is out of range" in bad.stderr
 
 
 def test_help_shows_only_meaningful_defaults() -> None:

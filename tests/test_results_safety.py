@@ -433,4 +433,8 @@ def test_an_interrupted_check_stops_its_scenario_and_still_writes_junit(good: Pa
     _, err = p.communicate(timeout=60)
     assert p.returncode == EXIT_INTERRUPTED and "interrupted (SIGTERM)" in err, err
     assert not Path(f"/proc/{child}").exists()  # the scenario's process was stopped and reaped
-    assert ET.parse(tmp_path / "j.xml").getroot().get("tests") == "0"
+    # The JUnit is not green: the stopped scenario is an error case, and so is the interruption.
+    root = ET.parse(tmp_path / "j.xml").getroot()
+    cases = {c.get("name"): c.find("error") for c in root.iter("testcase")}
+    assert root.get("errors") == "2" and set(cases) == {"fz", "interrupted"}, cases
+    assert "interrupted (SIGTERM): 0 scenario(s) not run" in cases["interrupted"].get("message")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.app.scenario_checks import _settings_classes
+from paintcell.app.scenario_checks import settings_classes
 from paintcell.app.scenario_files import load_scenario
 from paintcell.booth.booth import Booth
 from paintcell.core.errors import ScenarioDataError
@@ -45,14 +45,14 @@ def test_a_value_of_the_wrong_type_is_refused_in_one_line(
 
 def test_settings_from_refuses_what_a_booth_or_sweep_passes() -> None:
     """Booth tables and sweep overrides reach the classes through settings_from, not the loader."""
-    traj = _settings_classes()["trajectory"]
+    traj = settings_classes()["trajectory"]
     with pytest.raises(ScenarioDataError, match=r"^\[trajectory\] moving_vias must be true or "
                                                 r"false \(got the string 'no'\); write "
                                                 r"moving_vias = false$"):
         settings_from(traj, {"moving_vias": "no"}, "trajectory")
     # numpy scalars from a sweep's samples are numbers
     import numpy as np
-    dist = _settings_classes()["disturbances"]
+    dist = settings_classes()["disturbances"]
     d = settings_from(dist, {"flow_scale": np.float64(1.1), "seed": np.int64(3)}, "disturbances")
     assert d.flow_scale == 1.1 and d.seed == 3
 
@@ -61,6 +61,6 @@ def test_settings_from_refuses_what_a_booth_or_sweep_passes() -> None:
 def test_every_shipped_scenario_loads(path: Path) -> None:
     scn = load_scenario(path)
     if isinstance(scn, Booth):  # booth tables are built per robot: check them here
-        classes = _settings_classes()
+        classes = settings_classes()
         for table in ("planner", "trajectory", "servo"):
             settings_from(classes[table], getattr(scn, table), table)

@@ -114,9 +114,9 @@ def make_trajectory(scn: Scenario, robot: Any, plan: CoveragePlan) -> Any:
                          settings_from(TrajectorySettings, scn.trajectory, "trajectory"))
 
 
-def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool = False,
+def run_scenario(scn: Any, out_dir: str | Path | None = None, *, fast: bool = False,
                  mode: Literal["servo", "kinematic"] = "servo", report: bool = True,
-                 progress: bool = True, video: bool = False) -> RunResult:
+                 progress: bool = True, video: bool = False) -> Any:
     """Run the scenario end to end; write its results into `out_dir` (atomically) if given.
 
     fast: coarse resolution and the scenario's fast planner overrides (CI checks).
@@ -124,13 +124,17 @@ def run_scenario(scn: Scenario, out_dir: str | Path | None = None, *, fast: bool
     report: also write plots, renders and `report.html`.
     video: with `report`, also render the execution GIF and embed it in `report.html` (MBs).
     A `paintcell.booth.booth.Booth` (several robots) runs through
-    `paintcell.booth.booth_run.run_booth` instead; the
-    command line (`paintcell run`) picks the one that fits.
+    `paintcell.booth.booth_run.run_booth` (its report is always written; video is not made)
+    and returns its `BoothResult`.
     """
+    from paintcell.booth.booth import Booth
+
+    if isinstance(scn, Booth):   # several robots: one cell of N robots on a conveyor
+        from paintcell.booth.booth_run import run_booth
+
+        return run_booth(scn, out_dir, fast=fast, mode=mode, progress=progress)  # type: ignore
     if not isinstance(scn, Scenario):
-        raise ScenarioError(f"run_scenario runs one robot's Scenario, got {type(scn).__name__}; "
-                            "run a booth with paintcell.booth.booth_run.run_booth "
-                            "(or `paintcell run`)")
+        raise ScenarioError(f"run_scenario runs a Scenario or a Booth, got {type(scn).__name__}")
     timings: dict[str, float] = {}
     # disable=None: tqdm draws only on a terminal, so CI logs and pipes stay clean.
     bar = tqdm(total=len(STAGES), desc=f"{scn.name}", unit="stage",
@@ -245,13 +249,36 @@ def _disturbances(scn: Scenario) -> Any:
         if scn.disturbances else None
 
 
-def scenario_json(scn: Scenario, fast: bool, mode: str) -> str:
+def scenario_json(scn: Any, fast: bool, mode: str) -> str:
     """`scenario.json`: the scenario as data (a snapshot that `validate`, `export` and `report`
-    read instead of the scenario file, which may have changed or gone) and how it was run."""
-    from paintcell.app.scenario_data import snapshot_dict
+    read instead of the scenario file, which may have changed or gone) and how it was run; a
+    booth's snapshot for a `paintcell.booth.booth.Booth`."""
+    from paintcell.booth.booth import Booth
 
-    return json.dumps({**snapshot_dict(scn), "run": {"fast": fast, "mode": mode}}, indent=2,
-                      default=json_default)
+    if isinstance(scn, Booth):
+        from paintcell.booth.booth_data import booth_snapshot
+
+        d = booth_snapshot(scn, {"fast": fast, "mode": mode})
+    else:
+        from paintcell.app.scenario_data import snapshot_dict
+
+        d = {**snapshot_dict(scn), "run": {"fast": fast, "mode": mode}}
+    return json.dumps(d, indent=2, default=json_default)
+
+
+def cell_plans(scn: Any, fast: bool = False) -> dict[str, CoveragePlan]:
+    """The plans of a scenario's cell, by file stem: a one-robot scenario's `plan` (its part's
+    surface, `make_plan`); a booth's `plan_<part index>` for each part, as its robots get them
+    before allocation (planned, reversed where asked, one film build, seams blended:
+    `paintcell.booth.booth_plans`)."""
+    from paintcell.booth.booth import Booth
+
+    if isinstance(scn, Booth):
+        from paintcell.booth.booth_plans import finish_plans, plan_parts
+
+        pp = plan_parts(scn, fast)
+        return {f"plan_{i}": pl for i, pl in enumerate(finish_plans(scn, pp, pp.plans).plans)}
+    return {"plan": make_plan(scn, load_surface(scn, fast), fast)}
 
 
 def metrics_dict(result: RunResult) -> dict[str, Any]:

@@ -39,35 +39,36 @@ def facing_robot() -> tuple[float, float, float]:
 class Scenario:
     """One painting job: part, placement, robot, applicator, settings and thresholds.
 
-    name: short identifier (used for output folders and CI rows).
-    part: a library part name (`paintcell.surface.parts.PART_NAMES`), a path to an
-    STL/OBJ/PLY mesh
-        (relative paths are relative to the scenario file; read with every `[part]` setting at
-        its default: units auto, largest piece, side auto), or a mesh/CAD part
+    name: short identifier (names the results folder and the CI row).
+    part: a library part name (`paintcell.surface.parts.PART_NAMES`), a path to a mesh or CAD
+        file (relative to the scenario file; read with every `[part]` setting at its default:
+        units auto, largest piece, side auto), or a mesh/CAD part
         (`paintcell.surface.part_spec.MeshPart`, or its TOML `[part]` table as a dict,
         converted on construction).
-    resolution_m: mesh resolution for a full run [m]; fast_resolution_m for `--fast` runs.
     part_placement: where the part frame sits in the world.
-    robot: robot name for `paintcell.robots.load_robot`; base: robot base placement in the world.
-    applicator: path to an Applicator TOML file, or None for the default bell.
+    base: where the robot base sits in the world.
+    robot: robot name for `paintcell.robots.catalog.load_robot`.
+    resolution_m: mesh resolution of a full run [m].
+    fast_resolution_m: mesh resolution of a `--fast` run [m].
+    applicator: path to an applicator TOML file, or None for the default bell.
     planner: keyword arguments for `paintcell.coverage.coverage.PlannerSettings` (only what
-    differs). fast_planner: planner overrides applied on top of `planner` for `--fast` runs.
+        differs from the defaults).
+    fast_planner: planner settings applied over `planner` in `--fast` runs.
     trajectory: keyword arguments for `paintcell.motion.trajectory.TrajectorySettings`.
     servo: keyword arguments for `paintcell.execution.execute.ServoSettings`.
     disturbances: keyword arguments for `paintcell.execution.execute.Disturbances` (seeded part
-    placement error,
-        TCP calibration offset, gain scaling) to study robustness; empty: the nominal cell.
-    thresholds: what `paintcell check` holds the run to
-    (`paintcell.validation.validate.Thresholds`: reachability,
-        collisions, executed σ/μ, loss, cycle time, and optionally tracking error, speed error,
-        torque and joint-range utilization).
+        placement error, TCP calibration offset, gain scaling, …) to study robustness; empty:
+        the nominal cell.
+    thresholds: what `paintcell run` and `paintcell check` hold the run to
+        (`paintcell.validation.validate_report.Thresholds`: reachability, collisions, executed
+        σ/μ, loss, cycle time, and optionally tracking error, speed error, torque and
+        joint-range utilization).
     sweep: the robustness sweep of `paintcell sweep`
-    (`paintcell.validation.sweep_spec.spec_from_scenario`):
-        factors {disturbance name: distribution string}, samples, fast_samples, method
-        ("lhs" | "mc"), seed, workers (local Dask processes; 0: in-process), and limits on
-        quantiles and yield that `paintcell check` holds the scenario to
-        (`paintcell.sweeps.sweep_stats`),
-        e.g. {"max_p95_executed_nsd_pct": 12.0}.
+        (`paintcell.validation.sweep_spec.spec_from_scenario`): factors {disturbance name:
+        distribution string}, samples, fast_samples, method ("lhs" | "mc"), seed, workers
+        (local Dask processes; 0: in-process), and limits on quantiles and yield that
+        `paintcell check` holds the scenario to (`paintcell.sweeps.sweep_stats`), e.g.
+        {"max_p95_executed_nsd_pct": 12.0}.
     source: the file the scenario was declared in (filled in by `load_scenario`).
     """
 

@@ -14,19 +14,21 @@ from typing import Any
 from paintcell.core.errors import PaintcellError, ScenarioDataError
 from paintcell.core.settings import check_types
 
-__all__ = ["check_settings"]
+__all__ = ["SETTINGS_TABLES", "SETTING_RANGES", "check_settings", "settings_classes"]
 
 SETTINGS_TABLES = ("planner", "fast_planner", "trajectory", "servo", "disturbances")
 
 
-# Ranges the settings classes do not check themselves: (table, key) → (low, high, what).
-_SETTING_RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
+#: Ranges the settings classes do not check themselves, both bounds excluded:
+#: (table, key) → (low, high, what).
+SETTING_RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("planner", "u_max"): (0.0, 1.0, "a fraction, 0.04 = 4 %"),
     ("planner", "band_half_width"): (0.0, 10.0, "a fraction of the index width"),
 }
 
 
-def _settings_classes() -> dict[str, type]:
+def settings_classes() -> dict[str, type]:
+    """The class each settings table builds: table name → settings dataclass."""
     from paintcell.coverage.coverage import PlannerSettings
     from paintcell.execution.execute_settings import Disturbances, ServoSettings
     from paintcell.motion.trajectory import TrajectorySettings
@@ -49,9 +51,9 @@ def check_settings(scn: Any, where: str) -> None:
     """Validate every settings table of a scenario by building its settings class.
 
     Unknown keys name the valid ones; values must be finite and within the ranges the classes
-    (and `_SETTING_RANGES`) define. Raises ScenarioDataError naming `where` (the file) and the key.
+    (and `SETTING_RANGES`) define. Raises ScenarioDataError naming `where` (the file) and the key.
     """
-    classes = _settings_classes()
+    classes = settings_classes()
     for table in SETTINGS_TABLES:
         values = getattr(scn, table)
         cls = classes[table]
@@ -63,7 +65,7 @@ def check_settings(scn: Any, where: str) -> None:
         check_types(cls, values, f"{where} [{table}]")
         for key, v in values.items():
             _check_finite(f"{where} [{table}]", key, v)
-            rng = _SETTING_RANGES.get(("planner" if table == "fast_planner" else table, key))
+            rng = SETTING_RANGES.get(("planner" if table == "fast_planner" else table, key))
             if rng is not None and isinstance(v, int | float) and not isinstance(v, bool) \
                     and not rng[0] < v < rng[1]:
                 raise ScenarioDataError(f"{where} [{table}]: {key} = {v!r} is out of range; "

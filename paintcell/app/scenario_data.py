@@ -26,8 +26,10 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
-from paintcell.app.scenario_checks import SETTINGS_TABLES, check_settings
+from paintcell.app.scenario_checks import check_settings
+from paintcell.app.scenario_keys import LENGTH_RANGE_M, PLACEMENTS, SETTINGS, TABLES, TOP_LEVEL
 from paintcell.core.errors import PaintcellError, ScenarioDataError
+from paintcell.core.toml_text import toml_text
 from paintcell.validation.validate_report import check_thresholds
 
 __all__ = ["SNAPSHOT_VERSION", "load_toml_scenario", "scenario_from_dict", "snapshot_dict"]
@@ -35,10 +37,8 @@ __all__ = ["SNAPSHOT_VERSION", "load_toml_scenario", "scenario_from_dict", "snap
 #: Version of the `scenario.json` snapshot written into results folders.
 SNAPSHOT_VERSION = 1
 
-_SCALARS = ("name", "part", "robot", "resolution_m", "fast_resolution_m", "applicator")
-_PLACEMENTS = ("part_placement", "base")
-_TABLES = (*_PLACEMENTS, *SETTINGS_TABLES, "thresholds", "sweep")
-_KEYS = (*_SCALARS, *_TABLES)
+# The keys a scenario accepts (`paintcell.app.scenario_keys`); `part` may also be a table.
+_KEYS = tuple(dict.fromkeys((*TOP_LEVEL, *TABLES)))
 
 def _tuples(v: Any) -> Any:
     """Lists (TOML/JSON arrays) as tuples, recursively (settings classes are frozen)."""
@@ -70,7 +70,7 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
         raise ScenarioDataError(f"{where}: no [part_placement]; add xyz_m = [x, y, z] and "
                                 "rpy_rad = [r, p, y] for the part frame in the world")
     kw: dict[str, Any] = {}
-    for key in _SCALARS:
+    for key in TOP_LEVEL:
         if key in d:
             kw[key] = d[key]
     for key in ("name", "robot"):
@@ -79,9 +79,10 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
     for key in ("resolution_m", "fast_resolution_m"):
         v = kw.get(key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
-                              or not math.isfinite(v) or not 0.0005 <= v <= 0.5):
+                              or not math.isfinite(v)
+                              or not LENGTH_RANGE_M[0] <= v <= LENGTH_RANGE_M[1]):
             raise ScenarioDataError(f"{where}: {key} = {v!r} is out of range; valid: "
-                                    "[0.0005, 0.5] m")
+                                    f"[{LENGTH_RANGE_M[0]:g}, {LENGTH_RANGE_M[1]:g}] m")
     if isinstance(kw.get("part"), dict):
         kw["part"] = dict(kw["part"])
         if base_dir is not None and isinstance(kw["part"].get("file"), str):
@@ -97,7 +98,7 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
                                     "to an applicator TOML file")
         if base_dir is not None:
             kw["applicator"] = str((base_dir / kw["applicator"]).resolve())
-    for key in _PLACEMENTS:
+    for key in PLACEMENTS:
         if key not in d:
             continue
         t = d[key]
@@ -108,7 +109,7 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
             kw[key] = Placement(**{k: tuple(v) for k, v in t.items()})
         except (PaintcellError, TypeError) as exc:
             raise ScenarioDataError(f"{where}: [{key}] {exc}") from exc
-    for key in SETTINGS_TABLES:
+    for key in SETTINGS:
         t = d.get(key, {})
         if not isinstance(t, dict):
             raise ScenarioDataError(f"{where}: {key} must be a table [{key}]")
@@ -157,11 +158,9 @@ def load_toml_scenario(path: str | Path) -> Any:
     """Read a TOML scenario file (no code runs); relative paths are relative to the file."""
     path = Path(path)
     try:
-        d = tomllib.loads(path.read_text(encoding="utf-8"))
+        d = tomllib.loads(toml_text(path, ScenarioDataError))
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioDataError(f"{path}: not valid TOML ({exc}); fix the line named") from exc
-    except UnicodeDecodeError as exc:
-        raise ScenarioDataError(f"{path}: not a UTF-8 text file ({exc.reason})") from exc
     d.setdefault("name", path.stem)
     return scenario_from_dict(d, str(path), base_dir=path.resolve().parent,
                               source=str(path.resolve()))

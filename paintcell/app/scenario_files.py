@@ -76,10 +76,11 @@ def _is_booth_toml(path: Path) -> bool:
     `paintcell.booth.booth_data`)."""
     import tomllib
 
+    from paintcell.core.toml_text import toml_text
+
     try:
-        with open(path, "rb") as f:
-            return isinstance(tomllib.load(f).get("robots"), list)
-    except (OSError, tomllib.TOMLDecodeError):
+        return isinstance(tomllib.loads(toml_text(path)).get("robots"), list)
+    except (OSError, PaintcellError, tomllib.TOMLDecodeError):
         return False   # the scenario loader reports the file's own error
 
 

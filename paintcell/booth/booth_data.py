@@ -41,6 +41,7 @@ from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
 from paintcell.core.placement import Placement
+from paintcell.core.toml_text import toml_text
 from paintcell.surface.part_spec import MeshPart
 from paintcell.validation.validate_report import check_thresholds
 
@@ -214,8 +215,56 @@ def load_toml_booth(path: str | Path) -> Booth:
     """The `Booth` of a booth TOML file (module doc)."""
     path = Path(path)
     try:
-        with open(path, "rb") as f:
-            d = tomllib.load(f)
+        d = tomllib.loads(toml_text(path, BoothDataError))
     except tomllib.TOMLDecodeError as exc:
         raise BoothDataError(f"{path}: not valid TOML ({exc})") from exc
     return booth_from_dict(d, str(path), source=str(path.resolve()))
+
+
+#: Version of the booth snapshot a booth run writes into its results folder's `scenario.json`.
+BOOTH_SNAPSHOT_VERSION = 1
+
+
+def booth_snapshot(booth: Booth, run: dict[str, Any]) -> dict[str, Any]:
+    """The booth as JSON-safe data for its results folder's `scenario.json` (`kind` "booth",
+    the run settings `run`: fast, mode); `booth_from_snapshot` reads it back."""
+    return {**booth.to_dict(), "kind": "booth", "snapshot_version": BOOTH_SNAPSHOT_VERSION,
+            "run": dict(run)}
+
+
+def _tuples(v: Any) -> Any:
+    """JSON lists back to the tuples the booth's dataclasses hold (dict values too)."""
+    if isinstance(v, list):
+        return tuple(_tuples(x) for x in v)
+    if isinstance(v, dict):
+        return {k: _tuples(x) for k, x in v.items()}
+    return v
+
+
+def booth_from_snapshot(d: Any, where: str) -> Booth:
+    """The `Booth` of a booth results folder's `scenario.json` (never imports its source);
+    a snapshot of another version or kind is refused in one line."""
+    if not isinstance(d, dict) or d.get("kind") != "booth" \
+            or d.get("snapshot_version") != BOOTH_SNAPSHOT_VERSION:
+        raise BoothDataError(f"{where} holds no booth snapshot of this paintcell version "
+                             f"(snapshot_version {BOOTH_SNAPSHOT_VERSION}); re-run `paintcell run`")
+    try:
+        kw = {f.name: d[f.name] for f in fields(Booth) if f.name in d}
+        kw["parts"] = tuple(BodyPart(**{
+            **p, "placement": Placement(**_tuples(p["placement"])),
+            "planner": _tuples(p.get("planner", {})),
+            "robots": None if p.get("robots") is None else tuple(p["robots"]),
+            "mesh": None if p.get("mesh") is None else MeshPart(**_tuples(p["mesh"]))})
+            for p in d["parts"])
+        kw["robots"] = tuple(BoothRobot(**{**_tuples(r), "base": Placement(**_tuples(r["base"]))})
+                             for r in d["robots"])
+        kw["body_placement"] = Placement(**_tuples(d["body_placement"]))
+        kw["conveyor"] = Conveyor(**_tuples(d["conveyor"]))
+        kw["thresholds"] = BoothThresholds(**d["thresholds"])
+        for key in ("planner", "trajectory", "servo", "allocation"):
+            if kw.get(key) is not None:
+                kw[key] = _tuples(kw[key])
+        return Booth(**kw)
+    except (KeyError, TypeError, ValueError, PaintcellError) as exc:
+        raise BoothDataError(f"{where}: the booth snapshot cannot be read ({exc}); re-run "
+                             "`paintcell run`") from exc

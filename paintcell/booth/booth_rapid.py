@@ -59,14 +59,16 @@ def _rail_values_mm(traj: JointTrajectory, via_dt_s: float) -> tuple[dict[int, f
 
 def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[str],
                  conveyor: Any, delay_s: float = 0.0, via_dt_s: float = 0.2,
-                 flow_factor: float | tuple[float | None, ...] | None = None) -> str:
+                 flow_factor: float | tuple[float | None, ...] | None = None,
+                 **options: Any) -> str:
     """RAPID module text of one booth robot's static program (module doc); delay_s: its start
     delay after the common start [s] (`paintcell.booth.booth_stagger.stagger_starts`);
     flow_factor: its bell flow
     relative to the applicator's (`paintcell.booth.booth_build`), stated in the header (a
-    robot with several jobs: one per job)."""
+    robot with several jobs: one per job). options: `rapid_module`'s style, max_spacing_m and
+    validation (header lines)."""
     arm, arm_traj = _arm_view(robot, traj)
-    text = rapid_module(arm_traj, arm, module_name=name, via_dt_s=via_dt_s)
+    text = rapid_module(arm_traj, arm, module_name=name, via_dt_s=via_dt_s, **options)
     lines = text.splitlines()
     if getattr(robot, "rail", None) is not None:
         per_pass, vias = _rail_values_mm(traj, via_dt_s)
@@ -125,18 +127,21 @@ def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[
     return "\n".join(out) + "\n"
 
 
-def booth_rapid_modules(result: Any, robots: list[Any]) -> dict[str, str]:
-    """{task name: module text} for every robot of a `BoothResult` (its static programs)."""
-    booth = result.scenario
+def booth_rapid_modules(booth: Any, metrics: dict[str, Any], jobs: dict[int, tuple[Any, ...]],
+                        static: list[JointTrajectory], robots: list[Any],
+                        **options: Any) -> dict[str, str]:
+    """{task name: module text} for every robot of a booth: its static program `static[i]`, its
+    start delay and flow from the booth's `metrics` (allocation, film build), MultiMove
+    synchronisation between the tasks. options: `rapid_module`'s style, max_spacing_m and
+    validation."""
     # task and module names, also the .mod file names: RAPID identifiers (no path, no keyword)
     names = [rapid_ident(f"T_{r.name.upper()}") for r in booth.robots]
-    delays = result.report.metrics["allocation"].get("start_delays_s", [0.0] * len(names))
-    build = result.report.metrics.get("film_build", {}).get("parts", {})
+    delays = metrics["allocation"].get("start_delays_s", [0.0] * len(names))
+    build = metrics.get("film_build", {}).get("parts", {})
     flows: list[Any] = []
     for i in range(len(names)):
         f = tuple(build.get(f"{j.part}:{booth.parts[j.part].part}", {}).get("flow_factor")
-                  for j in result.jobs[i])
+                  for j in jobs[i])
         flows.append(f[0] if len(f) == 1 else f)
-    return {n: booth_module(rb, tr, n, names, booth.conveyor, d, flow_factor=f)
-            for n, rb, tr, d, f in zip(names, robots, result.static_trajectories, delays, flows,
-                                       strict=True)}
+    return {n: booth_module(rb, tr, n, names, booth.conveyor, d, flow_factor=f, **options)
+            for n, rb, tr, d, f in zip(names, robots, static, delays, flows, strict=True)}

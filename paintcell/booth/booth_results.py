@@ -220,24 +220,45 @@ def trajs_carrier(trace: ExecutedTrace, booth: Booth, trajs: list[JointTrajector
 
 
 def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
-    """metrics.json (booth metrics, per-robot credit, allocation, film build), per-robot
-    trajectories and traces, one RAPID module per robot, the body's film (`film.npz`,
-    `film.glb`: `booth_film`), `booth.png`
-    (`paintcell.booth.booth_plots`),
-    `body_film.png` and `report.html` (`paintcell.booth.booth_report`)."""
+    """A booth's results folder: metrics.json (booth metrics, per-robot credit, allocation, film
+    build), scenario.json (the booth's snapshot and run settings), the parts' plans
+    `plan_<part index>.json`, the body surface `body.npz` and `cell.npz` (the parts' vertex
+    counts, the judged vertices, the jobs), per robot its static program `static_<robot>.npz`,
+    its tracked program `trajectory_<robot>.npz` and its trace `trace_<robot>.npz`, the booth's
+    one trace `trace.npz` (with the carrier), one RAPID module per robot, the body's film
+    (`film.npz`, `film.glb`: `booth_film`), `booth.png` (`paintcell.booth.booth_plots`),
+    `body_film.png` and `report.html` (`paintcell.booth.booth_report`). `read_booth_results`
+    reads the data files back."""
+    from paintcell.booth.booth_data import booth_snapshot
     from paintcell.booth.booth_plots import booth_figure
     from paintcell.booth.booth_rapid import booth_rapid_modules
+    from paintcell.core.atomic_io import atomic_write_npz
 
+    booth = result.scenario
     d = result.report.to_dict()
-    d["scenario"] = {"name": result.scenario.name, "source": result.scenario.source}
+    d["scenario"] = {"name": booth.name, "source": booth.source}
     d["stage_times_s"] = result.timings_s
     atomic_write_text(out / "metrics.json", json_dump(d))
-    atomic_write_text(out / "scenario.json", json_dump(result.scenario.to_dict()))
-    for spec, tr, ex in zip(result.scenario.robots, result.trajectories, result.traces,
-                            strict=True):
+    atomic_write_text(out / "scenario.json",
+                      json_dump(booth_snapshot(booth, {"fast": result.fast, "mode": result.mode})))
+    for i, plan in enumerate(result.plans):
+        plan.save(out / f"plan_{i}.json")
+    result.surface.save(out / "body.npz")
+    judged = np.ones(len(result.surface.vertices), bool) if result.judged is None \
+        else np.asarray(result.judged, bool)
+    atomic_write_npz(out / "cell.npz", {
+        "part_vertex_counts": np.asarray(result.part_vertex_counts, np.int64), "judged": judged,
+        "jobs": np.array([(r, j.part, j.first, j.end) for r, js in sorted(result.jobs.items())
+                          for j in js], np.int64).reshape(-1, 4)})
+    for spec, st, tr, ex in zip(booth.robots, result.static_trajectories, result.trajectories,
+                                result.traces, strict=True):
+        st.save_npz(out / f"static_{spec.name}.npz")
         tr.save_npz(out / f"trajectory_{spec.name}.npz")
         ex.save_npz(out / f"trace_{spec.name}.npz")
-    for name, text in booth_rapid_modules(result, robots).items():
+    if result.trace is not None:
+        result.trace.save_npz(out / "trace.npz")
+    for name, text in booth_rapid_modules(booth, result.report.metrics, result.jobs,
+                                          result.static_trajectories, robots).items():
         atomic_write_text(out / f"{name}.mod", text)
     booth_figure(result, out / "booth.png")
     from paintcell.booth.booth_film import overlap_mask
@@ -245,35 +266,99 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
 
     ex = result.films_m["executed"]
     body_film_figure(result.surface, result.part_vertex_counts, ex,
-                     [r.name for r in result.scenario.robots], out / "body_film.png",
+                     [r.name for r in booth.robots], out / "body_film.png",
                      band=overlap_mask(ex),
-                     title=f"{result.scenario.name}: executed film over the whole body "
+                     title=f"{booth.name}: executed film over the whole body "
                            f"(σ/μ {result.report.metrics['executed_nsd_pct']:.2f} %)")
     from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
     from paintcell.output.report_film import FILM_NAME, save_film_data
 
-    film, scene = booth_film(result)
+    film, scene = booth_film(booth, result.surface, result.judged, result.films_m, result.plans)
     save_film_data(out / FILM_NAME, film)
     write_film_glb(out / FILM_GLB_NAME, scene)
     write_booth_report(out)
 
 
-def booth_film(result: Any) -> tuple[FilmData, FilmScene]:
-    """The body's film (the robots' films summed; spec window ±`FILM_TOLERANCE` around the
-    planned area-weighted mean of the judged area, the window of
+def read_booth_results(out: Path, booth: Booth, read: Any) -> dict[str, Any]:
+    """The data files `write_booth_results` wrote into `out`, for `booth` (from the folder's
+    snapshot): plans, body, part_vertex_counts, judged, jobs, and per robot static,
+    trajectories, traces, with the booth's trace. read(name, loader): reads one file, naming
+    it in a one-line error when it is missing or unreadable."""
+    from paintcell.coverage.plan import CoveragePlan
+
+    cell = read("cell.npz", lambda p: dict(np.load(p)))
+    jobs: dict[int, tuple[Job, ...]] = {}
+    for r, part, first, end in np.asarray(cell["jobs"], int).reshape(-1, 4):
+        jobs[int(r)] = (*jobs.get(int(r), ()), Job(int(part), int(first), int(end)))
+    names = [r.name for r in booth.robots]
+    return {
+        "plans": [read(f"plan_{i}.json", CoveragePlan.load) for i in range(len(booth.parts))],
+        "body": read("body.npz", Surface.load),
+        "part_vertex_counts": [int(n) for n in cell["part_vertex_counts"]],
+        "judged": np.asarray(cell["judged"], bool), "jobs": jobs,
+        "static": [read(f"static_{n}.npz", JointTrajectory.load_npz) for n in names],
+        "trajectories": [read(f"trajectory_{n}.npz", JointTrajectory.load_npz) for n in names],
+        "traces": [read(f"trace_{n}.npz", ExecutedTrace.load_npz) for n in names],
+        "trace": read("trace.npz", ExecutedTrace.load_npz),
+    }
+
+
+def revalidate_booth(booth: Booth, files: dict[str, Any], metrics: dict[str, Any]
+                     ) -> tuple[ValidationReport, dict[str, np.ndarray]]:
+    """The booth's `ValidationReport` recomputed from its results folder's files
+    (`read_booth_results`), with the robots' films (kind → (R, N) [m]) on the body: every metric
+    and check; `metrics` (the folder's metrics.json) gives the allocation, film build and seam
+    records the run made before it executed."""
+    from paintcell.booth.booth_cell import build_booth_cell
+    from paintcell.booth.booth_film import robot_films
+    from paintcell.booth.booth_programs import load_robots
+    from paintcell.validation.validate_motion import collision_events
+
+    body, plans, jobs = files["body"], files["plans"], files["jobs"]
+    trajs, traces, trace = files["trajectories"], files["traces"], files["trace"]
+    bcell = build_booth_cell(load_robots(booth), body, booth.body_placement.matrix,
+                             booth.conveyor)
+    t_ref = float(trajs[0].meta["conveyor"]["t_ref_s"])
+    films = robot_films(booth, bcell, body, plans, jobs,
+                        [bp.placement.matrix for bp in booth.parts], trajs, traces, trace, t_ref)
+    report = booth_metrics(booth, bcell, body, films, files["static"], trajs, traces, trace,
+                           collision_events(trace), metrics.get("allocation", {}), jobs,
+                           files["part_vertex_counts"], plans, files["judged"])
+    for key in ("film_build", "seams"):
+        if key in metrics:
+            report.metrics[key] = metrics[key]
+    return report, films
+
+
+def write_booth_film_files(out: Path, booth: Booth, files: dict[str, Any],
+                           films: dict[str, np.ndarray]) -> list[str]:
+    """Write a booth's film files (`film.npz`, `film.glb`: `booth_film`) into results folder
+    `out` from its files (`read_booth_results`) and the robots' films; return the names."""
+    from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
+    from paintcell.output.report_film import FILM_NAME, save_film_data
+
+    film, scene = booth_film(booth, files["body"], files["judged"], films, files["plans"])
+    save_film_data(out / FILM_NAME, film)
+    write_film_glb(out / FILM_GLB_NAME, scene)
+    return [FILM_NAME, FILM_GLB_NAME]
+
+
+def booth_film(booth: Booth, body: Surface, judged: np.ndarray | None,
+               films_m: dict[str, np.ndarray], plans: list[CoveragePlan]
+               ) -> tuple[FilmData, FilmScene]:
+    """The body's film (the robots' films `films_m` summed; spec window ±`FILM_TOLERANCE`
+    around the planned area-weighted mean of the judged area, the window of
     `executed_within_tolerance_pct`) and its 3-D scene: the body at conveyor position 0, every
     part's passes moved into the body frame, every robot's base."""
-    booth = result.scenario
-    body = result.surface
     n = len(body.vertices)
-    judged = np.ones(n, bool) if result.judged is None else np.asarray(result.judged, bool)
+    judged = np.ones(n, bool) if judged is None else np.asarray(judged, bool)
     areas = np.asarray(body.vertex_areas, float)
-    planned = result.films_m["plan"].sum(axis=0)
+    planned = films_m["plan"].sum(axis=0)
     w = areas * judged
-    film = FilmData(planned, result.films_m["executed"].sum(axis=0), areas, judged,
+    film = FilmData(planned, films_m["executed"].sum(axis=0), areas, judged,
                     float(planned @ w / w.sum()), FILM_TOLERANCE)
     passes = []
-    for bp, plan in zip(booth.parts, result.plans, strict=True):
+    for bp, plan in zip(booth.parts, plans, strict=True):
         T = bp.placement.matrix
         passes += [np.asarray(p.positions, float) @ T[:3, :3].T + T[:3, 3] for p in plan.passes]
     scene = FilmScene(np.asarray(body.vertices, float), np.asarray(body.faces, np.int64),

@@ -61,6 +61,10 @@ class BoothResult:
     """The parts' vertex counts, in the order they are stacked in `surface`."""
     judged: np.ndarray | None = None
     """(N,) bool: the body's vertices the film is judged on (None: every vertex)."""
+    trace: ExecutedTrace | None = None
+    """The booth's one execution: every robot's joints, then the conveyor carrier's."""
+    fast: bool = False
+    mode: str = "servo"
 
     @property
     def passed(self) -> bool:
@@ -140,7 +144,7 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     report.metrics["seams"] = progs.seams
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
-                         timings, [len(x.vertices) for x in surfaces], judged)
+                         timings, [len(x.vertices) for x in surfaces], judged, trace, fast, mode)
     with new_results(Path(out_dir) if out_dir is not None else None, "run") as tmp:
         if tmp is not None:
             write_booth_results(result, tmp, robots)

@@ -1,12 +1,22 @@
-"""`paintcell check`: every scenario in its own process, one row each, JUnit XML always written.
+"""`paintcell check`: every scenario in its own process group, one row each, a JUnit that fails
+closed.
 
-Each scenario runs as `python -m paintcell run SCENARIO --row-json FILE` in a child process, so
-anything a scenario does — an exception that is not paintcell's, `sys.exit` on import, a
-MemoryError, a crash or a kill — becomes an ERROR row and a JUnit error case, and the check goes
-on to the next scenario. The JUnit file is written even when the check is interrupted.
+Each scenario runs as `python -m paintcell run SCENARIO --row-fd N` in a child process that leads
+its own process group (a new session), so anything a scenario does — an exception that is not
+paintcell's, `sys.exit` on import, a MemoryError, a crash, a kill, a child process of its own that
+hangs — becomes an ERROR row and a JUnit error case, and the check goes on to the next scenario.
+The whole group is stopped (SIGTERM, then SIGKILL after a grace period) when the scenario
+exceeds `--timeout`, when it ends (what it left running), when the check is interrupted and on
+every other way out of the check; the child dies with the check, even a SIGKILLed one
+(`paintcell.cli.process_group`). The check keeps no named temporary files: the row and the
+child's stderr travel through unnamed files.
+
+The JUnit file fails closed: before the first scenario runs it holds an error case saying the
+check did not finish, so a killed check never leaves a green (or an earlier run's) file; an
+interrupted check writes its finished cases, the stopped one as an error case and a suite error
+case "interrupted (SIGTERM): N scenarios not run"; a usage error is an error case too.
 With `--jobs N` up to N scenarios run at once (a thread waits on each child process); the rows
-and the JUnit cases keep the scenarios' order, and every figure is the same as run one by one
-(a scenario's results do not depend on what else runs).
+and the JUnit cases keep the scenarios' order, and every figure is the same as run one by one.
 """
 
 from __future__ import annotations
@@ -24,28 +34,40 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_check", "format_table", "row", "run_isolated", "write_junit"]
+from paintcell.cli.common import fmt_value, number_option, one_line
+from paintcell.cli.junit import clean_text, write_junit
+from paintcell.cli.process_group import Children, stop_group, wait_exit
+from paintcell.core.errors import PaintcellError
+
+__all__ = ["add_check", "clean_text", "format_table", "row", "run_isolated", "write_junit"]
+
+_JOBS = number_option("--jobs", int, low=0, high=256, example="2",
+                      note="0: one per CPU core")
 
 
 def add_check(add_parser: Any) -> None:
     """Register `paintcell check`."""
     c = add_parser("check", help="run every scenario and hold it to its thresholds (CI)",
                    description=(
-                       "Run every scenario found in PATHs, each in its own process, and print "
-                       "one row per scenario with each threshold and its measured value. A "
-                       "scenario that cannot be loaded, errors or crashes is an ERROR row and "
-                       "the check goes on. Exits 1 if any scenario fails or errors."))
+                       "Run every scenario found in PATHs, each in its own process group, and "
+                       "print one row per scenario with each threshold and its measured value. A "
+                       "scenario that cannot be loaded, errors, crashes or times out is an ERROR "
+                       "row and the check goes on. Exits 1 if any scenario fails or errors."))
     c.add_argument("paths", nargs="*", default=["scenarios"],
                    help="scenario files (.toml or .py) or folders of them")
     c.add_argument("--junit", type=Path, default=None,
-                   help="also write JUnit XML to this file (always written, even on errors)")
+                   help="also write JUnit XML to this file; written on every way out (usage "
+                   "errors, interrupts) and never all-green unless every scenario passed")
     c.add_argument("--fast", action="store_true",
                    help="each scenario's coarse mesh resolution (fast_resolution_m, 25 mm unless "
                    "the scenario says otherwise) and fast planner overrides (CI budget)")
     c.add_argument("--out", type=Path, default=None,
                    help="also write each scenario's results under this folder (no report)")
-    c.add_argument("--timeout", type=float, default=None,
-                   help="wall-clock limit per scenario [s]; a scenario over it is an ERROR row")
+    c.add_argument("--timeout", default=None,
+                   type=number_option("--timeout", float, low=0.0, low_open=True, unit="s",
+                                      example="600"),
+                   help="wall-clock limit per scenario [s]; a scenario over it is stopped with "
+                   "every process it started and is an ERROR row")
     c.add_argument("--jobs", "-j", type=_jobs, default=1, metavar="N",
                    help="scenarios run at once, each in its own process (default 1; 0 = one "
                    "per CPU core). Each needs ~1-2 GB of memory; the figures do not change")
@@ -53,83 +75,61 @@ def add_check(add_parser: Any) -> None:
 
 
 def _jobs(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = -1
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"--jobs {text!r} must be a whole number >= 0 "
-                                         "(0 = one per CPU core), e.g. --jobs 2")
-    return n or (os.cpu_count() or 1)
+    return int(_JOBS(text)) or (os.cpu_count() or 1)
 
 
-class _Children:
-    """The check's running scenario processes, so that an interrupt stops every one of them."""
+_jobs.allowed, _jobs.example = _JOBS.allowed, _JOBS.example  # type: ignore[attr-defined]
 
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._procs: set[subprocess.Popen[str]] = set()
 
-    def add(self, proc: subprocess.Popen[str]) -> None:
-        with self._lock:
-            self._procs.add(proc)
-
-    def discard(self, proc: subprocess.Popen[str]) -> None:
-        with self._lock:
-            self._procs.discard(proc)
-
-    def stop_all(self) -> None:
-        with self._lock:
-            procs = list(self._procs)
-        for proc in procs:
-            if proc.poll() is None:
-                proc.terminate()
-        for proc in procs:
-            try:
-                proc.wait(10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-
+# --- the command --------------------------------------------------------------------------------
 
 def _cmd_check(args: argparse.Namespace) -> int:
     from paintcell.app.scenario_files import find_scenarios
+    from paintcell.core import interrupts
 
-    scripts = find_scenarios(args.paths)
+    if args.junit is not None:
+        _claim_junit(args.junit)
+    scripts: list[Path] | None = None
     done: dict[int, tuple[dict[str, Any], float]] = {}
-    children = _Children()
+    started: dict[int, float] = {}
+    children = Children()
     stopping = threading.Event()
 
     def one(i: int) -> None:
-        t0 = time.perf_counter()
+        if stopping.is_set():
+            return
+        assert scripts is not None
+        started[i] = t0 = time.perf_counter()
         r = run_isolated(scripts[i], fast=args.fast, out_under=args.out,
                          timeout_s=args.timeout, children=children)
         if not stopping.is_set():  # a scenario the interrupt stopped is not a result
             done[i] = (r, time.perf_counter() - t0)
 
-    jobs = max(1, min(args.jobs, len(scripts) or 1))
-    pool = ThreadPoolExecutor(max_workers=jobs) if jobs > 1 else None
+    ended: BaseException | None = None
+    pool = None
     try:
+        scripts = find_scenarios(args.paths)
+        jobs = max(1, min(args.jobs, len(scripts)))
+        pool = ThreadPoolExecutor(max_workers=jobs) if jobs > 1 else None
         if pool is None:  # one at a time, from this thread
             for i in range(len(scripts)):
                 one(i)
         else:
             for f in [pool.submit(one, i) for i in range(len(scripts))]:
                 f.result()
-    except BaseException:
+    except BaseException as exc:
+        ended = exc
         stopping.set()
         if pool is not None:
             pool.shutdown(wait=False, cancel_futures=True)
-        children.stop_all()
         raise
     finally:
+        children.stop_all()   # every way out: no scenario's process group outlives the check
         if pool is not None:
             pool.shutdown(wait=True)
-        # Written on every way out (an interrupted check reports the scenarios it finished),
-        # in the scenarios' order.
         if args.junit is not None:
-            write_junit(args.junit, [(r["name"], dt, r["checks"], r.get("error"))
-                                     for _, (r, dt) in sorted(done.items())])
+            _final_junit(args.junit, scripts, done, started, ended, interrupts.pending())
+    assert scripts is not None
     rows = [done[i][0] for i in range(len(scripts))]
     print(format_table(rows))
     failed = [r["name"] for r in rows if not r["passed"]]
@@ -137,61 +137,110 @@ def _cmd_check(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+def _claim_junit(path: Path) -> None:
+    """Refuse a --junit path that cannot be written, before any scenario runs, by writing the
+    file a check that never finishes leaves: one error case, never green."""
+    if path.is_dir():
+        raise PaintcellError(f"--junit {path} is a folder; give a file path such as "
+                             f"{path / 'junit.xml'}")
+    try:
+        write_junit(path, [], suite_error=("incomplete", "paintcell check started and did not "
+                                           "finish (killed, or still running)"))
+    except OSError as exc:
+        from paintcell.cli.common import os_error_line
+
+        raise PaintcellError(f"--junit {path} cannot be written ({os_error_line(exc)}); no "
+                             "scenario was run") from exc
+
+
+def _final_junit(path: Path, scripts: list[Path] | None,
+                 done: dict[int, tuple[dict[str, Any], float]], started: dict[int, float],
+                 ended: BaseException | None, signal_name: str | None) -> None:
+    cases = [(r["name"], dt, r["checks"], r.get("error")) for _, (r, dt) in sorted(done.items())]
+    suite_error = None
+    if isinstance(ended, KeyboardInterrupt):
+        why = f"interrupted ({signal_name or str(ended) or 'SIGINT'})"
+        now = time.perf_counter()
+        stopped = sorted(i for i in started if i not in done)
+        assert scripts is not None or not stopped
+        for i in stopped:
+            assert scripts is not None
+            cases.append((scripts[i].stem, now - started[i], [],
+                          f"{why} while running; no result"))
+        not_run = "?" if scripts is None else str(len(scripts) - len(done) - len(stopped))
+        suite_error = ("interrupted", f"{why}: {not_run} scenario(s) not run"
+                       + (f", {len(stopped)} stopped while running" if stopped else ""))
+    elif ended is not None:
+        suite_error = ("error", f"paintcell check stopped: {one_line(ended)}")
+    try:
+        write_junit(path, cases, suite_error=suite_error)
+    except OSError as exc:
+        if ended is None:
+            raise
+        from paintcell.cli.common import os_error_line
+
+        sys.stderr.write(f"paintcell: error: --junit not written: {os_error_line(exc)}\n")
+
+
 def run_isolated(script: Path, *, fast: bool, out_under: Path | None = None,
                  timeout_s: float | None = None,
-                 children: _Children | None = None) -> dict[str, Any]:
-    """Run one scenario in a child process; its table row, or an ERROR row saying what happened.
-    `children`: where the running process is registered (so an interrupt can stop it)."""
+                 children: Children | None = None) -> dict[str, Any]:
+    """Run one scenario in a child process group; its table row, or an ERROR row saying what
+    happened. `children`: where the running process is registered (so an interrupt can stop
+    it). The group is stopped before this returns or raises."""
     import paintcell
 
-    with tempfile.TemporaryDirectory(prefix="paintcell-check-") as td:
-        row_file = Path(td) / "row.json"
-        cmd = [sys.executable, "-m", "paintcell", "run", str(script), "--row-json", str(row_file)]
-        if fast:
-            cmd.append("--fast")
-        if out_under is not None:
-            cmd += ["--out-under", str(out_under)]
-        env = dict(os.environ)
-        root = str(Path(paintcell.__file__).resolve().parents[1])
-        env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
-        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                text=True, env=env)
-        if children is not None:
-            children.add(proc)
+    cmd = [sys.executable, "-m", "paintcell", "run", str(script), "--parent-pid",
+           str(os.getpid())]
+    if fast:
+        cmd.append("--fast")
+    if out_under is not None:
+        cmd += ["--out-under", str(out_under)]
+    env = dict(os.environ)
+    root = str(Path(paintcell.__file__).resolve().parents[1])
+    env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, [env.get("PYTHONPATH")])])
+    # Unnamed files (nothing to leave behind) rather than pipes: a grandchild that keeps a pipe
+    # open would hold the check until it ends.
+    with tempfile.TemporaryFile() as row_f, tempfile.TemporaryFile() as err_f:
+        cmd += ["--row-fd", str(row_f.fileno())]
+        proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                stderr=err_f, pass_fds=(row_f.fileno(),), env=env,
+                                start_new_session=True)
+        timed_out = False
         try:
-            _, err = proc.communicate(timeout=timeout_s)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.communicate()
-            return _error_row(script, f"exceeded --timeout {timeout_s:g} s and was stopped")
+            if children is not None:
+                children.add(proc)
+            timed_out = not wait_exit(proc, timeout_s)
         finally:
-            if proc.poll() is None:  # interrupted: stop the child before leaving
-                proc.terminate()
-                try:
-                    proc.wait(10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
+            stop_group(proc)   # on time-out, on an interrupt, and what it left running
             if children is not None:
                 children.discard(proc)
+        if timed_out:
+            return _error_row(script, f"exceeded --timeout {timeout_s:g} s and was stopped "
+                              "with every process it started")
         rc = proc.returncode
-        if rc in (0, 1) and row_file.exists():
-            try:
-                return dict(json.loads(row_file.read_text()))
-            except ValueError:
-                pass
-        lines = [ln for ln in (err or "").strip().splitlines() if ln.strip()]
-        last = lines[-1].removeprefix("paintcell: error: ") if lines else ""
-        if rc < 0:
-            why = f"killed by {signal.Signals(-rc).name}"
-        elif rc == 2 and last:
-            return _error_row(script, last)
-        else:
-            why = f"exited with code {rc} without a result"
-        return _error_row(script, why + (f" ({last})" if last else ""))
+        row_f.seek(0)
+        raw = row_f.read()
+        err_f.seek(0)
+        err = err_f.read().decode("utf-8", errors="replace")
+    if rc in (0, 1) and raw:
+        try:
+            return dict(json.loads(raw))
+        except ValueError:
+            pass
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    last = lines[-1].removeprefix("paintcell: error: ") if lines else ""
+    if rc < 0:
+        why = f"killed by {signal.Signals(-rc).name}"
+    elif rc == 2 and last:
+        return _error_row(script, last)
+    else:
+        why = f"exited with code {rc} without a result"
+    return _error_row(script, why + (f" ({last})" if last else ""))
 
 
 def _error_row(script: Path, msg: str) -> dict[str, Any]:
-    return {"name": script.stem, "error": msg, "passed": False, "checks": []}
+    return {"name": script.stem, "error": clean_text(msg), "passed": False, "checks": []}
 
 
 def row(name: str, report: Any) -> dict[str, Any]:
@@ -206,13 +255,7 @@ def row(name: str, report: Any) -> dict[str, Any]:
             "cycle_time_s": d.get("executed_cycle_time_s")}
 
 
-def _fmt(v: Any) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, float):
-        # Counts (collisions) and whole percentages print without decimals.
-        return f"{v:.0f}" if v.is_integer() and abs(v) < 1e9 else f"{v:.2f}"
-    return str(v)
+_fmt = fmt_value
 
 
 def _pp(v: Any) -> str:
@@ -230,7 +273,7 @@ def format_table(rows: list[dict[str, Any]]) -> str:
     for r in rows:
         if r.get("error"):
             lines.append(f"{r['name']:<10} {'':>13} {'':>14} {'':>8} {'':>9} {'':>8} {'':>8} "
-                         f"{'':>8}  ERROR   {r['error']}")
+                         f"{'':>8}  ERROR   {clean_text(r['error'])}")
             continue
         checks = "; ".join(
             f"{c['name']} {_fmt(c['value'])} {'≤' if c.get('kind', 'max') == 'max' else '≥'} "
@@ -242,35 +285,3 @@ def format_table(rows: list[dict[str, Any]]) -> str:
             f"{_pp(r.get('loss_servo_pp')):>8} {_fmt(r['reachability_pct']):>8} "
             f"{_fmt(r['cycle_time_s']):>8}  {'PASS' if r['passed'] else 'FAIL':<6}  {checks}")
     return "\n".join(lines)
-
-
-def write_junit(path: Path, cases: list[tuple[str, float, list[dict[str, Any]], str | None]]) \
-        -> None:
-    """JUnit XML with one test case per scenario; failures list the failing thresholds."""
-    import xml.etree.ElementTree as ET
-
-    from paintcell.core.atomic_io import atomic_write_text
-
-    n_fail = sum(1 for _, _, checks, err in cases
-                 if err is None and not all(c["passed"] for c in checks))
-    n_err = sum(1 for c in cases if c[3] is not None)
-    suite = ET.Element("testsuite", name="paintcell-check", tests=str(len(cases)),
-                       failures=str(n_fail), errors=str(n_err),
-                       time=f"{sum(c[1] for c in cases):.3f}")
-    for name, dt, checks, err in cases:
-        case = ET.SubElement(suite, "testcase", classname="paintcell.scenarios", name=name,
-                             time=f"{dt:.3f}")
-        if err is not None:
-            ET.SubElement(case, "error", message=err).text = err
-            continue
-        bad = [c for c in checks if not c["passed"]]
-        if bad:
-            msg = "; ".join(f"{c['name']}={_fmt(c['value'])} (limit {_fmt(c['limit'])})"
-                            for c in bad)
-            ET.SubElement(case, "failure", message=msg).text = msg
-        ET.SubElement(case, "system-out").text = "\n".join(
-            f"{c['name']}: {_fmt(c['value'])} (limit {_fmt(c['limit'])} {c.get('unit', '')})"
-            for c in checks)
-    atomic_write_text(path, ET.tostring(suite, encoding="unicode", xml_declaration=True))
-
-

@@ -9,7 +9,7 @@ import argparse
 import json
 from typing import Any
 
-from paintcell.cli.common import add_out_force
+from paintcell.cli.common import SEED, add_out_force
 from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import check_new_target
 from paintcell.surface.part_families import FAMILIES
@@ -33,7 +33,7 @@ def add_generate(add_parser: Any) -> None:
     kinds = ("door", "hood", "fender", "roof", *FAMILIES)   # cad_like.PART_KINDS, then families
     g.add_argument("kind", choices=kinds, metavar="KIND", help=f"part kind: {', '.join(kinds)}")
     add_out_force(g, "mesh file to write (.stl/.ply/.obj; a family's <stem>.truth.json too)")
-    g.add_argument("--seed", type=int, default=0,
+    g.add_argument("--seed", type=SEED, default=0,
                    help="seed of the sizes, shape, tessellation, units and orientation "
                    "(default 0)")
     g.set_defaults(func=_cmd_generate)

@@ -16,24 +16,31 @@ import argparse
 import signal
 import sys
 import traceback
+import warnings
+from pathlib import Path
 from typing import Any
 
-from paintcell.cli.check import add_check, format_table, write_junit
+import numpy as np
+
+from paintcell.cli.check import add_check, format_table
 from paintcell.cli.common import (
     EXIT_FAIL,
     EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_USAGE,
     one_line,
+    os_error_line,
+    symlink_loop_path,
 )
+from paintcell.cli.junit import write_junit
 from paintcell.cli.part_commands import register as add_part_commands
 from paintcell.cli.results import add_export, add_report, add_validate
 from paintcell.cli.run import add_plan, add_run
 from paintcell.core import interrupts
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["EXIT_FAIL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "build_parser", "main",
-           "format_table", "one_line", "run_script", "write_junit"]
+__all__ = ["EXIT_FAIL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "UsageExit", "build_parser",
+           "error_line", "format_table", "main", "one_line", "run_script", "write_junit"]
 
 EXIT_HELP = """\
 exit codes:
@@ -47,12 +54,21 @@ run/plan replace only such a folder (or a missing or empty one), atomically, one
 time; validate/export/report read the scenario snapshot in scenario.json, never a script."""
 
 
+class UsageExit(SystemExit):
+    """A command line argparse refused (exit code 2); `message` says why."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(EXIT_USAGE)
+        self.message = message
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with one-line errors and exit code 2."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
+        message = " ".join(message.split())
         sys.stderr.write(f"paintcell: error: {message} (see `paintcell --help`)\n")
-        raise SystemExit(EXIT_USAGE)
+        raise UsageExit(message)
 
 
 class _Help(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpFormatter):
@@ -97,8 +113,15 @@ def main(argv: list[str] | None = None) -> int:
     interrupts.reset()
     previous = {s: signal.signal(s, interrupts.on_signal)
                 for s in (signal.SIGINT, signal.SIGTERM)}
+    debug = "--debug" in (sys.argv[1:] if argv is None else argv)
     try:
-        code = _main(argv)
+        with warnings.catch_warnings():
+            # A library's warning (numpy's RuntimeWarning on a mesh with inf vertices, …) is not
+            # the user's business: the error that follows says what is wrong, in one line.
+            if not debug:
+                warnings.simplefilter("ignore")
+            with np.errstate(all="ignore" if not debug else "warn"):
+                code = _main(argv)
         # A signal that a library swallowed (see paintcell.core.interrupts) still ends the
         # command as one.
         return EXIT_INTERRUPTED if interrupts.pending() is not None else code
@@ -113,14 +136,32 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except UsageExit as exc:
+        _junit_of_usage_error(sys.argv[1:] if argv is None else argv, exc.message)
+        raise
     try:
         return int(args.func(args))
     except KeyboardInterrupt as exc:
         what = str(exc) or "SIGINT"
         sys.stderr.write(f"paintcell: interrupted ({what}); nothing half-written was left\n")
         return EXIT_INTERRUPTED
-    except (PaintcellError, FileNotFoundError, ValueError, OSError) as exc:
+    except (PaintcellError, OSError, UnicodeDecodeError) as exc:
+        if args.debug:
+            traceback.print_exc()
+        sys.stderr.write(f"paintcell: error: {error_line(exc)}\n")
+        return EXIT_USAGE
+    except RuntimeError as exc:
+        loop = symlink_loop_path(exc)
+        if loop is None:
+            return _internal(exc, args.debug)
+        if args.debug:
+            traceback.print_exc()
+        sys.stderr.write(f"paintcell: error: {loop}: is a symbolic-link loop; fix or remove the "
+                         "link\n")
+        return EXIT_USAGE
+    except ValueError as exc:
         if args.debug:
             traceback.print_exc()
         sys.stderr.write(f"paintcell: error: {one_line(exc)}\n")
@@ -132,11 +173,45 @@ def _main(argv: list[str] | None) -> int:
                          "smaller sample settings in the scenario\n")
         return EXIT_USAGE
     except Exception as exc:  # a bug, not bad input: still one line unless --debug
-        if args.debug:
-            traceback.print_exc()
-        sys.stderr.write(f"paintcell: internal error: {type(exc).__name__}: {one_line(exc)} "
-                         "(rerun with --debug for the traceback)\n")
-        return EXIT_USAGE
+        return _internal(exc, args.debug)
+
+
+def _internal(exc: BaseException, debug: bool) -> int:
+    if debug:
+        traceback.print_exc()
+    sys.stderr.write(f"paintcell: internal error: {type(exc).__name__}: {one_line(exc)} "
+                     "(rerun with --debug for the traceback)\n")
+    return EXIT_USAGE
+
+
+def error_line(exc: BaseException) -> str:
+    """The one line of an input error: OS errors name the path and what to do about it."""
+    if isinstance(exc, OSError) and exc.errno is not None:
+        return os_error_line(exc)
+    if isinstance(exc, UnicodeDecodeError):
+        return (f"a file is not {exc.encoding} text (byte 0x{exc.object[exc.start]:02x} at "
+                f"position {exc.start}); save it as UTF-8")
+    return one_line(exc)
+
+
+def _junit_of_usage_error(argv: list[str], message: str) -> None:
+    """`paintcell check … --junit FILE` refused by the parser still writes FILE (one error case),
+    so that a CI never reads an earlier run's file as this one's."""
+    words = [w for w in argv if not w.startswith("-")]
+    if not words or words[0] != "check":
+        return
+    pre = argparse.ArgumentParser(add_help=False, exit_on_error=False)
+    pre.add_argument("--junit", type=Path, default=None)
+    try:
+        junit = pre.parse_known_args(argv)[0].junit
+    except (argparse.ArgumentError, SystemExit):
+        return
+    if junit is None or junit.is_dir():
+        return
+    try:
+        write_junit(junit, [], suite_error=("usage", f"usage error: {message}"))
+    except OSError as exc:
+        sys.stderr.write(f"paintcell: error: --junit not written: {os_error_line(exc)}\n")
 
 
 def run_script(scenario: Any, argv: list[str] | None = None) -> int:

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.cli.common import add_out_force
+from paintcell.cli.common import RESOLUTION_M, add_out_force
 from paintcell.cli.generate import add_generate
 from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import check_new_target, check_write_target
@@ -75,7 +75,7 @@ def _part_options(p: argparse.ArgumentParser) -> None:
                    help="pieces to keep: largest (by area), all, or indices like 0,2")
     p.add_argument("--side", default="auto",
                    help="painted side: auto (the convex skin) or a direction like 0,0,1")
-    p.add_argument("--resolution", type=float, default=0.025,
+    p.add_argument("--resolution", type=RESOLUTION_M, default=0.025,
                    help="remesh edge length [m] (0: keep the repaired tessellation)")
 
 

@@ -4,13 +4,19 @@ into it in place."""
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
 from paintcell.cli.check import format_table, row
-from paintcell.cli.common import DIR_HELP, EXIT_FAIL, EXIT_OK, add_out_force, one_line
+from paintcell.cli.common import (
+    DIR_HELP,
+    EXIT_FAIL,
+    EXIT_OK,
+    add_out_force,
+    number_option,
+    one_line,
+)
 from paintcell.core.errors import PaintcellError
 
 
@@ -23,56 +29,26 @@ def add_validate(add_parser: Any) -> None:
     v.set_defaults(func=_cmd_validate)
 
 
-def _revalidate(f: dict[str, Any]) -> tuple[Any, Any]:
-    """(surface, `ValidationReport`) of a loaded results folder (`load_run_dir`), recomputed from
-    its plan, trajectory and trace with the thresholds of its scenario.json."""
-    from paintcell.app.pipeline import load_surface
-    from paintcell.validation.validate import validate
-
-    scn, plan, traj, trace = f["scenario"], f["plan"], f["trajectory"], f["trace"]
-    surface = load_surface(scn, bool(f["run"]["fast"]))
-    return surface, validate(plan, surface, traj, trace, scn.part_placement.matrix,
-                             scn.thresholds, reachability=traj.meta.get("reachability"))
-
-
 def _cmd_validate(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import RunResult, metrics_dict, write_film_files
-    from paintcell.app.run_files import load_run_dir, read_json
-    from paintcell.core.atomic_io import atomic_write_text
-    from paintcell.core.json_values import json_default
+    from paintcell.app.run_files import revalidate_run_dir
     from paintcell.core.results_dir import lock_results, note_files, require_results
 
     require_results(args.dir)
     with lock_results(args.dir, "validate"):
-        f = load_run_dir(args.dir)
-        scn, plan, traj, trace = f["scenario"], f["plan"], f["trajectory"], f["trace"]
-        fast, mode = bool(f["run"]["fast"]), str(f["run"]["mode"])
-        surface, rep = _revalidate(f)
-        old = args.dir / "metrics.json"
-        stage_times: dict[str, Any] = {}
-        if old.exists():
-            try:
-                stage_times = dict(read_json(old).get("stage_times_s") or {})
-            except (PaintcellError, TypeError, ValueError) as exc:
-                # metrics.json is what validate rewrites: a corrupt one is replaced, not fatal.
-                sys.stderr.write(f"paintcell: warning: {one_line(exc)} (replacing it)\n")
-        res = RunResult(scn, args.dir, surface, plan, traj, trace, rep, timings_s=stage_times,
-                        fast=fast, mode=mode)
-        atomic_write_text(old, json.dumps(metrics_dict(res), indent=2, default=json_default))
-        note_files(args.dir, ["metrics.json",
-                              *write_film_files(args.dir, scn, surface, plan, rep)])
-    print(format_table([row(scn.name, rep)]))
+        name, rep, written = revalidate_run_dir(args.dir)
+        note_files(args.dir, written)
+    print(format_table([row(name, rep)]))
     return EXIT_OK if rep.passed else EXIT_FAIL
 
 
 def add_export(add_parser: Any) -> None:
     e = add_parser("export", help="export the robot program", description=(
         "Export the validated program of a results folder, from its files and scenario "
-        "snapshot. The verdict is re-derived first: the validation is recomputed from plan.json, "
-        "trajectory.npz and trace.npz with the thresholds of scenario.json and compared with "
-        "metrics.json. A run that does not pass, or whose metrics.json disagrees with its data, "
-        "is refused unless --allow-failed, which writes a module whose header says it is NOT "
-        "VALIDATED and why."))
+        "snapshot (a booth: one module per robot, synchronised with WaitSyncTask). The verdict "
+        "is re-derived first: the validation is recomputed from the folder's plans, programs "
+        "and traces with the thresholds of scenario.json and compared with metrics.json. A run "
+        "that does not pass, or whose metrics.json disagrees with its data, is refused unless "
+        "--allow-failed, which writes a module whose header says it is NOT VALIDATED and why."))
     e.add_argument("dir", type=Path, help=DIR_HELP)
     e.add_argument("--rapid", action="store_true", required=True,
                    help="write an ABB RAPID module (.mod)")
@@ -80,8 +56,11 @@ def add_export(add_parser: Any) -> None:
                    help="brush events as TriggL + TriggIO on a digital output (trigg), or as "
                    "PaintL + SetBrush (paintl, ABB paint option)")
     add_out_force(e, "module file (default: DIR/<scenario>.mod, which is replaced: the "
-                  "folder's own)", required=False)
-    e.add_argument("--spacing", type=float, default=0.05,
+                  "folder's own); a booth's modules, one per robot, go into this folder "
+                  "(default: DIR) as <task>.mod", required=False)
+    e.add_argument("--spacing", default=0.05,
+                   type=number_option("--spacing", float, low=0.0, low_open=True, high=10.0,
+                                      unit="m", example="0.05"),
                    help="maximum distance between exported targets along a pass [m]")
     e.add_argument("--allow-failed", action="store_true",
                    help="export a run that failed validation anyway, marked FAILED in the header")
@@ -89,8 +68,13 @@ def add_export(add_parser: Any) -> None:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import load_robot_for
-    from paintcell.app.run_files import load_run_dir, read_json
+    from paintcell.app.run_files import (
+        load_run_dir,
+        plans_digest,
+        program_modules,
+        read_json,
+        rederive,
+    )
     from paintcell.core.atomic_io import atomic_write_text
     from paintcell.core.results_dir import (
         MARKER,
@@ -100,32 +84,37 @@ def _cmd_export(args: argparse.Namespace) -> int:
         require_results,
     )
     from paintcell.core.safe_paths import check_new_target, check_write_target
-    from paintcell.output.export_rapid import (
-        rapid_ident,
-        rapid_module,
-        recorded_mismatches,
-        validation_header,
-    )
+    from paintcell.output.export_rapid import rapid_ident, recorded_mismatches, validation_header
 
     marker = require_results(args.dir)
     with lock_results(args.dir, "export"):
         metrics = read_json(args.dir / "metrics.json")
         f = load_run_dir(args.dir)
-        scn = f["scenario"]
-        out = args.out or args.dir / f"{rapid_ident(scn.name)}.mod"
-        inside = out.parent.resolve() == args.dir.resolve()
-        if inside and (out.name == MARKER or (out.name in marker_files(marker)
-                                              and not out.name.endswith(".mod"))):
-            raise PaintcellError(f"--out {out} is a file of the results folder {args.dir}; "
-                                 "write the module to a .mod file")
-        if inside and out.name in marker_files(marker):
-            check_write_target(out, "--out")  # the folder's own module: replaced
+        names = [rapid_ident(f["scenario"].name)] if f["kind"] != "booth" else \
+            [rapid_ident(f"T_{r.name.upper()}") for r in f["scenario"].robots]
+        # one module: --out names its file; several (a booth's robots): the folder they go in
+        if len(names) == 1:
+            outs = {names[0]: args.out or args.dir / f"{names[0]}.mod"}
         else:
-            check_new_target(out, "--out", args.force)
-        _, rep = _revalidate(f)
+            folder = args.out or args.dir
+            if folder.suffix == ".mod" or (folder.exists() and not folder.is_dir()):
+                raise PaintcellError(f"--out {folder}: this run has {len(names)} robot programs; "
+                                     "give a folder for their modules")
+            outs = {n: folder / f"{n}.mod" for n in names}
+        for out in outs.values():
+            inside = out.parent.resolve() == args.dir.resolve()
+            if inside and (out.name == MARKER or (out.name in marker_files(marker)
+                                                  and not out.name.endswith(".mod"))):
+                raise PaintcellError(f"--out {out} is a file of the results folder {args.dir}; "
+                                     "write the module to a .mod file")
+            if inside and out.name in marker_files(marker):
+                check_write_target(out, "--out")  # the folder's own module: replaced
+            else:
+                check_new_target(out, "--out", args.force)
+        rep, _ = rederive(f, metrics)
         checks = list(rep.checks)
         mismatches = recorded_mismatches(metrics, checks, rep.passed)
-        header = validation_header(checks, f["plan"].content_digest(), mismatches)
+        header = validation_header(checks, plans_digest(f), mismatches)
         if not header[0].startswith("VALIDATED"):
             if not args.allow_failed:
                 raise PaintcellError(f"{args.dir} did not pass validation ({header[1][8:-1]}); "
@@ -134,12 +123,16 @@ def _cmd_export(args: argparse.Namespace) -> int:
                                      "--allow-failed for a module marked NOT VALIDATED")
             sys.stderr.write(f"paintcell: warning: exporting a FAILED run ({one_line(header[1])})"
                              "\n")
-        text = rapid_module(f["trajectory"], load_robot_for(scn), module_name=scn.name,
-                            style=args.style, max_spacing_m=args.spacing, validation=header)
-        atomic_write_text(out, text)
-        if inside:
-            note_files(args.dir, [out.name])
-    print(f"RAPID module: {out}")
+        modules = program_modules(f, metrics, header, args.style, args.spacing)
+        for out, text in zip(outs.values(), modules.values(), strict=True):
+            out.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(out, text)
+        inside_names = [o.name for o in outs.values()
+                        if o.parent.resolve() == args.dir.resolve()]
+        if inside_names:
+            note_files(args.dir, inside_names)
+    for out in outs.values():
+        print(f"RAPID module: {out}")
     return EXIT_OK
 
 
@@ -155,9 +148,8 @@ def add_report(add_parser: Any) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from paintcell.app.run_files import check_folder_files
+    from paintcell.app.run_files import check_folder_files, write_run_report
     from paintcell.core.results_dir import lock_results, note_files, require_results
-    from paintcell.output.report import write_report
 
     if not (args.dir / "metrics.json").exists():
         raise PaintcellError(f"{args.dir / 'metrics.json'} is missing; run `paintcell run` first")
@@ -165,7 +157,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     with lock_results(args.dir, "report"):
         check_folder_files(args.dir)
         try:
-            path = write_report(args.dir, video=args.video)
+            path = write_run_report(args.dir, video=args.video)
         except (PaintcellError, OSError):
             raise
         except Exception as exc:  # a file whose content is valid JSON but not what it should be

@@ -16,6 +16,7 @@ from paintcell.cli.common import (
     SCENARIO_HELP,
     default_out,
     key_values,
+    number_option,
 )
 from paintcell.core.errors import PaintcellError
 
@@ -46,19 +47,31 @@ def add_run(add_parser: Any) -> None:
                    "tcp_offset_m [m], gain_scale [-], standoff_error_m [m], trigger_delay_s [s], "
                    "flow_scale [-], flow_drift [-], seed [int]; e.g. --disturb "
                    "part_offset_m=0.005 --disturb seed=3")
-    # Internal, for `paintcell check`: write the table row as JSON; results under a folder.
-    r.add_argument("--row-json", type=Path, default=None, help=argparse.SUPPRESS)
+    # Internal, for `paintcell check`: write the table row as JSON to an open file descriptor;
+    # results under a folder; the check's pid (its child stops when the check dies).
+    r.add_argument("--row-fd", default=None, help=argparse.SUPPRESS,
+                   type=number_option("--row-fd", int, low=0, example="3"))
     r.add_argument("--out-under", type=Path, default=None, help=argparse.SUPPRESS)
+    r.add_argument("--parent-pid", default=None, help=argparse.SUPPRESS,
+                   type=number_option("--parent-pid", int, low=1, example="1234"))
     r.set_defaults(func=_cmd_run)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import run_scenario
-    from paintcell.app.scenario_files import load_scenario
-    from paintcell.booth.booth import Booth
-    from paintcell.booth.booth_run import run_booth
+    if args.parent_pid is None:
+        return _run(args)
+    from paintcell.cli.process_group import scenario_worker
 
-    scn = load_scenario(args.scenario)
+    with scenario_worker(args.parent_pid):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from paintcell.app.scenario_files import load_scenario
+
+    scn = load_scenario(args.scenario)   # before the pipeline's imports: a bad file is told at once
+    from paintcell.app.pipeline import run_scenario
+
     if args.disturb and not hasattr(scn, "disturbances"):
         raise PaintcellError("--disturb applies to single-robot scenarios, not to a booth")
     if args.disturb:
@@ -66,31 +79,27 @@ def _cmd_run(args: argparse.Namespace) -> int:
         from paintcell.app.scenario_checks import check_settings
 
         check_settings(scn, "--disturb")
-    # `paintcell check` runs each scenario as `run --row-json FILE` in its own process and
+    # `paintcell check` runs each scenario as `run --row-fd N` in its own process and
     # writes results only when it was given --out.
-    worker = args.row_json is not None
+    worker = args.row_fd is not None
     out = args.out or (args.out_under / scn.name if args.out_under is not None
                        else None if worker else default_out(scn.name))
-    if isinstance(scn, Booth):   # several robots on a conveyor
-        res: Any = run_booth(scn, out, fast=args.fast, mode=args.mode)
-    else:
-        res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
-                           report=not (args.no_report or worker), progress=not worker,
-                           video=args.video)
+    res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
+                       report=not (args.no_report or worker), progress=not worker,
+                       video=args.video)
     r = row(scn.name, res.report)
     if worker:
         from paintcell.cli.sweep import (
             sweep_checks,  # the limits of the scenario's sweep, if any
         )
-        from paintcell.core.atomic_io import atomic_write_text
-
         r["checks"] += sweep_checks(scn, args.fast, args.out_under)
         r["passed"] = bool(r["passed"]) and all(c["passed"] for c in r["checks"])
-        atomic_write_text(args.row_json, json.dumps(r))
+        with open(args.row_fd, "w", encoding="utf-8", closefd=False) as f:
+            f.write(json.dumps(r))
         return EXIT_OK if r["passed"] else EXIT_FAIL
     print(format_table([r]))
     if out is not None:
-        html = (out / "report.html").exists()   # a booth writes no HTML report (yet)
+        html = (out / "report.html").exists()
         print(f"results: {out}" + (f" (report: {out / 'report.html'})" if html else ""))
     return EXIT_OK if res.passed else EXIT_FAIL
 
@@ -101,7 +110,8 @@ def add_plan(add_parser: Any) -> None:
     pl = add_parser("plan", help="plan only: write plan.json/.npz", description=(
         "Run the coverage planner of a scenario and write plan.json (+ plan.npz) and "
         "scenario.json into a fresh results folder --out (replacing an earlier one "
-        "atomically; a failed plan leaves it as it was)."))
+        "atomically; a failed plan leaves it as it was). A booth: each part's plan as its "
+        "robots get it, plan_<part index>.json."))
     pl.add_argument("scenario", help=SCENARIO_HELP)
     pl.add_argument("--out", type=Path, default=None,
                     help="output folder (default: results/<scenario name>); replaced only if "
@@ -111,25 +121,22 @@ def add_plan(add_parser: Any) -> None:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from paintcell.app.pipeline import load_surface, make_plan, scenario_json
+    from paintcell.app.pipeline import cell_plans, scenario_json
     from paintcell.app.scenario_files import load_scenario
-    from paintcell.booth.booth import Booth
     from paintcell.core.atomic_io import atomic_write_text
     from paintcell.core.results_dir import new_results
 
     scn = load_scenario(args.scenario)
-    if isinstance(scn, Booth):   # it said "part 'fender+door+…' is neither a library part …"
-        raise PaintcellError(f"{args.scenario} is a booth (several robots): `paintcell plan` "
-                             "plans a one-robot scenario; plan and run the booth with "
-                             f"`paintcell run {args.scenario}`")
     out = args.out or default_out(scn.name)
     with new_results(out, "plan") as tmp:
         assert tmp is not None
-        surface = load_surface(scn, args.fast)
-        plan = make_plan(scn, surface, args.fast)
-        plan.save(tmp / "plan.json")
+        plans = cell_plans(scn, args.fast)
+        for stem, plan in plans.items():
+            plan.save(tmp / f"{stem}.json")
         atomic_write_text(tmp / "scenario.json", scenario_json(scn, args.fast, "none"))
-    print(f"{scn.name}: {len(plan.passes)} passes, paint time {plan.paint_time_s:.1f} s, "
-          f"start curve: {plan.start_rule}")
-    print(f"plan: {out / 'plan.json'}")
+    for stem, plan in plans.items():
+        label = scn.name if stem == "plan" else f"{scn.name}: {stem}"
+        print(f"{label}: {len(plan.passes)} passes, paint time "
+              f"{plan.paint_time_s:.1f} s, start curve: {plan.start_rule}")
+        print(f"plan: {out / (stem + '.json')}")
     return EXIT_OK

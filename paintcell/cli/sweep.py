@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from paintcell.cli.common import SEED, number_option
 from paintcell.validation.sweep_names import FACTORS, METHODS
 
 
@@ -28,14 +29,17 @@ def add_sweep_parser(add_parser: Any) -> None:
                    "'part_offset_m=normal(0, 0.005)'. DIST: normal(mean, sd), uniform(low, "
                    "high), triangular(low, mode, high), truncnormal(mean, sd, low, high) or a "
                    f"number, in the factor's unit. Factors: {factors}")
-    s.add_argument("--samples", type=int, default=None,
+    s.add_argument("--samples", default=None,
+                   type=number_option("--samples", int, low=1, example="100"),
                    help="number of samples (default: the scenario's sweep samples, else 100)")
     s.add_argument("--method", choices=METHODS, default=None,
                    help="design: lhs (Latin hypercube) or mc (Monte Carlo); default lhs")
-    s.add_argument("--seed", type=int, default=None,
+    s.add_argument("--seed", type=SEED, default=None,
                    help="sweep seed: the design and every sample's own seed derive from it "
                    "(default: the scenario's, else 0)")
-    s.add_argument("--workers", type=int, default=None,
+    s.add_argument("--workers", default=None,
+                   type=number_option("--workers", int, low=0, high=1024, example="2",
+                                      note="0: run in this process"),
                    help="worker processes of the local Dask cluster (0: run in this process; "
                    "default: the scenario's sweep workers, else 2)")
     s.add_argument("--scheduler", default=None, metavar="ADDRESS",
@@ -56,13 +60,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     """Run `paintcell sweep`; exit 0, or 1 when a sweep limit of the scenario is not met."""
     from paintcell.app.scenario_files import load_scenario
     from paintcell.sweeps.sweep import run_sweep
-    from paintcell.validation.sweep_spec import spec_from_scenario
+    from paintcell.validation.sweep_spec import SCENARIO_DEFAULTS, spec_from_scenario
 
     scn = load_scenario(args.scenario)
     spec = spec_from_scenario(scn.sweep, fast=args.fast, vary=args.vary, samples=args.samples,
                               method=args.method, seed=args.seed)
     out = args.out or Path("results") / f"{scn.name}-sweep"
-    workers = args.workers if args.workers is not None else scn.sweep.get("workers", 2)
+    workers = args.workers if args.workers is not None else \
+        scn.sweep.get("workers", SCENARIO_DEFAULTS["workers"])
     res = run_sweep(scn, spec, out, fast=args.fast, mode=args.mode, workers=workers,
                     scheduler=args.scheduler, report=not args.no_report)
     print(format_summary(res.summary))
@@ -105,12 +110,12 @@ def sweep_checks(scn: Any, fast: bool, out: Path | None) -> list[dict[str, Any]]
     import tempfile
 
     from paintcell.sweeps.sweep import run_sweep
-    from paintcell.validation.sweep_spec import spec_from_scenario
+    from paintcell.validation.sweep_spec import SCENARIO_DEFAULTS, spec_from_scenario
 
     if not scn.sweep.get("limits"):
         return []
     spec = spec_from_scenario(scn.sweep, fast=fast)
-    workers = scn.sweep.get("workers", 2)
+    workers = scn.sweep.get("workers", SCENARIO_DEFAULTS["workers"])
     with tempfile.TemporaryDirectory() as tmp:
         folder = (out / f"{scn.name}-sweep") if out is not None else Path(tmp) / "sweep"
         res = run_sweep(scn, spec, folder, fast=fast, workers=workers, progress=False,

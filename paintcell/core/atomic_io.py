@@ -32,10 +32,22 @@ def _umask_mode() -> int:
     return 0o666 & ~mask
 
 
+def _name_path(exc: BaseException, path: Path, tmp: str | None = None) -> None:
+    """An OS error of a write names no file (ENOSPC from `write`) or the temporary file the user
+    never named: name the target."""
+    if isinstance(exc, OSError) and exc.filename in (None, tmp):
+        exc.filename = str(path)
+
+
 def _temp(path: Path, base: str, suffix: str) -> tuple[int, str]:
     check_write_target(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    return tempfile.mkstemp(dir=path.parent, prefix=f".{base}.tmp-{os.getpid()}-", suffix=suffix)
+    try:
+        return tempfile.mkstemp(dir=path.parent, prefix=f".{base}.tmp-{os.getpid()}-",
+                                suffix=suffix)
+    except OSError as exc:
+        exc.filename = str(path)   # not the random temporary name it tried
+        raise
 
 
 def _commit(tmp: str, path: Path) -> None:
@@ -52,8 +64,9 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
         with os.fdopen(fd, "w") as f:
             f.write(text)
         _commit(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        _name_path(exc, path, tmp)
         raise
 
 
@@ -65,8 +78,9 @@ def atomic_write_npz(path: str | os.PathLike[str], arrays: dict[str, np.ndarray]
         with os.fdopen(fd, "wb") as f:
             np.savez_compressed(f, **arrays)  # type: ignore[arg-type]
         _commit(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        _name_path(exc, path, tmp)
         raise
 
 
@@ -83,6 +97,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     try:
         yield Path(tmp)
         _commit(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        _name_path(exc, path, tmp)
         raise

@@ -50,6 +50,8 @@ class PlannerSettings:
         itself, whole part and interior (farther than film_guard_band_m [m] from the boundary):
         speeds v_nom + α (v_QP − v_nom), α ∈ {1, ¾, ½, ¼, 0}: the best whole-part film among
         the blends no worse than constant speed on both.
+    film_guard_band_m: the interior the film guard and film refine judge apart is the part
+        farther than this from its boundary [m].
     film_refine: after the film guard, re-time all passes together by a bounded least-squares fit
         of the simulated film on the real part to its mean (slowness knots along each pass,
         speeds within [v_min, v_max] and the robot's caps), kept only where it lowers σ/μ on the
@@ -73,7 +75,9 @@ class PlannerSettings:
     patches: split the part into normal-cone patches, plan each, blend the seams and order them
         (`paintcell.coverage.patches.plan_patches`; ordered from the part frame's origin).
     max_opening_fraction: brush off every sample that would send more than this share of the
-        paint it emits into an opening [-].
+        paint it emits into an opening [-]. 0.8 keeps the bell on until its centre is well past
+        the rim, so the rim gets the film of both sides' footprints (at 0.5 the rim gets about
+        half, a thin ring round every window, sunroof or arch).
     max_axis_turn_rad_m: bound on how fast the bell axis, and its spin (the travel direction),
         may turn along a pass, per metre of TCP travel [rad/m] (4 rad/m ≈ 230 °/m: above every
         smooth library part, below a crease).
@@ -114,7 +118,7 @@ class PlannerSettings:
     geodesic_fallback: bool = True
     plan_across_openings: bool = True
     patches: bool = False
-    max_opening_fraction: float = 0.5
+    max_opening_fraction: float = 0.8
     max_axis_turn_rad_m: float = 4.0
 
     def __post_init__(self) -> None:

@@ -11,7 +11,8 @@ hole and switches the gun off only where most of the spray would go through it. 
 - `opening_fraction`: for gun samples, the share of the paint each emits that lands in an
   opening (the deposition model evaluated on points spread over the fill triangles, against the
   applicator's emitted flow);
-- `brush_off_openings`: brush off every sample whose share exceeds `max_fraction` (0.5).
+- `brush_off_openings`: brush off every sample whose share exceeds `max_fraction` (the
+  planner's `max_opening_fraction`, 0.8 by default: the rim keeps both sides' film).
 
 Openings here are found from the mesh alone; the part import's region detection (when present)
 is the source of truth for which loops are openings and which are the outer boundary.

@@ -256,7 +256,7 @@ def make_family_part(family: str, seed: int = 0) -> FamilyPart:
     truth["pieces"] = [{"name": "panel" if k == 0 else f"piece_{k}", "role": "skin",
                         "area_m2": float(skin_area[sheet.piece == k].sum() / 1e6)}
                        for k in range(int(sheet.piece.max()) + 1)]
-    meshes = []
+    meshes: list[trimesh.Trimesh] = []
     if family == "door_solid":
         normals = trimesh.Trimesh(pts, faces, process=False).vertex_normals
         thick = float(rng.uniform(30, 60))
@@ -271,7 +271,10 @@ def make_family_part(family: str, seed: int = 0) -> FamilyPart:
     for key in ("members", "openings", "max_edge_slope_deg", "recess", "wrap_deg"):
         if key in extra:
             truth[key] = extra[key]
-    mesh = trimesh.util.concatenate([trimesh.Trimesh(pts, faces, process=False), *meshes])
+    parts = [trimesh.Trimesh(pts, faces, process=False), *meshes]
+    v_all = np.concatenate([m.vertices for m in parts])
+    offsets = np.cumsum([0] + [len(m.vertices) for m in parts[:-1]])
+    f_all = np.concatenate([m.faces + o for m, o in zip(parts, offsets, strict=True)])
     # The file's frame and units: mm or m by the seed's parity, the z-up or y-up car-frame
     # convention by its next bit (so any four consecutive seeds hold every pair), and a yaw.
     units, up = ("mm", "m")[seed % 2], ("z", "y")[(seed // 2) % 2]
@@ -279,7 +282,7 @@ def make_family_part(family: str, seed: int = 0) -> FamilyPart:
     if up == "y":
         R = Rotation.from_euler("x", -90, degrees=True) * R
     scale = 1.0 if units == "mm" else 1e-3
-    v = R.apply(np.asarray(mesh.vertices)) * scale
+    v = R.apply(v_all) * scale
     truth.update(units=units, up_axis=up, R_file_part=R.as_matrix().round(12).tolist(),
-                 faces=int(len(mesh.faces)), tessellation_step_m=step / 1e3)
-    return FamilyPart(family, seed, trimesh.Trimesh(v, mesh.faces, process=False), truth)
+                 faces=int(len(f_all)), tessellation_step_m=step / 1e3)
+    return FamilyPart(family, seed, trimesh.Trimesh(v, f_all, process=False), truth)

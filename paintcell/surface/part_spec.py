@@ -21,13 +21,19 @@ from typing import Any
 
 from paintcell.core.errors import SurfaceError
 
-__all__ = ["MESH_SUFFIXES", "CAD_SUFFIXES", "MeshPart", "PartSpecError", "UNITS_M"]
+__all__ = ["CAD_SUFFIXES", "CHORD_TOLERANCE_RANGE_M", "FILL_HOLES_RANGE_M", "MESH_SUFFIXES",
+           "MeshPart", "PartSpecError", "REGIONS", "UNITS_M"]
 
 #: Length of one file unit in metres.
 UNITS_M: dict[str, float] = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "in": 0.0254}
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 CAD_SUFFIXES = (".step", ".stp", ".iges", ".igs")
-_REGIONS = ("skin", "hem", "inner", "back", "edge")
+#: The regions a part's film can be judged on (`judge`).
+REGIONS = ("skin", "hem", "inner", "back", "edge")
+#: Valid `chord_tolerance_m` [m]: the CAD tessellation's largest chord error, bounds included.
+CHORD_TOLERANCE_RANGE_M = (1e-6, 0.05)
+#: Valid `fill_holes_m` [m]: the equivalent diameter below which a loop is a scan hole.
+FILL_HOLES_RANGE_M = (0.0, 1.0)
 
 
 class PartSpecError(SurfaceError):
@@ -147,14 +153,16 @@ def _check(p: MeshPart) -> None:
               and any(abs(x) > 0 for x in p.side)):
         raise PartSpecError(f"[part] side = {p.side!r}; write \"auto\" or three numbers, not all "
                             "zero, like [0, 0, 1] (painted-side direction in the part frame)")
-    if not _is_num(p.chord_tolerance_m) or not 1e-6 <= p.chord_tolerance_m <= 0.05:
+    lo, hi = CHORD_TOLERANCE_RANGE_M
+    if not _is_num(p.chord_tolerance_m) or not lo <= p.chord_tolerance_m <= hi:
         raise PartSpecError(f"[part] chord_tolerance_m = {p.chord_tolerance_m!r} must be a "
                             "length between 1e-6 and 0.05 m; write e.g. chord_tolerance_m = 5e-5")
-    if not _is_num(p.fill_holes_m) or not 0 <= p.fill_holes_m <= 1.0:
+    lo, hi = FILL_HOLES_RANGE_M
+    if not _is_num(p.fill_holes_m) or not lo <= p.fill_holes_m <= hi:
         raise PartSpecError(f"[part] fill_holes_m = {p.fill_holes_m!r} must be a length between "
                             "0 and 1 m; write e.g. fill_holes_m = 0.03 (0: fill no hole)")
-    if not (isinstance(p.judge, tuple) and p.judge and all(r in _REGIONS for r in p.judge)):
+    if not (isinstance(p.judge, tuple) and p.judge and all(r in REGIONS for r in p.judge)):
         raise PartSpecError(f"[part] judge = {p.judge!r}; write a non-empty list of regions "
-                            f"from {list(_REGIONS)}, e.g. judge = [\"skin\"]")
+                            f"from {list(REGIONS)}, e.g. judge = [\"skin\"]")
     if p.name is not None and (not isinstance(p.name, str) or not p.name):
         raise PartSpecError(f"[part] name = {p.name!r} must be a non-empty string")

@@ -207,8 +207,12 @@ def factor_help() -> str:
 
 
 
+#: keys of a scenario's sweep table and their defaults (fast_samples None: `samples`; workers:
+#: local Dask processes, 0 runs the samples in this process).
+SCENARIO_DEFAULTS: dict[str, Any] = {"factors": {}, "samples": 100, "fast_samples": None,
+                                     "method": "lhs", "seed": 0, "limits": {}, "workers": 2}
 #: keys of a scenario's sweep table.
-SCENARIO_KEYS = ("factors", "samples", "fast_samples", "method", "seed", "limits", "workers")
+SCENARIO_KEYS = tuple(SCENARIO_DEFAULTS)
 
 
 def spec_from_scenario(sweep: dict[str, Any], *, fast: bool = False,
@@ -224,12 +228,13 @@ def spec_from_scenario(sweep: dict[str, Any], *, fast: bool = False,
         raise SweepError("sweep factors must be a table of NAME = \"DIST\" entries")
     if vary:
         factors.update(SweepSpec.from_strings(vary, 1).factors)
+    d = {**SCENARIO_DEFAULTS, **{k: v for k, v in sweep.items() if v is not None}}
     n = samples if samples is not None else (
-        sweep.get("fast_samples", sweep.get("samples", 100)) if fast else sweep.get("samples", 100))
+        d["fast_samples"] if fast and d["fast_samples"] is not None else d["samples"])
     return SweepSpec({k: v if isinstance(v, Distribution) else Distribution.parse(v, k)
                       for k, v in factors.items()}, n,
-                     method if method is not None else sweep.get("method", "lhs"),
-                     seed if seed is not None else sweep.get("seed", 0))
+                     method if method is not None else d["method"],
+                     seed if seed is not None else d["seed"])
 
 
 def check_sweep_table(sweep: dict[str, Any]) -> None:

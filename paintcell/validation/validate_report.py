@@ -60,8 +60,8 @@ class Thresholds:
             raise ValidationError(f"tolerance = {self.tolerance} must be a fraction in (0, 1)")
 
 
-# Threshold ranges: (low, high, low inclusive, what it is). +inf disables a `max_*` check.
-_THRESHOLD_RANGES: dict[str, tuple[float, float, bool, str]] = {
+#: Threshold ranges: (low, high, low inclusive, what it is). +inf disables a `max_*` check.
+THRESHOLD_RANGES: dict[str, tuple[float, float, bool, str]] = {
     "reachability_pct": (0.0, 100.0, True, "a share of poses [%]"),
     "max_collisions": (0.0, math.inf, True, "a count of collision events"),
     "max_executed_nsd_pct": (0.0, math.inf, False, "σ/μ [%]"),
@@ -96,7 +96,7 @@ def check_thresholds(th: Any, where: str = "thresholds") -> None:
         v = getattr(th, f.name)
         if v is None and f.name != "tolerance":
             continue
-        lo, hi, lo_incl, what = _THRESHOLD_RANGES.get(f.name, (-math.inf, math.inf, True, ""))
+        lo, hi, lo_incl, what = THRESHOLD_RANGES.get(f.name, (-math.inf, math.inf, True, ""))
         if isinstance(v, bool) or not isinstance(v, int | float):
             raise ScenarioDataError(f"{where}: {f.name} = {v!r} must be a number ({what})")
         if math.isnan(v) or v == -math.inf or (v == math.inf and not f.name.startswith("max_")):
