@@ -22,7 +22,9 @@ every program built, swept through the part's collision model, the robots stagge
   most `LONG_PASS_FACTOR` × the part's length along the rails (passes that run round the part
   leave a rail robot's reach). Candidates are then checked, at most `LAYOUTS_VERIFIED` per plan,
   with each `TRAJECTORY_TRIES` table, by the booth's own program build (IK, moves, body
-  clearance, staggering); the first that builds is the cell.
+  clearance, staggering); the first that builds is the cell. The check runs on the plan
+  without the film refinement and the robot-aware speeds that `run` adds (both re-time the same
+  passes; the refinement's least squares over the whole part is most of a cowling's plan time).
 """
 
 from __future__ import annotations
@@ -165,6 +167,8 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
     """The first cell of `counts` robots (module doc) for the part `mesh` (its `MeshPart`, file
     resolved) imported as `surf` (part frame, fast resolution). Raises PaintcellError (one line:
     what each count met, and what to change) when none works up to the last count."""
+    from scipy.spatial.transform import Rotation
+
     from paintcell.booth.booth import BodyPart, Booth
     from paintcell.booth.booth_plans import plan_parts
     from paintcell.booth.conveyor import Conveyor
@@ -175,8 +179,6 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
     lo0, hi0 = world.min(0), world.max(0)
     t = np.array([-(lo0[0] + hi0[0]) / 2, -(lo0[1] + hi0[1]) / 2, PART_LOW_Z_M - lo0[2]])
     lo, hi = lo0 + t, hi0 + t
-    from scipy.spatial.transform import Rotation
-
     pl = Placement(tuple(round(float(x), 4) for x in t),  # type: ignore[arg-type]
                    tuple(float(x) for x in Rotation.from_matrix(R).as_euler("xyz")))
     length = float(hi[0] - lo[0])
@@ -229,7 +231,7 @@ def _try_layouts(booth: Any, pp: Any, n: int, lo: np.ndarray, hi: np.ndarray, mo
                  tried: list[str], say: Callable[[str], None]) -> MultiCell | None:
     """The first rail layout of the grid whose programs the booth builds (module doc), or None
     (why each failed appended to `tried`)."""
-    from paintcell.booth.booth import BoothError, patch_pass_counts
+    from paintcell.booth.booth import patch_pass_counts
     from paintcell.booth.booth_programs import booth_programs
 
     plan = pp.plans[0]
@@ -253,7 +255,7 @@ def _try_layouts(booth: Any, pp: Any, n: int, lo: np.ndarray, hi: np.ndarray, mo
                     f"and {drop} m below its top, {traj}")
                 try:
                     progs = booth_programs(replace(cand, trajectory=dict(traj)), True, pp)
-                except BoothError as exc:
+                except PaintcellError as exc:
                     first_why = first_why or (f"gap {gap} m, drop {drop} m: "
                                               f"{str(exc).split('; ')[0][:200]}")
                     continue
