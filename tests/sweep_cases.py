@@ -11,6 +11,8 @@ import numpy as np
 import tomli_w
 import trimesh
 
+from tests.helpers import LOOSE_SPEC_TABLE
+
 #: the plate scenario as TOML data (the sweep table is appended by `plate_scenario`).
 SCENARIO: dict[str, Any] = {
     "name": "plate",
@@ -21,6 +23,7 @@ SCENARIO: dict[str, Any] = {
     "fast_planner": {"sample_spacing_m": 0.05},
     "trajectory": {"q_home": [0.0, -0.6, 0.3, 0.0, 0.9, 0.0]},
     "thresholds": {"max_loss_pp": 1.0, "max_cycle_time_s": 90.0},
+    "spec": LOOSE_SPEC_TABLE,
 }
 
 

@@ -34,6 +34,7 @@ from paintcell.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagg
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.placement import Placement
 from paintcell.paint.deposition import GunSamples, thickness
+from paintcell.validation.paint_spec import PaintSpec
 
 HOME = (0.0, 0.0, -0.6, 0.3, 0.0, 0.9, 0.0)
 #: relative round-off of a sum of O(10^4) positive deposition terms in float64.
@@ -95,6 +96,31 @@ def test_two_robots_film_is_one_robot_running_all_passes(roof_booth):
     # Both robots really painted, and the executed film is the plan's within the time law.
     assert np.all(res.films_m["executed"].max(axis=1) > 0.2 * film_one.max())
     assert abs(res.report.metrics["loss_pp"]) < 0.1
+
+
+def test_booth_holds_every_part_to_the_paint_spec(roof_booth):
+    """The roof's share of area in the spec window (its planned mean ± 20 %), re-measured by
+    brute force on the executed film; held to a target 50 % above its film, the booth FAILS on
+    the window alone, naming the worst part's shortfall."""
+    from tests.helpers import lattice_share
+
+    m = roof_booth.report.metrics
+    body, film = roof_booth.surface, roof_booth.films_m["executed"].sum(axis=0)
+    lo, hi = 1e-6 * m["spec_low_um"], 1e-6 * m["spec_high_um"]
+    assert m["spec_target_um"] == pytest.approx(
+        1e6 * float(roof_booth.films_m["plan"].sum(axis=0) @ body.vertex_areas
+                    / body.vertex_areas.sum()), rel=1e-9)
+    share = lattice_share(film, body.vertices, body.faces, lo, hi)
+    assert m["part_executed_inside_spec_pct"]["0:roof"] == pytest.approx(share, abs=0.3)
+    names = [c.name for c in roof_booth.report.checks]
+    assert "executed σ/μ (worst part)" in names and "film in spec window (worst part)" in names
+    from paintcell import run_scenario
+
+    off = run_scenario(dataclasses.replace(ROOF_BOOTH, spec=PaintSpec(
+        target_film_um=1.5 * m["spec_target_um"])), fast=True, mode="kinematic", progress=False)
+    failed = [c for c in off.report.checks if not c.passed]
+    assert [c.name for c in failed] == ["film in spec window (worst part)"]
+    assert "points short" in failed[0].detail
 
 
 def test_booth_checks_and_credit(roof_booth):
@@ -749,8 +775,9 @@ def test_report_rebuilds_a_booth_folder_report(roof_booth_dir):
 
 def test_booth_film_file(roof_booth, tmp_path):
     """The booth folder's film.npz and film.glb: the body with the summed executed film through
-    the spec scale (±10 % around the planned mean of the judged area, recomputed here from the
-    robots' films), every part's passes in the body frame, one base marker per robot."""
+    the spec scale (the default paint spec's ±20 % around the planned mean of the judged area,
+    recomputed here from the robots' films), every part's passes in the body frame, one base
+    marker per robot."""
     import json
 
     import trimesh
@@ -775,7 +802,7 @@ def test_booth_film_file(roof_booth, tmp_path):
     assert len(mesh.vertices) == len(body)
     np.testing.assert_allclose(mesh.bounds, [body.min(0), body.max(0)], atol=GLB_POSITION_ATOL_M)
     np.testing.assert_allclose(np.asarray(mesh.visual.vertex_attributes["color"])[:, :3],
-                               spec_colours_linear(executed, target_m, 0.10),
+                               spec_colours_linear(executed, target_m, 0.20),
                                atol=GLB_COLOUR_ATOL)
     T_body = ROOF_BOOTH.parts[0].placement.matrix
     strips = line_strips(tmp_path / "film.glb")
@@ -786,9 +813,10 @@ def test_booth_film_file(roof_booth, tmp_path):
     for r in ROOF_BOOTH.robots:
         np.testing.assert_allclose(scene.graph[f"robot base {r.name}"][0],
                                    R_GLTF_WORLD @ r.base.matrix, atol=1e-12)
-    # film.npz's window gives the metrics' share of area inside it
+    # film.npz's window is the spec's; its film gives the metrics' share within ±10 %
     with np.load(tmp_path / "film.npz") as z:
         assert float(z["target_m"]) == pytest.approx(target_m, rel=1e-12)
+        assert float(z["tolerance"]) == pytest.approx(0.20)
         inside = np.abs(z["executed_thickness_m"] - target_m) <= 0.10 * target_m
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert 100 * w[inside].sum() / w.sum() == pytest.approx(m["executed_within_tolerance_pct"],

@@ -118,7 +118,7 @@ def _documented(with_literal: bool) -> list[tuple[str, str, str]]:
 
 def test_the_reference_documents_every_table_and_describes_every_key() -> None:
     assert set(DOC) == {"", "part", "part_placement", "base", "planner", "fast_planner",
-                        "trajectory", "servo", "disturbances", "thresholds", "sweep"}
+                        "trajectory", "servo", "disturbances", "thresholds", "spec", "sweep"}
     assert len(DOC["planner"]) > 30 and len(DOC["thresholds"]) > 8
     blank = [(t, k) for t, rows in DOC.items() for k, r in rows.items() if not r["doc"].strip()]
     assert not blank, f"keys without a description: {blank}"
@@ -148,8 +148,8 @@ def _effective(scn: Any, table: str, key: str) -> Any:
         v = getattr(getattr(scn, table), key)
     elif table == "part":
         v = getattr(scn.part, key)
-    elif table == "thresholds":
-        v = getattr(scn.thresholds, key)
+    elif table in ("thresholds", "spec"):
+        v = getattr(getattr(scn, table), key)
     elif table == "sweep":
         if key in ("factors", "limits", "workers"):   # none unless given; 2 local workers
             return scn.sweep.get(key, 2 if key == "workers" else {})
@@ -324,7 +324,13 @@ def _a_value(r: dict[str, str]) -> str:
     m = re.search(r"\(choices: (.*)\)$", r["help"])
     if m:
         return next(c for c in re.findall(r"`([^`]+)`", m.group(1)) if c != default)
-    return "3"
+    try:                 # a number other than the default, inside any range it documents
+        d = float(default)
+    except ValueError:
+        return "3"
+    if default.lstrip("-").isdigit():
+        return str(int(d) + 1)
+    return repr(d / 2) if d else "0.5"
 
 
 def test_the_commands_are_the_documented_ones() -> None:

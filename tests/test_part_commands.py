@@ -92,6 +92,10 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     assert table["part"]["file"] == "../parts/fender.stl"
     assert table["part"]["units"] == "auto" and "# units: mm" in toml.read_text()
     assert set(table) >= {"name", "robot", "part", "part_placement", "base", "thresholds"}
+    # a paint spec, stated (not a loose σ/μ threshold); the pieces joined as "auto" finds them
+    assert table["spec"] == {"window_pct": 20.0, "min_inside_pct": 90.0, "max_nsd_pct": 10.0}
+    assert "max_executed_nsd_pct" not in table["thresholds"]
+    assert table["part"]["pieces"] == "auto" and table["part"]["pieces_gap_m"] == 0.04
     assert main(["plan", str(toml), "--fast", "--out", str(tmp_path / "plan")]) == 0
     assert (tmp_path / "plan" / "plan.json").is_file()
     scn = load_scenario(toml)

@@ -20,6 +20,7 @@ from paintcell.output.report_names import check_reason, headline_rows, number, w
 from paintcell.output.report_sections import pass_rows
 from paintcell.paint.metrics import uniformity
 from paintcell.surface.surface import plane
+from tests.helpers import lattice_share
 
 
 def _film(tmp_path, planned, executed, areas, judged, target, tol):
@@ -56,8 +57,18 @@ def test_save_film_matches_planning_metrics(tmp_path):
                                    "tolerance_fraction": 0.05})
     save_film(tmp_path / "film.npz", s, rep)
     film = load_film(tmp_path)
-    assert film is not None and film.judged.all()
+    assert film is not None and film.judged.all() and film.faces is not None
     assert 0 < film.inside_pct() < 100
+    # the share over the faces, the film linear on each: against a brute-force lattice
+    lo, hi = film.window_m
+    assert film.inside_pct() == pytest.approx(lattice_share(executed, s.vertices, s.faces,
+                                                            lo, hi, n=40), abs=0.1)
+    # a file without the surface: the share lumped on the vertex areas, as uniformity's
+    with np.load(tmp_path / "film.npz") as z:
+        old = {k: z[k] for k in z.files if k not in ("vertices_m", "faces", "judged_faces")}
+    np.savez(tmp_path / "film.npz", **old)
+    film = load_film(tmp_path)
+    assert film is not None and film.faces is None
     assert film.inside_pct() == pytest.approx(100 * u_e.within_tolerance_fraction, abs=1e-9)
     png = histogram_png(film, (400, 300))
     with Image.open(io.BytesIO(png)) as im:
@@ -159,3 +170,37 @@ def test_spec_map_render_colours_the_window(tmp_path):
     (tmp_path / "metrics.json").write_text(json.dumps({"passed": True, "checks": []}))
     text = report.write_report(tmp_path).read_text(encoding="utf-8")
     assert 'alt="render_executed_spec.png"' in text.split('id="film-histogram"')[0]
+
+
+def test_report_names_the_pieces_painted_and_not(tmp_path):
+    """metrics.json's pieces (a part file in pieces, a closed solid's back skin) become a table
+    with their areas; the verdict's reason names the figure that missed the spec and by how
+    much."""
+    metrics = {"passed": False, "executed_inside_spec_pct": 84.25, "executed_nsd_pct": 6.1,
+               "painted_area_m2": 0.6, "not_painted_area_m2": 0.45, "judged_area_m2": 0.58,
+               "pieces": [
+                   {"piece": "0", "area_m2": 0.48, "painted": True, "why": "the largest piece",
+                    "on_painted_side": True},
+                   {"piece": "1", "area_m2": 0.12, "painted": True, "on_painted_side": True,
+                    "why": "joined: 12.0 mm from the part, facing its painted side"},
+                   {"piece": "2", "area_m2": 0.0018, "painted": False, "on_painted_side": False,
+                    "why": "stray bit: 0.0018 m², under 1 % of the largest piece"},
+                   {"piece": "0 back side", "area_m2": 0.4482, "painted": False,
+                    "on_painted_side": False, "why": "the back (inner) skin of a closed solid"}],
+               "checks": [{"name": "film in spec window", "value": 84.25, "limit": 90.0,
+                           "unit": "%", "passed": False, "kind": "min",
+                           "detail": "5.8 points short: 84.2 % of the judged area in "
+                                     "24.0–36.0 µm"}]}
+    (tmp_path / "metrics.json").write_text(json.dumps(metrics))
+    raw = html.unescape(report.write_report(tmp_path).read_text(encoding="utf-8"))
+    text = re.sub(r"<[^>]+>", " ", raw)
+    assert "Film in spec window 84.2 % is below the minimum 90.0 % (5.8 points short" in \
+        re.sub(r"\s+", " ", text)
+    assert "area in spec window 84.2 %" in re.sub(r"\s+", " ", text)
+    table = raw[raw.index('id="piece-table"'):]
+    table = table[:table.index("</table>")]
+    rows = re.findall(r"<tr>(.*?)</tr>", table, re.S)[1:]
+    cells = [re.findall(r"<td>(.*?)</td>", r) for r in rows]
+    assert [c[0] for c in cells] == ["0", "1", "2", "0 back side"]
+    assert [c[1] for c in cells] == ["0.4800", "0.1200", "0.0018", "0.4482"]
+    assert [("not painted" in c[2]) for c in cells] == [False, False, True, True]

@@ -24,6 +24,7 @@ import pytest
 
 from paintcell.cli.main import EXIT_INTERRUPTED, EXIT_USAGE, main
 from paintcell.core.results_dir import MARKER, new_results
+from tests.helpers import LOOSE_SPEC_TOML
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -49,7 +50,8 @@ q_home = [0.0, -0.6, 0.3, 0.0, 0.9, 0.0]
 max_executed_nsd_pct = {nsd}
 max_loss_pp = 1.0
 max_cycle_time_s = 90.0
-"""
+
+""" + LOOSE_SPEC_TOML
 
 
 def _scenario(d: Path, name: str = "fz", nsd: float = 30.0, base_x: float = 0.0,
@@ -98,7 +100,7 @@ def _snapshot(d: Path) -> dict[str, bytes]:
     ("[thresholds]\nmax_executed_nsd_pct = nan", "max_executed_nsd_pct = nan"),
     ("[thresholds]\nmax_collisions = -1", "max_collisions = -1 is out of range; valid: [0, inf)"),
     ("[thresholds]\nreachability_pct = 101.0", "reachability_pct = 101.0 is out of range"),
-    ("[planner]\nu_max = 5.0", "u_max = 5.0 is out of range; valid: 0 < u_max < 1"),
+    ("[planner]\nu_max = 5.0", "u_max = 5.0 is out of range; valid: [1e-06, 0.999]"),
     ("[planner]\nv_nominal_m_s = inf", "v_nominal_m_s = inf is not a finite number"),
     ("[planner]\nu_maxx = 0.04", "unknown planner setting(s) ['u_maxx']; valid: "),
     ("[robot_base]\nxyz_m = [0, 0, 0]", "unknown key(s) ['robot_base']; valid: "),

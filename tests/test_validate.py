@@ -16,6 +16,7 @@ from paintcell.execution.execute import Disturbances, execute
 from paintcell.execution.trace import Contact, ExecutedTrace
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
+from paintcell.validation.paint_spec import PaintSpec
 from paintcell.validation.validate import (
     Thresholds,
     ValidationError,
@@ -28,10 +29,14 @@ from paintcell.validation.validate import (
 from tests.helpers import (
     BINNED_FILM_RTOL,
     KINEMATIC_REPLAY_LOSS_PP,
+    LOOSE_SPEC_TABLE,
     LOSS_RESOLUTION_PP,
     SERVO_TRACKING_MAX_MM,
 )
 from tests.test_execute import make_case, make_cell, make_fold, run
+
+#: the test plate's film (σ/μ ~30 %) is held to the thresholds alone (tests.helpers)
+LOOSE = PaintSpec(**LOOSE_SPEC_TABLE)
 
 
 @functools.lru_cache(maxsize=8)
@@ -39,7 +44,7 @@ def report(mode: str = "servo", gain_scale: float = 1.0,
            disturbances: Disturbances | None = None) -> ValidationReport:
     c = make_case()
     return validate(c.plan, c.surface, c.traj, run(mode, gain_scale, 0.0, disturbances),
-                    c.T_world_part, Thresholds(max_executed_nsd_pct=50.0))
+                    c.T_world_part, Thresholds(max_executed_nsd_pct=50.0), spec=LOOSE)
 
 
 def test_kinematic_replay_reproduces_the_planned_thickness() -> None:
@@ -95,7 +100,7 @@ def test_saturated_joint_fails_the_torque_check() -> None:
     tr = execute(weak, c.traj)
     assert np.abs(tr.tau).max() <= weak.tau_max.max() * (1 + 1e-9)
     rep = validate(c.plan, c.surface, c.traj, tr, c.T_world_part,
-                   Thresholds(max_executed_nsd_pct=50.0))
+                   Thresholds(max_executed_nsd_pct=50.0), spec=LOOSE)
     m = rep.metrics
     # Measured: 28.8 × τ_max demanded at the peak, saturated on 19 % of the steps.
     assert m["max_torque_utilization"] > 2.0 and rep.torque_utilization[0] > 2.0
@@ -131,7 +136,7 @@ def test_program_films_on_a_background_thread_are_validates_own() -> None:
     np.testing.assert_array_equal(films[0], own.planned_thickness_m)
     np.testing.assert_array_equal(films[1], own.trajectory_thickness_m)
     given = validate(c.plan, c.surface, c.traj, run("servo"), c.T_world_part,
-                     Thresholds(max_executed_nsd_pct=50.0), films=films)
+                     Thresholds(max_executed_nsd_pct=50.0), spec=LOOSE, films=films)
     assert json.dumps(given.metrics, sort_keys=True) == json.dumps(own.metrics, sort_keys=True)
     np.testing.assert_array_equal(given.executed_thickness_m, own.executed_thickness_m)
     ref = thickness(c.plan.applicator, c.plan.gun_samples(), c.surface.vertices,
@@ -174,13 +179,14 @@ def test_large_negative_loss_fails_only_the_abs_loss_check() -> None:
     slow = _retimed_plan(c.plan, 0.8)
     tr = run("kinematic")
     rep = validate(slow, c.surface, c.traj, tr, c.T_world_part,
-                   Thresholds(max_executed_nsd_pct=50.0, max_loss_pp=0.1, max_abs_loss_pp=0.1))
+                   Thresholds(max_executed_nsd_pct=50.0, max_loss_pp=0.1, max_abs_loss_pp=0.1),
+                   spec=LOOSE)
     assert rep.loss_pp < -0.3 and rep.metrics["abs_loss_pp"] == -rep.loss_pp
     assert [ch.name for ch in rep.checks if not ch.passed] == ["|uniformity loss|"]
     # Off by default: the same comparison passes without it.
     assert "|uniformity loss|" not in [ch.name for ch in report("kinematic").checks]
     assert validate(slow, c.surface, c.traj, tr, c.T_world_part,
-                    Thresholds(max_executed_nsd_pct=50.0, max_loss_pp=0.1)).passed
+                    Thresholds(max_executed_nsd_pct=50.0, max_loss_pp=0.1), spec=LOOSE).passed
 
 
 def test_ten_times_softer_servo_loses_more() -> None:
@@ -201,7 +207,7 @@ def test_tcp_calibration_error_costs_uniformity_and_fails_the_loss_check() -> No
     dist = Disturbances(tcp_offset_m=0.02, seed=1)
     tr = run("kinematic", 1.0, 0.0, dist)
     rep = validate(c.plan, c.surface, c.traj, tr, c.T_world_part,
-                   Thresholds(max_executed_nsd_pct=50.0, max_loss_pp=0.05))
+                   Thresholds(max_executed_nsd_pct=50.0, max_loss_pp=0.05), spec=LOOSE)
     assert rep.metrics["rms_thickness_diff_um"] > 10 * report("kinematic").metrics[
         "rms_thickness_diff_um"]
     assert abs(rep.loss_pp) > KINEMATIC_REPLAY_LOSS_PP
@@ -216,7 +222,7 @@ def test_collisions_are_counted_as_events_and_fail() -> None:
     bumped = ExecutedTrace(**{k: getattr(tr, k) for k in ExecutedTrace._ARRAYS}, mode=tr.mode,
                            contacts=hits, meta=tr.meta)
     rep = validate(c.plan, c.surface, c.traj, bumped, c.T_world_part,
-                   Thresholds(max_executed_nsd_pct=50.0))
+                   Thresholds(max_executed_nsd_pct=50.0), spec=LOOSE)
     assert rep.metrics["n_collisions"] == 2 and rep.metrics["n_contact_samples"] == 4
     assert [e["samples"] for e in rep.collisions] == [3, 1]
     assert not rep.passed and "collisions" in [ch.name for ch in rep.checks if not ch.passed]
@@ -236,7 +242,7 @@ def test_self_collision_is_a_collision_event_with_both_robot_bodies() -> None:
     bumped = ExecutedTrace(**{k: getattr(tr, k) for k in ExecutedTrace._ARRAYS}, mode=tr.mode,
                            contacts=folded.contacts, meta=tr.meta)
     rep = validate(c.plan, c.surface, c.traj, bumped, c.T_world_part,
-                   Thresholds(max_executed_nsd_pct=50.0))
+                   Thresholds(max_executed_nsd_pct=50.0), spec=LOOSE)
     assert rep.metrics["n_collisions"] == 1 and rep.metrics["max_contact_depth_mm"] > 100.0
     assert rep.collisions[0]["body2"] == "robot/link2"
     assert not rep.passed and "collisions" in [ch.name for ch in rep.checks if not ch.passed]
@@ -247,7 +253,7 @@ def test_report_is_json_and_saved_atomically(tmp_path: Path) -> None:
              "poses": {"q": [0.0] * 200}}
     c = make_case()
     rep = validate(c.plan, c.surface, c.traj, run("servo"), c.T_world_part,
-                   Thresholds(max_executed_nsd_pct=50.0), reachability=reach)
+                   Thresholds(max_executed_nsd_pct=50.0), spec=LOOSE, reachability=reach)
     d = rep.to_dict()
     assert "planned_thickness_m" not in d and "poses" not in d["reachability"]
     assert d["reachability_pct"] == pytest.approx(95.0)

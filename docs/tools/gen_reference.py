@@ -51,6 +51,9 @@ TABLE_TITLES = {
                      "empty: the nominal cell."),
     "thresholds": ("[thresholds]", "The limits `paintcell run` and `paintcell check` hold the "
                    "run to (`paintcell.validation.validate_report.Thresholds`)."),
+    "spec": ("[spec]", "The paint spec the executed film is judged against "
+             "(`paintcell.validation.paint_spec.PaintSpec`); absent: these defaults. "
+             "`[thresholds] max_executed_nsd_pct` only tightens its σ/μ."),
     "sweep": ("[sweep]", "The robustness sweep of `paintcell sweep` "
               "(`paintcell.validation.sweep_spec`), with its sub-tables `[sweep.factors]` and "
               "`[sweep.limits]`."),

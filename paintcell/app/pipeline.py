@@ -199,7 +199,8 @@ def _run(scn: Scenario, out_dir: str | Path | None, fast: bool,
         t0 = time.perf_counter()
         stage("validate")
         rep = validate(plan, surface, traj, trace, T_world_part, scn.thresholds,
-                       reachability=traj.meta.get("reachability"), films=films.result())
+                       reachability=traj.meta.get("reachability"), films=films.result(),
+                       spec=scn.spec)
         done("validate", t0)
 
         result = RunResult(scn, None, surface, plan, traj, trace, rep, timings, fast, mode)

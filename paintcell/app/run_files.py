@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from paintcell.core.data_text import DataTextError, parse_json
 from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import read_regular_bytes
 
@@ -27,10 +28,10 @@ def read_json(path: Path) -> dict[str, Any]:
     """A JSON object file; a missing, corrupt or non-object file is named in the error."""
     path = Path(path)
     try:
-        d = json.loads(read_regular_bytes(path).decode("utf-8"))
+        d = parse_json(read_regular_bytes(path).decode("utf-8"), str(path))
     except FileNotFoundError:
         raise PaintcellError(f"{path} is missing; re-run `paintcell run`") from None
-    except (ValueError, UnicodeDecodeError) as exc:
+    except (DataTextError, UnicodeDecodeError) as exc:
         raise PaintcellError(f"{path} is not readable JSON ({_first(exc)}); re-run "
                              "`paintcell run`") from exc
     if not isinstance(d, dict):
@@ -130,7 +131,7 @@ def rederive(files: dict[str, Any], metrics: dict[str, Any]) -> tuple[Any, Any]:
     surface = load_surface(scn, bool(files["run"]["fast"]))
     plan, traj, trace = files["plan"], files["trajectory"], files["trace"]
     rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
-                   reachability=traj.meta.get("reachability"))
+                   reachability=traj.meta.get("reachability"), spec=scn.spec)
     files["surface"] = surface
     return rep, lambda out: write_film_files(out, scn, surface, plan, rep)
 
@@ -179,7 +180,7 @@ def program_modules(files: dict[str, Any], metrics: dict[str, Any], header: list
     validation lines each module starts with; style, spacing_m: `rapid_module`'s style and
     max_spacing_m [m]."""
     scn = files["scenario"]
-    options = {"style": style, "max_spacing_m": spacing_m, "validation": header}
+    options: dict[str, Any] = {"style": style, "max_spacing_m": spacing_m, "validation": header}
     if files["kind"] == "booth":
         from paintcell.booth.booth_programs import load_robots
         from paintcell.booth.booth_rapid import booth_rapid_modules

@@ -21,9 +21,14 @@ import numpy as np
 from paintcell.core.errors import ScenarioError
 from paintcell.core.placement import Placement
 from paintcell.surface.part_spec import MeshPart
+from paintcell.validation.paint_spec import PaintSpec
 from paintcell.validation.validate_report import Thresholds, check_thresholds
 
-__all__ = ["Scenario", "facing_robot"]
+__all__ = ["MAX_NAME_CHARS", "Scenario", "facing_robot"]
+
+#: Longest scenario name: it names the results folder and its hidden siblings (a file name holds
+#: at most 255 bytes).
+MAX_NAME_CHARS = 100
 
 
 def facing_robot() -> tuple[float, float, float]:
@@ -42,7 +47,7 @@ class Scenario:
     name: short identifier (names the results folder and the CI row).
     part: a library part name (`paintcell.surface.parts.PART_NAMES`), a path to a mesh or CAD
         file (relative to the scenario file; read with every `[part]` setting at its default:
-        units auto, largest piece, side auto), or a mesh/CAD part
+        units auto, pieces auto, side auto), or a mesh/CAD part
         (`paintcell.surface.part_spec.MeshPart`, or its TOML `[part]` table as a dict,
         converted on construction).
     part_placement: where the part frame sits in the world.
@@ -63,6 +68,10 @@ class Scenario:
         (`paintcell.validation.validate_report.Thresholds`: reachability, collisions, executed
         σ/μ, loss, cycle time, and optionally tracking error, speed error, torque and
         joint-range utilization).
+    spec: the paint spec the executed film is judged against
+        (`paintcell.validation.paint_spec.PaintSpec`: target film, window, least share of the
+        judged area inside it, largest σ/μ; its defaults when the scenario sets none;
+        `thresholds.max_executed_nsd_pct` can only tighten its σ/μ).
     sweep: the robustness sweep of `paintcell sweep`
         (`paintcell.validation.sweep_spec.spec_from_scenario`): factors {disturbance name:
         distribution string}, samples, fast_samples, method ("lhs" | "mc"), seed, workers
@@ -86,13 +95,16 @@ class Scenario:
     servo: dict[str, Any] = field(default_factory=dict)
     disturbances: dict[str, Any] = field(default_factory=dict)
     thresholds: Thresholds = Thresholds()
+    spec: PaintSpec = PaintSpec()
     sweep: dict[str, Any] = field(default_factory=dict)
     source: str | None = None
 
     def __post_init__(self) -> None:
-        if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
-            raise ScenarioError(f"scenario name {self.name!r} must be non-empty letters, digits, "
-                                "'_' or '-' (it names the results folder)")
+        if not isinstance(self.name, str) or not self.name or len(self.name) > MAX_NAME_CHARS \
+                or not all(c.isalnum() or c in "_-" for c in self.name):
+            shown = self.name if len(str(self.name)) <= 40 else f"{str(self.name)[:40]}…"
+            raise ScenarioError(f"scenario name {shown!r} must be 1 to {MAX_NAME_CHARS} letters, "
+                                "digits, '_' or '-' (it names the results folder)")
         if isinstance(self.part, dict):
             object.__setattr__(self, "part", MeshPart.from_dict(self.part))
         if not self.part or not isinstance(self.part, str | MeshPart):
@@ -110,6 +122,11 @@ class Scenario:
             raise ScenarioError("Scenario.thresholds must be a Thresholds "
                                 "(paintcell.app.scenario)")
         check_thresholds(self.thresholds)
+        if isinstance(self.spec, dict):
+            object.__setattr__(self, "spec", PaintSpec.from_table(self.spec, "Scenario.spec"))
+        if not isinstance(self.spec, PaintSpec):
+            raise ScenarioError("Scenario.spec must be a PaintSpec "
+                                "(paintcell.validation.paint_spec)")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe description of the scenario (for reports); `scenario_from_dict` inverts it."""

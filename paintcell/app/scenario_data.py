@@ -11,6 +11,7 @@ A TOML scenario maps one-to-one onto `paintcell.app.scenario.Scenario` (docs/int
     [part_placement]  xyz_m = [..], rpy_rad = [..]
     [base]            xyz_m = [..], rpy_rad = [..]
     [planner] [fast_planner] [trajectory] [servo] [disturbances] [thresholds]
+    [spec]            target_film_um, window_pct, min_inside_pct, max_nsd_pct (the paint spec)
 
 Relative paths are relative to the scenario file. Every key is checked on load: unknown names,
 non-finite numbers and values out of range are refused with one line naming the file, the key and
@@ -21,15 +22,14 @@ what is valid. The same reader turns a results folder's `scenario.json` snapshot
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
 from paintcell.app.scenario_checks import check_settings
 from paintcell.app.scenario_keys import LENGTH_RANGE_M, PLACEMENTS, SETTINGS, TABLES, TOP_LEVEL
+from paintcell.core.data_text import DataTextError, read_toml
 from paintcell.core.errors import PaintcellError, ScenarioDataError
-from paintcell.core.toml_text import toml_text
 from paintcell.validation.validate_report import check_thresholds
 
 __all__ = ["SNAPSHOT_VERSION", "load_toml_scenario", "scenario_from_dict", "snapshot_dict"]
@@ -76,6 +76,11 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
     for key in ("name", "robot"):
         if key in kw and not isinstance(kw[key], str):
             raise ScenarioDataError(f"{where}: {key} = {kw[key]!r} must be a string")
+    from paintcell.robots.catalog import ROBOT_NAMES
+
+    if kw.get("robot", "abb_paint") not in ROBOT_NAMES:
+        raise ScenarioDataError(f"{where}: robot = {kw['robot']!r} is not a known robot; valid: "
+                                f"{', '.join(ROBOT_NAMES)}")
     for key in ("resolution_m", "fast_resolution_m"):
         v = kw.get(key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)
@@ -138,6 +143,7 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
             object.__setattr__(thresholds, f.name, th.get(f.name, f.default))
         check_thresholds(thresholds, f"{where} [thresholds]")
         kw["thresholds"] = Thresholds(**th)
+        kw["spec"] = _spec(d.get("spec"), where)
         kw["source"] = source
         scn = Scenario(**kw)
     except ScenarioDataError:
@@ -146,6 +152,16 @@ def scenario_from_dict(d: dict[str, Any], where: str, base_dir: Path | None = No
         raise ScenarioDataError(f"{where}: {exc}") from exc
     check_settings(scn, where)
     return scn
+
+
+def _spec(table: Any, where: str) -> Any:
+    """The `[spec]` table as a PaintSpec (its defaults when absent); errors name the file."""
+    from paintcell.validation.paint_spec import PaintSpec, SpecError
+
+    try:
+        return PaintSpec.from_table(table, where)
+    except SpecError as exc:
+        raise ScenarioDataError(str(exc)) from exc
 
 
 def _is_path(part: str) -> bool:
@@ -158,9 +174,9 @@ def load_toml_scenario(path: str | Path) -> Any:
     """Read a TOML scenario file (no code runs); relative paths are relative to the file."""
     path = Path(path)
     try:
-        d = tomllib.loads(toml_text(path, ScenarioDataError))
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioDataError(f"{path}: not valid TOML ({exc}); fix the line named") from exc
+        d = read_toml(path)
+    except DataTextError as exc:
+        raise ScenarioDataError(str(exc)) from exc
     d.setdefault("name", path.stem)
     return scenario_from_dict(d, str(path), base_dir=path.resolve().parent,
                               source=str(path.resolve()))

@@ -13,6 +13,7 @@ from paintcell.app.scenario_checks import check_settings
 from paintcell.app.scenario_data import load_toml_scenario
 from paintcell.booth.booth import Booth
 from paintcell.booth.booth_data import load_toml_booth
+from paintcell.core.data_text import read_toml
 from paintcell.core.errors import PaintcellError, ScenarioError
 from paintcell.core.safe_paths import kind_of
 
@@ -35,9 +36,10 @@ def load_scenario(path: str | Path) -> Any:
         raise ScenarioError(f"scenario {path} is a {kind_of(path.stat().st_mode)}, not a "
                             "regular file; pass the scenario file itself")
     if path.suffix == ".toml":
-        if _is_booth_toml(path):   # several robots: imported only for a booth
-            return load_toml_booth(path)
-        return load_toml_scenario(path)
+        # several robots: imported only for a booth
+        scn = load_toml_booth(path) if _is_booth_toml(path) else load_toml_scenario(path)
+        check_applicator(scn, str(path))
+        return scn
     if path.suffix != ".py":
         raise ScenarioError(f"scenario {path} is neither a .toml scenario nor a Python script "
                             "(.py defining SCENARIO)")
@@ -68,20 +70,50 @@ def load_scenario(path: str | Path) -> Any:
     scenario = replace(scenario, source=str(path.resolve()))
     if isinstance(scenario, Scenario):
         check_settings(scenario, str(path))
+    check_applicator(scenario, str(path))
     return scenario
 
 
-def _is_booth_toml(path: Path) -> bool:
-    """Whether a TOML file declares a booth (`[[robots]]` tables;
-    `paintcell.booth.booth_data`)."""
-    import tomllib
+def check_applicator(scn: Any, where: str) -> None:
+    """Read the scenario's (or booth's) applicator file at load, before any work, and budget the
+    planner's index-width curve and width search for its footprint (`paintcell.core.budget`);
+    errors name `where` and the applicator file."""
+    from paintcell.core.budget import check_profile_budget
+    from paintcell.coverage.index_width import profile_size
+    from paintcell.paint.applicator import Applicator
+    from paintcell.validation.settings_tables import check_settings_table
 
-    from paintcell.core.toml_text import toml_text
-
+    if scn.applicator is None:
+        return
+    app_path = Path(scn.applicator)
+    if not app_path.is_absolute() and scn.source:
+        app_path = Path(scn.source).parent / app_path
     try:
-        return isinstance(tomllib.loads(toml_text(path)).get("robots"), list)
-    except (OSError, PaintcellError, tomllib.TOMLDecodeError):
+        app = Applicator.from_toml(app_path)
+    except PaintcellError as exc:
+        msg = str(exc)
+        raise ScenarioError(f"{where}: applicator {app_path}: {msg}" if str(app_path) not in msg
+                            else f"{where}: {msg}") from exc
+    check_profile_budget(*profile_size(app), app.footprint_radius_m,
+                         f"{where} applicator {app_path}")
+    check_settings_table("planner", scn.planner, where,
+                         footprint_radius_m=app.footprint_radius_m)
+
+
+#: Tables only a booth file has: a file with one of them (or with [[parts]] tables) is read as
+#: a booth, which then needs its [[robots]], not as a one-robot scenario with unknown keys.
+_BOOTH_ONLY = ("robots", "conveyor", "body_placement", "allocation")
+
+
+def _is_booth_toml(path: Path) -> bool:
+    """Whether a TOML file declares a booth (`paintcell.booth.booth_data`)."""
+    try:
+        d = read_toml(path)
+    except (OSError, PaintcellError):
         return False   # the scenario loader reports the file's own error
+    parts = d.get("parts")
+    return any(k in d for k in _BOOTH_ONLY) or (
+        isinstance(parts, list) and any(isinstance(p, dict) for p in parts))
 
 
 def find_scenarios(paths: list[str]) -> list[Path]:

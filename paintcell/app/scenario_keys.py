@@ -65,7 +65,7 @@ TOP_LEVEL = ("name", "part", "robot", "resolution_m", "fast_resolution_m", "appl
 
 #: The tables of a scenario file, in the order the reference lists them.
 TABLES = ("part", "part_placement", "base", "planner", "fast_planner", "trajectory", "servo",
-          "disturbances", "thresholds", "sweep")
+          "disturbances", "thresholds", "spec", "sweep")
 
 #: The tables that hold a placement (`paintcell.core.placement.Placement`).
 PLACEMENTS = ("part_placement", "base")
@@ -79,12 +79,13 @@ def table_class(table: str) -> type | None:
     from paintcell.app.scenario_checks import settings_classes
     from paintcell.core.placement import Placement
     from paintcell.surface.part_spec import MeshPart
+    from paintcell.validation.paint_spec import PaintSpec
     from paintcell.validation.validate_report import Thresholds
 
     if table in SETTINGS:
         return settings_classes()[table]
     return {"part": MeshPart, "part_placement": Placement, "base": Placement,
-            "thresholds": Thresholds}.get(table)
+            "thresholds": Thresholds, "spec": PaintSpec}.get(table)
 
 
 def toml_type(annotation: Any) -> str:
@@ -159,6 +160,7 @@ def _part() -> list[ScenarioKey]:
         CHORD_TOLERANCE_RANGE_M,
         FILL_HOLES_RANGE_M,
         MESH_SUFFIXES,
+        PIECES_GAP_RANGE_M,
         REGIONS,
         UNITS_M,
         MeshPart,
@@ -167,12 +169,12 @@ def _part() -> list[ScenarioKey]:
     hints = typing.get_type_hints(MeshPart)
     valid = {"file": "a file ending in " + ", ".join(MESH_SUFFIXES + CAD_SUFFIXES),
              "units": " | ".join((*UNITS_M, "auto")),
-             "pieces": "\"largest\" | \"all\" | an array of piece indices ≥ 0",
+             "pieces": "\"auto\" | \"largest\" | \"all\" | an array of piece indices ≥ 0",
              "side": "\"auto\" | three numbers, not all zero",
              "judge": "a non-empty array of " + ", ".join(REGIONS),
              "name": "a non-empty string"}
     ranges = {"chord_tolerance_m": CHORD_TOLERANCE_RANGE_M,
-              "fill_holes_m": FILL_HOLES_RANGE_M}
+              "fill_holes_m": FILL_HOLES_RANGE_M, "pieces_gap_m": PIECES_GAP_RANGE_M}
     out = []
     for f in fields(MeshPart):
         lo, hi = ranges.get(f.name, (None, None))
@@ -185,7 +187,7 @@ def _part() -> list[ScenarioKey]:
 
 
 def _settings(table: str) -> list[ScenarioKey]:
-    from paintcell.app.scenario_checks import SETTING_RANGES
+    from paintcell.core.setting_ranges import RANGES
     from paintcell.validation.validate_report import THRESHOLD_RANGES
 
     cls = table_class(table)
@@ -201,11 +203,55 @@ def _settings(table: str) -> list[ScenarioKey]:
             if f.name.startswith("max_"):
                 key = _replace(key, valid="inf: not checked" if key.default is not None
                                else "unset or inf: not checked")
-        rng = SETTING_RANGES.get(("planner" if table == "fast_planner" else table, f.name))
-        if rng is not None:
-            key = _with_range(key, rng[0], rng[1], False, False)
+        rng = RANGES.get(("planner" if table == "fast_planner" else table, f.name))
+        if rng is not None and f.name != "seed":     # a seed is any 64-bit integer
+            key = _ranged(key, table, f.name, rng)
         out.append(key)
     return out
+
+
+def _spec() -> list[ScenarioKey]:
+    from paintcell.validation.paint_spec import SPEC_RANGES, PaintSpec
+
+    hints = typing.get_type_hints(PaintSpec)
+    out = []
+    for f in fields(PaintSpec):
+        lo, hi, what = SPEC_RANGES[f.name]
+        out.append(ScenarioKey("spec", f.name, toml_type(hints[f.name]),
+                               _toml_value(_default(f)), what, lo, hi, low_closed=False,
+                               high_closed=f.name == "min_inside_pct",
+                               default_text="the plan's own target film"
+                               if f.name == "target_film_um" else "", owner=PaintSpec))
+    return out
+
+
+#: Settings whose range holds together with another key's (v_min ≤ v_nominal ≤ v_max, w_min ≤
+#: w_max on multiples of w_res, band_curves odd, the width search's memory): their range is
+#: written in words, since a bound alone is not always a valid file.
+_COUPLED = {"v_nominal_m_s": "v_min_m_s ≤ v_nominal_m_s ≤ v_max_m_s",
+            "v_min_m_s": "v_min_m_s ≤ v_nominal_m_s ≤ v_max_m_s",
+            "v_max_m_s": "v_min_m_s ≤ v_nominal_m_s ≤ v_max_m_s",
+            "w_min_m": "w_min_m ≤ w_max_m, a multiple of w_res_m between them",
+            "w_max_m": "w_min_m ≤ w_max_m, a multiple of w_res_m between them",
+            "w_res_m": "a multiple of it between w_min_m and w_max_m",
+            "n_future": "future_grid_n^(n_future − 1) widths sets within the memory budget",
+            "future_grid_n": "future_grid_n^(n_future − 1) widths sets within the memory budget",
+            "band_curves": "odd"}
+
+
+def _ranged(key: ScenarioKey, table: str, name: str,
+            rng: tuple[float, float, str]) -> ScenarioKey:
+    """`key` with the range of `paintcell.core.setting_ranges` (both bounds included): as an
+    interval where a value at either bound alone is a valid file, else in words."""
+    from paintcell.core.setting_ranges import INF_ALLOWED
+
+    lo, hi, what = rng
+    listy = key.kind.startswith("array")
+    if name in _COUPLED or key.kind == "integer" or listy or (table, name) in INF_ALLOWED:
+        words = f"{'each ' if listy else ''}{lo:g} to {hi:g} {what}".replace("inf", "∞")
+        extra = _COUPLED.get(name, "")
+        return _replace(key, valid="; ".join(x for x in (key.valid, words, extra) if x))
+    return _with_range(key, lo, hi, True, True)
 
 
 def _with_range(key: ScenarioKey, lo: float, hi: float, lo_closed: bool,
@@ -254,6 +300,8 @@ def scenario_keys() -> list[ScenarioKey]:
             out += _placement(table)
         elif table == "sweep":
             out += _sweep()
+        elif table == "spec":
+            out += _spec()
         else:
             out += _settings(table)
     return out

@@ -49,6 +49,7 @@ from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
 from paintcell.core.placement import Placement
 from paintcell.surface.part_spec import MeshPart
+from paintcell.validation.paint_spec import PaintSpec
 
 #: cycle estimate of the allocation: time per turn-around and for approach + retract [s]
 #: (measured on the library parts' programs: turn-arounds 0.8–1.8 s, approach + retract 3–5 s).
@@ -83,6 +84,17 @@ class BoothRobot:
     def __post_init__(self) -> None:
         if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
             raise BoothError(f"robot name {self.name!r} must be letters, digits, '_' or '-'")
+        from paintcell.robots.catalog import ROBOT_NAMES
+
+        if self.model not in ROBOT_NAMES:
+            raise BoothError(f"robot {self.name!r}: model {self.model!r} is not a known robot; "
+                             f"valid: {', '.join(ROBOT_NAMES)}")
+        r = self.rail_m
+        if r is not None and not (isinstance(r, tuple | list) and len(r) == 2
+                                  and all(isinstance(x, int | float) and not isinstance(x, bool)
+                                          and np.isfinite(x) for x in r) and r[0] < r[1]):
+            raise BoothError(f"robot {self.name!r}: rail_m = {r!r} must be (lower, upper) "
+                             "carriage travel [m] with lower < upper")
 
 
 @dataclass(frozen=True)
@@ -111,7 +123,8 @@ class BoothThresholds:
     max_collisions: robot–part, robot–booth and robot–robot (and self) collision events.
     max_robot_collisions: robot–robot collision events alone.
     max_executed_nsd_pct: executed film σ/μ of the worst part [%] (the whole body's is reported;
-        it also measures how far the parts' planned film builds differ).
+        it also measures how far the parts' planned film builds differ); it only tightens the
+        paint spec's `max_nsd_pct` (`Booth.spec`).
     max_body_nsd_pct: executed film σ/μ over the whole body [%] (with a common film build,
         `Booth.common_film_build`, it measures the parts' edges and the robots' seams).
     max_abs_loss_pp: |executed − planned σ/μ| [pp]. max_cycle_time_s: booth cycle [s].
@@ -163,6 +176,11 @@ class Booth:
     build."""
     film_target_um: float | None = None
     """The common film build [µm] (None: the body's area-weighted planned mean)."""
+    spec: PaintSpec = PaintSpec()
+    """The paint spec every part's executed film is held to (`[spec]`,
+    `paintcell.validation.paint_spec`; its target by default `film_target_um`, else the body's
+    planned mean film over the judged area);
+    `thresholds.max_executed_nsd_pct` can only tighten its σ/μ."""
     body_clearance_m: float | None = 0.01
     """Every robot's program keeps this far [m] from the whole body, every part of it
     (`paintcell.booth.booth_clearance`: rail positions chosen clear of the body, backed-off

@@ -32,30 +32,38 @@ the whole body (`paintcell.booth.booth_clearance`).
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
+from paintcell.booth.booth_checks import (
+    BoothDataError,
+    check_allocation,
+    check_parts_once,
+    check_robot,
+    check_structure,
+    number,
+    numbers,
+)
 from paintcell.booth.conveyor import Conveyor
-from paintcell.core.errors import PaintcellError
+from paintcell.core.data_text import DataTextError, read_toml
+from paintcell.core.errors import PaintcellError, ScenarioDataError
 from paintcell.core.placement import Placement
-from paintcell.core.toml_text import toml_text
+from paintcell.core.setting_ranges import check_range
 from paintcell.surface.part_spec import MeshPart
+from paintcell.surface.parts import PART_NAMES
+from paintcell.validation.paint_spec import PaintSpec
 from paintcell.validation.validate_report import check_thresholds
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
         "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
-        "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds")
+        "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds",
+        "spec")
 _PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse", "robots")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
-
-
-class BoothDataError(PaintcellError):
-    """A booth file holds an unknown key or an invalid value."""
 
 
 def _jobs_per_robot(v: Any, where: str) -> int:
@@ -76,65 +84,93 @@ def _check_keys(d: Any, valid: tuple[str, ...], where: str) -> dict[str, Any]:
 
 def _placement(d: Any, where: str) -> Placement:
     d = _check_keys(d, _PLACEMENT, where)
+    xyz = numbers(d.get("xyz_m", [0.0, 0.0, 0.0]), 3, f"{where} xyz_m", -1e3, 1e3, "m",
+                  "[0.0, -0.9, 0.5]")
+    rpy = numbers(d.get("rpy_rad", [0.0, 0.0, 0.0]), 3, f"{where} rpy_rad", -100.0, 100.0,
+                  "rad", "[0.0, 0.0, 1.5708]")
+    return Placement(xyz, rpy)  # type: ignore[arg-type]
+
+
+def _table(d: Any, key: str, where: str) -> dict[str, Any]:
+    v = d.get(key, {})
+    if not isinstance(v, dict):
+        raise BoothDataError(f"{where}: {key} must be a table [{key}], got {type(v).__name__}")
+    return v
+
+
+def _resolution(d: dict[str, Any], key: str, default: float, where: str) -> float:
+    return number(d.get(key, default), f"{where} {key}", 0.0005, 0.5, "m")
+
+
+def _settings(table: str, values: Any, where: str) -> dict[str, Any]:
+    """A booth's (or a part's) settings table, checked as a scenario's is."""
+    from paintcell.validation.settings_tables import check_settings_table
+
     try:
-        return Placement(tuple(d.get("xyz_m", (0.0, 0.0, 0.0))),   # type: ignore[arg-type]
-                         tuple(d.get("rpy_rad", (0.0, 0.0, 0.0))))  # type: ignore[arg-type]
-    except (PaintcellError, TypeError, ValueError) as exc:
-        raise BoothDataError(f"{where}: {exc}") from exc
+        check_settings_table(table, values, where)
+    except ScenarioDataError as exc:
+        raise BoothDataError(str(exc)) from exc
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
 
 
 def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) -> Booth:
-    """A `Booth` from the TOML's dict (`where` names the file in errors)."""
+    """A `Booth` from the TOML's dict (`where` names the file in errors); every key is checked
+    here, before any work (`paintcell.booth.booth_checks`)."""
     d = _check_keys(d, _TOP, where)
+    check_structure(d, where)
     parts = []
-    for i, p in enumerate(d.get("parts", [])):
+    for i, p in enumerate(d["parts"]):
         p = _check_keys(p, _PART, f"{where} [[parts]] #{i}")
         if "part" not in p:
             raise BoothDataError(f"{where} [[parts]] #{i}: give `part` (a library part name or "
                                  "a [parts.part] table with file = \"...\")")
         mesh = _mesh_part(p["part"], f"{where} [[parts]] #{i}", source)
+        if mesh is None and p["part"] not in PART_NAMES:
+            raise BoothDataError(f"{where} [[parts]] #{i}: part = {p['part']!r} is not a library "
+                                 f"part ({', '.join(PART_NAMES)}); or give a [parts.part] table "
+                                 "with file = \"...\"")
         pl = _placement({k: p[k] for k in _PLACEMENT if k in p}, f"{where} [[parts]] #{i}")
         who = p.get("robots")
         if who is not None and (not isinstance(who, list) or not who
                                 or not all(isinstance(x, str) for x in who)):
             raise BoothDataError(f"{where} [[parts]] #{i}: robots = {who!r} must be a list of "
                                  "robot names, e.g. [\"roof_l\", \"roof_r\"]")
-        parts.append(BodyPart(str(p["part"]) if mesh is None else mesh.stem, pl,
-                              dict(p.get("planner", {})),
+        planner = _settings("planner", p.get("planner", {}), f"{where} [[parts]] #{i}")
+        parts.append(BodyPart(str(p["part"]) if mesh is None else mesh.stem, pl, planner,
                               _bool(p.get("reverse", False), f"{where} [[parts]] #{i} reverse"),
                               None if who is None else tuple(who), mesh))
-    robots = []
-    for i, r in enumerate(d.get("robots", [])):
+    check_parts_once(d["parts"], where)
+    robots: list[BoothRobot] = []
+    seen: set[str] = set()
+    for i, r in enumerate(d["robots"]):
         r = _check_keys(r, _ROBOT, f"{where} [[robots]] #{i}")
-        if "name" not in r:
-            raise BoothDataError(f"{where} [[robots]] #{i}: give `name`")
-        model = str(r.get("model", "irb5500"))
-        rail = r.get("rail")
-        if rail is not None:
-            if not (isinstance(rail, list) and len(rail) == 2):
-                raise BoothDataError(f"{where} [[robots]] {r['name']}: rail = [lower, upper] "
-                                     "carriage travel [m], e.g. [-1.2, 1.2]")
-            model, rail = f"{model}_rail", (float(rail[0]), float(rail[1]))
-        home = r.get("home")
-        robots.append(BoothRobot(str(r["name"]), model,
-                                 _placement(r.get("base", {}), f"{where} [[robots]] "
-                                            f"{r['name']} base"),
-                                 None if home is None else tuple(float(x) for x in home),
-                                 rail))
+        name, model, rail, home = check_robot(r, i, where, seen)
+        robots.append(BoothRobot(name, model, _placement(r.get("base", {}), f"{where} "
+                                                         f"[[robots]] {name} base"), home, rail))
     conv = _check_keys(d.get("conveyor", {}), tuple(f.name for f in fields(Conveyor)),
                        f"{where} [conveyor]")
+    for k, v in conv.items():
+        if (bad := check_range("conveyor", k, v)) is not None:
+            raise BoothDataError(f"{where} [conveyor]: {bad}")
+    if "direction" in conv:
+        numbers(conv["direction"], 3, f"{where} [conveyor] direction", example="[1, 0, 0]")
     th = _check_keys(d.get("thresholds", {}), tuple(f.name for f in fields(BoothThresholds)),
                      f"{where} [thresholds]")
     # the one-robot scenario's ranges: a limit no run can meet, or one that cannot fail, refused
     check_thresholds(BoothThresholds(**th), f"{where} [thresholds]")
-    alloc = d.get("allocation")
-    sweep = d.get("sweep", {})
+    alloc = None if d.get("allocation") is None else check_allocation(
+        d["allocation"], [r.name for r in robots], len(parts), where)
+    sweep = _table(d, "sweep", where)
     app = d.get("applicator")
     if app is not None:
         if not isinstance(app, str):
             raise BoothDataError(f"{where}: applicator = {app!r} must be a path to an applicator "
                                  "TOML file, e.g. \"bells/my_bell.toml\"")
         app = str((Path(where).parent / app).resolve())
+    planner = _settings("planner", _table(d, "planner", where), where)
+    trajectory = _settings("trajectory", _table(d, "trajectory", where), where)
+    servo = _settings("servo", _table(d, "servo", where), where)
+    body = _placement(_table(d, "body_placement", where), f"{where} [body_placement]")
     try:
         if sweep:
             from paintcell.validation.sweep_spec import check_booth_factors, check_sweep_table
@@ -146,17 +182,12 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
         conveyor = Conveyor(**conv_kw)
         return Booth(
             name=str(d.get("name", Path(where).stem)), parts=tuple(parts), robots=tuple(robots),
-            body_placement=_placement(d.get("body_placement", {}), f"{where} [body_placement]"),
+            body_placement=body,
             conveyor=conveyor,
-            resolution_m=float(d.get("resolution_m", 0.01)),
-            fast_resolution_m=float(d.get("fast_resolution_m", 0.025)),
-            planner=dict(d.get("planner", {})),
-            trajectory={k: tuple(v) if isinstance(v, list) else v
-                        for k, v in d.get("trajectory", {}).items()},
-            servo=dict(d.get("servo", {})), thresholds=BoothThresholds(**th),
-            allocation=None if alloc is None else {
-                k: tuple(tuple(x) for x in v) if v and isinstance(v[0], list) else tuple(v)
-                for k, v in alloc.items()},
+            resolution_m=_resolution(d, "resolution_m", 0.01, where),
+            fast_resolution_m=_resolution(d, "fast_resolution_m", 0.025, where),
+            planner=planner, trajectory=trajectory, servo=servo,
+            thresholds=BoothThresholds(**th), allocation=alloc,
             max_jobs_per_robot=_jobs_per_robot(d.get("max_jobs_per_robot", 1),
                                                f"{where} max_jobs_per_robot"),
             common_film_build=_bool(d.get("common_film_build", True),
@@ -170,9 +201,11 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
                                         f"{where} body_clearance_m"),
             film_target_um=(None if d.get("film_target_um") is None
                             else _positive(d["film_target_um"], f"{where} film_target_um")),
+            spec=PaintSpec.from_table(d.get("spec"), where),
             source=source, sweep=dict(sweep), applicator=app)
     except PaintcellError as exc:
-        raise BoothDataError(f"{where}: {exc}") from exc
+        raise BoothDataError(str(exc) if str(exc).startswith(where) else f"{where}: {exc}") \
+            from exc
 
 
 def _mesh_part(v: Any, where: str, source: str | None) -> MeshPart | None:
@@ -197,16 +230,16 @@ def _bool(v: Any, where: str) -> bool:
 
 
 def _positive(v: Any, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, int | float) or not v > 0:
-        raise BoothDataError(f"{where} must be a number > 0 [µm], got {v!r}")
+    if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= 1e4:
+        raise BoothDataError(f"{where} must be a number > 0 and ≤ 1e4 [µm], got {v!r}")
     return float(v)
 
 
 def _clearance(v: Any, where: str) -> float | None:
     if v is False:
         return None
-    if isinstance(v, bool) or not isinstance(v, int | float) or not v >= 0:
-        raise BoothDataError(f"{where} must be a distance ≥ 0 [m] or false (no check), "
+    if isinstance(v, bool) or not isinstance(v, int | float) or not 0 <= v <= 2:
+        raise BoothDataError(f"{where} must be a distance in [0, 2] m or false (no check), "
                              f"got {v!r}")
     return float(v)
 
@@ -215,9 +248,9 @@ def load_toml_booth(path: str | Path) -> Booth:
     """The `Booth` of a booth TOML file (module doc)."""
     path = Path(path)
     try:
-        d = tomllib.loads(toml_text(path, BoothDataError))
-    except tomllib.TOMLDecodeError as exc:
-        raise BoothDataError(f"{path}: not valid TOML ({exc})") from exc
+        d = read_toml(path)
+    except DataTextError as exc:
+        raise BoothDataError(str(exc)) from exc
     return booth_from_dict(d, str(path), source=str(path.resolve()))
 
 
@@ -261,6 +294,7 @@ def booth_from_snapshot(d: Any, where: str) -> Booth:
         kw["body_placement"] = Placement(**_tuples(d["body_placement"]))
         kw["conveyor"] = Conveyor(**_tuples(d["conveyor"]))
         kw["thresholds"] = BoothThresholds(**d["thresholds"])
+        kw["spec"] = PaintSpec.from_table(d.get("spec"), where)
         for key in ("planner", "trajectory", "servo", "allocation"):
             if kw.get(key) is not None:
                 kw[key] = _tuples(kw[key])

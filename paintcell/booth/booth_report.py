@@ -159,7 +159,8 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
          f"{m['executed_nsd_pct']:.2f} %</b>.</p>"]
     s.append("<h2>Checks</h2>" + _table(
         ["check", "value", "limit", "unit", "result"],
-        [[c["name"], c["value"], c["limit"], c["unit"], "pass" if c["passed"] else "FAIL"]
+        [[c["name"], c["value"], c["limit"], c["unit"], "pass" if c["passed"] else
+          "FAIL" + (f" ({c['detail']})" if c.get("detail") else "")]
          for c in metrics.get("checks", [])]))
     s.append("<h2>Robots</h2>" + _table(
         ["robot", "model", "part", "passes", "start delay [s]", "own program [s]",
@@ -221,12 +222,27 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
              f"<p>{html.escape(str(fb.get('rule', '')))}"
              + (f": target {fb['target_um']:.2f} µm" if "target_um" in fb else "") + ".</p>")
     if "parts" in fb:
+        inside = m.get("part_executed_inside_spec_pct", {})
         s.append(_table(["part", "planned mean at default flow [µm]", "bell flow factor",
-                         "executed mean [µm]", "executed σ/μ [%]"],
+                         "executed mean [µm]", "executed σ/μ [%]",
+                         "in the spec window [% of area]"],
                         [[k, v["planned_mean_um"], v["flow_factor"],
                           m["part_executed_mean_um"].get(k, float("nan")),
-                          m["part_executed_nsd_pct"].get(k, float("nan"))]
+                          m["part_executed_nsd_pct"].get(k, float("nan")),
+                          inside.get(k, float("nan"))]
                          for k, v in fb["parts"].items()]))
+    if "spec_low_um" in m:
+        s.append(f"<p>Paint spec: {m['spec_low_um']:.1f}–{m['spec_high_um']:.1f} µm (target "
+                 f"{m['spec_target_um']:.1f} µm ± {m['spec_window_pct']:g} %: the scenario's "
+                 "target, else the body's planned mean film) on at least "
+                 f"{m['spec_min_inside_pct']:g} % of each part's judged area, σ/μ at most "
+                 f"{m['spec_max_nsd_pct']:g} %.</p>")
+    if m.get("pieces"):
+        s.append("<h2>Pieces painted and not painted</h2>" + _table(
+            ["piece", "area [m²]", "painted", "why"],
+            [[p["piece"], f"{p['area_m2']:.4f}", "painted" if p["painted"] else "NOT painted",
+              p["why"]]
+             for p in m["pieces"]]))
     sm = m.get("seams", {})
     if "unblended_planned_nsd_pct" in sm:
         share = sm.get("share")

@@ -24,6 +24,7 @@ import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell
+from paintcell.booth.booth_spec import booth_spec_metrics
 from paintcell.core.atomic_io import atomic_write_text
 from paintcell.core.json_values import json_default
 from paintcell.coverage.plan import CoveragePlan
@@ -32,6 +33,7 @@ from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.output.gltf_film import FilmScene
 from paintcell.output.report_film import FilmData
 from paintcell.surface.surface import Surface
+from paintcell.validation.paint_spec import spec_checks
 from paintcell.validation.validate_report import Check, ValidationReport
 
 #: half-width of the body's spec window as a fraction of its planned mean film (±10 %, as a
@@ -96,7 +98,9 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     `body`. plans: the parts' plans (the jobs' passes are slices of them). judged: (N,) bool,
     the body's vertices the film is judged on (a mesh part's skin, as a one-robot run judges it:
     `paintcell.booth.booth_film.judged_body_mask`); the others count with zero area in every
-    film figure. None: every vertex."""
+    film figure. None: every vertex. Each part is held to the booth's paint spec (`Booth.spec`):
+    the worst part's σ/μ and share inside the window, measured over the faces whose corners are
+    all judged (what a results folder's files give again: `revalidate_booth`)."""
     from paintcell.booth.booth_film import overlap_mask
     from paintcell.booth.booth_reach import robot_honest_reach
 
@@ -182,12 +186,12 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
         "execution_mode": trace.mode,
         "n_mujoco_warnings": int(sum(trace.meta.get("mujoco_warnings", {}).values())),
     }
+    judged_faces = None if judged is None else np.asarray(judged, bool)[body.faces].all(axis=1)
+    m.update(booth_spec_metrics(booth, body, tot, areas, judged_faces, offs))
     th = booth.thresholds
     spec = [("collisions", "n_collisions", th.max_collisions, "events", "max"),
             ("robot-robot collisions", "n_robot_robot_collisions", th.max_robot_collisions,
              "events", "max"),
-            ("executed σ/μ (worst part)", "max_part_executed_nsd_pct", th.max_executed_nsd_pct,
-             "%", "max"),
             ("executed σ/μ (whole body)", "executed_nsd_pct", th.max_body_nsd_pct, "%", "max"),
             ("|uniformity loss|", "abs_loss_pp", th.max_abs_loss_pp, "pp", "max"),
             ("cycle time", "executed_cycle_time_s", th.max_cycle_time_s, "s", "max"),
@@ -203,6 +207,11 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
         ok = (v <= limit) if kind == "max" else (v >= limit)
         # A bell distance of inf (never two bells painting at once) passes.
         checks.append(Check(name, v, float(limit), unit, bool(ok and not np.isnan(v)), kind))
+    at = sum(c.name in ("collisions", "robot-robot collisions") for c in checks)
+    checks[at:at] = spec_checks(m, booth.spec, th.max_executed_nsd_pct,
+                                nsd_key="max_part_executed_nsd_pct",
+                                inside_key="min_part_executed_inside_spec_pct",
+                                what=" (worst part)")
     m["robots"] = robots
     m["allocation"] = record
     return ValidationReport(metrics=m, checks=tuple(checks), reachability=None,
@@ -346,17 +355,19 @@ def write_booth_film_files(out: Path, booth: Booth, files: dict[str, Any],
 def booth_film(booth: Booth, body: Surface, judged: np.ndarray | None,
                films_m: dict[str, np.ndarray], plans: list[CoveragePlan]
                ) -> tuple[FilmData, FilmScene]:
-    """The body's film (the robots' films `films_m` summed; spec window ±`FILM_TOLERANCE`
-    around the planned area-weighted mean of the judged area, the window of
-    `executed_within_tolerance_pct`) and its 3-D scene: the body at conveyor position 0, every
-    part's passes moved into the body frame, every robot's base."""
+    """The body's film (the robots' films `films_m` summed; the window of the booth's paint
+    spec, `Booth.spec`, as its checks hold every part to: around `film_target_um`, else the
+    planned area-weighted mean of the judged area) and its 3-D scene: the body at conveyor
+    position 0, every part's passes moved into the body frame, every robot's base."""
     n = len(body.vertices)
     judged = np.ones(n, bool) if judged is None else np.asarray(judged, bool)
     areas = np.asarray(body.vertex_areas, float)
     planned = films_m["plan"].sum(axis=0)
     w = areas * judged
+    own = (1e-6 * booth.film_target_um if booth.film_target_um is not None
+           else float(planned @ w / w.sum()))
     film = FilmData(planned, films_m["executed"].sum(axis=0), areas, judged,
-                    float(planned @ w / w.sum()), FILM_TOLERANCE)
+                    booth.spec.target_m(own), 0.01 * booth.spec.window_pct)
     passes = []
     for bp, plan in zip(booth.parts, plans, strict=True):
         T = bp.placement.matrix

@@ -34,6 +34,7 @@ from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.surface.surface import Surface
+from paintcell.validation.painted_side import parts_painted_side
 from paintcell.validation.validate_motion import collision_events
 from paintcell.validation.validate_report import ValidationReport
 
@@ -142,6 +143,11 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
                            [len(x.vertices) for x in surfaces], plans, judged)
     report.metrics["film_build"] = progs.film_build
     report.metrics["seams"] = progs.seams
+    # the mesh parts' pieces, painted and not (reported; a part's pieces are its [parts.part]
+    # table's choice, as a one-robot run's [part] table's)
+    report.metrics.update(parts_painted_side({f"{i}:{bp.part}": s for i, (bp, s)
+                                              in enumerate(zip(booth.parts, surfaces,
+                                                               strict=True))}))
     timings["validate"] = time.perf_counter() - t0
     result = BoothResult(booth, None, body, plans, jobs, trajs, traces, report, films, static,
                          timings, [len(x.vertices) for x in surfaces], judged, trace, fast, mode)

@@ -2,7 +2,7 @@
 closed.
 
 Each scenario runs as `python -m paintcell run SCENARIO --row-fd N` in a child process that leads
-its own process group (a new session), so anything a scenario does — an exception that is not
+its own process group (setsid), so anything a scenario does — an exception that is not
 paintcell's, `sys.exit` on import, a MemoryError, a crash, a kill, a child process of its own that
 hangs — becomes an ERROR row and a JUnit error case, and the check goes on to the next scenario.
 The whole group is stopped (SIGTERM, then SIGKILL after a grace period) when the scenario

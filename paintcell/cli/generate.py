@@ -55,7 +55,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     part = (make_family_part if family else make_part)(args.kind, args.seed)
     with atomic_path(args.out) as tmp:
         part.mesh.export(tmp, file_type=suffix)
-    t = part.truth
+    t: dict[str, Any] = part.truth
     if family:
         atomic_write_text(truth_path, json.dumps(t, indent=1) + "\n")
         print(f"{args.kind} (seed {args.seed}): {len(part.mesh.faces)} faces in {t['units']}, "

@@ -12,7 +12,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
@@ -71,8 +70,13 @@ def _part_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("file", type=Path, help="part file: STL/OBJ/PLY mesh or STEP/IGES CAD")
     p.add_argument("--units", default="auto", choices=("auto", "m", "mm", "cm", "in"),
                    help="length unit of the file's coordinates (auto: inferred from the size)")
-    p.add_argument("--pieces", default="largest",
-                   help="pieces to keep: largest (by area), all, or indices like 0,2")
+    p.add_argument("--pieces", default="auto",
+                   help="pieces to paint: auto (the largest and every piece within --pieces-gap "
+                   "of it facing its painted side; stray bits under 1 %% of its area left out), "
+                   "largest (by area), all, or indices like 0,2")
+    p.add_argument("--pieces-gap", type=float, default=None, metavar="M",
+                   help="with --pieces auto: the largest gap between pieces painted as one part "
+                   "[m] (default 0.04)")
     p.add_argument("--side", default="auto",
                    help="painted side: auto (the convex skin) or a direction like 0,0,1")
     p.add_argument("--resolution", type=RESOLUTION_M, default=0.025,
@@ -81,12 +85,12 @@ def _part_options(p: argparse.ArgumentParser) -> None:
 
 def _spec(args: argparse.Namespace) -> MeshPart:
     pieces: Any = args.pieces
-    if pieces not in ("largest", "all"):
+    if pieces not in ("auto", "largest", "all"):
         try:
             pieces = tuple(int(x) for x in str(pieces).split(","))
         except ValueError:
-            raise PaintcellError(f"--pieces {args.pieces!r}: write largest, all or indices like "
-                                 "0,2") from None
+            raise PaintcellError(f"--pieces {args.pieces!r}: write auto, largest, all or indices "
+                                 "like 0,2") from None
     side: Any = args.side
     if side != "auto":
         try:
@@ -94,7 +98,8 @@ def _spec(args: argparse.Namespace) -> MeshPart:
         except ValueError:
             raise PaintcellError(f"--side {args.side!r}: write auto or a direction like 0,0,1") \
                 from None
-    return MeshPart(file=str(args.file), units=args.units, pieces=pieces, side=side)
+    gap = {} if args.pieces_gap is None else {"pieces_gap_m": args.pieces_gap}
+    return MeshPart(file=str(args.file), units=args.units, pieces=pieces, side=side, **gap)
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
@@ -103,7 +108,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     if args.png is not None:  # before the import's work, not after
         check_write_target(args.png, "--png")
     res = args.resolution if args.resolution > 0 else None
-    surf, rep = import_part(_spec(args), resolution_m=res)
+    surf, rep = import_part(_spec(args), resolution_m=res, setting="--resolution")
     print(_describe(rep, surf))
     png = args.png or Path(f"{surf.name}_regions.png")
     _plot_regions(surf, png)
@@ -119,9 +124,13 @@ def _describe(rep: Any, surf: Any) -> str:
              f"pieces: {len(rep.pieces)} (kept {list(rep.selected)})"]
     for p in rep.pieces[:10]:
         lines.append(f"  piece {p.index}: {p.area_m2:.4f} m², {p.n_faces} faces, "
-                     f"{' × '.join(f'{x:.3f}' for x in p.extent_m)} m")
+                     f"{' × '.join(f'{x:.3f}' for x in p.extent_m)} m, "
+                     f"{'painted' if p.painted else 'NOT painted'}: {p.why}")
     if len(rep.pieces) > 10:
         lines.append(f"  … {len(rep.pieces) - 10} more pieces")
+    for r in (surf.regions.pieces if surf.regions is not None else ()):
+        if r["piece"].endswith("back side"):
+            lines.append(f"  piece {r['piece']}: {r['area_m2']:.4f} m², NOT painted: {r['why']}")
     d = ", ".join(f"{x:.3f}" for x in rep.painted_direction)
     lines.append(f"painted side: [{d}] — {rep.side_reason}"
                  + ("; closed shell reduced to its skin" if rep.closed_shell else ""))
@@ -213,6 +222,7 @@ def _placement(surf: Any) -> np.ndarray:
 def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
     from paintcell.app.init_layout import MAX_ROBOTS
+    from paintcell.app.init_toml import scenario_toml
     from paintcell.app.init_verify import ProgramCheck
     from paintcell.app.pipeline import make_plan
     from paintcell.app.scenario import Scenario
@@ -290,7 +300,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     trajectory = check.trajectory.get(cell.robot, {})
     T_base = cell.T_base
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
-    text = _scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
+    text = scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
                           f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried,
                           trajectory, check.clearance_m.get(cell.robot))
     check_new_target(out, "--out", args.force)
@@ -325,10 +335,6 @@ def _relpath(p: Path, start: Path) -> str:
     return os.path.relpath(p.resolve(), start.resolve())
 
 
-def _v(x: Any) -> str:
-    return json.dumps(list(x) if isinstance(x, tuple) else x)
-
-
 #: Lowest TCP height of a pass `init` accepts [m]; the part is lifted until its plan clears it.
 _MIN_TCP_Z_M = 0.6
 
@@ -342,59 +348,3 @@ _INIT_PLANNER: dict[str, Any] = {"film_refine": False}
 _PLANNER_TRIES: tuple[dict[str, Any], ...] = (
     {}, {"orientation": "zero-curvature"}, {"orientation": "max-curvature"},
     {"orientation": "auto", "w_max_m": 0.3})
-
-
-def _scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, base: Any,
-                   verdict: str, n_passes: int, planner: dict[str, Any], tried: list[str],
-                   trajectory: dict[str, Any], clearance_m: float | None) -> str:
-    ops = rep.openings
-    pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m²" for p in rep.pieces[:6])
-    pieces += ", …" if len(rep.pieces) > 6 else ""
-    d = [round(x, 3) for x in rep.painted_direction]
-    regions = ", ".join(f"{k} {v:.3f} m²" for k, v in rep.region_areas_m2.items())
-    planner_lines = "".join(f"# failed: {t[:300]}\n" for t in tried)
-    planner_lines += "".join(f"{k} = {_v(v)}\n" for k, v in planner.items()) or \
-        "# the planner's defaults plan this part\n"
-    gap = f"at least {(clearance_m or 0.0) * 1e3:.0f} mm"   # init_verify's sweep of the program
-    traj_lines = "".join(f"{k} = {_v(v)}\n" for k, v in trajectory.items())
-    if traj_lines:
-        traj_lines = (f"# the default moves came close to the part on the fast plan; folded (the "
-                      f"arm pulls back toward its base before it turns) they keep {gap} from "
-                      "it\n" + traj_lines)
-    else:
-        traj_lines = f"# the default moves keep {gap} from the part on the fast plan\n"
-    return f"""# Written by `paintcell init {rep.spec.file}`: every choice below is editable.
-name = {_v(name)}
-robot = {_v(robot)}               # see [base] for why this robot
-resolution_m = 0.01            # remesh edge length of a full run [m]
-fast_resolution_m = 0.025      # remesh edge length of a --fast run [m]
-
-[part]
-file = {_v(spec.file)}   # relative to this file
-# units: {rep.units.units} — {rep.units.reason}
-units = {_v(spec.units)}
-# pieces: {len(rep.pieces)} found ({pieces}); "largest" paints the largest by area
-pieces = {_v(spec.pieces)}
-# side: painted direction {d} in the part frame ({rep.side_reason})
-side = {_v(spec.side)}
-# regions: {regions}; openings: {len(ops)}
-judge = ["skin"]               # film metrics judged on the skin (add "hem" to include hems)
-
-[part_placement]
-# painted side toward the robot (world −x), longest extent horizontal, centre 1.4 m in front
-xyz_m = {_v([round(x, 4) for x in pl.xyz_m])}
-rpy_rad = {_v([round(x, 6) for x in pl.rpy_rad])}
-
-[base]
-# paintcell.robots.placement.find_base_pose on the fast plan ({n_passes} passes): {verdict}
-xyz_m = {_v([round(x, 4) for x in base.xyz_m])}
-rpy_rad = {_v([round(x, 6) for x in base.rpy_rad])}
-
-[planner]
-{planner_lines}
-[trajectory]
-{traj_lines}
-[thresholds]
-reachability_pct = 100.0
-max_collisions = 0
-"""

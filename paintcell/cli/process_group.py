@@ -1,8 +1,8 @@
 """A scenario's process group, from both sides: `paintcell check` starts each scenario as the
-leader of a new session and stops the whole group (SIGTERM, SIGKILL after a grace period) on a
-time-out, on an interrupt and when the scenario ends (what it left running); the scenario's
-process (`paintcell run --parent-pid`) asks the kernel for SIGTERM when the check dies (Linux
-`PR_SET_PDEATHSIG`) and kills the rest of its own group on its way out.
+leader of a new process group (setsid) and stops the whole group (SIGTERM, SIGKILL after a
+grace period) on a time-out, on an interrupt and when the scenario ends (what it left
+running); the scenario's process (`paintcell run --parent-pid`) asks the kernel for SIGTERM
+when the check dies (Linux `PR_SET_PDEATHSIG`) and kills the rest of its own group on its way out.
 
 A group's id is its leader's pid, which the kernel keeps reserved until the leader is reaped, so a
 group is signalled only while its leader is unreaped (`waitid(WNOWAIT)` waits without reaping).

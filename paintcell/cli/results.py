@@ -121,8 +121,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
                                      "no program exported — fix the scenario and re-run (or "
                                      "`paintcell validate` a stale metrics.json), or pass "
                                      "--allow-failed for a module marked NOT VALIDATED")
-            sys.stderr.write(f"paintcell: warning: exporting a FAILED run ({one_line(header[1])})"
-                             "\n")
+            why = (header[1].strip().splitlines() or ["?"])[0]
+            sys.stderr.write(f"paintcell: warning: exporting a FAILED run ({why})\n")
         modules = program_modules(f, metrics, header, args.style, args.spacing)
         for out, text in zip(outs.values(), modules.values(), strict=True):
             out.parent.mkdir(parents=True, exist_ok=True)

@@ -35,7 +35,9 @@ def _umask_mode() -> int:
 def _name_path(exc: BaseException, path: Path, tmp: str | None = None) -> None:
     """An OS error of a write names no file (ENOSPC from `write`) or the temporary file the user
     never named: name the target."""
-    if isinstance(exc, OSError) and exc.filename in (None, tmp):
+    # only an error the OS raised (errno set): a bare OSError("…") would lose its message to
+    # "[Errno None] None: path" once it carries a file name
+    if isinstance(exc, OSError) and exc.errno is not None and exc.filename in (None, tmp):
         exc.filename = str(path)
 
 
@@ -46,7 +48,7 @@ def _temp(path: Path, base: str, suffix: str) -> tuple[int, str]:
         return tempfile.mkstemp(dir=path.parent, prefix=f".{base}.tmp-{os.getpid()}-",
                                 suffix=suffix)
     except OSError as exc:
-        exc.filename = str(path)   # not the random temporary name it tried
+        _name_path(exc, path, exc.filename)   # not the random temporary name it tried
         raise
 
 

@@ -36,10 +36,13 @@ class Placement:
 
     def __post_init__(self) -> None:
         for name in ("xyz_m", "rpy_rad"):
-            v = np.asarray(getattr(self, name), float)
-            if v.shape != (3,) or not np.all(np.isfinite(v)):
-                raise ScenarioError(f"Placement.{name} = {getattr(self, name)!r} must be three "
-                                    "finite numbers")
+            raw = getattr(self, name)
+            ok = isinstance(raw, list | tuple | np.ndarray) and len(raw) == 3 and all(
+                isinstance(x, int | float | np.integer | np.floating)
+                and not isinstance(x, bool | np.bool_) for x in raw)
+            if not ok or not np.all(np.isfinite(np.asarray(raw, float))):
+                raise ScenarioError(f"{name} = {list(raw) if ok else raw!r} must be three finite "
+                                    f"numbers (no quotes), e.g. {name} = [0.0, 0.0, 0.0]")
 
     @property
     def matrix(self) -> np.ndarray:

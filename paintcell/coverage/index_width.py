@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -53,6 +54,23 @@ def profile_size(app: Applicator) -> tuple[int, int]:
     n_gun = int(2 * _X_RANGE_FACTOR * r / _dx(app)) + 1
     n_pts = int(2 * r / min(5e-4, r / 400)) + 1
     return n_gun, n_pts
+
+
+#: Default bell's footprint radius [m] (`paintcell.paint.applicator.Applicator.default`): the
+#: width-search budget's assumption when a scenario's applicator is not read yet.
+DEFAULT_FOOTPRINT_M = 0.3
+
+
+def search_size(st: Any, footprint_radius_m: float = DEFAULT_FOOTPRINT_M) -> dict[str, int]:
+    """The sides of the width search's dense arrays for `PlannerSettings` `st` (as
+    `paintcell.coverage.coverage_planner` builds them for `search_widths`): widths tried W,
+    future-width sets C, profile points P, gun positions G, future passes n — the sizes
+    `paintcell.core.budget.check_planner_budget` checks against the memory there is."""
+    w = len(search_range(st.w_min_m, st.w_max_m, st.w_res_m))
+    c = min(max(1, st.future_grid_n), w) ** max(st.n_future - 1, 0)
+    p = int(2 * st.w_max_m / st.profile_spacing_m) + 1
+    g = 2 * int(np.ceil((st.w_max_m + footprint_radius_m + st.w_res_m) / st.w_res_m)) + 1
+    return {"W": w, "C": c, "P": p, "G": g, "n": st.n_future}
 
 
 def search_range(w_min_m: float, w_max_m: float, w_res_m: float) -> np.ndarray:

@@ -85,9 +85,11 @@ def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: np
     traj = ruckig.Trajectory(n)
     try:
         result = otg.calculate(inp, traj)
-    except RuntimeError as exc:  # ruckig raises on invalid input
-        raise TrajectoryError(f"ruckig rejected a move ({exc}); check that the boundary states "
-                              "lie within the move limits") from exc
+    except (RuntimeError, ruckig.RuckigError) as exc:  # ruckig raises on invalid input
+        msg = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise TrajectoryError(f"ruckig rejected a move ({msg}); check that the boundary states "
+                              "lie within the move limits ([trajectory] jerk_ramp_s, "
+                              "velocity_margin, acceleration_margin)") from exc
     if result == ruckig.Result.ErrorPositionalLimits:
         raise TrajectoryError("a move between passes would leave the joint position limits; "
                               "move the part or the robot base")

@@ -22,7 +22,6 @@ under 2 MB.
 from __future__ import annotations
 
 import html
-import json
 import os
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.atomic_io import atomic_path
+from paintcell.core.data_text import DataTextError, parse_json
 from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import read_regular_bytes
 from paintcell.output.film_view import film_view_html
@@ -45,6 +45,7 @@ from paintcell.output.report_sections import (
     first_screen,
     format_value,
     headline_html,
+    pieces_html,
     plan_html,
     slowdowns_html,
 )
@@ -181,8 +182,8 @@ details { margin: 0.5em 0; }
 
 def _read_json(path: Path) -> Any:
     try:
-        return json.loads(read_regular_bytes(path))
-    except (OSError, ValueError) as e:
+        return parse_json(read_regular_bytes(path).decode("utf-8"), str(path))
+    except (OSError, UnicodeDecodeError, DataTextError) as e:
         raise ReportError(f"{path} is not readable JSON ({e}); re-run `paintcell run`") from e
 
 
@@ -221,6 +222,10 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
         parts.append(film_view_html(d / FILM_GLB_NAME, film))
     parts.append("<h2>Thresholds (pass/fail)</h2>")
     parts.append(checks_table(list(metrics.get("checks") or [])))
+    pieces = pieces_html(metrics)
+    if pieces:
+        parts.append("<h2>Pieces painted and not painted</h2>")
+        parts.append(pieces)
     parts.append("<h2>Key figures</h2>")
     parts.append(headline_html(metrics))
     parts.append("<h2>Reachability</h2>")

@@ -21,6 +21,25 @@ from paintcell.core.errors import PaintcellError
 FIGURES_JSON = "figures.json"
 
 
+def judged_view(surface: Any) -> tuple[Any, np.ndarray]:
+    """(the judged faces of `surface` as a surface of their own, the (M,) indices of its
+    vertices in `surface`): what the film maps and renders draw. A surface without regions is
+    judged whole: itself and every index."""
+    from types import SimpleNamespace
+
+    regs = getattr(surface, "regions", None)
+    if regs is None:
+        return surface, np.arange(len(surface.vertices))
+    faces = np.asarray(surface.faces)[regs.face_mask()]
+    used, inv = np.unique(faces, return_inverse=True)
+    uv = getattr(surface, "uv", None)
+    return SimpleNamespace(
+        name=surface.name, vertices=np.asarray(surface.vertices)[used],
+        faces=inv.reshape(-1, 3).astype(np.int64), normals=np.asarray(surface.normals)[used],
+        vertex_areas=np.asarray(surface.vertex_areas)[used],
+        uv=None if uv is None else np.asarray(uv)[used], regions=None), used
+
+
 # --- figures---------------------------------------------------------------------------
 def make_figures(out_dir: str | os.PathLike[str], *, surface: Any = None, plan: Any = None,
                  trajectory: Any = None, trace: Any = None, report: Any = None, cell: Any = None,
@@ -54,14 +73,20 @@ def make_figures(out_dir: str | os.PathLike[str], *, surface: Any = None, plan: 
     n_vert = len(surface.vertices) if surface is not None else -1
     have_film = planned is not None and len(planned) == n_vert
     have_exec = executed is not None and len(executed) == n_vert
+    if surface is not None:
+        # the film is drawn on the judged region alone, seen from the painted side: a hem, a
+        # turned edge or an inner skin never hides the film that is judged
+        surface, keep = judged_view(surface)
+        planned = planned[keep] if have_film and planned is not None else planned
+        executed = executed[keep] if have_exec and executed is not None else executed
     vmin_um = vmax_um = None
     if have_film and planned is not None:
         vmin_um, vmax_um = plots.thickness_range_um(
             planned, *([executed] if have_exec and executed is not None else []))
         p = plots.plot_thickness_maps(out / "thickness_maps.png", surface, planned,
                                       executed if have_exec else None, vmin_um, vmax_um)
-        add(p, f"Film thickness on the unfolded part, planned / executed / difference; shared "
-               f"scale {vmin_um:.3g}–{vmax_um:.3g} µm", "plot")
+        add(p, f"Film thickness on the unfolded judged region, planned / executed / difference; "
+               f"shared scale {vmin_um:.3g}–{vmax_um:.3g} µm", "plot")
     else:
         skipped.append({"figure": "thickness maps", "reason": "no per-vertex thickness arrays "
                         "(surface and validation report needed)"})
@@ -185,11 +210,17 @@ def _renders(figs: list[dict[str, str]], out: Path, surface: Any, planned: np.nd
 
 
 def _spec(report: Any) -> tuple[float, float] | None:
-    """(window centre [µm], tolerance [-]) from a `ValidationReport`'s metrics, or None."""
+    """(window centre [µm], half-width [-]) of the paint spec from a `ValidationReport`'s
+    metrics, or None."""
     m = getattr(report, "metrics", None)
-    if not isinstance(m, dict) or "planned_mean_um" not in m or "tolerance_fraction" not in m:
+    if not isinstance(m, dict):
         return None
-    target, tol = float(m["planned_mean_um"]), float(m["tolerance_fraction"])
+    if "spec_target_um" in m and "spec_window_pct" in m:
+        target, tol = float(m["spec_target_um"]), 0.01 * float(m["spec_window_pct"])
+    elif "planned_mean_um" in m and "tolerance_fraction" in m:
+        target, tol = float(m["planned_mean_um"]), float(m["tolerance_fraction"])
+    else:
+        return None
     return (target, tol) if np.isfinite(target) and target > 0 and 0 < tol < 1 else None
 
 

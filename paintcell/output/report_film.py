@@ -2,11 +2,12 @@
 
 `paintcell run` (and `paintcell validate`) write `film.npz` into the results folder: the film per
 surface vertex, planned and executed [m], the vertex areas [m²], which vertices are judged (a real
-part's skin; every vertex of a library part) and the spec window: ±`tolerance` around the planned
-area-weighted mean film of the judged area (`paintcell.validation.validate`'s window, the one
-behind `executed_within_tolerance_pct`). The report reads it to draw the thickness histogram against
-the window and to state the share of area inside it; anyone can recompute that share from the
-arrays alone.
+part's skin; every vertex of a library part), the surface's vertices [m] and faces with the
+judged faces, and the paint spec's window: ±`tolerance` around `target_m` (the scenario's
+`[spec]`, `paintcell.validation.paint_spec`; the window behind `executed_inside_spec_pct`). The
+report reads it to draw the thickness histogram against the window and to state the share of
+the judged area inside it; anyone can recompute that share from the arrays alone (over the
+judged faces, the film linear on each: `paintcell.validation.paint_spec.share_in_window`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ FILM_NAME = "film.npz"
 SPEC_CMAP = "paintcell_spec"
 _KEYS = ("planned_thickness_m", "executed_thickness_m", "vertex_areas_m2", "judged",
          "target_m", "tolerance")
+#: The surface, so the share inside the window is exact over the judged faces (files written
+#: without them: the share is lumped on the vertex areas).
+_MESH_KEYS = ("vertices_m", "faces", "judged_faces")
 
 
 class FilmFileError(PaintcellError):
@@ -40,8 +44,10 @@ class FilmData:
 
     planned_m / executed_m: (N,) film thickness per surface vertex [m]; areas_m2: (N,) vertex
     areas [m²]; judged: (N,) bool, the vertices the uniformity is judged on; target_m: centre of
-    the spec window [m] (planned area-weighted mean over the judged area); tolerance: half-width
-    of the window as a fraction of the target [-].
+    the spec window [m] (the paint spec's target: by default the planned area-weighted mean over
+    the judged area); tolerance: half-width of the window as a fraction of the target [-];
+    vertices_m (N, 3) [m], faces (F, 3), judged_faces (F,) bool: the surface (None in files
+    written without it).
     """
 
     planned_m: np.ndarray
@@ -50,6 +56,9 @@ class FilmData:
     judged: np.ndarray
     target_m: float
     tolerance: float
+    vertices_m: np.ndarray | None = None
+    faces: np.ndarray | None = None
+    judged_faces: np.ndarray | None = None
 
     @property
     def window_m(self) -> tuple[float, float]:
@@ -60,44 +69,66 @@ class FilmData:
         """Share of the judged area whose film lies inside the spec window [%].
 
         which: "executed" or "planned"."""
-        t = self.executed_m if which == "executed" else self.planned_m
-        w = self.areas_m2 * self.judged
-        lo, hi = self.window_m
-        inside = (t >= lo) & (t <= hi)
-        return 100.0 * float(w[inside].sum() / w.sum())
+        return self._shares(which)[1]
 
     def below_above_pct(self, which: str = "executed") -> tuple[float, float]:
         """Shares of the judged area below and above the spec window [%]."""
+        below, _, above = self._shares(which)
+        return below, above
+
+    def _shares(self, which: str) -> tuple[float, float, float]:
+        """(below, inside, above) the window [%] of the judged area: exact over the judged faces
+        when the file has the surface, else lumped on the judged vertices' areas."""
         t = self.executed_m if which == "executed" else self.planned_m
-        w = self.areas_m2 * self.judged
         lo, hi = self.window_m
-        return (100.0 * float(w[t < lo].sum() / w.sum()),
-                100.0 * float(w[t > hi].sum() / w.sum()))
+        if self.faces is not None and self.vertices_m is not None:
+            from paintcell.validation.paint_spec import share_in_window
+
+            s = share_in_window(t, self.vertices_m, self.faces, lo, hi, self.judged_faces)
+            return 100.0 * s[0], 100.0 * s[1], 100.0 * s[2]
+        w = self.areas_m2 * self.judged
+        total = float(w.sum())
+        below, above = float(w[t < lo].sum()) / total, float(w[t > hi].sum()) / total
+        return 100.0 * below, 100.0 * (1.0 - below - above), 100.0 * above
 
 
 def film_data(surface: Any, report: Any) -> FilmData:
     """`FilmData` of a `Surface` and its `ValidationReport`.
 
-    The window's centre is the report's planned mean film (`planned_mean_um`) and its half-width
-    the report's `tolerance_fraction`, so the data agree with metrics.json.
+    The window is the report's paint spec window (`spec_target_um` ± `spec_window_pct`; a report
+    without them: the planned mean ± `tolerance_fraction`), so the data agree with metrics.json;
+    the surface's vertices, faces and judged faces come along (the share over the judged faces).
     """
     m = report.metrics
     judged = surface.judged_vertex_mask()  # None: every vertex is judged
+    if "spec_target_um" in m:
+        target_um, tol = float(m["spec_target_um"]), 0.01 * float(m["spec_window_pct"])
+    else:
+        target_um, tol = float(m["planned_mean_um"]), float(m["tolerance_fraction"])
+    faces = np.asarray(surface.faces, np.int64)
+    regions = getattr(surface, "regions", None)
     return FilmData(np.asarray(report.planned_thickness_m, float).reshape(-1),
                     np.asarray(report.executed_thickness_m, float).reshape(-1),
                     np.asarray(surface.vertex_areas, float).reshape(-1),
                     (np.ones(len(surface.vertices), bool) if judged is None
                      else np.asarray(judged, bool).reshape(-1)),
-                    1e-6 * float(m["planned_mean_um"]), float(m["tolerance_fraction"]))
+                    1e-6 * target_um, tol, np.asarray(surface.vertices, float), faces,
+                    (np.ones(len(faces), bool) if regions is None
+                     else np.asarray(regions.face_mask(), bool)))
 
 
 def save_film_data(path: str | os.PathLike[str], film: FilmData) -> Path:
-    """Write `film` as `film.npz` (atomically); return the path."""
+    """Write `film` as `film.npz` (atomically; the surface's arrays when `film` has them);
+    return the path."""
     arrays = {
         "planned_thickness_m": film.planned_m, "executed_thickness_m": film.executed_m,
         "vertex_areas_m2": film.areas_m2, "judged": film.judged,
         "target_m": np.asarray(film.target_m), "tolerance": np.asarray(film.tolerance),
     }
+    if film.faces is not None and film.vertices_m is not None and film.judged_faces is not None:
+        arrays.update(vertices_m=np.asarray(film.vertices_m, float),
+                      faces=np.asarray(film.faces).astype(np.int32),
+                      judged_faces=np.asarray(film.judged_faces, bool))
     atomic_write_npz(Path(path), arrays)
     return Path(path)
 
@@ -116,6 +147,7 @@ def load_film(results_dir: str | os.PathLike[str]) -> FilmData | None:
     try:
         with np.load(path) as z:
             a = {k: z[k] for k in _KEYS}
+            mesh = {k: z[k] for k in _MESH_KEYS if k in z}
     except (OSError, ValueError, KeyError) as e:
         raise FilmFileError(f"{path} is not a paintcell film file ({e}); re-run "
                             "`paintcell validate` on the folder") from e
@@ -123,9 +155,19 @@ def load_film(results_dir: str | os.PathLike[str]) -> FilmData | None:
                     np.asarray(a["executed_thickness_m"], float).reshape(-1),
                     np.asarray(a["vertex_areas_m2"], float).reshape(-1),
                     np.asarray(a["judged"], bool).reshape(-1), float(a["target_m"]),
-                    float(a["tolerance"]))
+                    float(a["tolerance"]),
+                    *((np.asarray(mesh["vertices_m"], float).reshape(-1, 3),
+                       np.asarray(mesh["faces"], np.int64).reshape(-1, 3),
+                       np.asarray(mesh["judged_faces"], bool).reshape(-1))
+                      if len(mesh) == len(_MESH_KEYS) else ()))
     n = len(film.executed_m)
-    if not (len(film.planned_m) == len(film.areas_m2) == len(film.judged) == n) or n == 0:
+    mesh_ok = film.faces is None or (
+        film.vertices_m is not None and len(film.vertices_m) == n
+        and film.judged_faces is not None and len(film.judged_faces) == len(film.faces)
+        and (len(film.faces) == 0 or (int(film.faces.min()) >= 0 and int(film.faces.max()) < n))
+        and bool(film.judged_faces.any()))
+    if not (len(film.planned_m) == len(film.areas_m2) == len(film.judged) == n) or n == 0 \
+            or not mesh_ok:
         raise FilmFileError(f"{path}: its arrays have different lengths; re-run "
                             "`paintcell validate` on the folder")
     if not (film.areas_m2 * film.judged).sum() > 0:

@@ -13,8 +13,15 @@ from typing import Any
 #: (section, [(metric key, label, unit, decimals)]) in reading order.
 HEADLINE: tuple[tuple[str, tuple[tuple[str, str, str, int], ...]], ...] = (
     ("Film", (
-        ("executed_within_tolerance_pct", "Area inside the spec window, executed", "%", 1),
-        ("planned_within_tolerance_pct", "Area inside the spec window, planned", "%", 1),
+        ("executed_inside_spec_pct", "Area inside the spec window, executed", "%", 1),
+        ("planned_inside_spec_pct", "Area inside the spec window, planned", "%", 1),
+        ("spec_target_um", "Spec target film", "µm", 1),
+        ("spec_low_um", "Spec window, thinnest", "µm", 1),
+        ("spec_high_um", "Spec window, thickest", "µm", 1),
+        ("executed_below_spec_pct", "Area below the spec window, executed", "%", 1),
+        ("executed_above_spec_pct", "Area above the spec window, executed", "%", 1),
+        ("executed_within_tolerance_pct", "Area within ±tolerance of the planned mean, executed",
+         "%", 1),
         ("executed_mean_um", "Mean film, executed", "µm", 1),
         ("planned_mean_um", "Mean film, planned", "µm", 1),
         ("executed_min_um", "Thinnest film, executed", "µm", 1),

@@ -122,7 +122,9 @@ def verdict_html(metrics: dict[str, Any]) -> str:
     else:
         word, cls = "FAIL", "fail"
         lines = [check_reason(c) for c in failed] or ["a threshold was not met"]
-    keys = [("executed_within_tolerance_pct", "area in spec window", "%", 1),
+    inside = ("executed_inside_spec_pct" if "executed_inside_spec_pct" in metrics
+              else "executed_within_tolerance_pct")   # a folder made without a paint spec
+    keys = [(inside, "area in spec window", "%", 1),
             ("executed_nsd_pct", "executed σ/μ", "%", 2),
             ("loss_pp", "loss of uniformity plan → execution", "pp", 2),
             ("executed_cycle_time_s", "cycle time", "s", 1)]
@@ -157,10 +159,26 @@ def histogram_html(film: FilmData | None) -> str:
     uri = "data:image/png;base64," + base64.b64encode(histogram_png(film)).decode("ascii")
     return (f'<figure id="film-histogram"><img src="{uri}" alt="film histogram">'
             f'<figcaption><b id="inside-pct">{film.inside_pct():.1f} %</b> of the judged area '
-            f"inside the spec window {lo:.1f}–{hi:.1f} µm (planned mean "
+            f"inside the spec window {lo:.1f}–{hi:.1f} µm (target "
             f"{1e6 * film.target_m:.1f} µm ± {100 * film.tolerance:g} %); "
             f"{below:.1f} % below, {above:.1f} % above. Planned: "
             f"{film.inside_pct('planned'):.1f} % inside.</figcaption></figure>")
+
+
+def pieces_html(metrics: dict[str, Any]) -> str:
+    """What of the part file was painted and what was not, with areas [m²] (metrics.json
+    `pieces`); "" for a library part (all of it painted and judged)."""
+    pieces = metrics.get("pieces")
+    if not isinstance(pieces, list) or not pieces:
+        return ""
+    rows = [(html.escape(str(p.get("piece"))), html.escape(number(p.get("area_m2"), 4)),
+             "painted" if p.get("painted") else "<b>not painted</b>",
+             html.escape(str(p.get("why", "")))) for p in pieces]
+    judged = metrics.get("judged_area_m2")
+    head = (f"<p>Painted {number(metrics.get('painted_area_m2'), 3)} m² of the file's pieces, "
+            f"judged {number(judged, 3)} m² (the judged regions); not painted "
+            f"{number(metrics.get('not_painted_area_m2'), 3)} m².</p>")
+    return head + table(["piece", "area [m²]", "painted", "why"], rows, "pieces", "piece-table")
 
 
 def pass_rows(d: Path) -> list[dict[str, Any]]:

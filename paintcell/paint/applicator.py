@@ -26,8 +26,8 @@ import numpy.typing as npt
 import tomli_w
 
 from paintcell.core.atomic_io import atomic_write_text
+from paintcell.core.data_text import DataTextError, read_toml
 from paintcell.core.errors import ApplicatorError
-from paintcell.core.toml_text import toml_text
 
 #: f < FOOTPRINT_REL · peak outside `footprint_radius_m` (the culling radius of the kernel). For an
 #: isotropic Gaussian the paint mass outside that radius is exactly this fraction.
@@ -214,9 +214,9 @@ class Applicator:
         if not path.exists():
             raise ApplicatorError(f"applicator file {path} does not exist; give a TOML path")
         try:
-            d = tomllib.loads(toml_text(path, ApplicatorError))
-        except tomllib.TOMLDecodeError as e:
-            raise ApplicatorError(f"{path} is not valid TOML ({e}); fix the file") from e
+            d = read_toml(path)
+        except DataTextError as e:
+            raise ApplicatorError(f"applicator {e}") from e
         return cls.from_dict(d)
 
     def to_toml(self, path: str | os.PathLike[str]) -> None:

@@ -20,11 +20,13 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from paintcell.core.budget import check_mesh_file_budget
 from paintcell.core.errors import SurfaceError
 from paintcell.core.safe_paths import kind_of
 from paintcell.surface.part_spec import CAD_SUFFIXES, UNITS_M
 
-__all__ = ["PLAUSIBLE_SIZE_M", "RawMesh", "UnitChoice", "choose_units", "read_part_file"]
+__all__ = ["PLAUSIBLE_SIZE_M", "RawMesh", "UnitChoice", "choose_units", "read_part_file",
+           "sniff_mesh"]
 
 #: Largest extent of a paintable car part [m]: smallest and largest plausible.
 PLAUSIBLE_SIZE_M = (0.1, 6.0)
@@ -66,18 +68,73 @@ def read_part_file(path: str | os.PathLike[str], chord_tolerance_m: float = 5e-5
     if path.suffix.lower() in CAD_SUFFIXES:
         v, f = _read_cad(path, chord_tolerance_m)
         return RawMesh(v, f, path.suffix.lower().lstrip("."), True)
+    check_mesh_file_budget(path)    # from the size and header only, before the bytes are read
+    sniff_mesh(path)
     try:
-        src = trimesh.load(path, force="mesh", process=False)
+        if path.suffix.lower() == ".stl":
+            # trimesh's STL reader itself: `trimesh.load` would build a scene and hash it
+            # (12 s of a 2-million-face file's 12.5 s read, against 0.3 s).
+            from trimesh.exchange.stl import load_stl
+
+            with open(path, "rb") as fh:
+                d = load_stl(fh)
+            v, f = np.asarray(d["vertices"], float), np.asarray(d["faces"], np.int64)
+        else:
+            src = trimesh.load(path, force="mesh", process=False)
+            if not isinstance(src, trimesh.Trimesh):
+                raise SurfaceError(f"{path} holds no triangles; export the part surface as an "
+                                   "STL, OBJ or PLY triangle mesh, or as STEP")
+            v, f = np.asarray(src.vertices, float), np.asarray(src.faces, np.int64)
+    except SurfaceError:
+        raise
     except Exception as exc:  # trimesh raises many types for unreadable files
-        raise SurfaceError(f"cannot read {path} ({type(exc).__name__}: {exc}); export it as "
+        msg = (str(exc).strip().splitlines() or [""])[0]
+        raise SurfaceError(f"cannot read {path} ({type(exc).__name__}: {msg}); export it as "
                            "STL, OBJ, PLY or STEP") from exc
-    if not isinstance(src, trimesh.Trimesh) or len(src.faces) == 0:
+    if len(f) == 0 or f.ndim != 2 or f.shape[1] != 3:
         raise SurfaceError(f"{path} holds no triangles; export the part surface as an STL, OBJ "
                            "or PLY triangle mesh, or as STEP")
-    v = np.asarray(src.vertices, float)
-    f = np.asarray(src.faces, np.int64)
     check_raw(v, f, str(path))
     return RawMesh(v, f, path.suffix.lower().lstrip("."), False)
+
+
+def sniff_mesh(path: Path) -> None:
+    """Refuse a mesh file whose bytes cannot be the format its suffix says, in one line.
+
+    Binary STL: 84-byte header + 50 bytes per triangle (a truncated file does not add up); ASCII
+    STL, OBJ and ASCII PLY must be UTF-8 text (random bytes would otherwise reach trimesh's
+    text-encoding guesser and come back as an unrelated import error).
+    """
+    suffix = path.suffix.lower()
+    data = path.read_bytes()
+    what = f"mesh {path}"
+    if not data:
+        raise SurfaceError(f"{what} is empty; export the part surface again")
+
+    def is_text() -> bool:
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError:
+            return False
+        return True
+
+    if suffix == ".stl":
+        if len(data) >= 84:
+            n = int.from_bytes(data[80:84], "little")
+            if len(data) == 84 + 50 * n:
+                return
+        if data.lstrip()[:5].lower() == b"solid" and is_text():
+            return
+        n_hint = int.from_bytes(data[80:84], "little") if len(data) >= 84 else 0
+        raise SurfaceError(f"{what} is neither a binary STL ({len(data)} bytes, the header's "
+                             f"{n_hint} triangles need {84 + 50 * n_hint}) nor an ASCII STL; the "
+                             "file is truncated or not an STL — export it again")
+    if suffix == ".obj" and not is_text():
+        raise SurfaceError(f"{what} is not a text OBJ file (it holds non-UTF-8 bytes); the "
+                             "file is corrupt or not an OBJ — export it again")
+    if suffix == ".ply" and not data.startswith(b"ply"):
+        raise SurfaceError(f"{what} does not start with the PLY magic 'ply'; the file is "
+                             "corrupt or not a PLY — export it again")
 
 
 def check_raw(v: np.ndarray, f: np.ndarray, what: str) -> None:
@@ -93,9 +150,14 @@ def check_raw(v: np.ndarray, f: np.ndarray, what: str) -> None:
     if len(f) == 0 or f.min() < 0 or f.max() >= len(v):
         raise SurfaceError(f"{what} faces index missing vertices; re-export the mesh")
     distinct = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])
-    if int(distinct.sum()) < 2:
-        raise SurfaceError(f"{what} has {int(distinct.sum())} usable triangle(s); a part surface "
-                           "needs a triangulated skin, export the whole part surface")
+    # A face with three distinct but collinear (or coincident) corners has no area either.
+    ext = float(np.ptp(v, axis=0).max())
+    area2 = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]), axis=1)
+    usable = int((distinct & (area2 > 1e-12 * ext * ext)).sum()) if ext > 0 else 0
+    if usable < 2:
+        raise SurfaceError(f"{what} has {usable} usable triangle(s) of {len(f)} (the others "
+                           "have no area); a part surface needs a triangulated skin, export the "
+                           "whole part surface")
 
 
 def choose_units(extent_file: np.ndarray, units: str, cad: bool = False) -> UnitChoice:

@@ -41,10 +41,17 @@ class RepairReport:
     nonmanifold_edges: int
     faces_out: int
     holes_filled: int = 0
+    thinned_from: int = 0
+    """Faces of the file before it was thinned (`paintcell.surface.mesh_thinning`; 0: not)."""
+    thin_cell_m: float = 0.0
+    """Vertex-clustering cell of the thinning [m] (0: not thinned)."""
 
     def summary(self) -> str:
         """One line for `paintcell inspect`."""
-        return (f"{self.faces_in} faces in, {self.faces_out} out: {self.merged_vertices} "
+        thin = (f"{self.thinned_from} faces thinned to {self.faces_in} (vertex clustering at "
+                f"{self.thin_cell_m * 1e3:.3g} mm, far finer than the resolution); "
+                if self.thinned_from else "")
+        return (f"{thin}{self.faces_in} faces in, {self.faces_out} out: {self.merged_vertices} "
                 f"duplicate vertices merged, {self.duplicate_faces} duplicate faces, "
                 f"{self.degenerate_faces} degenerate faces and {self.slivers} slivers removed, "
                 f"{self.nonmanifold_edges} non-manifold edges split, {self.holes_filled} small "

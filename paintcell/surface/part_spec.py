@@ -4,7 +4,8 @@
 [part]
 file = "../../shared/meshes/reach_hood_panel.ply"   # relative to the scenario file
 units = "auto"            # m | mm | cm | in | auto
-pieces = "largest"        # largest (by area) | all | [0, 2]
+pieces = "auto"           # auto | largest (by area) | all | [0, 2]
+pieces_gap_m = 0.04       # auto: pieces this close that face the painted side are one part
 side = "auto"             # auto | [0, 0, 1] painted-side direction in the part frame
 ```
 
@@ -22,12 +23,16 @@ from typing import Any
 from paintcell.core.errors import SurfaceError
 
 __all__ = ["CAD_SUFFIXES", "CHORD_TOLERANCE_RANGE_M", "FILL_HOLES_RANGE_M", "MESH_SUFFIXES",
-           "MeshPart", "PartSpecError", "REGIONS", "UNITS_M"]
+           "MeshPart", "PIECES_GAP_M", "PIECES_GAP_RANGE_M", "PartSpecError", "REGIONS", "UNITS_M"]
 
 #: Length of one file unit in metres.
 UNITS_M: dict[str, float] = {"m": 1.0, "mm": 1e-3, "cm": 1e-2, "in": 0.0254}
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".off", ".glb", ".gltf")
 CAD_SUFFIXES = (".step", ".stp", ".iges", ".igs")
+#: Default largest gap between pieces painted as one part, `pieces = "auto"` [m].
+PIECES_GAP_M = 0.04
+#: Valid `pieces_gap_m` [m], bounds included.
+PIECES_GAP_RANGE_M = (0.0, 0.5)
 #: The regions a part's film can be judged on (`judge`).
 REGIONS = ("skin", "hem", "inner", "back", "edge")
 #: Valid `chord_tolerance_m` [m]: the CAD tessellation's largest chord error, bounds included.
@@ -49,8 +54,12 @@ class MeshPart:
     units: length unit of the file's coordinates: "m", "mm", "cm", "in", or "auto" (inferred from
         the size a car part can have; `paintcell.surface.part_import` says what it chose
         and why).
-    pieces: "largest" (the connected piece of largest area), "all", or a tuple of piece indices
-        (pieces are numbered by decreasing area, as `paintcell inspect` lists them).
+    pieces: "auto" (the largest piece and every piece that lies within `pieces_gap_m` of it,
+        faces the painted side and is not hidden behind it; stray bits under 1 % of its area
+        left out: `paintcell.surface.pieces`), "largest" (the connected piece of largest area),
+        "all", or a tuple of piece indices (pieces are numbered by decreasing area, as
+        `paintcell inspect` lists them).
+    pieces_gap_m: with pieces = "auto", the largest gap between pieces painted as one part [m].
     side: "auto" (the convex, visible skin) or a direction (x, y, z) in the part frame toward the
         painted side [-] (need not be unit length).
     chord_tolerance_m: largest distance between a CAD surface and its tessellation [m] (STEP/IGES;
@@ -64,7 +73,8 @@ class MeshPart:
 
     file: str
     units: str = "auto"
-    pieces: str | tuple[int, ...] = "largest"
+    pieces: str | tuple[int, ...] = "auto"
+    pieces_gap_m: float = PIECES_GAP_M
     side: str | tuple[float, float, float] = "auto"
     chord_tolerance_m: float = 5e-5
     fill_holes_m: float = 0.03
@@ -137,14 +147,18 @@ def _check(p: MeshPart) -> None:
         raise PartSpecError(f"[part] units = {p.units!r} is not one of m, mm, cm, in, auto; "
                             "write units = \"mm\" (or \"auto\" to infer it)")
     if isinstance(p.pieces, str):
-        if p.pieces not in ("largest", "all"):
-            raise PartSpecError(f"[part] pieces = {p.pieces!r}; write pieces = \"largest\", "
-                                "\"all\" or a list of piece indices like [0, 2]")
+        if p.pieces not in ("auto", "largest", "all"):
+            raise PartSpecError(f"[part] pieces = {p.pieces!r}; write pieces = \"auto\", "
+                                "\"largest\", \"all\" or a list of piece indices like [0, 2]")
     elif not (isinstance(p.pieces, tuple) and p.pieces
               and all(isinstance(i, int) and not isinstance(i, bool) and i >= 0
                       for i in p.pieces)):
-        raise PartSpecError(f"[part] pieces = {p.pieces!r}; write \"largest\", \"all\" or a "
-                            "non-empty list of piece indices >= 0 like [0, 2]")
+        raise PartSpecError(f"[part] pieces = {p.pieces!r}; write \"auto\", \"largest\", "
+                            "\"all\" or a non-empty list of piece indices >= 0 like [0, 2]")
+    lo, hi = PIECES_GAP_RANGE_M
+    if not _is_num(p.pieces_gap_m) or not lo <= p.pieces_gap_m <= hi:
+        raise PartSpecError(f"[part] pieces_gap_m = {p.pieces_gap_m!r} must be a length between "
+                            "0 and 0.5 m; write e.g. pieces_gap_m = 0.04")
     if isinstance(p.side, str):
         if p.side != "auto":
             raise PartSpecError(f"[part] side = {p.side!r}; write side = \"auto\" or a direction "

@@ -1,6 +1,6 @@
 """A part's surface from what a scenario names: a library part, a mesh/CAD `[part]` table or a
-bare mesh path, checked against the memory budget first and, for a mesh file, sniffed so a
-corrupt file is refused in one line."""
+bare mesh path, checked against the memory budget first (a mesh file by `import_part`, which
+also sniffs its bytes: `paintcell.surface.mesh_io.sniff_mesh`)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from paintcell.core.errors import PaintcellError
 from paintcell.surface.part_spec import CAD_SUFFIXES, MESH_SUFFIXES, MeshPart
 from paintcell.surface.surface import Surface
 
-__all__ = ["part_surface", "sniff_mesh"]
+__all__ = ["part_surface"]
 
 
 def part_surface(part: str | MeshPart, res: float, source: str | None = None,
@@ -42,45 +42,4 @@ def part_surface(part: str | MeshPart, res: float, source: str | None = None,
     path = Path(spec.file)
     if not path.is_absolute() and source:
         path = Path(source).parent / path
-    if path.is_file() and path.suffix.lower() in MESH_SUFFIXES:
-        sniff_mesh(path)
-    return import_part(replace(spec, file=str(path)), resolution_m=res)[0]
-
-
-def sniff_mesh(path: Path) -> None:
-    """Refuse a mesh file whose bytes cannot be the format its suffix says, in one line.
-
-    Binary STL: 84-byte header + 50 bytes per triangle (a truncated file does not add up); ASCII
-    STL, OBJ and ASCII PLY must be UTF-8 text (random bytes would otherwise reach trimesh's
-    text-encoding guesser and come back as an unrelated import error).
-    """
-    suffix = path.suffix.lower()
-    data = path.read_bytes()
-    what = f"mesh {path}"
-    if not data:
-        raise PaintcellError(f"{what} is empty; export the part surface again")
-
-    def is_text() -> bool:
-        try:
-            data.decode("utf-8")
-        except UnicodeDecodeError:
-            return False
-        return True
-
-    if suffix == ".stl":
-        if len(data) >= 84:
-            n = int.from_bytes(data[80:84], "little")
-            if len(data) == 84 + 50 * n:
-                return
-        if data.lstrip()[:5].lower() == b"solid" and is_text():
-            return
-        n_hint = int.from_bytes(data[80:84], "little") if len(data) >= 84 else 0
-        raise PaintcellError(f"{what} is neither a binary STL ({len(data)} bytes, the header's "
-                             f"{n_hint} triangles need {84 + 50 * n_hint}) nor an ASCII STL; the "
-                             "file is truncated or not an STL — export it again")
-    if suffix == ".obj" and not is_text():
-        raise PaintcellError(f"{what} is not a text OBJ file (it holds non-UTF-8 bytes); the "
-                             "file is corrupt or not an OBJ — export it again")
-    if suffix == ".ply" and not data.startswith(b"ply"):
-        raise PaintcellError(f"{what} does not start with the PLY magic 'ply'; the file is "
-                             "corrupt or not a PLY — export it again")
+    return import_part(replace(spec, file=str(path)), resolution_m=res, setting=res_key)[0]

@@ -20,6 +20,7 @@ on any part a paint shop sends, not on known shapes:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -74,6 +75,9 @@ class PartRegions:
     painted_direction: (3,) unit direction toward the painted side in the part frame.
     openings: boundary loops of the skin other than its outline.
     judged: region names the film metrics are judged on (default the skin).
+    pieces: what the import painted and left out, one JSON-safe record each (piece, area_m2,
+        painted, why, on_painted_side), a closed solid's dropped back skin among them
+        (`paintcell.surface.part_import`).
     """
 
     face_labels: np.ndarray
@@ -82,6 +86,7 @@ class PartRegions:
     openings: tuple[Opening, ...] = ()
     judged: tuple[str, ...] = ("skin",)
     info: dict[str, float] = field(default_factory=dict)
+    pieces: tuple[dict[str, Any], ...] = ()
 
     def face_mask(self, names: tuple[str, ...] | None = None) -> np.ndarray:
         """(F,) True for faces in the named regions (default: `judged`)."""
@@ -124,12 +129,19 @@ def _open_edge_length(v: np.ndarray, f: np.ndarray) -> float:
 
 
 def local_direction(v: np.ndarray, f: np.ndarray, d: np.ndarray,
-                    voxel_m: float = LOCAL_VOXEL_M) -> np.ndarray:
+                    voxel_m: float = LOCAL_VOXEL_M, closed: bool = False) -> np.ndarray:
     """(F, 3) unit painted direction at each face: the area-weighted mean of the face normals
     within the 3×3×3 voxels around it, each normal first turned to agree with the global `d`
-    (so a closed shell's two sides and a hem's two layers add up instead of cancelling)."""
+    (so a hem's two layers add up instead of cancelling). closed: the faces are a closed
+    solid's, wound outward; its outer skin alone sets the direction, each face weighted by
+    n·d (the inner skin faces away, and the rim between the skins, edge-on to d, would tilt the
+    direction by tens of degrees along a thin solid's edges)."""
     n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # length 2·area
-    n = n * np.where(n @ d < 0, -1.0, 1.0)[:, None]
+    if closed:
+        c = n @ d / np.maximum(np.linalg.norm(n, axis=1), 1e-300)
+        n = n * np.clip(c, 0.0, None)[:, None]
+    else:
+        n = n * np.where(n @ d < 0, -1.0, 1.0)[:, None]
     c = v[f].mean(1)
     key3 = np.floor((c - c.min(0)) / voxel_m).astype(np.int64) + 1
     dims = key3.max(0) + 2
@@ -150,14 +162,15 @@ def local_direction(v: np.ndarray, f: np.ndarray, d: np.ndarray,
 
 
 def classify_faces(v: np.ndarray, f: np.ndarray, face_piece: np.ndarray, d: np.ndarray,
-                   hem_width_m: float = HEM_WIDTH_M) -> np.ndarray:
+                   hem_width_m: float = HEM_WIDTH_M, closed: bool = False) -> np.ndarray:
     """(F,) region label of each face of a mesh whose faces are wound toward the painted side.
 
     v (N, 3) [m], f (F, 3), face_piece (F,) piece index, d (3,) unit painted direction.
     """
     n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
     area2 = np.linalg.norm(n, axis=1)
-    cos_local = np.einsum("ij,ij->i", n, local_direction(v, f, d)) / np.maximum(area2, 1e-300)
+    cos_local = np.einsum("ij,ij->i", n, local_direction(v, f, d, closed=closed)) \
+        / np.maximum(area2, 1e-300)
     front = cos_local > 0.0
     labels = np.full(len(f), SKIN, np.int8)
     for comp in _components(f, ~front, len(v)):

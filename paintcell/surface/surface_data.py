@@ -11,6 +11,7 @@ direction, so a sphere with outward normal has k1 = k2 = H = +1/R.
 from __future__ import annotations
 
 import functools
+import json
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -157,6 +158,7 @@ class Surface:
             arrays["region_piece"] = self.regions.face_piece
             arrays["region_direction"] = self.regions.painted_direction
             arrays["region_judged"] = np.array(self.regions.judged)
+            arrays["region_pieces"] = np.array(json.dumps(list(self.regions.pieces)))
         atomic_write_npz(path, arrays)
 
     @classmethod
@@ -178,7 +180,9 @@ class Surface:
                 regions = PartRegions(face_labels=np.array(z["region_labels"]),
                                       face_piece=np.array(z["region_piece"]),
                                       painted_direction=np.array(z["region_direction"]),
-                                      judged=tuple(str(x) for x in z["region_judged"]))
+                                      judged=tuple(str(x) for x in z["region_judged"]),
+                                      pieces=tuple(json.loads(str(z["region_pieces"])))
+                                      if "region_pieces" in z else ())
         return cls(name=name, uv=uv, grid_shape=grid, regions=regions, **kw)  # type: ignore[arg-type]
 
     @classmethod

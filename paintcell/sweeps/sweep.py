@@ -327,6 +327,12 @@ def _connect(scheduler: str) -> Any:
     """A `distributed.Client` of the cluster at `scheduler`, or a one-line SweepError."""
     from distributed import Client
 
+    from paintcell.sweeps.scheduler_probe import SchedulerProbeError, probe_scheduler
+
+    try:
+        probe_scheduler(scheduler)   # a web server or garbage: refused in seconds, not by Dask
+    except SchedulerProbeError as exc:
+        raise SweepError(str(exc)) from None
     try:
         return Client(scheduler, timeout=15)
     except (OSError, TimeoutError, ValueError) as exc:

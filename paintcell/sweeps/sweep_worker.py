@@ -131,7 +131,7 @@ def run_sample(payload: SweepPayload, index: int, values: np.ndarray | None,
         rep = validate(payload.plan, payload.surface, payload.trajectory, trace,
                        scn.part_placement.matrix, scn.thresholds,
                        reachability=payload.trajectory.meta.get("reachability"),
-                       films=payload.films)
+                       films=payload.films, spec=scn.spec)
         t3 = time.perf_counter()
     except PaintcellError as exc:
         msg = str(exc).strip().splitlines()

@@ -37,6 +37,7 @@ METHODS = ("lhs", "mc")
 SAMPLE_METRICS: dict[str, str] = {
     "executed_nsd_pct": "%",
     "executed_within_tolerance_pct": "%",
+    "executed_inside_spec_pct": "%",
     "executed_min_um": "µm",
     "executed_mean_um": "µm",
     "loss_pp": "pp",
@@ -44,11 +45,12 @@ SAMPLE_METRICS: dict[str, str] = {
     "tracking_error_max_mm": "mm",
 }
 #: the figures a booth sample records beside those (`paintcell.sweeps.sweep_booth`): the
-#: conveyor's share of the loss, the worst part's executed σ/μ (the booth's threshold), the
-#: carrier's measured speed.
+#: conveyor's share of the loss, the worst part's executed σ/μ and share of area in the paint
+#: spec's window (the booth's spec checks), the carrier's measured speed.
 BOOTH_METRICS: dict[str, str] = {
     "loss_conveyor_pp": "pp",
     "max_part_executed_nsd_pct": "%",
+    "min_part_executed_inside_spec_pct": "%",
     "carrier_speed_m_s": "m/s",
 }
 

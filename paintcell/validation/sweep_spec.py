@@ -141,6 +141,7 @@ class SweepSpec:
         if isinstance(self.samples, bool) or not isinstance(self.samples, int) \
                 or self.samples < 1:
             raise SweepError(f"samples = {self.samples!r} must be an int >= 1 (--samples N)")
+        _check_budget(self.samples, "samples (--samples)")
         if self.method not in METHODS:
             raise SweepError(f"method {self.method!r} must be one of {', '.join(METHODS)}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
@@ -223,9 +224,10 @@ def spec_from_scenario(sweep: dict[str, Any], *, fast: bool = False,
     unknown = sorted(set(sweep) - set(SCENARIO_KEYS))
     if unknown:
         raise SweepError(f"unknown sweep setting(s) {unknown}; valid: {list(SCENARIO_KEYS)}")
-    factors = dict(sweep.get("factors", {}))
+    factors = sweep.get("factors", {})
     if not isinstance(factors, dict):
         raise SweepError("sweep factors must be a table of NAME = \"DIST\" entries")
+    factors = dict(factors)
     if vary:
         factors.update(SweepSpec.from_strings(vary, 1).factors)
     d = {**SCENARIO_DEFAULTS, **{k: v for k, v in sweep.items() if v is not None}}
@@ -251,6 +253,11 @@ def check_sweep_table(sweep: dict[str, Any]) -> None:
         low = 1 if "samples" in key else 0
         if isinstance(v, bool) or not isinstance(v, int) or v < low:
             raise SweepError(f"sweep {key} = {v!r} must be an int >= {low}")
+        if "samples" in key:
+            _check_budget(v, f"sweep {key}")
+        if key == "workers" and v > MAX_WORKERS:
+            raise SweepError(f"sweep workers = {v} is more than {MAX_WORKERS} local processes; "
+                             "use a Dask cluster (--scheduler) for more")
     if sweep.get("factors"):
         spec_from_scenario({k: v for k, v in sweep.items() if k not in ("limits", "workers")})
     elif "factors" in sweep and not isinstance(sweep["factors"], dict):
@@ -261,6 +268,20 @@ def check_sweep_table(sweep: dict[str, Any]) -> None:
     if not isinstance(limits, dict):
         raise SweepError("sweep limits must be a table [sweep.limits]")
     check_limits(limits)
+
+
+#: Most local worker processes a sweep starts (each holds a robot model and a MuJoCo cell).
+MAX_WORKERS = 256
+
+
+def _check_budget(samples: int, setting: str) -> None:
+    """A sample count the sweep's memory budget holds (`paintcell.core.budget`), as SweepError."""
+    from paintcell.core.budget import BudgetError, check_sweep_budget
+
+    try:
+        check_sweep_budget(samples, setting)
+    except BudgetError as exc:
+        raise SweepError(str(exc)) from None
 
 
 def check_booth_factors(names: tuple[str, ...]) -> None:

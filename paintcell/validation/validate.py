@@ -16,10 +16,12 @@ kinematic replay gives the same film to round-off. The loss (executed − planne
 points) splits into its two causes: `loss_time_law_pp` = trajectory − plan (what the time law and
 IK did to the plan) and `loss_servo_pp` = executed − trajectory (what execution did: servo
 tracking, and any disturbance of the part or TCP); `loss_pp` is their sum, exactly. Beside it:
-thickness differences, coverage inside the ±tolerance window, TCP tracking and speed-following
-errors on paint segments, cycle time, joint and torque utilization (torque from what the servo
-demanded before the actuator clamp, so it exceeds 1 when a joint saturates), reachability and
-collisions — each checked against caller thresholds.
+thickness differences, the share of the judged area inside the paint spec's window
+(`paintcell.validation.paint_spec`: the spec's checks replace a bare σ/μ limit), the pieces
+painted and not (`paintcell.validation.painted_side`), coverage inside the ±tolerance window, TCP
+tracking and speed-following errors on paint segments, cycle time, joint and torque utilization
+(torque from what the servo demanded before the actuator clamp, so it exceeds 1 when a joint
+saturates), reachability and collisions — each checked against caller thresholds.
 
 The result types and threshold checks (`paintcell.validation.validate_report`), the motion
 metrics (`paintcell.validation.validate_motion`) and the binned TCP samples
@@ -31,6 +33,7 @@ from __future__ import annotations
 
 import threading
 from concurrent.futures import Future
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -44,6 +47,8 @@ from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import transfer_efficiency, uniformity
 from paintcell.surface.surface import Surface
 from paintcell.validation.honest_reach import honest_reachability
+from paintcell.validation.paint_spec import PaintSpec, spec_checks, spec_metrics
+from paintcell.validation.painted_side import painted_side_checks, painted_side_metrics
 from paintcell.validation.region_film import region_film
 from paintcell.validation.validate_motion import collision_events, tracking_errors, utilization
 from paintcell.validation.validate_report import (
@@ -80,7 +85,8 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
              T_world_part: npt.ArrayLike, thresholds: Thresholds | None = None,
              reachability: dict[str, Any] | None = None,
              exec_sample_s: float | None = 0.005,
-             films: tuple[np.ndarray, np.ndarray] | None = None) -> ValidationReport:
+             films: tuple[np.ndarray, np.ndarray] | None = None,
+             spec: PaintSpec | None = None) -> ValidationReport:
     """Compare the executed program with the plan.
 
     plan: the coverage plan (part frame); surface: the part it covers (part frame, the same mesh
@@ -93,8 +99,11 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     films: (planned, trajectory) films (N,) [m] of this plan, surface, trajectory and placement
     computed earlier (a sweep computes them once): taken instead of recomputed (neither depends
     on how the program was executed).
+    spec: the paint spec the executed film is judged against (`paintcell.validation.paint_spec`;
+    None: its defaults, centred on the planned mean film of the judged area).
     """
     thresholds = thresholds or Thresholds()
+    spec = spec or PaintSpec()
     T_world_part = np.asarray(T_world_part, float)
     if T_world_part.shape != (4, 4):
         raise ValidationError(f"T_world_part has shape {T_world_part.shape}; pass a 4x4 pose")
@@ -203,7 +212,21 @@ def validate(plan: CoveragePlan, surface: Surface, traj: JointTrajectory, trace:
     }
     # hems, flanges, turned edges: their film reported apart (not judged)
     metrics.update(region_film(surface, t_plan, t_exec, u_exec.mean_m))
-    checks = threshold_checks(metrics, thresholds)
+    # the paint spec: the executed film against its window, area-weighted over the judged faces
+    faces_judged = None if surface.regions is None else surface.regions.face_mask()
+    target = spec.target_m(u_plan.mean_m)
+    metrics.update(spec_metrics(t_plan, pts, surface.faces, faces_judged, target, spec,
+                                "planned"))
+    metrics.update(spec_metrics(t_exec, pts, surface.faces, faces_judged, target, spec))
+    metrics.update({"spec_window_pct": spec.window_pct,
+                    "spec_min_inside_pct": spec.min_inside_pct,
+                    "spec_max_nsd_pct": spec.max_nsd_pct})
+    metrics.update(painted_side_metrics(surface))
+    # the spec's σ/μ check replaces the threshold's (which can only tighten it)
+    checks = threshold_checks(metrics, replace(thresholds, max_executed_nsd_pct=None))
+    at = sum(c.name in ("reachability", "collisions") for c in checks)
+    checks[at:at] = spec_checks(metrics, spec, thresholds.max_executed_nsd_pct)
+    checks += painted_side_checks(metrics)
     return ValidationReport(
         metrics=metrics, checks=tuple(checks), reachability=reach_summary,
         collisions=tuple(events),

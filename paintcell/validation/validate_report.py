@@ -30,7 +30,9 @@ class Thresholds:
     reachability_pct: minimum share of plan poses the robot reaches [%].
     max_collisions: maximum number of collision events: robot–part, robot–booth and robot–robot
         (self-collision, e.g. the wrist driven into the robot's base).
-    max_executed_nsd_pct: maximum executed film σ/μ over the part [%].
+    max_executed_nsd_pct: maximum executed film σ/μ over the part [%]; it only tightens the
+        paint spec's `max_nsd_pct` (`paintcell.validation.paint_spec`: the check holds the
+        smaller of the two).
     max_loss_pp: maximum loss of uniformity, executed − planned σ/μ [percentage points].
     max_abs_loss_pp: maximum |executed − planned σ/μ| [percentage points]: a large negative loss
         (executed more uniform than planned) is a departure from the plan too. None: unchecked.
@@ -40,7 +42,9 @@ class Thresholds:
     max_torque_utilization: maximum |τ_demand|/τ_max of any joint, τ_demand the torque the
         controller demanded before the actuator clamp (> 1: the joint saturated) [-].
     max_joint_range_utilization: maximum |q − mid|/half-range of any joint (1 = at a limit) [-].
-    tolerance: half-width of the thickness window around the planned mean [fraction].
+    tolerance: half-width of the window around the planned mean behind the
+        `*_within_tolerance_pct` figures [fraction] (reported, not checked; the paint spec's
+        window is `[spec] window_pct`).
     """
 
     reachability_pct: float | None = 100.0
