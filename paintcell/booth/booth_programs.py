@@ -27,7 +27,7 @@ from paintcell.booth.booth import (
 from paintcell.booth.booth_chain import job_record
 from paintcell.booth.booth_hold import delayed, held_to
 from paintcell.booth.booth_job_programs import robot_programs
-from paintcell.booth.booth_plans import finish_plans, plan_parts
+from paintcell.booth.booth_plans import PartPlans, finish_plans, plan_parts
 from paintcell.booth.booth_speeds import Built, robot_aware_booth
 from paintcell.booth.booth_stagger import stagger_starts
 from paintcell.booth.conveyor import ConveyorError, track_program
@@ -79,11 +79,14 @@ class BoothPrograms:
     """How the seams between parts were blended (`paintcell.booth.booth_seams`)."""
 
 
-def booth_programs(booth: Booth, fast: bool) -> BoothPrograms:
-    """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc)."""
+def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
+                   ) -> BoothPrograms:
+    """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc).
+    part_plans: the parts as `plan_parts(booth, fast)` plans them, when already made (`paintcell
+    init` checks several robot layouts of one plan)."""
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    pp = plan_parts(booth, fast)
+    pp = plan_parts(booth, fast) if part_plans is None else part_plans
     fin = finish_plans(booth, pp, pp.plans)
     surfaces, T_body_parts, body = pp.surfaces, pp.T_body_parts, fin.body
     T_wb = booth.body_placement.matrix

@@ -46,8 +46,8 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    description="Write a commented TOML scenario for a part file: units, pieces, "
                    "side, placement in front of the robot, and the first robot model whose base "
                    "(paintcell.robots.placement.find_base_pose) or rail reaches every pose of a "
-                   "fast plan. `paintcell run` and `paintcell plan` accept it as written; when "
-                   "no robot reaches the part, init says so in one line and writes nothing.")
+                   "fast plan, else a booth of 2-4 rail robots (--robots). `paintcell run` "
+                   "accepts it as written; when nothing works: one line, no file.")
     _part_options(n)
     add_out_force(n, "scenario file to write (.toml)")
     n.add_argument("--robot", default="auto",
@@ -55,6 +55,12 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
                    "of the part's fast plan (init says which and why; it refuses in one line "
                    "when none does)")
+    n.add_argument("--robots", type=int, default=None, metavar="N",
+                   help="number of robots. Default: one (as --robots 1) when one reaches every "
+                   "pose, else 2, 3, then 4 irb5500 robots on rails along the part, the passes "
+                   "split by the booth's automatic allocation; the file is then a booth "
+                   "([[robots]]) with the reason for each choice. 1: one robot only (refused "
+                   "when none reaches); 2–4: that many, laid out the same way")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
     n.set_defaults(func=_cmd_init)
     add_generate(add_parser)
@@ -215,6 +221,7 @@ def _placement(surf: Any) -> np.ndarray:
 
 def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
+    from paintcell.app.init_layout import MAX_ROBOTS
     from paintcell.app.init_toml import scenario_toml
     from paintcell.app.init_verify import ProgramCheck
     from paintcell.app.pipeline import make_plan
@@ -231,10 +238,20 @@ def _cmd_init(args: argparse.Namespace) -> int:
     if args.robot != "auto" and args.robot not in ROBOT_NAMES:  # before minutes of planning
         raise PaintcellError(f"--robot {args.robot!r} is not a robot paintcell ships; write "
                              f"--robot auto or one of {', '.join(ROBOT_NAMES)}")
+    if args.robots is not None and not 1 <= args.robots <= MAX_ROBOTS:
+        raise PaintcellError(f"--robots {args.robots}: write 1 to {MAX_ROBOTS}, or leave it out "
+                             "(one robot when one reaches the part, else more)")
+    several = args.robot.removesuffix("_rail") in ("abb_paint", "irb5500", "auto")
+    if (args.robots or 1) > 1 and not several:
+        raise PaintcellError(f"--robot {args.robot} with --robots {args.robots}: several robots "
+                             "need closed-form IK; write --robot irb5500, abb_paint or auto")
     spec = _spec(args)
     spec_rel = replace(spec, file=_relpath(Path(spec.file), out.parent))
     surf, rep = import_part(spec, resolution_m=0.025)
     name = args.name or "".join(c if c.isalnum() or c in "_-" else "_" for c in out.stem)
+    if (args.robots or 1) > 1:
+        return _init_multi(args, name, spec, spec_rel, surf, rep, (args.robots,),
+                           f"--robots {args.robots} asked for {args.robots}")
     T = _placement(surf)
     pl = Placement(tuple(float(x) for x in T[:3, 3]), _rpy(T[:3, :3]))  # type: ignore[arg-type]
     plan, planner, tried = None, {}, []
@@ -270,8 +287,16 @@ def _cmd_init(args: argparse.Namespace) -> int:
 
     # what `run` does first, the joint program, and what its execution will touch: the part
     check = ProgramCheck(candidate, plan, surf)
-    cell = choose_cell(robots, paths, [p.speeds_m_s for p in plan.passes], part_world,
-                       str(spec.file), floor_z_m=0.0, verify=check)
+    try:
+        cell = choose_cell(robots, paths, [p.speeds_m_s for p in plan.passes], part_world,
+                           str(spec.file), floor_z_m=0.0, verify=check)
+    except PaintcellError as exc:
+        if args.robots is not None or not several:    # --robots 1 (or a UR10): one or none
+            raise
+        alone = str(exc).split(": ", 1)[-1].split("; paint it in pieces")[0][:400]
+        print(f"init: no one robot reaches every pose ({alone}); laying out several")
+        return _init_multi(args, name, spec, spec_rel, surf, rep, tuple(range(2, MAX_ROBOTS + 1)),
+                           f"no one robot reaches every pose of the part ({alone})")
     trajectory = check.trajectory.get(cell.robot, {})
     T_base = cell.T_base
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
@@ -284,6 +309,24 @@ def _cmd_init(args: argparse.Namespace) -> int:
     print(f"cell: {cell.why}")
     print(f"placement: {cell.verdict}")
     print(f"scenario written: {out}")
+    return 0
+
+
+def _init_multi(args: argparse.Namespace, name: str, spec: MeshPart, spec_rel: MeshPart,
+                surf: Any, rep: Any, counts: tuple[int, ...], why_n: str) -> int:
+    """`init` with several robots (`paintcell.app.init_layout`): the booth file, once built."""
+    from paintcell.app.init_booth_file import booth_toml
+    from paintcell.app.init_layout import ARM, choose_layout
+    from paintcell.core.atomic_io import atomic_write_text
+
+    model = ARM if args.robot == "auto" else args.robot.removesuffix("_rail")
+    cell = choose_layout(name, spec, surf, counts, model)
+    text = booth_toml(cell, spec_rel, rep, why_n.replace("\n", " "))
+    check_new_target(args.out, "--out", args.force)
+    atomic_write_text(args.out, text)
+    print(_describe(rep, surf))
+    print(f"cell: {len(cell.booth.robots)} {model} robots on rails; {cell.why['jobs']}")
+    print(f"scenario written: {args.out}")
     return 0
 
 
