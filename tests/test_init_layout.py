@@ -227,8 +227,8 @@ def _init(*args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.parametrize(("extra", "needle"), [
-    (["--robots", "0"], "--robots 0: write 1 to 4"),
-    (["--robots", "5"], "--robots 5: write 1 to 4"),
+    (["--robots", "0"], "argument --robots: '0' is out of range: give a whole number ≥ 1 and ≤ 4"),
+    (["--robots", "5"], "argument --robots: '5' is out of range: give a whole number ≥ 1 and ≤ 4"),
     (["--robots", "2", "--robot", "ur10"], "several robots need closed-form IK")])
 def test_a_bad_robot_count_is_refused_in_one_line_before_any_planning(tmp_path, extra, needle):
     out = tmp_path / "cell.toml"

@@ -72,8 +72,10 @@ def test_door_report_in_headless_chromium(door, tmp_path):
     target = float(np.sum(w_j * planned) / np.sum(w_j))
     inside = np.abs(executed - target) <= tol * target
     pct = 100.0 * float(np.sum(w_j[inside]) / np.sum(w_j))
-    assert r["texts"]["#inside-pct"] == f"{pct:.1f} %"
-    assert pct == pytest.approx(metrics["executed_within_tolerance_pct"], abs=1e-6)
+    # the page shows the paint spec's share (exact on the film's triangles); the vertex-lumped
+    # share recomputed here agrees to within the lumping
+    assert r["texts"]["#inside-pct"] == f"{metrics['executed_inside_spec_pct']:.1f} %"
+    assert pct == pytest.approx(metrics["executed_inside_spec_pct"], abs=0.5)
     # one table row a planned pass
     plan = json.loads((door / "plan.json").read_text())
     assert r["pass_rows"] == len(plan["passes"]) > 0

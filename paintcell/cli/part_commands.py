@@ -19,11 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.cli.common import RESOLUTION_M, add_out_force
+from paintcell.app.init_layout import MAX_ROBOTS
+from paintcell.cli.common import RESOLUTION_M, add_out_force, number_option
 from paintcell.cli.generate import add_generate
 from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import check_new_target, check_write_target
-from paintcell.surface.part_spec import MeshPart
+from paintcell.surface.part_spec import PIECES_GAP_RANGE_M, MeshPart
 
 __all__ = ["register"]
 
@@ -55,7 +56,8 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
                    "of the part's fast plan (init says which and why; it refuses in one line "
                    "when none does)")
-    n.add_argument("--robots", type=int, default=None, metavar="N",
+    n.add_argument("--robots", default=None, metavar="N",
+                   type=number_option("--robots", int, low=1, high=MAX_ROBOTS, example="2"),
                    help="number of robots. Default: one (as --robots 1) when one reaches every "
                    "pose, else 2, 3, then 4 irb5500 robots on rails along the part, the passes "
                    "split by the booth's automatic allocation; the file is then a booth "
@@ -74,7 +76,9 @@ def _part_options(p: argparse.ArgumentParser) -> None:
                    help="pieces to paint: auto (the largest and every piece within --pieces-gap "
                    "of it facing its painted side; stray bits under 1 %% of its area left out), "
                    "largest (by area), all, or indices like 0,2")
-    p.add_argument("--pieces-gap", type=float, default=None, metavar="M",
+    p.add_argument("--pieces-gap", default=None, metavar="M",
+                   type=number_option("--pieces-gap", float, low=PIECES_GAP_RANGE_M[0],
+                                      high=PIECES_GAP_RANGE_M[1], unit="m", example="0.04"),
                    help="with --pieces auto: the largest gap between pieces painted as one part "
                    "[m] (default 0.04)")
     p.add_argument("--side", default="auto",
