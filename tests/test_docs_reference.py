@@ -324,6 +324,9 @@ def _a_value(r: dict[str, str]) -> str:
     m = re.search(r"\(choices: (.*)\)$", r["help"])
     if m:
         return next(c for c in re.findall(r"`([^`]+)`", m.group(1)) if c != default)
+    said = re.search(r"\(default ([-+\d.e]+)\)", r["help"])   # a default the help states
+    if said and default in ("", "None"):
+        default = said.group(1)
     try:                 # a number other than the default, inside any range it documents
         d = float(default)
     except ValueError:
