@@ -34,7 +34,7 @@ lint: $(STAMP)
 # The documentation site (mkdocs.yml) into site/; --strict: a broken link, a public API object
 # without a docstring or a scenario key without a description fails the build.
 docs: $(STAMP)
-	$(BIN)/mkdocs build --strict
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 # results.py writes docs/results.md (every scenario and the paper tables): `make results`;
 # after `make test`, `benchmarks/results.py --from results/check` reads the check's runs instead.

@@ -124,7 +124,7 @@ def test_first_screen_from_files(tmp_path):
     (d / "metrics.json").write_text(json.dumps(metrics))
     (d / "plan.json").write_text(json.dumps({"passes": [
         {"side": 0, "index_width_m": None, "length_m": 0.5},
-        {"side": 1, "index_width_m": 0.21, "length_m": 0.5}]}))
+        {"side": 1, "index_width_m": 0.21, "length_m": 0.5, "max_turn_deg": 37.4}]}))
     _traj(2).save_npz(d / "trajectory.npz")
     rel = np.array([-0.2, 0.0, 0.05, 0.3])
     _film(d, np.full(4, 25e-6), 25e-6 * (1 + rel), np.array([1.0, 1.0, 2.0, 4.0]),
@@ -143,6 +143,8 @@ def test_first_screen_from_files(tmp_path):
     assert m is not None and float(m.group(1)) == pytest.approx(100 * 3 / 8, abs=0.05)
     assert "2 passes" in text and "1 (50 % of pass, −20 %)" in text
     assert "210" in text  # index width in mm
+    assert rows[1]["max_turn_deg"] == 37.4 and rows[0]["max_turn_deg"] is None
+    assert "37.4" in text   # the pass's sharpest turn, as plan.json says
     assert "start curve" in text and "1 right" in text
 
 

@@ -182,8 +182,9 @@ def pieces_html(metrics: dict[str, Any]) -> str:
 
 
 def pass_rows(d: Path) -> list[dict[str, Any]]:
-    """Per pass: side, index width [m], length [m], planned speed range and time-law mean speed
-    [m/s], slowdowns (count, slowed share of the pass [%], worst speed deficit [%]).
+    """Per pass: side, index width [m], length [m], sharpest turn of its TCP path between two
+    samples [°], planned speed range and time-law mean speed [m/s], slowdowns (count, slowed
+    share of the pass [%], worst speed deficit [%]).
 
     From plan.json (index widths, lengths, planned durations) and trajectory.npz (its
     per-pass summary and planned TCP speed samples); [] when plan.json is missing."""
@@ -215,7 +216,7 @@ def pass_rows(d: Path) -> list[dict[str, Any]]:
         dur = s.get("duration_s")
         rows.append({
             "pass": i, "side": mp.get("side"), "index_width_m": mp.get("index_width_m"),
-            "length_m": length,
+            "length_m": length, "max_turn_deg": mp.get("max_turn_deg"),
             "planned_speed_min_m_s": v_lo.get(i), "planned_speed_max_m_s": v_hi.get(i),
             "mean_speed_m_s": (length / dur) if length and dur else None,
             "n_slowdowns": s.get("n_slowdowns"),
@@ -253,14 +254,16 @@ def pass_table_html(d: Path) -> str:
                 else f"{n} ({number(r['slowed_pct'], 0)} % of pass, −"
                      f"{number(r['max_speed_deficit_pct'], 0)} %)")
         cls = ' class="slow"' if n else ""
+        turn = "—" if r["max_turn_deg"] is None else number(r["max_turn_deg"], 1)
         cells.append((str(r["pass"] + 1), html.escape(_side(r["side"])),
-                      mm(r["index_width_m"]), number(r["length_m"], 2), speed,
+                      mm(r["index_width_m"]), number(r["length_m"], 2), turn, speed,
                       mm(r["mean_speed_m_s"]), f"<span{cls}>{html.escape(slow)}</span>"))
     total = sum(int(r["n_slowdowns"] or 0) for r in rows)
     head = (f"<p><b>{len(rows)} passes</b>; {total} slowdown(s) where a joint limit made the "
             "TCP slower than planned.</p>")
     return ('<div id="passes">' + head
-            + table(["pass", "position", "index width [mm]", "length [m]", "planned speed [mm/s]",
+            + table(["pass", "position", "index width [mm]", "length [m]", "worst turn [°]",
+                     "planned speed [mm/s]",
                      "mean speed, time law [mm/s]", "slowdowns"], cells, "passes", "pass-table")
             + "</div>")
 
