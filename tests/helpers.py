@@ -254,3 +254,32 @@ def spec_colours_linear(t_m: np.ndarray, target_m: float, tol: float) -> np.ndar
     r0, r1 = lo - (hi - lo), hi + (hi - lo)
     s = np.clip((1e6 * t_m - r0) / (r1 - r0), 0.0, 1.0)
     return linear_from_srgb(np.asarray(colormaps[register_spec_cmap()](s))[:, :3])
+
+
+def report_tool():
+    """docs/tools/report_screenshot.py as a module: the headless-Chromium page reader the report
+    tests and the README screenshot share."""
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "docs" / "tools" / "report_screenshot.py"
+    spec = importlib.util.spec_from_file_location("report_screenshot", path)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def run_door_fast(folder: Path) -> Path:
+    """`paintcell run scenarios/door.toml --fast --out FOLDER/door` in its own process; the
+    results folder (a run that fails its thresholds is a results folder too)."""
+    import os
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+    out = folder / "door"
+    proc = subprocess.run([sys.executable, "-m", "paintcell", "run", "scenarios/door.toml",
+                           "--fast", "--out", str(out)], cwd=root, capture_output=True, text=True,
+                          timeout=1200, env={**os.environ, "PYTHONPATH": str(root)})
+    assert proc.returncode in (0, 1), proc.stderr[-3000:]
+    return out

@@ -10,13 +10,9 @@ the part shows the film there in µm, within what film.npz holds."""
 
 from __future__ import annotations
 
-import importlib.util
 import io
 import json
-import os
 import re
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +26,8 @@ from tests.helpers import (
     GLB_THICKNESS_ATOL_UM,
     R_GLTF_WORLD,
     line_strips,
+    report_tool,
+    run_door_fast,
     spec_colours_linear,
 )
 
@@ -41,24 +39,11 @@ REPORT_MAX_BYTES = 2_000_000
 SCALE_PIXEL_ATOL = 6
 
 
-def _tool():
-    spec = importlib.util.spec_from_file_location("report_screenshot",
-                                                  ROOT / "docs/tools/report_screenshot.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
 
 @pytest.fixture(scope="module")
 def door_fast(tmp_path_factory) -> Path:
     """The results folder of `paintcell run scenarios/door.toml --fast` (one run per module)."""
-    out = tmp_path_factory.mktemp("door_fast") / "door"
-    proc = subprocess.run([sys.executable, "-m", "paintcell", "run", "scenarios/door.toml",
-                           "--fast", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
-                          timeout=1200, env={**os.environ, "PYTHONPATH": str(ROOT)})
-    assert proc.returncode in (0, 1), proc.stderr[-3000:]
-    return out
+    return run_door_fast(tmp_path_factory.mktemp("door_fast"))
 
 
 @pytest.fixture(scope="module")
@@ -66,7 +51,7 @@ def view(door_fast):
     """Open the door report, wait for the 3-D view, read its pixels and hover over the part."""
     from playwright.sync_api import sync_playwright
 
-    tool = _tool()
+    tool = report_tool()
     out: dict = {"console": [], "requests": []}
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=tool.find_chromium(),

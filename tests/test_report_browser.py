@@ -4,41 +4,26 @@ independent computation from the results folder's files gives."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from tests.helpers import report_tool, run_door_fast
+
 ROOT = Path(__file__).resolve().parents[1]
 
-
-def _tool():
-    spec = importlib.util.spec_from_file_location("report_screenshot",
-                                                  ROOT / "docs/tools/report_screenshot.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 @pytest.fixture(scope="module")
 def door(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("door") / "door"
-    proc = subprocess.run([sys.executable, "-m", "paintcell", "run", "scenarios/door.toml",
-                           "--fast", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
-                          timeout=1200, env={**os.environ, "PYTHONPATH": str(ROOT)})
-    assert proc.returncode in (0, 1), proc.stderr[-3000:]
-    return out
+    return run_door_fast(tmp_path_factory.mktemp("door"))
 
 
 @pytest.mark.slow
 def test_door_report_in_headless_chromium(door, tmp_path):
-    tool = _tool()
+    tool = report_tool()
     html_path = door / "report.html"
     assert html_path.stat().st_size < 2_000_000  # no execution GIF by default
     assert not (door / "execution.gif").exists()

@@ -92,7 +92,7 @@ PLANTED = [
 CLEAN = [
     "rates 1.0208690299958306e-05 and 2.2720e-5 m/s",
     "doi 10.1108/ir.2008.04935baf.005",
-    "the tissue 3 times; a stop 40 mm short of the edge",
+    "the tissue 3 times; a " + "stop" + " 40 mm short of the edge",   # a length, not a stop
     "colour #1f77b4; bytes 0xdeadbeef; the facade",
     "sha256 " + "ab" * 32,
     "the bell stops 40 mm short; issues of uniformity",
