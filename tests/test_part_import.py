@@ -352,3 +352,16 @@ def test_dropping_slivers_keeps_every_opening_of_a_real_part() -> None:
     surf, _ = import_part(MeshPart(file=str(SHARED / "crs_cowling_3_holes.stl")), 0.025)
     big = [o for o in surf.regions.openings if 0.70 < o.perimeter_m < 0.80]
     assert len(big) == 3
+
+
+@needs_shared
+def test_a_scan_the_thinning_folds_past_repair_is_read_at_its_own_tessellation() -> None:
+    """bezier_part_scan_12_pieces (179k faces) is far finer than 25 mm, so it is thinned; the
+    clustering folds its thin pieces into faces MeshLab cannot orient, and the import falls back
+    to the file's own faces: the largest piece keeps its area as trimesh measures it on the file."""
+    path = SHARED / "bezier_part_scan_12_pieces.ply"
+    surf, rep = import_part(MeshPart(file=str(path), pieces="largest"), 0.025)
+    assert rep.repair.thin_cell_m == 0.0           # not thinned: the fallback ran
+    raw = trimesh.load(path, process=False)
+    largest = max(raw.split(only_watertight=False), key=lambda m: m.area)
+    assert surf.vertex_areas.sum() == pytest.approx(largest.area, rel=0.02)

@@ -198,6 +198,8 @@ def import_part(spec: MeshPart, resolution_m: float | None = 0.01,
 
 def _import_part(spec: MeshPart, resolution_m: float | None, setting: str
                  ) -> tuple[Surface, ImportReport]:
+    import pymeshlab
+
     raw = read_part_file(spec.file, spec.chord_tolerance_m)
     units = choose_units(np.ptp(raw.vertices, axis=0), spec.units, raw.cad)
     v0 = raw.vertices * units.scale_m
@@ -206,9 +208,18 @@ def _import_part(spec: MeshPart, resolution_m: float | None, setting: str
         check_surface_budget(float(face_areas(v0, f_raw).sum()), resolution_m, setting,
                              spec.file)
     n_file = len(f_raw)
-    v0, f_raw, cell = thin_for_resolution(v0, f_raw, resolution_m)
+    v_thin, f_thin, cell = thin_for_resolution(v0, f_raw, resolution_m)
+    try:
+        v, f, rep = repair(v_thin, f_thin)
+        v0, f_raw = v_thin, f_thin
+    except pymeshlab.PyMeshLabException:
+        if cell is None:
+            raise
+        # vertex clustering can fold a scan's thin features into faces MeshLab cannot orient
+        # (bezier_part_scan_12_pieces): repair the file's own tessellation instead
+        cell = None
+        v, f, rep = repair(v0, f_raw)
     nr = np.cross(v0[f_raw[:, 1]] - v0[f_raw[:, 0]], v0[f_raw[:, 2]] - v0[f_raw[:, 0]]).sum(0)
-    v, f, rep = repair(v0, f_raw)
     if cell is not None:
         rep = replace(rep, thinned_from=n_file, thin_cell_m=cell)
     groups = split_pieces(v, f)
