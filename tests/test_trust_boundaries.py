@@ -188,7 +188,9 @@ def test_a_poisoned_robot_model_cache_file_is_rejected_and_rebuilt(
 @pytest.mark.slow
 def test_a_second_concurrent_sweep_to_the_same_folder_is_refused_at_once(tmp_path: Path) -> None:
     plate_scenario(tmp_path)
-    args = ["sweep", "plate.toml", "--fast", "--workers", "0", "--samples", "4", "--mode",
+    # Enough samples that the first sweep is still running when the second one asks for the
+    # folder, however fast the machine; the first is ended by SIGTERM below.
+    args = ["sweep", "plate.toml", "--fast", "--workers", "0", "--samples", "500", "--mode",
             "kinematic", "--no-report", "--out", "sw", "--vary", "flow_scale=uniform(0.9, 1.1)"]
     first = subprocess.Popen([sys.executable, "-m", "paintcell", *args], cwd=tmp_path,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env())
