@@ -27,7 +27,6 @@ from tests.helpers import (
     R_GLTF_WORLD,
     line_strips,
     report_tool,
-    run_door_fast,
     spec_colours_linear,
 )
 
@@ -38,12 +37,6 @@ REPORT_MAX_BYTES = 2_000_000
 # and 8-bit rounding move a few units; the scale's neighbouring entries differ by ~2-6).
 SCALE_PIXEL_ATOL = 6
 
-
-
-@pytest.fixture(scope="module")
-def door_fast(tmp_path_factory) -> Path:
-    """The results folder of `paintcell run scenarios/door.toml --fast` (one run per module)."""
-    return run_door_fast(tmp_path_factory.mktemp("door_fast"))
 
 
 @pytest.fixture(scope="module")

@@ -10,15 +10,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.helpers import report_tool, run_door_fast
+from tests.helpers import report_tool
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 
-@pytest.fixture(scope="module")
-def door(tmp_path_factory) -> Path:
-    return run_door_fast(tmp_path_factory.mktemp("door"))
+@pytest.fixture
+def door(door_fast: Path) -> Path:
+    """The door's `--fast` results folder (tests/conftest.py: one run a pytest run)."""
+    return door_fast
 
 
 @pytest.mark.slow
