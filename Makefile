@@ -16,12 +16,17 @@ demo: $(STAMP)
 	$(BIN)/paintcell run scenarios/door.toml --out results/door
 	@echo "Results: results/door (report.html, metrics.json, plan.json, trajectory.npz/.csv, trace.npz)"
 
+# pytest-xdist workers for the suite (`make test TEST_WORKERS=4`), each test sent to the next free
+# worker (--dist load; module fixtures are built once per worker that runs their file). A worker
+# that crashes fails the test it was running, so the run fails.
+TEST_WORKERS ?= 2
+
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist load
 	$(BIN)/paintcell check scenarios/ --fast --jobs 2 --junit results/check-junit.xml --out results/check
 
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow and not fuzz_full"
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist load -m "not slow and not fuzz_full"
 
 # The whole fuzz suite, its long cases (marker fuzz_full) included; `make test` runs its fast slice.
 fuzz: $(STAMP)
