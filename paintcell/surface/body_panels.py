@@ -62,8 +62,9 @@ _SIDE_NAMES = {1: ("side",), 2: ("front_door", "rear_door"),
                3: ("front_fender", "door", "rear_quarter"),
                4: ("front_fender", "front_door", "rear_door", "rear_quarter")}
 _TOP_NAMES = {1: ("roof",), 2: ("hood", "roof"), 3: ("hood", "roof", "trunk_lid")}
-_END_NAMES = {"front": {1: ("front_bumper",)}, "rear": {1: ("rear_bumper",),
-                                                        2: ("rear_bumper", "tailgate")}}
+_END_NAMES: dict[str, dict[int, tuple[str, ...]]] = {
+    "front": {1: ("front_bumper",)},
+    "rear": {1: ("rear_bumper",), 2: ("rear_bumper", "tailgate")}}
 
 
 class BodyError(SurfaceError):
@@ -132,7 +133,7 @@ def _oriented(name: str, v: np.ndarray, f: np.ndarray, side: str | None,
     if side is None:
         side = max(BODY_SIDES, key=lambda s: float(n @ np.asarray(SIDE_DIRECTIONS[s])))
     return BodyPanel(name, m, float(m.area), side, SIDE_DIRECTIONS[side],
-                     tuple(float(x) for x in n), source)
+                     (float(n[0]), float(n[1]), float(n[2])), source)
 
 
 def _from_mesh(p: Path, units: str, join_gap_m: float, stray_fraction: float
@@ -213,6 +214,7 @@ def panel_names(panels: list[tuple[str, np.ndarray, float]]) -> list[str]:
     roof); the front: front_bumper; the rear bottom to top: rear_bumper, tailgate. Other counts
     are numbered from the front or the bottom (`left_1`, `top_2`)."""
     names = [""] * len(panels)
+    table: dict[int, tuple[str, ...]]
     for side in BODY_SIDES:
         idx = [i for i, (s, _, _) in enumerate(panels) if s == side]
         if side in ("front", "rear"):
@@ -278,7 +280,7 @@ def _from_manifest(path: Path, units: str) -> list[BodyPanel]:
         unit = choose_units(np.ptp(allv, axis=0), "auto").units
     out = []
     for rec, v, f, src in read:
-        pl = rec.get("placement") or {}
+        pl: Any = rec.get("placement") or {}
         if not isinstance(pl, dict):
             raise BodyError(f"{path}: panel {rec['name']!r} placement must be a table like "
                             "{\"xyz_m\": [0, 0, 0], \"rpy_rad\": [0, 0, 0]}")
