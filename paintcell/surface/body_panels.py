@@ -37,6 +37,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from paintcell.core.errors import SurfaceError
+from paintcell.core.safe_paths import kind_of
 from paintcell.surface.mesh_io import choose_units, read_part_file
 from paintcell.surface.part_import import split_pieces
 from paintcell.surface.part_spec import UNITS_M
@@ -235,8 +236,11 @@ def panel_names(panels: list[tuple[str, np.ndarray, float]]) -> list[str]:
 def _from_manifest(path: Path, units: str) -> list[BodyPanel]:
     from scipy.spatial.transform import Rotation
 
+    if path.exists() and not path.is_file():   # a FIFO would block the read: refuse at once
+        raise BodyError(f"manifest {path} is a {kind_of(path.stat().st_mode)}, not a regular "
+                        "file; give the body.json itself")
     if not path.is_file():
-        raise BodyError(f"body folder {path.parent} holds no {MANIFEST_NAME}; write one naming "
+        raise BodyError(f"{path.parent} holds no {path.name}; write a {MANIFEST_NAME} naming "
                         "each panel's file (paintcell.surface.body_panels), or give the body's "
                         "mesh file")
     try:
