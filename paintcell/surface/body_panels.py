@@ -165,7 +165,7 @@ def _centre(v: np.ndarray) -> np.ndarray:
 def _join(v: np.ndarray, f: np.ndarray, groups: list[np.ndarray], gap_m: float
           ) -> list[np.ndarray]:
     """`groups` with those closer than `gap_m` merged (closest distance between the pieces'
-    surfaces, vertex to triangle both ways), largest first."""
+    surfaces, vertex to triangle both ways)."""
     piece = np.empty(len(v), np.int64)
     rims = []
     for i, g in enumerate(groups):
