@@ -274,6 +274,16 @@ def test_generate_refuses_to_overwrite_and_inspect_lists_panels(
     assert (tmp_path / "body.truth.json").read_text() == "mine"   # nothing written
     assert not (tmp_path / "body.stl").exists() and not (tmp_path / "body_panels").exists()
     assert (d / "body_panels" / "hood.stl").read_bytes() == before
+    # --force replaces regular files only: a link in the panel folder is refused, its target kept
+    (tmp_path / "body.truth.json").unlink()
+    (tmp_path / "body_panels").mkdir()
+    target = tmp_path / "elsewhere.stl"
+    target.write_text("keep")
+    (tmp_path / "body_panels" / "roof.stl").symlink_to(target)
+    assert main(["generate", "body", "--seed", "5", "--out", str(tmp_path / "body.stl"),
+                 "--force"]) == 2
+    assert "symbolic link" in capsys.readouterr().err
+    assert target.read_text() == "keep" and not (tmp_path / "body.stl").exists()
     assert main(["inspect", str(d / "body.stl"), "--body"]) == 0
     out = capsys.readouterr().out
     for name, r in body["panels"].items():
