@@ -102,9 +102,9 @@ def test_time_shares_of_a_held_program():
 
 def test_seam_band_and_seam_film_closed_form():
     """Two plates 0.045 m apart along x at 0.01 m spacing; a vertex is in the seam band when the
-    other plate is within 0.10 m: the last 6 columns of each (up to 0.055 m from its edge). A film linear across
-    the seam, 30 µm + 10 µm/m · x: the band's and the interior's means are the areas' centroids'
-    film, measured here from the grid's own columns."""
+    other plate is within 0.10 m: the last 6 columns of each (up to 0.055 m from its edge). A
+    film linear across the seam, 30 µm + 10 µm/m · x: the band's and the interior's means,
+    measured here from the grid's own columns and areas."""
     a = plane(0.5, 0.4, resolution_m=0.01)
     T = np.eye(4)
     T[0, 3] = -0.2725
