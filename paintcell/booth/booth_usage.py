@@ -87,6 +87,11 @@ def _planned_sent_m3(plans: list[CoveragePlan], jobs: tuple[Job, ...]) -> float:
                      for j in jobs))
 
 
+def _pct(part: float, whole: float) -> float:
+    """100 · part ÷ whole [%]; nan when nothing was sent."""
+    return 100.0 * part / whole if whole > 0 else float("nan")
+
+
 def booth_usage(names: list[str], part_keys: list[str], plans: list[CoveragePlan],
                 jobs: dict[int, tuple[Job, ...]], trajs: list[JointTrajectory],
                 program_s: list[float], t_s: np.ndarray, cycle_s: float,
@@ -122,7 +127,7 @@ def booth_usage(names: list[str], part_keys: list[str], plans: list[CoveragePlan
             **{k: r[k] for k in ("painting_share_pct", "moving_share_pct", "waiting_share_pct",
                                  "painting_s", "moving_s", "waiting_s")},
             "paint_used_l": L_PER_M3 * sent[i], "film_on_body_l": L_PER_M3 * laid,
-            "transfer_efficiency_pct": 100.0 * laid / sent[i] if sent[i] > 0 else float("nan")}
+            "transfer_efficiency_pct": _pct(laid, float(sent[i]))}
     laid_all = float(films["executed"].sum(axis=0) @ areas)
     planned_laid = float(films["plan"].sum(axis=0) @ areas)
     body = films["executed"].sum(axis=0) * areas
@@ -131,8 +136,8 @@ def booth_usage(names: list[str], part_keys: list[str], plans: list[CoveragePlan
         "paint_used_l": L_PER_M3 * float(sent.sum()),
         "planned_paint_used_l": L_PER_M3 * float(planned_sent.sum()),
         "film_on_body_l": L_PER_M3 * laid_all,
-        "executed_transfer_efficiency_pct": 100.0 * laid_all / float(sent.sum()),
-        "planned_transfer_efficiency_pct": 100.0 * planned_laid / float(planned_sent.sum()),
+        "executed_transfer_efficiency_pct": _pct(laid_all, float(sent.sum())),
+        "planned_transfer_efficiency_pct": _pct(planned_laid, float(planned_sent.sum())),
         "bell_on_time_s": bell_on,
         "part_paint": {k: {"paint_used_l": L_PER_M3 * float(sent_part[p]),
                            "film_on_part_l": L_PER_M3 * on_part[p]}
