@@ -198,6 +198,33 @@ def test_booth_paint_re_measured_from_plans_traces_and_film(booth_dir):
         100 * laid / sum(sent.values()), rel=1e-6)
 
 
+def test_booth_motion_re_measured_from_the_traces(booth_dir):
+    """Each robot's TCP error on paint samples = the largest distance between its trace's and its
+    tracked program's TCP there; its speed error is the TCP's speed over the body (the line's
+    nominal motion, from the program's conveyor record, taken off) against the planned speed."""
+    from paintcell.execution.trace import ExecutedTrace
+    from paintcell.motion.joint_trajectory import JointTrajectory
+
+    m = _metrics(booth_dir)
+    for name in NAMES:
+        r = m["robots"][name]
+        ex = ExecutedTrace.load_npz(booth_dir / f"trace_{name}.npz")
+        tr = JointTrajectory.load_npz(booth_dir / f"trajectory_{name}.npz")
+        on = tr.paint_on
+        err = np.linalg.norm(ex.tcp_pos_world - tr.tcp_pos_world, axis=1)
+        assert r["tracking_error_max_mm"] == pytest.approx(1e3 * err[on].max(), rel=1e-9)
+        c = tr.meta["conveyor"]
+        line = np.outer(c["speed_m_s"] * (ex.t_s - c["t_ref_s"]), c["direction"])
+        v = np.linalg.norm(np.gradient(ex.tcp_pos_world - line, ex.t_s, axis=0), axis=1)
+        use = on & (tr.v_tcp_planned > 1e-6)
+        rel = (v[use] - tr.v_tcp_planned[use]) / tr.v_tcp_planned[use]
+        assert r["speed_error_rms_pct"] == pytest.approx(100 * np.sqrt(np.mean(rel ** 2)),
+                                                         rel=1e-6)
+        assert r["speed_error_rms_pct"] < 1.0      # the line's 0.05 m/s is not counted as error
+    assert m["tracking_error_max_mm"] == max(m["robots"][n]["tracking_error_max_mm"]
+                                             for n in NAMES)
+
+
 def test_booth_loss_split_and_part_figures_re_measured(booth_dir):
     """Per part and over the body, time law + servo + conveyor = executed − planned σ/μ within
     rounding; each part's planned and executed σ/μ and mean re-measured from film.npz over its

@@ -101,7 +101,10 @@ def part_film_figures(body: Surface, tot: dict[str, np.ndarray], areas: np.ndarr
                       judged_faces: np.ndarray | None, offs: np.ndarray, keys: list[str],
                       target_m: float, spec: PaintSpec) -> dict[str, Any]:
     """{"part_film": {part key: figures}, "seam_film": the body's seams and interiors,
-    "seam_band_m", "planned_inside_spec_pct" (the whole body's planned film in the window)}.
+    "seam_band_m", and the whole body's "planned_inside_spec_pct" (its planned film in the
+    window), "planned_mean_um", "executed_min_um", "executed_max_um" and the executed film's
+    largest and RMS difference from the planned, "max_thickness_diff_um",
+    "rms_thickness_diff_um" (over the judged area)}.
 
     tot: the robots' films summed, kind → (N,) [m] on `body`'s vertices; areas: (N,) the judged
     vertices' areas [m²] (0 elsewhere); judged_faces: (F,) bool, the faces the spec shares are
@@ -117,8 +120,13 @@ def part_film_figures(body: Surface, tot: dict[str, np.ndarray], areas: np.ndarr
         own = fmask & (faces[:, 0] >= offs[i]) & (faces[:, 0] < offs[i + 1])
         parts[key] = {**_figures(tot, w, body, own, target_m, spec),
                       **_seam_figures(tot["executed"], w, body, own, band, target_m, spec)}
+    w = np.asarray(areas, float)
+    whole = _figures(tot, w, body, fmask, target_m, spec)
+    diff = (tot["executed"] - tot["plan"])[w > 0]
     return {"part_film": parts,
-            "seam_film": _seam_figures(tot["executed"], np.asarray(areas, float), body, fmask,
-                                       band, target_m, spec),
+            "seam_film": _seam_figures(tot["executed"], w, body, fmask, band, target_m, spec),
             "seam_band_m": SEAM_BAND_M,
-            "planned_inside_spec_pct": _inside(tot["plan"], body, fmask, target_m, spec)}
+            **{k: whole[k] for k in ("planned_inside_spec_pct", "planned_mean_um",
+                                     "executed_min_um", "executed_max_um")},
+            "max_thickness_diff_um": 1e6 * float(np.abs(diff).max()),
+            "rms_thickness_diff_um": 1e6 * float(np.sqrt(diff ** 2 @ w[w > 0] / w.sum()))}

@@ -154,10 +154,13 @@ def _usage_tables(m: dict[str, Any]) -> list[str]:
            f"({m['planned_transfer_efficiency_pct']:.1f} % planned).</p>" + _table(
                ["robot", "painting [% of cycle]", "moving [% of cycle]",
                 "waiting at home [% of cycle]", "paint sent [L]", "film on the body [L]",
-                "transfer efficiency [%]"],
+                "transfer efficiency [%]", "TCP error on passes, max [mm]",
+                "speed error over the body, RMS [%]", "joint range use, max [-]"],
                [[n, r["painting_share_pct"], r["moving_share_pct"], r["waiting_share_pct"],
                  _fmt(r["paint_used_l"], 4), _fmt(r["film_on_body_l"], 4),
-                 r["transfer_efficiency_pct"]] for n, r in m["robots"].items()])]
+                 r["transfer_efficiency_pct"], r.get("tracking_error_max_mm"),
+                 r.get("speed_error_rms_pct"), r.get("max_joint_range_utilization")]
+                for n, r in m["robots"].items()])]
     paint = m.get("part_paint", {})
     rows = []
     for k, f in m["part_film"].items():
