@@ -564,13 +564,23 @@ def _held_first(traj, n: int):
     return dataclasses.replace(traj, t_s=t, **arrays)
 
 
+def robot_honest_reach(plans, jobs, static, tracked, trace):
+    """A booth robot's honest reachability as `booth_results` asks for it: its jobs' plan, its
+    static program with its jobs' IK reports, its trace on the booth clock (`tracked`)."""
+    from paintcell.booth.booth_chain import robot_plan
+    from paintcell.validation.honest_reach import honest_reachability
+
+    reports = static.meta.get("job_reachability") or static.meta.get("reachability")
+    return honest_reachability(robot_plan(plans, jobs), static, trace, reports, clock=tracked)
+
+
 def test_booth_reachability_is_honest(roof_booth):
     """The booth's reachability is its least robot's honest figure: a contact
     during a pass takes exactly that pass's pose, one during a move the two poses it links, on
     the robot's own clock however late it started in the booth (here 2.5 s later than in the
     run: its program's first pose held, as a start delay holds it)."""
-    from paintcell.booth.booth_reach import clock_offset_s, robot_honest_reach
     from paintcell.execution.trace import Contact
+    from paintcell.validation.honest_reach import clock_offset_s
 
     res = roof_booth
     m = res.report.metrics
@@ -630,7 +640,6 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
     import copy
 
     from paintcell.booth.booth_chain import chain_programs
-    from paintcell.booth.booth_reach import robot_honest_reach
     from paintcell.execution.trace import Contact
 
     res = roof_booth

@@ -131,7 +131,7 @@ class BoothThresholds:
     min_bell_distance_m: smallest distance between two bells while both paint [m].
     max_torque_utilization: largest demanded/limit torque of any joint [-].
     reachability_pct: the least robot's honest reachability [%]
-        (`paintcell.booth.booth_reach`: poses lost to IK, joint jumps, configuration flips,
+        (`paintcell.validation.honest_reach`: poses lost to IK, joint jumps, configuration flips,
         contacts and time-law slowdowns > 10 % count against it).
     """
 

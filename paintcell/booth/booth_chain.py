@@ -160,6 +160,13 @@ def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
     return n[0]
 
 
+def robot_plan(plans: list[Any], jobs: tuple[Any, ...]) -> Any:
+    """The `CoveragePlan` a robot runs: its jobs' pass slices (`Job.part`, `first`, `end`) in
+    program order (its chained program's pass indices run on across the jobs in that order)."""
+    passes = tuple(p for j in jobs for p in plans[j.part].passes[j.first:j.end])
+    return dataclasses.replace(plans[jobs[0].part], passes=passes)
+
+
 def job_record(jobs: tuple[Any, ...]) -> list[int] | list[list[int]]:
     """A robot's jobs (`paintcell.booth.booth.Job`s) for records and reports: [part, first,
     end] for one job, a list of them for several."""
