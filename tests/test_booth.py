@@ -217,8 +217,9 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
     """`film_refine_pace = true` refines every part with its pace held except one whose planner
     sets `film_refine = false` (booth [planner] or the part's own): the user's false wins. The
     refinement is stubbed to record which parts it got; the run stops after it."""
-    from paintcell.booth import booth_plans, booth_refine
+    from paintcell.booth import booth_plans
     from paintcell.booth import booth_programs as bp
+    from paintcell.coverage import film_refine
     from paintcell.surface import parts
 
     class Stop(Exception):
@@ -237,7 +238,7 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
     surface = parts.get_part("roof", resolution_m=ROOF_BOOTH.fast_resolution_m)
     monkeypatch.setattr(bp, "plan_parts", lambda booth, fast: _part_plans(
         [surface] * len(booth.parts), roof_booth.plans * len(booth.parts), booth))
-    monkeypatch.setattr(booth_refine, "refine_parts", record)
+    monkeypatch.setattr(film_refine, "refine_parts", record)
     monkeypatch.setattr(booth_plans, "merge_surfaces", stop)
     roof = ROOF_BOOTH.parts[0]
     two = (roof, dataclasses.replace(roof, planner={**roof.planner, "film_refine": False}))

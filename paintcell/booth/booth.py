@@ -188,8 +188,8 @@ class Booth:
     film_refine_pace: bool = False
     """Plan the parts without the planner's film refinement and refine each afterwards with
     every pass's duration held, so robots sweeping in step keep their pace
-    (`paintcell.booth.booth_refine`); a part whose planner sets `film_refine = false`
-    (the booth's `[planner]` or its own) is not refined at all."""
+    (`paintcell.coverage.film_refine.refine_parts`); a part whose planner sets
+    `film_refine = false` (the booth's `[planner]` or its own) is not refined at all."""
     robot_aware_speeds: bool = True
     """Measure each robot's program on its passes and re-plan the parts' speeds under what the
     robots reached where they ran slower than planned (`paintcell.booth.booth_speeds`, as
