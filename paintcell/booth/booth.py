@@ -164,6 +164,10 @@ class Booth:
     planner: dict[str, Any] = field(default_factory=dict)
     trajectory: dict[str, Any] = field(default_factory=dict)
     servo: dict[str, Any] = field(default_factory=dict)
+    disturbances: dict[str, Any] = field(default_factory=dict)
+    """`paintcell.execution.execute_settings.Disturbances` fields the run executes under, as a
+    one-robot scenario's `[disturbances]`: every robot's TCP and trigger, the body's placement
+    on the skid, the paint flow and the servo gains (empty: the nominal cell)."""
     thresholds: BoothThresholds = BoothThresholds()
     allocation: dict[str, Any] | None = None
     max_jobs_per_robot: int = 1
@@ -202,8 +206,8 @@ class Booth:
     """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
     sweep: dict[str, Any] = field(default_factory=dict)
     """The `paintcell sweep` table (`paintcell.validation.sweep_spec.SCENARIO_KEYS`); a booth sweep
-    varies the
-    line speed (`paintcell.sweeps.sweep_booth`)."""
+    varies a one-robot cell's factors on every robot and the line speed
+    (`paintcell.sweeps.sweep_worker`)."""
 
     def __post_init__(self) -> None:
         if not self.parts or not self.robots:
