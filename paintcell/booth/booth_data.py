@@ -174,10 +174,9 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     body = _placement(_table(d, "body_placement", where), f"{where} [body_placement]")
     try:
         if sweep:
-            from paintcell.validation.sweep_spec import check_booth_factors, check_sweep_table
+            from paintcell.validation.sweep_spec import check_sweep_table
 
             check_sweep_table(sweep)
-            check_booth_factors(tuple(sweep.get("factors", {})))
         conv_kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
                                    for k, v in conv.items()}
         conveyor = Conveyor(**conv_kw)

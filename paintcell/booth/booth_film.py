@@ -103,30 +103,44 @@ def gun_in_body(t_s: np.ndarray, pos: np.ndarray, rot: np.ndarray, paint_on: np.
 
 
 def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[CoveragePlan],
-           jobs: dict[int, tuple[Job, ...]], T_bp: list[np.ndarray], trajs: list[JointTrajectory],
-           traces: list[ExecutedTrace], trace: ExecutedTrace, t_ref: float
-           ) -> dict[str, np.ndarray]:
+                jobs: dict[int, tuple[Job, ...]], T_bp: list[np.ndarray],
+                trajs: list[JointTrajectory], traces: list[ExecutedTrace] | None,
+                trace: ExecutedTrace | None, t_ref: float,
+                reuse: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Per robot and kind (plan, trajectory, servo, executed): film (R, N) [m]. The servo and
     executed films follow each robot's trace (`traces`: its executed TCP, trigger and paint
     flow); the executed one against the body where it really was (the carrier's position and
-    the placement the trace's disturbances put it at, `T_world_part_actual`)."""
+    the placement the trace's disturbances put it at, `T_world_part_actual`). traces and trace
+    None: the plan and trajectory films only (what no execution changes); reuse: those two,
+    already measured (a sweep's samples)."""
     pts, nrm = body.vertices, body.normals
-    t = trace.t_s
+    t = trajs[0].t_s if trace is None else trace.t_s
     unit = booth.conveyor.unit
     nominal = booth.conveyor.position_m(t, t_ref)
-    actual = trace.q[:, bcell.carrier_column] if bcell.carrier_column is not None else nominal
     T0 = bcell.T_world_part
-    T_actual = np.asarray(trace.meta.get("T_world_part_actual", T0), float)
-    out = {k: np.zeros((bcell.n_robots, len(pts))) for k in ("plan", "trajectory", "servo",
-                                                             "executed")}
-    for i, (tr, ex) in enumerate(zip(trajs, traces, strict=True)):
-        out["plan"][i] = planned_film(plans, jobs[i], T_bp, pts, nrm)
-        flow = {k: float(ex.meta[k]) for k in ("flow_scale", "flow_drift") if k in ex.meta}
-        for key, src, T, x in (("trajectory", tr, T0, nominal), ("servo", ex, T0, nominal),
-                               ("executed", ex, T_actual, actual)):
+    shape = (bcell.n_robots, len(pts))
+    out = dict(zip(("plan", "trajectory"), reuse or (np.zeros(shape), np.zeros(shape)),
+                   strict=True))
+    # (kind, from the executed trace, body placement, carrier position [m])
+    runs: list[tuple[str, bool, np.ndarray, np.ndarray]] = \
+        [("trajectory", False, T0, nominal)] if reuse is None else []
+    if traces is not None and trace is not None:
+        actual = trace.q[:, bcell.carrier_column] if bcell.carrier_column is not None \
+            else nominal
+        T_actual = np.asarray(trace.meta.get("T_world_part_actual", T0), float)
+        runs += [("servo", True, T0, nominal), ("executed", True, T_actual, actual)]
+        out.update(servo=np.zeros(shape), executed=np.zeros(shape))
+    for i, tr in enumerate(trajs):
+        if reuse is None:
+            out["plan"][i] = planned_film(plans, jobs[i], T_bp, pts, nrm)
+        ex = None if traces is None else traces[i]
+        flow = {} if ex is None else {k: float(ex.meta[k]) for k in ("flow_scale", "flow_drift")
+                                      if k in ex.meta}
+        for key, executed, T, x in runs:
+            src: Any = ex if executed else tr
             for app, on in job_paint(plans, jobs[i], tr, src.paint_on):
                 g = gun_in_body(t, src.tcp_pos_world, src.tcp_rot_world, on, T, x, unit,
-                                flow if src is ex else None)
+                                flow if executed else None)
                 out[key][i] += thickness(app, g, pts, nrm)
     return out
 
