@@ -565,21 +565,12 @@ def _held_first(traj, n: int):
     return dataclasses.replace(traj, t_s=t, **arrays)
 
 
-def robot_honest_reach(plans, jobs, static, tracked, trace):
-    """A booth robot's honest reachability as `booth_results` asks for it: its jobs' plan, its
-    static program with its jobs' IK reports, its trace on the booth clock (`tracked`)."""
-    from paintcell.booth.booth_chain import robot_plan
-    from paintcell.validation.honest_reach import honest_reachability
-
-    reports = static.meta.get("job_reachability") or static.meta.get("reachability")
-    return honest_reachability(robot_plan(plans, jobs), static, trace, reports, clock=tracked)
-
-
 def test_booth_reachability_is_honest(roof_booth):
     """The booth's reachability is its least robot's honest figure: a contact
     during a pass takes exactly that pass's pose, one during a move the two poses it links, on
     the robot's own clock however late it started in the booth (here 2.5 s later than in the
     run: its program's first pose held, as a start delay holds it)."""
+    from paintcell.booth.booth_chain import robot_reachability
     from paintcell.execution.trace import Contact
     from paintcell.validation.honest_reach import clock_offset_s
 
@@ -599,11 +590,11 @@ def test_booth_reachability_is_honest(roof_booth):
     after = np.flatnonzero(~static.paint_on & (np.arange(len(static.t_s)) > paint0[-1]))[:1]
     k_move = _arm_sample(tracked, static, int(after[0]) + 50)   # 50 ms into the turnaround
     trace = res.traces[i]
-    base = robot_honest_reach(res.plans, res.jobs[i], static, tracked, trace)
+    base = robot_reachability(res.plans, res.jobs[i], static, tracked, trace)
     for t_b, lost in ((tracked.t_s[k_mid], 1), (tracked.t_s[k_move], 2)):
         hit = dataclasses.replace(trace, contacts=(*trace.contacts,
                                                    Contact(float(t_b), "arm", "part", 1e-3)))
-        h = robot_honest_reach(res.plans, res.jobs[i], static, tracked, hit)
+        h = robot_reachability(res.plans, res.jobs[i], static, tracked, hit)
         assert h["n_contact_poses"] == base["n_contact_poses"] + lost
         assert h["reachability_pct"] < 100.0 and "in contact" in h["verdict"]
 
@@ -640,7 +631,7 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
     job, a pass or the clock makes them two)."""
     import copy
 
-    from paintcell.booth.booth_chain import chain_programs
+    from paintcell.booth.booth_chain import chain_programs, robot_reachability
     from paintcell.execution.trace import Contact
 
     res = roof_booth
@@ -662,7 +653,7 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
     j = int(sel[np.argmin(np.abs(static.s_pass_m[sel] - s_pose))])
     t_b = float(tracked.t_s[_arm_sample(tracked, static, j)])
     trace = dataclasses.replace(res.traces[0], contacts=(Contact(t_b, "arm", "part", 1e-3),))
-    h = robot_honest_reach(res.plans, jobs, static, tracked, trace)
+    h = robot_reachability(res.plans, jobs, static, tracked, trace)
     assert h["n_poses"] == s0.meta["reachability"]["n_poses"] + rep["n_poses"]
     assert h["n_unreachable"] == 1 and h["n_contact_poses"] == 1
     assert h["n_lost"] == 1 and h["per_pose"]

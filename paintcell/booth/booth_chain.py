@@ -167,6 +167,17 @@ def robot_plan(plans: list[Any], jobs: tuple[Any, ...]) -> Any:
     return dataclasses.replace(plans[jobs[0].part], passes=passes)
 
 
+def robot_reachability(plans: list[Any], jobs: tuple[Any, ...], static: JointTrajectory,
+                       tracked: JointTrajectory, trace: Any) -> dict[str, Any] | None:
+    """A robot's honest reachability (`paintcell.validation.honest_reach`): its jobs' plan
+    (`robot_plan`), its own static program with its jobs' IK reports, its share of the booth's
+    trace (`trace`: its bodies' contacts) on the booth clock its `tracked` program ran on."""
+    from paintcell.validation.honest_reach import honest_reachability
+
+    reports = static.meta.get("job_reachability") or static.meta.get("reachability")
+    return honest_reachability(robot_plan(plans, jobs), static, trace, reports, clock=tracked)
+
+
 def job_record(jobs: tuple[Any, ...]) -> list[int] | list[list[int]]:
     """A robot's jobs (`paintcell.booth.booth.Job`s) for records and reports: [part, first,
     end] for one job, a list of them for several."""
