@@ -217,8 +217,9 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
     """`film_refine_pace = true` refines every part with its pace held except one whose planner
     sets `film_refine = false` (booth [planner] or the part's own): the user's false wins. The
     refinement is stubbed to record which parts it got; the run stops after it."""
-    from paintcell.booth import booth_plans, booth_refine
+    from paintcell.booth import booth_plans
     from paintcell.booth import booth_programs as bp
+    from paintcell.coverage import film_refine
     from paintcell.surface import parts
 
     class Stop(Exception):
@@ -237,7 +238,7 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
     surface = parts.get_part("roof", resolution_m=ROOF_BOOTH.fast_resolution_m)
     monkeypatch.setattr(bp, "plan_parts", lambda booth, fast: _part_plans(
         [surface] * len(booth.parts), roof_booth.plans * len(booth.parts), booth))
-    monkeypatch.setattr(booth_refine, "refine_parts", record)
+    monkeypatch.setattr(film_refine, "refine_parts", record)
     monkeypatch.setattr(booth_plans, "merge_surfaces", stop)
     roof = ROOF_BOOTH.parts[0]
     two = (roof, dataclasses.replace(roof, planner={**roof.planner, "film_refine": False}))
@@ -569,8 +570,9 @@ def test_booth_reachability_is_honest(roof_booth):
     during a pass takes exactly that pass's pose, one during a move the two poses it links, on
     the robot's own clock however late it started in the booth (here 2.5 s later than in the
     run: its program's first pose held, as a start delay holds it)."""
-    from paintcell.booth.booth_reach import clock_offset_s, robot_honest_reach
+    from paintcell.booth.booth_chain import robot_reachability
     from paintcell.execution.trace import Contact
+    from paintcell.validation.honest_reach import clock_offset_s
 
     res = roof_booth
     m = res.report.metrics
@@ -588,11 +590,11 @@ def test_booth_reachability_is_honest(roof_booth):
     after = np.flatnonzero(~static.paint_on & (np.arange(len(static.t_s)) > paint0[-1]))[:1]
     k_move = _arm_sample(tracked, static, int(after[0]) + 50)   # 50 ms into the turnaround
     trace = res.traces[i]
-    base = robot_honest_reach(res.plans, res.jobs[i], static, tracked, trace)
+    base = robot_reachability(res.plans, res.jobs[i], static, tracked, trace)
     for t_b, lost in ((tracked.t_s[k_mid], 1), (tracked.t_s[k_move], 2)):
         hit = dataclasses.replace(trace, contacts=(*trace.contacts,
                                                    Contact(float(t_b), "arm", "part", 1e-3)))
-        h = robot_honest_reach(res.plans, res.jobs[i], static, tracked, hit)
+        h = robot_reachability(res.plans, res.jobs[i], static, tracked, hit)
         assert h["n_contact_poses"] == base["n_contact_poses"] + lost
         assert h["reachability_pct"] < 100.0 and "in contact" in h["verdict"]
 
@@ -629,8 +631,7 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
     job, a pass or the clock makes them two)."""
     import copy
 
-    from paintcell.booth.booth_chain import chain_programs
-    from paintcell.booth.booth_reach import robot_honest_reach
+    from paintcell.booth.booth_chain import chain_programs, robot_reachability
     from paintcell.execution.trace import Contact
 
     res = roof_booth
@@ -652,7 +653,7 @@ def test_two_jobs_reachability_maps_each_pose_once(roof_booth):
     j = int(sel[np.argmin(np.abs(static.s_pass_m[sel] - s_pose))])
     t_b = float(tracked.t_s[_arm_sample(tracked, static, j)])
     trace = dataclasses.replace(res.traces[0], contacts=(Contact(t_b, "arm", "part", 1e-3),))
-    h = robot_honest_reach(res.plans, jobs, static, tracked, trace)
+    h = robot_reachability(res.plans, jobs, static, tracked, trace)
     assert h["n_poses"] == s0.meta["reachability"]["n_poses"] + rep["n_poses"]
     assert h["n_unreachable"] == 1 and h["n_contact_poses"] == 1
     assert h["n_lost"] == 1 and h["per_pose"]

@@ -160,12 +160,11 @@ def test_seams_between_adjacent_parts_are_blended():
 
 
 def test_booth_refinement_evens_the_film_and_keeps_every_pass_duration():
-    """`booth_refine.refine_parts` on the door planned without refinement: the film re-measured on
+    """`film_refine.refine_parts` on the door planned without refinement: the film re-measured on
     the part is more even than the plan's, every pass's duration (re-measured from its times)
     stays within 0.5 % of the plan's, while the free refinement (no duration term) moves some
     pass by more — the term is what holds the pace."""
-    from paintcell.booth.booth_refine import refine_parts
-    from paintcell.coverage.film_refine import refine_speeds
+    from paintcell.coverage.film_refine import refine_parts, refine_speeds
     from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
 
     s = parts.get_part("door", resolution_m=0.05)           # coarse: the test's time

@@ -1,4 +1,5 @@
-"""Robot-aware speeds in a booth (paintcell.booth.booth_speeds): a robot's slowdown, measured
+"""Robot-aware speeds in a booth (paintcell.booth.booth_speeds, measured by
+paintcell.motion.speed_feedback.part_speeds for any number of robots): a robot's slowdown, measured
 on its chained program, lands as caps on the very samples it ran slow — found again by where they
 are in space — through a part run backwards and a robot with two jobs."""
 
@@ -8,9 +9,13 @@ import numpy as np
 
 from paintcell.booth.booth import Job
 from paintcell.booth.booth_build import reversed_plan
-from paintcell.booth.booth_speeds import part_speeds, planner_order, stored_caps
 from paintcell.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.motion.speed_feedback import caps_from_speeds
+from paintcell.motion.speed_feedback import (
+    caps_from_speeds,
+    part_speeds,
+    planner_order,
+    stored_caps,
+)
 from paintcell.paint.applicator import Applicator
 from paintcell.surface import parts
 from tests.helpers import stand_in_program

@@ -1,5 +1,6 @@
-"""Booth sweeps over the conveyor's speed error and the body's placement on the skid
-(`paintcell.sweeps.sweep_booth`).
+"""Booth sweeps over the conveyor's speed error, the body's placement on the skid and the
+one-robot cell's factors on every robot (`paintcell.sweeps.sweep_worker`, the worker of any
+cell).
 
 The slow test sends a small sweep of the two-robot roof booth through a real Dask cluster
 (a `dask scheduler` and two `dask worker` processes on 127.0.0.1, started by the fixture of
@@ -10,7 +11,8 @@ The slow test sends a small sweep of the two-robot roof booth through a real Das
 - the nominal sample has no conveyor loss, and a larger speed error loses more uniformity;
 - a sample run in this process equals the cluster's record (timings and worker excluded).
 A placement error on the skid (`part_offset_m`, in this process): the executed film equals the
-film of the reference TCPs moved the other way against the nominal body.
+film of the reference TCPs moved the other way against the nominal body. A flow error
+(`flow_scale`) scales every robot's executed film by itself.
 """
 
 from __future__ import annotations
@@ -37,25 +39,28 @@ SPEC = SweepSpec.from_strings(["conveyor_speed_error_m_s=uniform(-0.01, 0.01)"],
 def roof_payload() -> Any:
     """The roof booth's programs and reference films for SPEC, kinematic (built once: ~5 s)."""
     from paintcell.sweeps.sweep import spec_digest
-    from paintcell.sweeps.sweep_booth import prepare_booth_payload
+    from paintcell.sweeps.sweep_worker import booth_payload
 
-    return prepare_booth_payload(ROOF_BOOTH, SPEC.names,
-                                 spec_digest(ROOF_BOOTH, SPEC, True, "kinematic"), True,
-                                 "kinematic")
+    return booth_payload(ROOF_BOOTH, SPEC.names, spec_digest(ROOF_BOOTH, SPEC, True, "kinematic"),
+                         True, "kinematic")
 
 
 def test_factors_that_do_not_fit_the_scenario_are_refused(tmp_path: Path) -> None:
-    """A line-speed error on the single-robot cell, a single-robot factor on a booth: one-line
-    errors naming the fix, before anything is planned or written."""
+    """A line-speed error on the single-robot cell: a one-line error naming the fix, before
+    anything is planned or written. A booth takes every factor (on every robot)."""
     from paintcell.app.scenario_files import load_scenario
+    from paintcell.sweeps.sweep import check_factors_fit
+    from paintcell.validation.sweep_names import FACTORS
 
     plate = load_scenario(plate_scenario(tmp_path / "case"))
     with pytest.raises(SweepError, match="no conveyor; sweep a booth scenario"):
         run_sweep(plate, SPEC, tmp_path / "a", progress=False)
-    with pytest.raises(SweepError, match=r"\['gain_scale'\] are not modelled in a booth sweep"):
-        run_sweep(ROOF_BOOTH, SweepSpec.from_strings(["gain_scale=uniform(0.5, 1.5)"], 2),
-                  tmp_path / "b", progress=False)
-    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+    assert not (tmp_path / "a").exists()
+    every = SweepSpec.from_strings([f"{n}=uniform(0, 0.001)" for n in FACTORS
+                                    if n not in ("gain_scale", "flow_scale")]
+                                   + ["gain_scale=uniform(0.9, 1.1)",
+                                      "flow_scale=uniform(0.9, 1.1)"], 2)
+    check_factors_fit(ROOF_BOOTH, every)
 
 
 def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
@@ -70,10 +75,15 @@ def test_booth_toml_takes_a_sweep_table(tmp_path: Path) -> None:
     assert b.sweep["factors"] == {"conveyor_speed_error_m_s": "normal(0, 0.0025)"}
     data = tomllib.loads(Path("scenarios/booth.toml").read_text())
     data["sweep"] = {"factors": {"flow_scale": "normal(1, 0.05)"}}
-    bad = tmp_path / "booth.toml"
-    bad.write_text(tomli_w.dumps(data))
-    with pytest.raises(BoothDataError, match=r"booth.toml: factor\(s\) \['flow_scale'\] are not"):
-        load_scenario(bad)
+    if "applicator" in data:                  # the bell file, relative to scenarios/
+        data["applicator"] = str(Path("scenarios").resolve() / data["applicator"])
+    flow = tmp_path / "booth.toml"
+    flow.write_text(tomli_w.dumps(data))
+    assert load_scenario(flow).sweep["factors"] == {"flow_scale": "normal(1, 0.05)"}
+    data["sweep"] = {"factors": {"wobble": "normal(1, 0.05)"}}
+    flow.write_text(tomli_w.dumps(data))
+    with pytest.raises(BoothDataError, match=r"booth.toml.*unknown factor 'wobble'"):
+        load_scenario(flow)
 
 
 @pytest.mark.slow
@@ -82,7 +92,7 @@ def test_conveyor_speed_sweep_on_a_loopback_cluster(
         roof_payload: Any) -> None:
     from paintcell.booth.booth_film import body_uniformity, gun_in_body
     from paintcell.paint.deposition import thickness
-    from paintcell.sweeps.sweep_booth import run_booth_sample
+    from paintcell.sweeps.sweep_worker import run_sample
 
     address, _ = cluster
     res = run_sweep(ROOF_BOOTH, SPEC, tmp_path / "remote", fast=True, mode="kinematic",
@@ -107,7 +117,7 @@ def test_conveyor_speed_sweep_on_a_loopback_cluster(
     payload = roof_payload
     i = int(np.argmax(np.abs(dv[1:])))
     rec = res.samples[i]
-    local = run_booth_sample(payload, rec["index"], SPEC.design()[rec["index"]],
+    local = run_sample(payload, rec["index"], SPEC.design()[rec["index"]],
                              int(SPEC.sample_seeds()[rec["index"]]))
     assert ({k: w for k, w in local.items() if k not in RUN_KEYS}
             == {k: w for k, w in rec.items() if k not in RUN_KEYS})
@@ -135,14 +145,14 @@ def test_part_offset_on_the_skid_moves_the_body_the_films_see(roof_payload: Any)
     (executed − servo) is exactly the executed film's change."""
     from paintcell.booth.booth_film import body_uniformity, gun_in_body
     from paintcell.paint.deposition import thickness
-    from paintcell.sweeps.sweep_booth import run_booth_sample
+    from paintcell.sweeps.sweep_worker import run_sample
 
     # the same programs and reference films (no factor changes them), another factor
     payload = dataclasses.replace(roof_payload, names=("part_offset_m",),
                                   digest="part-offset-test")
-    nominal = run_booth_sample(payload, -1, None, 0)
+    nominal = run_sample(payload, -1, None, 0)
     x, seed = -0.02, 11    # a 20 mm placement error (the sign of a draw does not matter)
-    rec = run_booth_sample(payload, 0, np.array([x]), seed)
+    rec = run_sample(payload, 0, np.array([x]), seed)
     assert "error" not in rec and rec["factors"] == {"part_offset_m": x}
     d = np.random.default_rng(seed).normal(size=3)
     T0 = ROOF_BOOTH.body_placement.matrix
@@ -168,3 +178,20 @@ def test_part_offset_on_the_skid_moves_the_body_the_films_see(roof_payload: Any)
     assert m["loss_conveyor_pp"] == pytest.approx(
         m["executed_nsd_pct"] - m0["executed_nsd_pct"], abs=1e-9)
     assert abs(m["loss_conveyor_pp"]) > 1e-3
+
+
+def test_flow_scale_on_a_booth_scales_every_robots_executed_film(roof_payload: Any) -> None:
+    """`flow_scale` (a one-robot factor) on a booth sample: every robot paints 1.1 × the flow, so
+    the executed mean film is 1.1 × the nominal sample's (film is linear in the flow; kinematic:
+    the same motion) and its σ/μ and conveyor loss are the nominal's."""
+    from paintcell.sweeps.sweep_worker import run_sample
+
+    payload = dataclasses.replace(roof_payload, names=("flow_scale",), digest="flow-test")
+    nominal = run_sample(payload, -1, None, 0)
+    rec = run_sample(payload, 0, np.array([1.1]), 5)
+    m, m0 = rec["metrics"], nominal["metrics"]
+    assert "error" not in rec and rec["factors"] == {"flow_scale": 1.1}
+    assert m["executed_mean_um"] == pytest.approx(1.1 * m0["executed_mean_um"], rel=1e-12)
+    assert m["executed_min_um"] == pytest.approx(1.1 * m0["executed_min_um"], rel=1e-12)
+    assert m["executed_nsd_pct"] == pytest.approx(m0["executed_nsd_pct"], rel=1e-9)
+    assert m["loss_conveyor_pp"] == pytest.approx(m0["loss_conveyor_pp"], abs=1e-9)

@@ -131,7 +131,7 @@ class BoothThresholds:
     min_bell_distance_m: smallest distance between two bells while both paint [m].
     max_torque_utilization: largest demanded/limit torque of any joint [-].
     reachability_pct: the least robot's honest reachability [%]
-        (`paintcell.booth.booth_reach`: poses lost to IK, joint jumps, configuration flips,
+        (`paintcell.validation.honest_reach`: poses lost to IK, joint jumps, configuration flips,
         contacts and time-law slowdowns > 10 % count against it).
     """
 
@@ -164,6 +164,10 @@ class Booth:
     planner: dict[str, Any] = field(default_factory=dict)
     trajectory: dict[str, Any] = field(default_factory=dict)
     servo: dict[str, Any] = field(default_factory=dict)
+    disturbances: dict[str, Any] = field(default_factory=dict)
+    """`paintcell.execution.execute_settings.Disturbances` fields the run executes under, as a
+    one-robot scenario's `[disturbances]`: every robot's TCP and trigger, the body's placement
+    on the skid, the paint flow and the servo gains (empty: the nominal cell)."""
     thresholds: BoothThresholds = BoothThresholds()
     allocation: dict[str, Any] | None = None
     max_jobs_per_robot: int = 1
@@ -188,8 +192,8 @@ class Booth:
     film_refine_pace: bool = False
     """Plan the parts without the planner's film refinement and refine each afterwards with
     every pass's duration held, so robots sweeping in step keep their pace
-    (`paintcell.booth.booth_refine`); a part whose planner sets `film_refine = false`
-    (the booth's `[planner]` or its own) is not refined at all."""
+    (`paintcell.coverage.film_refine.refine_parts`); a part whose planner sets
+    `film_refine = false` (the booth's `[planner]` or its own) is not refined at all."""
     robot_aware_speeds: bool = True
     """Measure each robot's program on its passes and re-plan the parts' speeds under what the
     robots reached where they ran slower than planned (`paintcell.booth.booth_speeds`, as
@@ -202,8 +206,8 @@ class Booth:
     """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
     sweep: dict[str, Any] = field(default_factory=dict)
     """The `paintcell sweep` table (`paintcell.validation.sweep_spec.SCENARIO_KEYS`); a booth sweep
-    varies the
-    line speed (`paintcell.sweeps.sweep_booth`)."""
+    varies a one-robot cell's factors on every robot and the line speed
+    (`paintcell.sweeps.sweep_worker`)."""
 
     def __post_init__(self) -> None:
         if not self.parts or not self.robots:

@@ -160,6 +160,24 @@ def assign_job_lists(n_robots: int, jobs: list[Any], est_of: dict[Any, float],
     return n[0]
 
 
+def robot_plan(plans: list[Any], jobs: tuple[Any, ...]) -> Any:
+    """The `CoveragePlan` a robot runs: its jobs' pass slices (`Job.part`, `first`, `end`) in
+    program order (its chained program's pass indices run on across the jobs in that order)."""
+    passes = tuple(p for j in jobs for p in plans[j.part].passes[j.first:j.end])
+    return dataclasses.replace(plans[jobs[0].part], passes=passes)
+
+
+def robot_reachability(plans: list[Any], jobs: tuple[Any, ...], static: JointTrajectory,
+                       tracked: JointTrajectory, trace: Any) -> dict[str, Any] | None:
+    """A robot's honest reachability (`paintcell.validation.honest_reach`): its jobs' plan
+    (`robot_plan`), its own static program with its jobs' IK reports, its share of the booth's
+    trace (`trace`: its bodies' contacts) on the booth clock its `tracked` program ran on."""
+    from paintcell.validation.honest_reach import honest_reachability
+
+    reports = static.meta.get("job_reachability") or static.meta.get("reachability")
+    return honest_reachability(robot_plan(plans, jobs), static, trace, reports, clock=tracked)
+
+
 def job_record(jobs: tuple[Any, ...]) -> list[int] | list[list[int]]:
     """A robot's jobs (`paintcell.booth.booth.Job`s) for records and reports: [part, first,
     end] for one job, a list of them for several."""

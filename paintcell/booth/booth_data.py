@@ -11,7 +11,7 @@
                       (the `[part]` table of a scenario; file relative to the booth file)
     [[robots]]        name = "side_a", model = "irb5500", home = [..], rail = [-1.2, 1.2]
                       [robots.base] xyz_m = [..], rpy_rad = [..]
-    [planner] [trajectory] [servo] [thresholds]
+    [planner] [trajectory] [servo] [disturbances] [thresholds]
 
 A `[[robots]]` table with `rail` puts the arm on a linear rail with that carriage travel [m]
 (the base is then the rail frame, `paintcell.robots.rail`). `allocation` (optional table: robot name
@@ -24,7 +24,7 @@ with one line naming the file, the table and the valid keys. A TOML file is a bo
 area-weighted planned mean) set one film build over the parts (`paintcell.booth.booth_build`);
 `blend_seams` (default true) blends the seams between parts (`paintcell.booth.booth_seams`).
 `film_refine_pace` (default false) refines each part's film with every pass's duration held
-(`paintcell.booth.booth_refine`). `robot_aware_speeds` (default true) re-plans the parts'
+(`paintcell.coverage.film_refine`). `robot_aware_speeds` (default true) re-plans the parts'
 speeds under what the robots' programs reach (`paintcell.booth.booth_speeds`).
 `body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
 the whole body (`paintcell.booth.booth_clearance`).
@@ -57,7 +57,7 @@ from paintcell.validation.paint_spec import PaintSpec
 from paintcell.validation.validate_report import check_thresholds
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
-        "robots", "planner", "trajectory", "servo", "thresholds", "allocation",
+        "robots", "planner", "trajectory", "servo", "disturbances", "thresholds", "allocation",
         "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
         "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds",
         "spec")
@@ -170,13 +170,13 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     planner = _settings("planner", _table(d, "planner", where), where)
     trajectory = _settings("trajectory", _table(d, "trajectory", where), where)
     servo = _settings("servo", _table(d, "servo", where), where)
+    disturbances = _settings("disturbances", _table(d, "disturbances", where), where)
     body = _placement(_table(d, "body_placement", where), f"{where} [body_placement]")
     try:
         if sweep:
-            from paintcell.validation.sweep_spec import check_booth_factors, check_sweep_table
+            from paintcell.validation.sweep_spec import check_sweep_table
 
             check_sweep_table(sweep)
-            check_booth_factors(tuple(sweep.get("factors", {})))
         conv_kw: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
                                    for k, v in conv.items()}
         conveyor = Conveyor(**conv_kw)
@@ -186,7 +186,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             conveyor=conveyor,
             resolution_m=_resolution(d, "resolution_m", 0.01, where),
             fast_resolution_m=_resolution(d, "fast_resolution_m", 0.025, where),
-            planner=planner, trajectory=trajectory, servo=servo,
+            planner=planner, trajectory=trajectory, servo=servo, disturbances=disturbances,
             thresholds=BoothThresholds(**th), allocation=alloc,
             max_jobs_per_robot=_jobs_per_robot(d.get("max_jobs_per_robot", 1),
                                                f"{where} max_jobs_per_robot"),
@@ -295,7 +295,7 @@ def booth_from_snapshot(d: Any, where: str) -> Booth:
         kw["conveyor"] = Conveyor(**_tuples(d["conveyor"]))
         kw["thresholds"] = BoothThresholds(**d["thresholds"])
         kw["spec"] = PaintSpec.from_table(d.get("spec"), where)
-        for key in ("planner", "trajectory", "servo", "allocation"):
+        for key in ("planner", "trajectory", "servo", "disturbances", "allocation"):
             if kw.get(key) is not None:
                 kw[key] = _tuples(kw[key])
         return Booth(**kw)

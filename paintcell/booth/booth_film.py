@@ -59,41 +59,88 @@ def plan_gun_in_body(plan: CoveragePlan, T_body_part: np.ndarray) -> GunSamples:
                       travel_dirs=g.travel_dirs @ R.T, dwell_s=g.dwell_s)
 
 
+def booth_disturbances(table: dict[str, Any]) -> Any:
+    """A booth's `disturbances` table as the `Disturbances` its one execution runs under (None:
+    an empty table, the nominal cell)."""
+    from paintcell.core.settings import settings_from
+    from paintcell.execution.execute_settings import Disturbances
+
+    return settings_from(Disturbances, table, "disturbances") if table else None
+
+
+def disturbed_robot(trace: ExecutedTrace, pos: np.ndarray, rot: np.ndarray,
+                    paint_on: np.ndarray, cell: Any) -> tuple[np.ndarray, np.ndarray,
+                                                          dict[str, float]]:
+    """One robot's share of the booth trace's disturbances (`trace.meta`, as `execute` realized
+    them): its TCP positions (K, 3) [m] moved by the TCP offset in its tool frame `rot`
+    (K, 3, 3), its paint trigger (K,) shifted by the trigger delay, and the flow factors its
+    film takes (`ExecutedTrace.gun_samples`); the nominal ones without a disturbance."""
+    d = trace.meta.get("disturbances")
+    if d is None:
+        return pos, paint_on, {}
+    from paintcell.execution.execute_settings import Disturbances
+
+    off = np.asarray(trace.meta.get("tcp_offset_tool_m", (0.0, 0.0, 0.0)), float)
+    return (pos + rot @ off, Disturbances(**d).paint_on(paint_on, cell.model.opt.timestep),
+            {k: float(trace.meta[k]) for k in ("flow_scale", "flow_drift") if k in trace.meta})
+
+
 def gun_in_body(t_s: np.ndarray, pos: np.ndarray, rot: np.ndarray, paint_on: np.ndarray,
-                 T_world_body0: np.ndarray, carrier_m: np.ndarray, unit: np.ndarray
-                 ) -> GunSamples:
+                T_world_body0: np.ndarray, carrier_m: np.ndarray, unit: np.ndarray,
+                flow: dict[str, float] | None = None) -> GunSamples:
     """Binned paint-on gun samples of a TCP trace (K,) in the body frame, the body at
-    T_world_body0 shifted by carrier_m (K,) [m] along unit (3,)."""
+    T_world_body0 shifted by carrier_m (K,) [m] along unit (3,); flow: a flow disturbance's
+    `flow_scale` / `flow_drift` (`ExecutedTrace.gun_samples`)."""
     R, t0 = T_world_body0[:3, :3], T_world_body0[:3, 3]
     p_body = (pos - t0 - carrier_m[:, None] * unit) @ R
     rot_body = np.einsum("ji,kjl->kil", R, rot)
     body_trace = ExecutedTrace(t_s=t_s, q=np.zeros((len(t_s), 1)), qd=np.zeros((len(t_s), 1)),
                                tau=np.zeros((len(t_s), 1)), tcp_pos_world=p_body,
                                tcp_rot_world=rot_body, paint_on=paint_on,
-                               pass_index=np.zeros(len(t_s), int), mode="kinematic")
+                               pass_index=np.zeros(len(t_s), int), mode="kinematic",
+                               meta=dict(flow or {}))
     return executed_gun_samples(body_trace, np.eye(4))
 
 
 def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[CoveragePlan],
-           jobs: dict[int, tuple[Job, ...]], T_bp: list[np.ndarray], trajs: list[JointTrajectory],
-           traces: list[ExecutedTrace], trace: ExecutedTrace, t_ref: float
-           ) -> dict[str, np.ndarray]:
-    """Per robot and kind (plan, trajectory, servo, executed): film (R, N) [m]."""
+                jobs: dict[int, tuple[Job, ...]], T_bp: list[np.ndarray],
+                trajs: list[JointTrajectory], traces: list[ExecutedTrace] | None,
+                trace: ExecutedTrace | None, t_ref: float,
+                reuse: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    """Per robot and kind (plan, trajectory, servo, executed): film (R, N) [m]. The servo and
+    executed films follow each robot's trace (`traces`: its executed TCP, trigger and paint
+    flow); the executed one against the body where it really was (the carrier's position and
+    the placement the trace's disturbances put it at, `T_world_part_actual`). traces and trace
+    None: the plan and trajectory films only (what no execution changes); reuse: those two,
+    already measured (a sweep's samples)."""
     pts, nrm = body.vertices, body.normals
-    t = trace.t_s
+    t = trajs[0].t_s if trace is None else trace.t_s
     unit = booth.conveyor.unit
     nominal = booth.conveyor.position_m(t, t_ref)
-    actual = trace.q[:, bcell.carrier_column] if bcell.carrier_column is not None else nominal
     T0 = bcell.T_world_part
-    out = {k: np.zeros((bcell.n_robots, len(pts))) for k in ("plan", "trajectory", "servo",
-                                                             "executed")}
-    for i, (tr, ex) in enumerate(zip(trajs, traces, strict=True)):
-        out["plan"][i] = planned_film(plans, jobs[i], T_bp, pts, nrm)
-        for key, p, r, x in (("trajectory", tr.tcp_pos_world, tr.tcp_rot_world, nominal),
-                             ("servo", ex.tcp_pos_world, ex.tcp_rot_world, nominal),
-                             ("executed", ex.tcp_pos_world, ex.tcp_rot_world, actual)):
-            for app, on in job_paint(plans, jobs[i], tr):
-                g = gun_in_body(t, p, r, on, T0, x, unit)
+    shape = (bcell.n_robots, len(pts))
+    out = dict(zip(("plan", "trajectory"), reuse or (np.zeros(shape), np.zeros(shape)),
+                   strict=True))
+    # (kind, from the executed trace, body placement, carrier position [m])
+    runs: list[tuple[str, bool, np.ndarray, np.ndarray]] = \
+        [("trajectory", False, T0, nominal)] if reuse is None else []
+    if traces is not None and trace is not None:
+        actual = trace.q[:, bcell.carrier_column] if bcell.carrier_column is not None \
+            else nominal
+        T_actual = np.asarray(trace.meta.get("T_world_part_actual", T0), float)
+        runs += [("servo", True, T0, nominal), ("executed", True, T_actual, actual)]
+        out.update(servo=np.zeros(shape), executed=np.zeros(shape))
+    for i, tr in enumerate(trajs):
+        if reuse is None:
+            out["plan"][i] = planned_film(plans, jobs[i], T_bp, pts, nrm)
+        ex = None if traces is None else traces[i]
+        flow = {} if ex is None else {k: float(ex.meta[k]) for k in ("flow_scale", "flow_drift")
+                                      if k in ex.meta}
+        for key, executed, T, x in runs:
+            src: Any = ex if executed else tr
+            for app, on in job_paint(plans, jobs[i], tr, src.paint_on):
+                g = gun_in_body(t, src.tcp_pos_world, src.tcp_rot_world, on, T, x, unit,
+                                flow if executed else None)
                 out[key][i] += thickness(app, g, pts, nrm)
     return out
 
@@ -111,13 +158,15 @@ def planned_film(plans: list[CoveragePlan], jobs: tuple[Job, ...], T_bp: list[np
     return film
 
 
-def job_paint(plans: list[CoveragePlan], jobs: tuple[Job, ...], traj: JointTrajectory
-              ) -> list[tuple[Any, np.ndarray]]:
+def job_paint(plans: list[CoveragePlan], jobs: tuple[Job, ...], traj: JointTrajectory,
+              paint_on: np.ndarray | None = None) -> list[tuple[Any, np.ndarray]]:
     """Per job of one robot: its part's applicator (its flow) and the (K,) brush-on samples of
-    `traj` (booth clock) that belong to the job (`paintcell.booth.booth_chain.job_windows`)."""
+    `traj` (booth clock; `paint_on`: the trigger it really followed, default its own) that
+    belong to the job (`paintcell.booth.booth_chain.job_windows`)."""
     from paintcell.booth.booth_chain import job_windows
 
-    return [(plans[j.part].applicator, traj.paint_on & w)
+    on = traj.paint_on if paint_on is None else paint_on
+    return [(plans[j.part].applicator, on & w)
             for j, w in zip(jobs, job_windows(traj, len(jobs)), strict=True)]
 
 

@@ -1,7 +1,7 @@
 """The booth's part plans (`paintcell.booth.booth_programs` builds them first): each part's
 surface and its plan as the planner makes it (`plan_parts`), then what the booth does to the
 plans together (`finish_plans`): passes run backwards where a part says `reverse`, the film
-refined with the robots' pace held (`paintcell.booth.booth_refine`), one film build
+refined with the robots' pace held (`paintcell.coverage.film_refine.refine_parts`), one film build
 (`paintcell.booth.booth_build`) and blended seams (`paintcell.booth.booth_seams`).
 
 The two steps are apart so the robot-aware speeds (`paintcell.booth.booth_speeds`) can plan
@@ -70,7 +70,7 @@ def plan_parts(booth: Booth, fast: bool) -> PartPlans:
                              f"({', '.join(parts.PART_NAMES)}); a mesh/CAD file goes in a "
                              "[parts.part] table with file = \"...\"")
         s = part_surface(bp.part if bp.mesh is None else bp.mesh, res)
-        if booth.film_refine_pace:      # refined later with the pace held (booth_refine)
+        if booth.film_refine_pace:      # refined later with the pace held (refine_parts)
             kw = {**kw, "film_refine": False}
         st = settings_from(PlannerSettings, kw, "planner")
         # a real part's planner covers its skin, as a scenario's (`pipeline.make_plan`)
@@ -94,9 +94,9 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
     names = [f"{i}:{bp.part}" for i, bp in enumerate(booth.parts)]
     refine: dict[str, Any] = {"rule": "off"}
     if booth.film_refine_pace:
-        from paintcell.booth.booth_refine import refine_parts
         from paintcell.core.settings import settings_from
         from paintcell.coverage.coverage import PlannerSettings
+        from paintcell.coverage.film_refine import refine_parts
 
         # a part whose planner says film_refine = false (booth or part table) is not refined
         kws = part_settings(booth)

@@ -1,7 +1,7 @@
 """What a booth run builds before it executes: the parts' plans (common film build, blended
 seams), the allocation of passes to robots, each robot's program, staggered starts and conveyor
 tracking (`booth_programs` -> `BoothPrograms`; `paintcell.booth.booth_run.run_booth` and
-`paintcell.sweeps.sweep_booth`
+`paintcell.sweeps.sweep_worker`
 execute them).
 """
 
@@ -48,7 +48,7 @@ ESTIMATE_MARGIN = 0.10
 @dataclass
 class BoothPrograms:
     """What a booth run builds before it executes (`booth_programs`); a sweep
-    (`paintcell.sweeps.sweep_booth`)
+    (`paintcell.sweeps.sweep_worker`)
     builds it once and executes it under many disturbances.
 
     surfaces: the parts' surfaces (part frames); body: their merge in the body frame;

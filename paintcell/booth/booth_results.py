@@ -106,8 +106,8 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     film figure. None: every vertex. Each part is held to the booth's paint spec (`Booth.spec`):
     the worst part's σ/μ and share inside the window, measured over the faces whose corners are
     all judged (what a results folder's files give again: `revalidate_booth`)."""
+    from paintcell.booth.booth_chain import robot_reachability
     from paintcell.booth.booth_film import overlap_mask
-    from paintcell.booth.booth_reach import robot_honest_reach
 
     areas = body.vertex_areas if judged is None else body.vertex_areas * judged
     tot = {k: v.sum(axis=0) for k, v in films.items()}
@@ -118,7 +118,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     vol = films["executed"] @ areas
     lead = np.argmax(films["executed"], axis=0)
     robots: dict[str, Any] = {}
-    honest = [robot_honest_reach(plans, jobs[i], trajs0[i], trajs[i], traces[i])
+    honest = [robot_reachability(plans, jobs[i], trajs0[i], trajs[i], traces[i])
               for i in range(len(booth.robots))]
     for i, rspec in enumerate(booth.robots):
         js = jobs[i]
@@ -170,7 +170,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
         "planned_within_tolerance_pct": _within(tot["plan"], tot["plan"], areas),
         "executed_cycle_time_s": cycle, "one_robot_cycle_s": float(sum(own)),
         "speedup": float(sum(own)) / cycle,
-        # the least robot's honest figure (`booth_reach`); IK alone beside it
+        # the least robot's honest figure (`honest_reach`); IK alone beside it
         "reachability_pct": _least(honest, "reachability_pct"),
         "ik_reachability_pct": _least(honest, "ik_reachability_pct"),
         # the robots' lost poses by cause, summed (a one-robot run's keys)

@@ -28,7 +28,7 @@ import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell, build_booth_cell
-from paintcell.booth.booth_film import judged_body_mask, robot_films
+from paintcell.booth.booth_film import booth_disturbances, judged_body_mask, robot_films
 from paintcell.booth.booth_programs import MAX_ALLOCATIONS_TRIED, BoothPrograms, booth_programs
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
@@ -129,7 +129,8 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
 
     prog = combined_program(bcell, trajs, t_ref)
     trace = execute(bcell.cell, prog, mode=mode,
-                    servo=settings_from(ServoSettings, booth.servo, "servo"))
+                    servo=settings_from(ServoSettings, booth.servo, "servo"),
+                    disturbances=booth_disturbances(booth.disturbances))
     timings["execute"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -162,15 +163,19 @@ def robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTrajec
                  pos: np.ndarray, rot: np.ndarray) -> list[ExecutedTrace]:
     """Each robot's own `ExecutedTrace` cut from the booth's one trace: its joint columns, its
     TCP poses `pos` (R, K, 3) [m] and `rot` (R, K, 3, 3), its program's paint trigger and the
-    contacts its bodies were in."""
+    contacts its bodies were in; under the trace's disturbances (`booth_film.disturbed_robot`:
+    TCP offset, trigger delay, paint flow) as the one-robot execution applies them."""
+    from paintcell.booth.booth_film import disturbed_robot
+
     out = []
     for i, (cols, tr) in enumerate(zip(bcell.columns, trajs, strict=True)):
         mine = tuple(c for c in trace.contacts
                      if bcell.robot_of_body(c.body1) == i or bcell.robot_of_body(c.body2) == i)
+        p_i, on_i, flow = disturbed_robot(trace, pos[i], rot[i], tr.paint_on, bcell.cell)
         out.append(ExecutedTrace(
             t_s=trace.t_s, q=trace.q[:, cols], qd=trace.qd[:, cols], tau=trace.tau[:, cols],
-            tcp_pos_world=pos[i], tcp_rot_world=rot[i], paint_on=tr.paint_on,
+            tcp_pos_world=p_i, tcp_rot_world=rot[i], paint_on=on_i,
             pass_index=tr.pass_index, mode=trace.mode, contacts=mine,
-            meta={"robot": bcell.robots[i].name},
+            meta={"robot": bcell.robots[i].name, **flow},
             tau_demand=None if trace.tau_demand is None else trace.tau_demand[:, cols]))
     return out

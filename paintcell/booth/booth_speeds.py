@@ -2,15 +2,9 @@
 robot of the booth (`paintcell.booth.booth_programs` runs it on the chosen allocation when
 `Booth.robot_aware_speeds` is set, the default).
 
-Each part is planned knowing nothing of the robots. Along a robot's IK path its joint velocity and
-acceleration limits can make the time law slower than planned (a wing of an arched part with the
-arm stretched: J3's acceleration), and the film then differs from the plan. So, as a one-robot
-run does: each robot's program is measured on the passes it runs (the TCP speed it reached at
-every plan sample), the samples it ran slower than asked are capped at that speed less a margin
-(and, as there, the faster end of an interval it lagged across between samples:
-`speed_feedback.lag_caps`),
-the part is planned again with the caps as upper bounds of its speed QP (the same pass geometry:
-the planner is deterministic), the plans are finished as before (`booth_plans.finish_plans`: the
+Every robot's program is measured on the passes it runs and capped where it ran slow, as a
+one-robot run's (`speed_feedback.part_speeds`, `caps_from_speeds`); each capped part is planned
+again under its caps, the plans are finished as before (`booth_plans.finish_plans`: the
 refinement keeps under the caps too) and the same allocation is built again. A round whose
 programs fail or make the booth's cycle longer than `MAX_CYCLE_GROWTH` ends the loop with the
 previous round's plans.
@@ -29,8 +23,8 @@ from paintcell.booth.booth_plans import FinishedPlans, PartPlans, finish_plans
 from paintcell.core.errors import PaintcellError
 from paintcell.coverage.coverage import plan_coverage
 from paintcell.coverage.plan import CoveragePlan
+from paintcell.motion import speed_feedback as sf
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.motion.speed_feedback import caps_from_speeds, lag_caps, pass_speeds
 
 #: re-plans at most.
 ROUNDS = 2
@@ -54,44 +48,6 @@ class Built:
         return (max(len(tr.t_s) for tr in self.trajs) - 1) * self.trajs[0].dt_s
 
 
-def part_speeds(plans: list[CoveragePlan], jobs: dict[int, tuple[Job, ...]],
-                static: list[JointTrajectory], lags: bool = False) -> list[list[np.ndarray]]:
-    """Per part, per pass of its plan, the TCP speed its robot reaches at each sample [m/s]
-    (`speed_feedback.pass_speeds` on the robot's program; a robot's jobs run on in its chained
-    program from `meta["job_first_pass_index"]`); the plan's own speeds for a pass no robot runs.
-    lags: instead, the caps between samples (`speed_feedback.lag_caps`; inf where none) [m/s]."""
-    out = [[np.full(len(p.speeds_m_s), np.inf) if lags else np.asarray(p.speeds_m_s, float)
-            for p in pl.passes] for pl in plans]
-    for r, js in jobs.items():
-        traj = static[r]
-        firsts = traj.meta.get("job_first_pass_index", [0])
-        for k, job in enumerate(js):
-            for m in range(job.end - job.first):
-                p = plans[job.part].passes[job.first + m]
-                out[job.part][job.first + m] = (lag_caps if lags else pass_speeds)(
-                    p, traj, firsts[k] + m)
-    return out
-
-
-def planner_order(arrays: list[Any], reverse: bool) -> list[Any]:
-    """Per-pass sample arrays of a finished plan in its planner's order, or back (a part run
-    backwards has its passes in reverse order, each reversed; the map is its own inverse)."""
-    return [a[::-1] for a in arrays[::-1]] if reverse else list(arrays)
-
-
-def stored_caps(plan: CoveragePlan, caps: dict[int, np.ndarray], reverse: bool
-                ) -> list[np.ndarray | None]:
-    """The caps {side: generation direction} of the planner's `plan` per pass of the finished
-    plan (execution order, each pass's own sample order) [m/s], None where a pass has none."""
-    per = []
-    for i, p in enumerate(plan.passes):
-        c = caps.get(p.side)
-        per.append(None if c is None else (c[::-1] if i % 2 == 1 else c))
-    if not reverse:
-        return per
-    return [None if c is None else c[::-1] for c in per[::-1]]
-
-
 def robot_aware_booth(booth: Booth, pp: PartPlans, fin: FinishedPlans, built: Built,
                       rebuild: Callable[[list[CoveragePlan]], Built], rounds: int = ROUNDS
                       ) -> tuple[FinishedPlans, Built, dict[str, Any]]:
@@ -106,14 +62,14 @@ def robot_aware_booth(booth: Booth, pp: PartPlans, fin: FinishedPlans, built: Bu
                                    f"the cycle grows ≤ "
                                    f"{MAX_CYCLE_GROWTH:.0%}", "rounds": []}
     for _ in range(rounds + 1):
-        v_act = part_speeds(fin.plans, built.jobs, built.static)
-        lags = part_speeds(fin.plans, built.jobs, built.static, lags=True)
+        v_act = sf.part_speeds(fin.plans, built.jobs, built.static)
+        lags = sf.part_speeds(fin.plans, built.jobs, built.static, lags=True)
         new_caps, counts, worst = [], [], 0.0
         for i, bp in enumerate(booth.parts):
             asked = [np.asarray(p.speeds_m_s, float) for p in fin.plans[i].passes]
-            c, n, w = caps_from_speeds(plans0[i], planner_order(v_act[i], bp.reverse),
-                                       planner_order(asked, bp.reverse), caps[i],
-                                       lags=planner_order(lags[i], bp.reverse))
+            c, n, w = sf.caps_from_speeds(plans0[i], sf.planner_order(v_act[i], bp.reverse),
+                                          sf.planner_order(asked, bp.reverse), caps[i],
+                                          lags=sf.planner_order(lags[i], bp.reverse))
             new_caps.append(c)
             counts.append(n)
             worst = max(worst, w)
@@ -144,7 +100,7 @@ def robot_aware_booth(booth: Booth, pp: PartPlans, fin: FinishedPlans, built: Bu
             break
         try:
             fin2 = finish_plans(booth, pp, trial,
-                                [stored_caps(trial[i], new_caps[i], bp.reverse)
+                                [sf.stored_caps(trial[i], new_caps[i], bp.reverse)
                                  for i, bp in enumerate(booth.parts)])
             built2 = rebuild(fin2.plans)
         except PaintcellError as exc:           # the re-planned programs do not work: stop

@@ -18,7 +18,6 @@ from paintcell.cli.common import (
     key_values,
     number_option,
 )
-from paintcell.core.errors import PaintcellError
 
 # --- run ----------------------------------------------------------------------------------------
 
@@ -42,8 +41,8 @@ def add_run(add_parser: Any) -> None:
                    "it in report.html (a few MB; without it the report stays under 2 MB)")
     r.add_argument("--disturb", action="append", default=[], metavar="KEY=VALUE",
                    help="robustness study: a Disturbances setting (paintcell.execution) on top "
-                   "of the "
-                   "scenario's, repeatable: part_offset_m [m], part_rotation_rad [rad], "
+                   "of the scenario's (a booth: on every robot and the body), repeatable: "
+                   "part_offset_m [m], part_rotation_rad [rad], "
                    "tcp_offset_m [m], gain_scale [-], standoff_error_m [m], trigger_delay_s [s], "
                    "flow_scale [-], flow_drift [-], seed [int]; e.g. --disturb "
                    "part_offset_m=0.005 --disturb seed=3")
@@ -72,13 +71,11 @@ def _run(args: argparse.Namespace) -> int:
     scn = load_scenario(args.scenario)   # before the pipeline's imports: a bad file is told at once
     from paintcell.app.pipeline import run_scenario
 
-    if args.disturb and not hasattr(scn, "disturbances"):
-        raise PaintcellError("--disturb applies to single-robot scenarios, not to a booth")
-    if args.disturb:
+    if args.disturb:       # a one-robot cell or a booth: every robot runs under it
         scn = replace(scn, disturbances={**scn.disturbances, **key_values(args.disturb)})
-        from paintcell.app.scenario_checks import check_settings
+        from paintcell.validation.settings_tables import check_settings_table
 
-        check_settings(scn, "--disturb")
+        check_settings_table("disturbances", scn.disturbances, "--disturb")
     # `paintcell check` runs each scenario as `run --row-fd N` in its own process and
     # writes results only when it was given --out.
     worker = args.row_fd is not None

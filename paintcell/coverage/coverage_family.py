@@ -21,7 +21,7 @@ from paintcell.coverage.family_geometry import (
     keep,
     kept,
 )
-from paintcell.coverage.film_refine import refine_speeds
+from paintcell.coverage.film_refine import refine_plan
 from paintcell.coverage.index_width import planar_index_width
 from paintcell.coverage.offset import arc_length, check_offset_order, walk
 from paintcell.coverage.openings import (
@@ -323,21 +323,12 @@ def _blend(passes: list[PassPlan], alpha: float, base: list[np.ndarray]) -> list
 
 def _refine(pl: Planner, surface: Surface, passes: list[PassPlan]
             ) -> tuple[list[PassPlan], dict[str, Any]]:
-    """`film_refine.refine_speeds` on the plan, within the robot's speed caps."""
-    from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
-
-    st = pl.st
-    interior = boundary_band_mask(surface.vertices,
-                                  surface.vertices[boundary_vertices(surface.faces)],
-                                  st.film_guard_band_m)
-    if not interior.any():
-        interior = np.ones(len(surface.vertices), bool)
+    """`film_refine.refine_plan` on the plan, within the robot's speed caps."""
     caps = []
     for order, p in enumerate(passes):
         cap = pl.speed_caps.get(p.side)
         caps.append(None if cap is None else (cap[::-1] if order % 2 == 1 else cap))
-    out, info = refine_speeds(pl.app, surface, passes, st.v_min_m_s, st.v_max_m_s, interior,
-                              caps)
+    out, info = refine_plan(pl.app, surface, passes, pl.st, caps)
     return out, jsonable(info)
 
 

@@ -23,23 +23,35 @@ than before, on the whole part and on its interior. The start is the planned tim
 the robot's speed caps where it exceeds them (what the robot would paint; a robot-aware re-plan,
 `paintcell.motion.speed_feedback`, passes them), so the refined speeds stay within what the
 robot can follow.
+
+`refine_plan` runs it on one part with the planner's settings. A cell whose robots sweep in step
+(a booth: the door's passes at the fender's pace, the roof's two pieces side by side, start
+delays measured on these timings) refines each part with every pass's DURATION held
+(`refine_parts`, `keep_pace`; `Booth.film_refine_pace`): the speeds still move along each pass
+to even the film, but each pass starts and ends when it did, so robots in step stay in step and
+the allocation's estimates and the stagger see the same program lengths. Re-timed freely, every
+part drifts: four of the booth scenario's five ranked allocations then failed the arm stagger
+and the fifth left a robot idle.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import lsq_linear
 
 from paintcell.coverage.offset_polyline import arc_length
-from paintcell.coverage.plan import PassPlan, times_from_speeds
+from paintcell.coverage.plan import CoveragePlan, PassPlan, times_from_speeds
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import deposition_rate, thickness
 from paintcell.paint.deposition_samples import GunSamples
 from paintcell.surface.surface import Surface
+
+if TYPE_CHECKING:
+    from paintcell.coverage.coverage_settings import PlannerSettings
 
 #: spacing of the slowness knots along each pass [m] (a few per footprint diameter).
 KNOT_SPACING_M = 0.08
@@ -57,6 +69,56 @@ MAX_FIT_ENTRIES = 20_000_000
 #: weights of the interior vertices tried in turn when a fit lowers σ/μ on the whole part but
 #: not on the interior (`refine_speeds`).
 INTERIOR_WEIGHTS = (1.0, 2.0, 4.0, 8.0)
+#: weight of a pass's relative duration change when the pace is kept (`keep_pace`). The film
+#: term is (σ/μ)² ≈ 0.005 at 7 %; a 1 % longer or shorter pass costs 1e3 · 1e-4 = 0.1, twenty
+#: times the whole film term, so the durations stay within ~0.1 % (`refine_parts`' record).
+PASS_TIME_WEIGHT = 1e3
+
+
+def refine_plan(app: Applicator, surface: Surface, passes: list[PassPlan],
+                st: PlannerSettings, caps_m_s: list[np.ndarray | None] | None = None,
+                keep_pace: bool = False) -> tuple[list[PassPlan], dict[str, Any]]:
+    """`refine_speeds` on a part with its planner settings `st` (speed bounds; interior: beyond
+    the film guard's band from the part's boundary, every vertex if none is), within the
+    robot's speed caps (per pass in execution order, in its execution direction); keep_pace:
+    every pass's duration held (`PASS_TIME_WEIGHT`)."""
+    from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
+
+    interior = boundary_band_mask(surface.vertices,
+                                  surface.vertices[boundary_vertices(surface.faces)],
+                                  st.film_guard_band_m)
+    if not interior.any():
+        interior = np.ones(len(surface.vertices), bool)
+    return refine_speeds(app, surface, passes, st.v_min_m_s, st.v_max_m_s, interior, caps_m_s,
+                         pass_time_weight=PASS_TIME_WEIGHT if keep_pace else 0.0)
+
+
+def refine_parts(surfaces: list[Surface], plans: list[CoveragePlan],
+                 settings: list[PlannerSettings], names: list[str],
+                 caps: list[list[np.ndarray | None] | None] | None = None
+                 ) -> tuple[list[CoveragePlan], dict[str, Any]]:
+    """Each part's plan refined with its passes' durations held (`refine_plan(keep_pace=True)`).
+
+    surfaces, plans: per part, its surface and plan (part frame); settings: per part, its
+    `PlannerSettings`; names: a label per part; caps: per part, its robot's speed caps [m/s]
+    (`refine_plan`). Returns the plans and a record {rule, parts: {name: applied, σ/μ
+    before/after [%], largest pass duration change [s]}}.
+    """
+    out, rec = [], {}
+    caps = caps if caps is not None else [None] * len(plans)
+    for s, plan, st, name, cap in zip(surfaces, plans, settings, names, caps, strict=True):
+        passes, info = refine_plan(plan.applicator, s, list(plan.passes), st, cap, keep_pace=True)
+        change = [float((q.times_s[-1] - q.times_s[0]) - (p.times_s[-1] - p.times_s[0]))
+                  for p, q in zip(plan.passes, passes, strict=True)]
+        rec[name] = {"applied": bool(info["applied"]),
+                     "nsd_before_pct": info.get("nsd_capped_pct", info["nsd_before_pct"]),
+                     "nsd_after_pct": info.get("nsd_after_pct"),
+                     "max_pass_duration_change_s": float(max(np.abs(change), default=0.0)),
+                     **({"reason": info["reason"]} if "reason" in info else {})}
+        out.append(replace(plan, passes=tuple(passes)))
+    return out, {"rule": "each part re-timed against its film with every pass's duration held "
+                         f"(weight {PASS_TIME_WEIGHT:g}); kept where σ/μ drops on the part and "
+                         "its interior", "parts": rec}
 
 
 def _knot_basis(arc_m: np.ndarray, spacing_m: float) -> tuple[sp.csr_matrix, int]:
@@ -108,8 +170,8 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
     bounds [m/s]; interior: (N,) bool, the vertices away from the boundary (the result must not
     be worse there either); caps_m_s: per pass (M,) robot speed caps [m/s] or None;
     pass_time_weight: weight of each pass's duration staying as planned (relative squared
-    change, added to the fit; 0: free) — a booth whose robots sweep in step keeps its pace
-    (`paintcell.booth.booth_refine`).
+    change, added to the fit; 0: free) — robots that sweep in step keep their pace
+    (`refine_parts`).
     Returns the passes (unchanged when refining does not lower σ/μ on both the whole part and
     the interior) and an info dict (σ/μ before/after [%], cycle change [s], knots).
     """

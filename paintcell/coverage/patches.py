@@ -302,8 +302,12 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
     passes = [dataclasses.replace(p, side=n) for n, p in
               enumerate(p for i in order for p in plans[i])]
     refine: dict[str, Any] = {}
-    if refine_whole:
-        passes, refine = _refine_whole(app, surface, passes, st, caps_exec or None)
+    if refine_whole:      # the whole part within the robot's caps, as one family is refined
+        from paintcell.coverage.coverage_family import jsonable
+        from paintcell.coverage.film_refine import refine_plan
+
+        passes, refine = refine_plan(app, surface, passes, st, caps_exec or None)
+        refine = jsonable(refine)
     sd = dict(st.to_dict(), patches=True)
     sd["report"] = {"patches": report, "order": order, "seam_share": share,
                     "film_refine": refine}
@@ -336,22 +340,3 @@ def _local(by_pass: dict[int, np.ndarray] | None, patch_passes: list[PassPlan],
         a = np.asarray(a, float)
         out[int(p.side)] = a[::-1] if (first + j) % 2 != j % 2 else a
     return out
-
-
-def _refine_whole(app: Applicator, surface: Surface, passes: list[PassPlan],
-                  st: PlannerSettings, caps: list[np.ndarray | None] | None = None
-                  ) -> tuple[list[PassPlan], dict[str, Any]]:
-    """`film_refine.refine_speeds` over the whole part (interior: beyond the film guard's band
-    from the part's boundary), within the robot's speed caps (per pass in execution order, in
-    its execution direction), as `coverage_family` refines one family."""
-    from paintcell.coverage.coverage_family import jsonable
-    from paintcell.coverage.film_refine import refine_speeds
-    from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
-
-    interior = boundary_band_mask(surface.vertices,
-                                  surface.vertices[boundary_vertices(surface.faces)],
-                                  st.film_guard_band_m)
-    if not interior.any():
-        interior = np.ones(len(surface.vertices), bool)
-    out, info = refine_speeds(app, surface, passes, st.v_min_m_s, st.v_max_m_s, interior, caps)
-    return out, jsonable(info)

@@ -21,11 +21,14 @@ capped sample, the one pose honest reachability lost); the faster end of such an
 capped so that the planned v² rise stays under what the robot reached. A pass gets these caps
 once its samples are met within `MET_REL` (in the first rounds its deep slowdowns would cap the
 plan far harder than needed).
+One robot or N (a booth, `paintcell.booth.booth_speeds`) are measured alike: `part_speeds`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -139,10 +142,35 @@ def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
     return caps
 
 
+def part_speeds(plans: Sequence[CoveragePlan], jobs: dict[int, tuple[Any, ...]],
+                programs: Sequence[Any], lags: bool = False, margin: float = CAP_MARGIN
+                ) -> list[list[np.ndarray]]:
+    """Per part, per pass of its plan, the TCP speed its robot reaches at each sample [m/s]
+    (`pass_speeds`; jobs: {robot: its jobs, passes [first, end) of plan `part`, run on in its
+    program from `meta["job_first_pass_index"]`, default 0}); the plan's own speeds for a pass
+    no robot runs. lags: instead, the caps between samples (`lag_caps`; inf where none) [m/s]."""
+    out = [[np.full(len(p.speeds_m_s), np.inf) if lags else np.asarray(p.speeds_m_s, float)
+            for p in pl.passes] for pl in plans]
+    for r, js in jobs.items():
+        traj = programs[r]
+        firsts = traj.meta.get("job_first_pass_index", [0])
+        for k, job in enumerate(js):
+            for m in range(job.end - job.first):
+                p = plans[job.part].passes[job.first + m]
+                out[job.part][job.first + m] = (lag_caps(p, traj, firsts[k] + m, margin=margin)
+                                                if lags else pass_speeds(p, traj, firsts[k] + m))
+    return out
+
+
+def _one_robot(plan: CoveragePlan) -> dict[int, tuple[Any, ...]]:
+    """The jobs of a one-robot cell: its robot runs every pass of its one part."""
+    return {0: (SimpleNamespace(part=0, first=0, end=len(plan.passes)),)}
+
+
 def achieved_speeds(plan: CoveragePlan, traj: Any) -> list[np.ndarray]:
     """Per pass, the TCP speed the joint program reaches at each plan sample [m/s] ((M,) each;
     `pass_speeds` of pass i at pass_index i)."""
-    return [pass_speeds(p, traj, i) for i, p in enumerate(plan.passes)]
+    return part_speeds([plan], _one_robot(plan), [traj])[0]
 
 
 def speed_caps(plan: CoveragePlan, traj: Any, previous: dict[int, np.ndarray] | None = None,
@@ -153,9 +181,24 @@ def speed_caps(plan: CoveragePlan, traj: Any, previous: dict[int, np.ndarray] | 
     Returns (caps, number of newly capped samples, largest speed deficit [%]; the samples capped
     include those of `lag_caps`, the deficit is the one at the samples).
     """
-    lags = [lag_caps(p, traj, i, margin=margin) for i, p in enumerate(plan.passes)]
+    lags = part_speeds([plan], _one_robot(plan), [traj], lags=True, margin=margin)[0]
     return caps_from_speeds(plan, achieved_speeds(plan, traj), None, previous, slow_rel, margin,
                             lags)
+
+
+def planner_order(arrays: list[Any], reverse: bool) -> list[Any]:
+    """Per-pass sample arrays of a finished plan in its planner's order, or back (a part run
+    backwards has its passes in reverse order, each reversed; the map is its own inverse)."""
+    return [a[::-1] for a in arrays[::-1]] if reverse else list(arrays)
+
+
+def stored_caps(plan: CoveragePlan, caps: dict[int, np.ndarray], reverse: bool
+                ) -> list[np.ndarray | None]:
+    """The caps {side: generation direction} of the planner's `plan` per pass of the finished
+    plan (execution order, each pass's own sample order) [m/s], None where a pass has none."""
+    per = [None if (c := caps.get(p.side)) is None else (c[::-1] if i % 2 == 1 else c)
+           for i, p in enumerate(plan.passes)]
+    return [None if c is None else c[::-1] for c in per[::-1]] if reverse else per
 
 
 def caps_from_speeds(plan: CoveragePlan, v_act: list[np.ndarray],

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.atomic_io import atomic_write_text
-from paintcell.sweeps.sweep_worker import SweepPayload, run_sample
+from paintcell.sweeps.sweep_worker import booth_payload, one_robot_payload, run_sample
 from paintcell.validation.sweep_spec import SweepError, SweepSpec
 
 _log = logging.getLogger(__name__)
@@ -62,36 +62,20 @@ def sample_path(out_dir: Path, index: int) -> Path:
 
 def prepare_payload(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> Any:
     """Plan once: surface, plan, program and the two films every sample reuses (a booth: its
-    programs and films, `paintcell.sweeps.sweep_booth`)."""
+    programs and films; `paintcell.sweeps.sweep_worker`)."""
     from paintcell.booth.booth import Booth
 
-    if isinstance(scn, Booth):
-        from paintcell.sweeps.sweep_booth import prepare_booth_payload
-
-        return prepare_booth_payload(scn, spec.names, spec_digest(scn, spec, fast, mode), fast,
-                                     mode)
-    from paintcell.app.pipeline import load_robot_for, load_surface, make_plan, make_trajectory
-    from paintcell.validation.validate import program_films
-
-    surface = load_surface(scn, fast)
-    plan = make_plan(scn, surface, fast)
-    traj = make_trajectory(scn, load_robot_for(scn), plan)
-    films = program_films(plan, surface, traj, scn.part_placement.matrix)
-    return SweepPayload(spec_digest(scn, spec, fast, mode), scn, fast, mode, surface, plan,
-                        traj, films, spec.names)
+    build = booth_payload if isinstance(scn, Booth) else one_robot_payload
+    return build(scn, spec.names, spec_digest(scn, spec, fast, mode), fast, mode)
 
 
 def check_factors_fit(scn: Any, spec: SweepSpec) -> None:
     """One-line SweepError when a factor does not apply to this kind of scenario (a booth
-    varies the line speed and the body's placement on the skid; the single-robot cell has no
-    line)."""
+    takes every factor, on every robot; the single-robot cell has no line speed)."""
     from paintcell.booth.booth import Booth
     from paintcell.validation.sweep_names import BOOTH_ONLY_FACTORS
 
     if isinstance(scn, Booth):
-        from paintcell.validation.sweep_spec import check_booth_factors
-
-        check_booth_factors(spec.names)
         return
     booth_only = [n for n in spec.names if n in BOOTH_ONLY_FACTORS]
     if booth_only:
@@ -100,10 +84,8 @@ def check_factors_fit(scn: Any, spec: SweepSpec) -> None:
 
 
 def sample_function(payload: Any) -> Callable[..., dict[str, Any]]:
-    """The function that runs one sample of this payload (single-robot cell or booth)."""
-    from paintcell.sweeps.sweep_booth import BoothPayload, run_booth_sample
-
-    return run_booth_sample if isinstance(payload, BoothPayload) else run_sample
+    """The function that runs one sample of this payload (any cell: `run_sample`)."""
+    return run_sample
 
 
 def spec_digest(scn: Any, spec: SweepSpec, fast: bool, mode: str) -> str:

@@ -23,11 +23,20 @@ collisions. Here a pose is *reached* only when all of these hold:
 
 `reachability_pct` = reached poses ÷ plan poses; with any failing pose it is at most 99.99 %, so a
 run with a jump, a flip, a contact or a slowdown never prints 100 %.
+
+A cell of N robots (`paintcell.booth`) judges each robot's program alike: its plan is its jobs'
+passes in program order (`paintcell.booth.booth_chain.robot_plan`), its IK report its jobs'
+reports joined (`joined_reachability`), its program its own static one (the TCP speed along the
+part, not the conveyor's added), and its contacts come from its share of the cell's run, moved
+from the cell's clock to its program's by the start offset (`clock_offset_s`). The cell's figure
+is its least robot's.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -70,22 +79,63 @@ def nearest_pose(s_poses: np.ndarray, s: np.ndarray) -> np.ndarray:
     return np.searchsorted(mid, s)
 
 
+def joined_reachability(reports: Sequence[dict[str, Any] | None]) -> dict[str, Any] | None:
+    """A program's jobs' IK reports as one: counts summed, per-pose arrays concatenated (dropped
+    when a job has none, so the honest figure falls back to its count-based bound). None if any
+    is."""
+    if not reports or any(r is None for r in reports):
+        return None
+    rs = [r for r in reports if r is not None]
+    if len(rs) == 1:
+        return rs[0]
+    out: dict[str, Any] = {"n_poses": sum(int(r.get("n_poses") or 0) for r in rs),
+                           "n_reachable": sum(int(r.get("n_reachable") or 0) for r in rs),
+                           "thresholds": rs[0].get("thresholds", {})}
+    poses = [r.get("poses") or {} for r in rs]
+    if all("reachable" in p for p in poses):
+        out["poses"] = {"reachable": [x for p in poses for x in p["reachable"]]}
+        if all("joint_jump_rad" in p for p in poses):
+            out["poses"]["joint_jump_rad"] = [x for p in poses for x in p["joint_jump_rad"]]
+    return out
+
+
+def clock_offset_s(traj: JointTrajectory, clock: JointTrajectory) -> float:
+    """Run-clock time − own-program time of the same sample [s]: `clock` is `traj` on the clock
+    its execution ran on (0 for a program that never paints: its contacts are then counted at
+    the run's clock, which only moves them between moves)."""
+    a = np.flatnonzero(traj.paint_on)
+    b = np.flatnonzero(clock.paint_on)
+    if len(a) == 0 or len(b) == 0:
+        return 0.0
+    return float(clock.t_s[b[0]] - traj.t_s[a[0]])
+
+
 def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: ExecutedTrace,
-                        reachability: dict[str, Any] | None,
-                        settings: HonestReachSettings | None = None) -> dict[str, Any] | None:
+                        reachability: dict[str, Any] | Sequence[dict[str, Any] | None] | None,
+                        settings: HonestReachSettings | None = None,
+                        clock: JointTrajectory | None = None) -> dict[str, Any] | None:
     """Per-pose accounting of what the run really reached (see the module docstring).
 
     plan: the coverage plan the trajectory was built from; traj: its joint program (1 kHz
     samples with `pass_index`, `segment`, `s_pass_m`); trace: the execution (its contacts);
     reachability: the IK summary (`ReachabilityReport.to_dict()`, optionally with the per-pose
     `poses` arrays `reachable` and `joint_jump_rad`; without them the IK shortfall and the other
-    causes are added, an upper bound on the poses lost). None: no IK report, returns None.
+    causes are added, an upper bound on the poses lost), or a chained program's per-job
+    summaries in order (`joined_reachability`). None: no IK report, returns None.
+    clock: `traj` on the clock `trace` ran on (a robot of a cell started late: its contacts are
+    moved back by `clock_offset_s`); None: the trace ran on `traj`'s own clock.
     Returns a JSON-safe dict: `reachability_pct` (honest), `ik_reachability_pct`, counts of poses
     lost to each cause (`n_unreachable`, `n_joint_jumps`, `n_config_flips`, `n_contact_poses`,
     `n_slowed_poses`), `n_lost` (their union) and a one-line `verdict`.
     """
+    if reachability is not None and not isinstance(reachability, dict):
+        reachability = joined_reachability(list(reachability))
     if reachability is None:
         return None
+    if clock is not None:
+        off = clock_offset_s(traj, clock)
+        trace = dataclasses.replace(trace, contacts=tuple(
+            dataclasses.replace(c, time_s=c.time_s - off) for c in trace.contacts))
     st = settings or HonestReachSettings()
     s_poses = pose_arc_lengths(plan)
     counts = [len(s) for s in s_poses]

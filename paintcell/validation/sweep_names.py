@@ -21,10 +21,7 @@ FACTORS: dict[str, tuple[str, str]] = {
     "conveyor_speed_error_m_s": ("m/s", "booth only: actual − nominal line speed, signed; the "
                                         "robots still track the nominal speed"),
 }
-#: the factors a booth sweep (`paintcell.sweeps.sweep_booth`) models; the others are
-#: single-robot ones.
-BOOTH_FACTORS = ("conveyor_speed_error_m_s", "part_offset_m")
-#: the booth factors the single-robot cell has no meaning for (it has no conveyor).
+#: the factors the single-robot cell has no meaning for (it has no conveyor).
 BOOTH_ONLY_FACTORS = ("conveyor_speed_error_m_s",)
 #: factors that are lengths/angles in a random direction: the sweep uses |draw|.
 MAGNITUDE_FACTORS = ("part_offset_m", "part_rotation_rad", "tcp_offset_m")
@@ -44,7 +41,7 @@ SAMPLE_METRICS: dict[str, str] = {
     "executed_cycle_time_s": "s",
     "tracking_error_max_mm": "mm",
 }
-#: the figures a booth sample records beside those (`paintcell.sweeps.sweep_booth`): the
+#: the figures a booth sample records beside those (`paintcell.sweeps.sweep_worker`): the
 #: conveyor's share of the loss, the worst part's executed σ/μ and share of area in the paint
 #: spec's window (the booth's spec checks), the carrier's measured speed.
 BOOTH_METRICS: dict[str, str] = {

@@ -31,7 +31,6 @@ import numpy as np
 
 from paintcell.core.errors import PaintcellError
 from paintcell.validation.sweep_names import (
-    BOOTH_FACTORS,
     BOOTH_METRICS,
     FACTORS,
     MAGNITUDE_FACTORS,
@@ -282,15 +281,6 @@ def _check_budget(samples: int, setting: str) -> None:
         check_sweep_budget(samples, setting)
     except BudgetError as exc:
         raise SweepError(str(exc)) from None
-
-
-def check_booth_factors(names: tuple[str, ...]) -> None:
-    """One-line SweepError unless every factor is one a booth sweep models."""
-    bad = [n for n in names if n not in BOOTH_FACTORS]
-    if bad:
-        raise SweepError(f"factor(s) {bad} are not modelled in a booth sweep; a booth varies "
-                         f"{', '.join(BOOTH_FACTORS)} (sweep the single-robot scenario of the "
-                         "part for the other tolerances)")
 
 
 def check_limits(limits: dict[str, Any] | None) -> dict[str, float]:
