@@ -17,54 +17,75 @@ from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import JointTrajectory
 
 
+def robot_settings(booth: Booth, i: int) -> Any:
+    """Robot i's `TrajectorySettings`: the booth's `[trajectory]` with the robot's home."""
+    from paintcell.core.settings import settings_from
+    from paintcell.motion.trajectory import TrajectorySettings
+
+    kw = dict(booth.trajectory)
+    if booth.robots[i].home is not None:
+        kw["q_home"] = tuple(booth.robots[i].home)
+    return settings_from(TrajectorySettings, kw, "trajectory")
+
+
 def robot_programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
               jobs: dict[int, tuple[Job, ...]],
               T_wb: np.ndarray, T_bp: list[np.ndarray],
               cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
-              probes: list[Any] | None = None) -> list[JointTrajectory]:
+              probes: list[Any] | None = None, remote: Any = None) -> list[JointTrajectory]:
     """Each robot's static program for its jobs (cached per robot and job, failures too), kept
     `Booth.body_clearance_m` from the whole body (`paintcell.booth.booth_clearance`); a
-    robot's jobs one after the other (`paintcell.booth.booth_chain.chain_programs`)."""
+    robot's jobs one after the other (`paintcell.booth.booth_chain.chain_programs`).
+    remote: a `paintcell.booth.booth_tasks.JobPrograms` the jobs not in the cache are taken from
+    (sent to its pool first; None: built here)."""
     from paintcell.booth.booth_chain import chain_programs
-    from paintcell.core.settings import settings_from
-    from paintcell.motion.trajectory import TrajectorySettings
 
+    if remote is not None:
+        remote.submit({i: js for i, js in jobs.items() if js})
     out = []
     for i, (spec, robot) in enumerate(zip(booth.robots, robots, strict=True)):
-        kw = dict(booth.trajectory)
-        if spec.home is not None:
-            kw["q_home"] = tuple(spec.home)
-        settings = settings_from(TrajectorySettings, kw, "trajectory")
         own = jobs.get(i)
         if not own:
             raise BoothError(f"robot {spec.name!r} got no job; remove it or give it one in "
                              "Booth.allocation")
-        built = [_job_program(booth, i, spec, robot, plans, job, T_wb, T_bp, cache, probes,
-                              settings) for job in own]
+        built = [_job_program(booth, i, robot, plans, job, T_wb, T_bp, cache, probes, remote)
+                 for job in own]
         out.append(chain_programs(built, robot))
         if len(built) > 1 and probes is not None and booth.body_clearance_m is not None:
             _check_transfer(booth, spec.name, probes[i], out[-1])
     return out
 
 
-def _job_program(booth: Booth, i: int, spec: Any, robot: Any, plans: list[CoveragePlan],
+def _job_program(booth: Booth, i: int, robot: Any, plans: list[CoveragePlan],
                  job: Job, T_wb: np.ndarray, T_bp: list[np.ndarray],
                  cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
-                 probes: list[Any] | None, settings: Any) -> JointTrajectory:
-    """Robot i's program for one job (cached, failures too)."""
+                 probes: list[Any] | None, remote: Any) -> JointTrajectory:
+    """Robot i's program for one job (cached, failures too; taken from `remote` if given)."""
     if (i, job) not in cache:
-        plan = dataclasses.replace(plans[job.part],
-                                   passes=plans[job.part].passes[job.first:job.end])
-        try:
-            cache[(i, job)] = _clear_program(booth, spec.name, robot, plan,
-                                             T_wb @ T_bp[job.part], settings,
-                                             None if probes is None else probes[i])
-        except PaintcellError as exc:
-            cache[(i, job)] = exc
+        if remote is not None:
+            cache[(i, job)] = remote.take(i, job)
+        else:
+            plan = dataclasses.replace(plans[job.part],
+                                       passes=plans[job.part].passes[job.first:job.end])
+            settings = robot_settings(booth, i)
+            try:
+                cache[(i, job)] = job_program(booth, i, robot, plan, T_wb @ T_bp[job.part],
+                                              None if probes is None else probes[i], settings)
+            except PaintcellError as exc:
+                cache[(i, job)] = exc
     got = cache[(i, job)]
     if isinstance(got, PaintcellError):
         raise got
     return got
+
+
+def job_program(booth: Booth, i: int, robot: Any, plan: CoveragePlan, T_world_part: np.ndarray,
+                probe: Any, settings: Any) -> JointTrajectory:
+    """Robot i's program (`robot`: its model, rails as planned) for `plan` (a job's passes) at
+    `T_world_part` (4, 4) with its `settings` (`robot_settings`), kept clear of the body with
+    its `probe` (None: not checked)."""
+    return _clear_program(booth, booth.robots[i].name, robot, plan, T_world_part, settings,
+                          probe)
 
 
 def _check_transfer(booth: Booth, name: str, probe: Any, traj: JointTrajectory) -> None:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -79,26 +80,24 @@ class BoothPrograms:
     """How the seams between parts were blended (`paintcell.booth.booth_seams`)."""
 
 
-def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
-                   ) -> BoothPrograms:
+def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None,
+                   tasks: Any = None) -> BoothPrograms:
     """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc).
     part_plans: the parts as `plan_parts(booth, fast)` plans them, when already made (`paintcell
-    init` checks several robot layouts of one plan)."""
+    init` checks several robot layouts of one plan). tasks: a
+    `paintcell.booth.booth_tasks.TaskPool` that plans the parts and builds each allocation's
+    robot programs at once (None: in this process; the same plans and programs)."""
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    pp = plan_parts(booth, fast) if part_plans is None else part_plans
+    pp = plan_parts(booth, fast, tasks) if part_plans is None else part_plans
     fin = finish_plans(booth, pp, pp.plans)
     surfaces, T_body_parts, body = pp.surfaces, pp.T_body_parts, fin.body
     T_wb = booth.body_placement.matrix
     robots = load_robots(booth)
-    # Every robot's arm measured against the whole body, every part of it
-    # (`paintcell.booth.booth_clearance`).
-    probes = None
-    if booth.body_clearance_m is not None:
-        from paintcell.booth.booth_clearance import BodyProbe
-
-        part_of = np.concatenate([np.full(len(x.vertices), i) for i, x in enumerate(surfaces)])
-        probes = [BodyProbe(r, body, T_wb, part_of) for r in robots]
+    counts = tuple(len(x.vertices) for x in surfaces)
+    probes = None if booth.body_clearance_m is None else body_probes(booth, robots, body, counts)
+    remote_of = None if tasks is None else _remote_programs(tasks, booth, body, counts,
+                                                            probes is not None)
     timings["plan"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -110,12 +109,12 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
     speeds: dict[str, Any] = {"rule": "off"}
     for attempt in range(2):
         built = Built(*_choose(booth, robots, fin.plans, ranked, T_wb, T_body_parts, shrink,
-                               probes))
+                               probes, remote_of))
         if attempt == 0 and booth.robot_aware_speeds:
             def rebuild(pls: list[CoveragePlan], jobs: Any = built.jobs,
                         shrink_m: float = shrink) -> Built:
                 return Built(*_choose(booth, robots, pls, [jobs], T_wb, T_body_parts,
-                                      shrink_m, probes))
+                                      shrink_m, probes, remote_of))
 
             tried0 = built.tried          # the candidates of the allocation, as chosen
             fin, built, speeds = robot_aware_booth(booth, pp, fin, built, rebuild)
@@ -151,7 +150,8 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
 
 def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
             ranked: list[dict[int, tuple[Job, ...]]], T_wb: np.ndarray, T_bp: list[np.ndarray],
-            shrink_m: float, probes: list[Any] | None = None
+            shrink_m: float, probes: list[Any] | None = None,
+            remote_of: Callable[[list[CoveragePlan], float], Any] | None = None
             ) -> tuple[dict[int, tuple[Job, ...]], list[JointTrajectory], list[JointTrajectory],
                        list[dict[str, Any]]]:
     """The allocation of the best ranked with the shortest REAL cycle (rails
@@ -169,8 +169,11 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     the estimate is not a lower bound, the margin covers its measured over-estimate). One
     holding a job already refused is passed over (recorded, not counted: MAX_ALLOCATIONS_TRIED
     counts the others). probes:
-    per robot, its `paintcell.booth.booth_clearance.BodyProbe` (None: no body clearance)."""
+    per robot, its `paintcell.booth.booth_clearance.BodyProbe` (None: no body clearance).
+    remote_of(plans, shrink_m): the `paintcell.booth.booth_tasks.JobPrograms` that builds the
+    programs of each allocation tried on a pool, all its robots' jobs at once (None: here)."""
     planners = load_robots(booth, shrink_m) if shrink_m > 0 else robots
+    remote = None if remote_of is None else remote_of(plans, shrink_m)
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
     chained: dict[tuple[int, tuple[Job, ...]], int] = {}   # a robot's jobs as built [samples]
     tried: list[dict[str, Any]] = []
@@ -197,7 +200,8 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
                                          "than the best real cycle"})
                 continue
         try:
-            trajs0 = robot_programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes)
+            trajs0 = robot_programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes,
+                                    remote)
             chained.update({(r, jobs[r]): len(tr.t_s) for r, tr in enumerate(trajs0)})
             delays = _stagger(booth, robots, trajs0)
         except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
@@ -242,6 +246,30 @@ def _longest_program_s(jobs: dict[int, tuple[Job, ...]],
 
     return max((chained[(r, js)] - 1) * dt_s if (r, js) in chained
                else sum(job_s(r, j) for j in js) for r, js in jobs.items())
+
+
+def body_probes(booth: Booth, robots: list[Any], body: Surface, part_counts: tuple[int, ...]
+                ) -> list[Any]:
+    """Per robot, its `paintcell.booth.booth_clearance.BodyProbe` of the whole body (`body`:
+    the parts stacked, part_counts: their vertex counts): every robot's arm measured against
+    every part of the body."""
+    from paintcell.booth.booth_clearance import BodyProbe
+
+    part_of = np.concatenate([np.full(n, i) for i, n in enumerate(part_counts)])
+    return [BodyProbe(r, body, booth.body_placement.matrix, part_of) for r in robots]
+
+
+def _remote_programs(tasks: Any, booth: Booth, body: Surface, part_counts: tuple[int, ...],
+                     probes: bool) -> Callable[[list[CoveragePlan], float], Any]:
+    """`_choose`'s remote_of on the pool `tasks`: the body sent once, one key for the run."""
+    from paintcell.booth.booth_tasks import JobPrograms, new_run_key
+
+    key, shared = new_run_key(), tasks.share(body)
+
+    def remote_of(plans: list[CoveragePlan], shrink_m: float) -> JobPrograms:
+        return JobPrograms(tasks, key, booth, shared, part_counts, plans, shrink_m, probes)
+
+    return remote_of
 
 
 def load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
