@@ -1,12 +1,14 @@
 """Each booth robot's static program for its jobs (`booth_programs` builds them for every
-allocation it tries): a job's program kept clear of the whole body
-(`paintcell.booth.booth_clearance`), a robot's jobs one after the other
-(`paintcell.booth.booth_chain`).
+allocation it tries): the booth's robot models (`load_robots`), a job's program kept clear of
+the whole body (`paintcell.booth.booth_clearance`), a robot's jobs one after the other
+(`paintcell.booth.booth_chain`); and a job's program as a worker of a task pool builds it
+(`remote_job_program`, sent by `paintcell.booth.booth_tasks.JobPrograms`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import threading
 from typing import Any
 
 import numpy as np
@@ -15,6 +17,7 @@ from paintcell.booth.booth import Booth, BoothError, Job
 from paintcell.core.errors import PaintcellError
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.surface.surface import Surface
 
 
 def robot_settings(booth: Booth, i: int) -> Any:
@@ -165,3 +168,66 @@ def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
                      f"{bc.CLEAR_FACTORS[-1]:g}x back-offs"
                      + (f" ({len(failed)} of those programs could not be built: {failed[0]})"
                         if failed else ""))
+
+
+def load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
+    """The booth's robots; rail robots with their travel shrunk by rail_shrink_m at both ends
+    (for planning the passes' carriage positions, leaving room for conveyor tracking)."""
+    from paintcell.robots import load_robot
+    from paintcell.robots.rail import RailSpec, load_rail_robot
+
+    out = []
+    for r in booth.robots:
+        if r.rail_m is not None or (rail_shrink_m > 0 and r.model.endswith("_rail")):
+            if not r.model.endswith("_rail"):
+                raise BoothError(f"robot {r.name!r} has rail_m but model {r.model!r} has no "
+                                 "rail; use '<arm>_rail'")
+            rng = r.rail_m if r.rail_m is not None else (-2.0, 2.0)
+            lo, hi = rng[0] + rail_shrink_m, rng[1] - rail_shrink_m
+            if lo >= hi:
+                raise BoothError(f"robot {r.name!r}: the conveyor tracking needs "
+                                 f"{2 * rail_shrink_m:.2f} m of its rail; lengthen rail_m or "
+                                 "slow the line")
+            out.append(load_rail_robot(r.model[:-5], T_world_rail=r.base.matrix,
+                                       rail=RailSpec(lower_m=lo, upper_m=hi,
+                                                     home_m=min(max(0.0, lo), hi))))
+        else:
+            out.append(load_robot(r.model, T_world_base=r.base.matrix))
+    return out
+
+
+#: per worker thread: the last run's (key, robots, planners by rail shrink, probes).
+_LOCAL = threading.local()
+
+
+def _worker_state(run_key: str, booth: Booth, body: Surface, part_counts: tuple[int, ...],
+                  shrink_m: float, r: int, probes: bool) -> tuple[Any, Any]:
+    """Robot r's planning model (rails shrunk by shrink_m) and its body probe (None without
+    `probes`) on this worker thread, built on first use and kept for the run's later tasks (one
+    run at a time: a new key drops the older run's)."""
+    from paintcell.booth.booth_clearance import BodyProbe
+
+    st = getattr(_LOCAL, "state", None)
+    if st is None or st["key"] != run_key:
+        st = _LOCAL.state = {"key": run_key, "robots": load_robots(booth), "planners": {},
+                             "probes": {}}
+    if shrink_m not in st["planners"]:
+        st["planners"][shrink_m] = load_robots(booth, shrink_m) if shrink_m > 0 \
+            else st["robots"]
+    if probes and r not in st["probes"]:    # as `booth_programs.body_probes` builds it
+        part_of = np.concatenate([np.full(n, i) for i, n in enumerate(part_counts)])
+        st["probes"][r] = BodyProbe(st["robots"][r], body, booth.body_placement.matrix, part_of)
+    return st["planners"][shrink_m][r], st["probes"][r] if probes else None
+
+
+def remote_job_program(run_key: str, booth: Booth, body: Surface, part_counts: tuple[int, ...],
+                       shrink_m: float, probes: bool, r: int, plan: CoveragePlan,
+                       T_world_part: np.ndarray) -> JointTrajectory | PaintcellError:
+    """On a worker: robot r's program for `plan` (its job's passes) at `T_world_part` (4, 4),
+    or the `PaintcellError` that refused it (returned, as the client caches refusals)."""
+    robot, probe = _worker_state(run_key, booth, body, part_counts, shrink_m, r, probes)
+    settings = robot_settings(booth, r)
+    try:
+        return job_program(booth, r, robot, plan, T_world_part, probe, settings)
+    except PaintcellError as exc:
+        return exc

@@ -63,10 +63,11 @@ def plan_parts(booth: Booth, fast: bool, tasks: Any = None) -> PartPlans:
     out = PartPlans([], [], [], [], [], app)
     if tasks is None:
         planned = [plan_part(booth, i, res, app) for i in range(len(booth.parts))]
-    else:
-        from paintcell.booth.booth_tasks import plan_parts_on
-
-        planned = plan_parts_on(tasks, booth, res, app)
+    else:   # a mesh or CAD part's surface read here and sent, a library part's made there
+        futs = [tasks.submit(plan_part, booth, i, res, app,
+                             None if bp.mesh is None else part_surface_of(booth, i, res))
+                for i, bp in enumerate(booth.parts)]
+        planned = [f.result() for f in futs]
     for bp, (s, skin, st, plan) in zip(booth.parts, planned, strict=True):
         out.plans.append(plan)
         out.surfaces.append(s)

@@ -27,7 +27,7 @@ from paintcell.booth.booth import (
 )
 from paintcell.booth.booth_chain import job_record
 from paintcell.booth.booth_hold import delayed, held_to
-from paintcell.booth.booth_job_programs import robot_programs
+from paintcell.booth.booth_job_programs import load_robots, robot_programs
 from paintcell.booth.booth_plans import PartPlans, finish_plans, plan_parts
 from paintcell.booth.booth_speeds import Built, robot_aware_booth
 from paintcell.booth.booth_stagger import stagger_starts
@@ -270,32 +270,6 @@ def _remote_programs(tasks: Any, booth: Booth, body: Surface, part_counts: tuple
         return JobPrograms(tasks, key, booth, shared, part_counts, plans, shrink_m, probes)
 
     return remote_of
-
-
-def load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
-    """The booth's robots; rail robots with their travel shrunk by rail_shrink_m at both ends
-    (for planning the passes' carriage positions, leaving room for conveyor tracking)."""
-    from paintcell.robots import load_robot
-    from paintcell.robots.rail import RailSpec, load_rail_robot
-
-    out = []
-    for r in booth.robots:
-        if r.rail_m is not None or (rail_shrink_m > 0 and r.model.endswith("_rail")):
-            if not r.model.endswith("_rail"):
-                raise BoothError(f"robot {r.name!r} has rail_m but model {r.model!r} has no "
-                                 "rail; use '<arm>_rail'")
-            rng = r.rail_m if r.rail_m is not None else (-2.0, 2.0)
-            lo, hi = rng[0] + rail_shrink_m, rng[1] - rail_shrink_m
-            if lo >= hi:
-                raise BoothError(f"robot {r.name!r}: the conveyor tracking needs "
-                                 f"{2 * rail_shrink_m:.2f} m of its rail; lengthen rail_m or "
-                                 "slow the line")
-            out.append(load_rail_robot(r.model[:-5], T_world_rail=r.base.matrix,
-                                       rail=RailSpec(lower_m=lo, upper_m=hi,
-                                                     home_m=min(max(0.0, lo), hi))))
-        else:
-            out.append(load_robot(r.model, T_world_base=r.base.matrix))
-    return out
 
 
 def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: np.ndarray,

@@ -19,19 +19,14 @@ whole body (`paintcell.booth.booth_clearance.BodyProbe`) is built there from the
 
 from __future__ import annotations
 
-import threading
 import uuid
 from collections.abc import Callable
 from typing import Any, Protocol, TypeVar
-
-import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.core.errors import PaintcellError
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.paint.applicator import Applicator
-from paintcell.surface.surface import Surface
 
 T = TypeVar("T")
 T_co = TypeVar("T_co", covariant=True)
@@ -51,18 +46,6 @@ class TaskPool(Protocol):
 
     def submit(self, fn: Callable[..., T], *args: Any) -> TaskFuture[T]:
         """Run fn(*args) on a worker (a handle from `share` arrives as its object)."""
-
-
-def plan_parts_on(tasks: TaskPool, booth: Booth, res: float, app: Applicator
-                  ) -> list[tuple[Surface, Surface, Any, CoveragePlan]]:
-    """Every part planned at once on `tasks` (`booth_plans.plan_part`'s values, part order): a
-    mesh or CAD part's surface read here and sent, a library part's made on its worker."""
-    from paintcell.booth.booth_plans import part_surface_of, plan_part
-
-    futs = [tasks.submit(plan_part, booth, i, res, app,
-                         None if bp.mesh is None else part_surface_of(booth, i, res))
-            for i, bp in enumerate(booth.parts)]
-    return [f.result() for f in futs]
 
 
 class JobPrograms:
@@ -86,6 +69,8 @@ class JobPrograms:
         """Send the allocation's jobs not sent yet, robot by robot."""
         import dataclasses
 
+        from paintcell.booth.booth_job_programs import remote_job_program
+
         T_wb = self.booth.body_placement.matrix
         for r, js in sorted(jobs.items()):
             for job in js:
@@ -105,43 +90,3 @@ class JobPrograms:
 def new_run_key() -> str:
     """A key of one run's worker state (its robots and probes), unique across runs."""
     return uuid.uuid4().hex
-
-
-#: per worker thread: the last run's (key, robots, planners by rail shrink, probes).
-_LOCAL = threading.local()
-
-
-def _worker_state(run_key: str, booth: Booth, body: Surface, part_counts: tuple[int, ...],
-                  shrink_m: float, r: int, probes: bool) -> tuple[Any, Any]:
-    """Robot r's planning model (rails shrunk by shrink_m) and its body probe (None without
-    `probes`) on this worker thread, built on first use and kept for the run's later tasks (one
-    run at a time: a new key drops the older run's)."""
-    from paintcell.booth.booth_clearance import BodyProbe
-    from paintcell.booth.booth_programs import load_robots
-
-    st = getattr(_LOCAL, "state", None)
-    if st is None or st["key"] != run_key:
-        st = _LOCAL.state = {"key": run_key, "robots": load_robots(booth), "planners": {},
-                             "probes": {}}
-    if shrink_m not in st["planners"]:
-        st["planners"][shrink_m] = load_robots(booth, shrink_m) if shrink_m > 0 \
-            else st["robots"]
-    if probes and r not in st["probes"]:    # as `booth_programs.body_probes` builds it
-        part_of = np.concatenate([np.full(n, i) for i, n in enumerate(part_counts)])
-        st["probes"][r] = BodyProbe(st["robots"][r], body, booth.body_placement.matrix, part_of)
-    return st["planners"][shrink_m][r], st["probes"][r] if probes else None
-
-
-def remote_job_program(run_key: str, booth: Booth, body: Surface, part_counts: tuple[int, ...],
-                       shrink_m: float, probes: bool, r: int, plan: CoveragePlan,
-                       T_world_part: np.ndarray) -> JointTrajectory | PaintcellError:
-    """On a worker: robot r's program for `plan` (its job's passes) at `T_world_part` (4, 4),
-    or the `PaintcellError` that refused it (returned, as the client caches refusals)."""
-    from paintcell.booth.booth_job_programs import job_program, robot_settings
-
-    robot, probe = _worker_state(run_key, booth, body, part_counts, shrink_m, r, probes)
-    settings = robot_settings(booth, r)
-    try:
-        return job_program(booth, r, robot, plan, T_world_part, probe, settings)
-    except PaintcellError as exc:
-        return exc
