@@ -26,8 +26,9 @@ def robot_settings(booth: Booth, i: int) -> Any:
     from paintcell.motion.trajectory import TrajectorySettings
 
     kw = dict(booth.trajectory)
-    if booth.robots[i].home is not None:
-        kw["q_home"] = tuple(booth.robots[i].home)
+    home = booth.robots[i].home
+    if home is not None:
+        kw["q_home"] = tuple(home)
     return settings_from(TrajectorySettings, kw, "trajectory")
 
 
@@ -35,7 +36,7 @@ def robot_programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
               jobs: dict[int, tuple[Job, ...]],
               T_wb: np.ndarray, T_bp: list[np.ndarray],
               cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
-              probes: list[Any] | None = None, remote: Any = None) -> list[JointTrajectory]:
+              probes: Any = None, remote: Any = None) -> list[JointTrajectory]:
     """Each robot's static program for its jobs (cached per robot and job, failures too), kept
     `Booth.body_clearance_m` from the whole body (`paintcell.booth.booth_clearance`); a
     robot's jobs one after the other (`paintcell.booth.booth_chain.chain_programs`).
@@ -62,7 +63,7 @@ def robot_programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
 def _job_program(booth: Booth, i: int, robot: Any, plans: list[CoveragePlan],
                  job: Job, T_wb: np.ndarray, T_bp: list[np.ndarray],
                  cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
-                 probes: list[Any] | None, remote: Any) -> JointTrajectory:
+                 probes: Any, remote: Any) -> JointTrajectory:
     """Robot i's program for one job (cached, failures too; taken from `remote` if given)."""
     if (i, job) not in cache:
         if remote is not None:
@@ -196,6 +197,15 @@ def load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
     return out
 
 
+def body_probe(booth: Booth, robot: Any, body: Surface, part_counts: tuple[int, ...]) -> Any:
+    """The robot's `paintcell.booth.booth_clearance.BodyProbe` of the whole body (`body`: the
+    parts stacked, part_counts: their vertex counts): its arm measured against every part."""
+    from paintcell.booth.booth_clearance import BodyProbe
+
+    part_of = np.concatenate([np.full(n, i) for i, n in enumerate(part_counts)])
+    return BodyProbe(robot, body, booth.body_placement.matrix, part_of)
+
+
 #: per worker thread: the last run's (key, robots, planners by rail shrink, probes).
 _LOCAL = threading.local()
 
@@ -205,8 +215,6 @@ def _worker_state(run_key: str, booth: Booth, body: Surface, part_counts: tuple[
     """Robot r's planning model (rails shrunk by shrink_m) and its body probe (None without
     `probes`) on this worker thread, built on first use and kept for the run's later tasks (one
     run at a time: a new key drops the older run's)."""
-    from paintcell.booth.booth_clearance import BodyProbe
-
     st = getattr(_LOCAL, "state", None)
     if st is None or st["key"] != run_key:
         st = _LOCAL.state = {"key": run_key, "robots": load_robots(booth), "planners": {},
@@ -214,9 +222,8 @@ def _worker_state(run_key: str, booth: Booth, body: Surface, part_counts: tuple[
     if shrink_m not in st["planners"]:
         st["planners"][shrink_m] = load_robots(booth, shrink_m) if shrink_m > 0 \
             else st["robots"]
-    if probes and r not in st["probes"]:    # as `booth_programs.body_probes` builds it
-        part_of = np.concatenate([np.full(n, i) for i, n in enumerate(part_counts)])
-        st["probes"][r] = BodyProbe(st["robots"][r], body, booth.body_placement.matrix, part_of)
+    if probes and r not in st["probes"]:
+        st["probes"][r] = body_probe(booth, st["robots"][r], body, part_counts)
     return st["planners"][shrink_m][r], st["probes"][r] if probes else None
 
 

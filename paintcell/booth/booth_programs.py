@@ -27,7 +27,7 @@ from paintcell.booth.booth import (
 )
 from paintcell.booth.booth_chain import job_record
 from paintcell.booth.booth_hold import delayed, held_to
-from paintcell.booth.booth_job_programs import load_robots, robot_programs
+from paintcell.booth.booth_job_programs import body_probe, load_robots, robot_programs
 from paintcell.booth.booth_plans import PartPlans, finish_plans, plan_parts
 from paintcell.booth.booth_speeds import Built, robot_aware_booth
 from paintcell.booth.booth_stagger import stagger_starts
@@ -95,7 +95,8 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
     T_wb = booth.body_placement.matrix
     robots = load_robots(booth)
     counts = tuple(len(x.vertices) for x in surfaces)
-    probes = None if booth.body_clearance_m is None else body_probes(booth, robots, body, counts)
+    probes = None if booth.body_clearance_m is None else \
+        body_probes(booth, robots, body, counts, on_demand=tasks is not None)
     remote_of = None if tasks is None else _remote_programs(tasks, booth, body, counts,
                                                             probes is not None)
     timings["plan"] = time.perf_counter() - t0
@@ -150,7 +151,7 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
 
 def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
             ranked: list[dict[int, tuple[Job, ...]]], T_wb: np.ndarray, T_bp: list[np.ndarray],
-            shrink_m: float, probes: list[Any] | None = None,
+            shrink_m: float, probes: Any = None,
             remote_of: Callable[[list[CoveragePlan], float], Any] | None = None
             ) -> tuple[dict[int, tuple[Job, ...]], list[JointTrajectory], list[JointTrajectory],
                        list[dict[str, Any]]]:
@@ -248,15 +249,27 @@ def _longest_program_s(jobs: dict[int, tuple[Job, ...]],
                else sum(job_s(r, j) for j in js) for r, js in jobs.items())
 
 
-def body_probes(booth: Booth, robots: list[Any], body: Surface, part_counts: tuple[int, ...]
-                ) -> list[Any]:
-    """Per robot, its `paintcell.booth.booth_clearance.BodyProbe` of the whole body (`body`:
-    the parts stacked, part_counts: their vertex counts): every robot's arm measured against
-    every part of the body."""
-    from paintcell.booth.booth_clearance import BodyProbe
+def body_probes(booth: Booth, robots: list[Any], body: Surface, part_counts: tuple[int, ...],
+                on_demand: bool = False) -> Any:
+    """Per robot (indexed), its `paintcell.booth.booth_clearance.BodyProbe` of the whole body
+    (`booth_job_programs.body_probe`); on_demand: each built when first asked for (a run whose
+    programs are built on workers asks here only for a robot with several jobs)."""
+    if not on_demand:
+        return [body_probe(booth, r, body, part_counts) for r in robots]
+    return _OnDemand(lambda i: body_probe(booth, robots[i], body, part_counts))
 
-    part_of = np.concatenate([np.full(n, i) for i, n in enumerate(part_counts)])
-    return [BodyProbe(r, body, booth.body_placement.matrix, part_of) for r in robots]
+
+class _OnDemand:
+    """make(i) for index i, made on first use and kept."""
+
+    def __init__(self, make: Callable[[int], Any]) -> None:
+        self._make = make
+        self._made: dict[int, Any] = {}
+
+    def __getitem__(self, i: int) -> Any:
+        if i not in self._made:
+            self._made[i] = self._make(i)
+        return self._made[i]
 
 
 def _remote_programs(tasks: Any, booth: Booth, body: Surface, part_counts: tuple[int, ...],
