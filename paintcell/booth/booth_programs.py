@@ -89,7 +89,10 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
     robot programs at once (None: in this process; the same plans and programs)."""
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    pp = plan_parts(booth, fast, tasks) if part_plans is None else part_plans
+    if part_plans is not None:
+        pp = part_plans
+    else:
+        pp = plan_parts(booth, fast) if tasks is None else plan_parts(booth, fast, tasks)
     fin = finish_plans(booth, pp, pp.plans)
     surfaces, T_body_parts, body = pp.surfaces, pp.T_body_parts, fin.body
     T_wb = booth.body_placement.matrix
