@@ -116,7 +116,7 @@ def make_trajectory(scn: Scenario, robot: Any, plan: CoveragePlan) -> Any:
 
 def run_scenario(scn: Any, out_dir: str | Path | None = None, *, fast: bool = False,
                  mode: Literal["servo", "kinematic"] = "servo", report: bool = True,
-                 progress: bool = True, video: bool = False) -> Any:
+                 progress: bool = True, video: bool = False, tasks: Any = None) -> Any:
     """Run the scenario end to end; write its results into `out_dir` (atomically) if given.
 
     fast: coarse resolution and the scenario's fast planner overrides (CI checks).
@@ -125,16 +125,21 @@ def run_scenario(scn: Any, out_dir: str | Path | None = None, *, fast: bool = Fa
     video: with `report`, also render the execution GIF and embed it in `report.html` (MBs).
     A `paintcell.booth.booth.Booth` (several robots) runs through
     `paintcell.booth.booth_run.run_booth` (its report is always written; video is not made)
-    and returns its `BoothResult`.
+    and returns its `BoothResult`; `tasks` (a `paintcell.booth.booth_tasks.TaskPool`, e.g. Dask
+    workers) plans its parts and builds its robots' programs at once (the same results).
     """
     from paintcell.booth.booth import Booth
 
     if isinstance(scn, Booth):   # several robots: one cell of N robots on a conveyor
         from paintcell.booth.booth_run import run_booth
 
-        return run_booth(scn, out_dir, fast=fast, mode=mode, progress=progress)  # type: ignore
+        return run_booth(scn, out_dir, fast=fast, mode=mode, progress=progress,  # type: ignore
+                         tasks=tasks)
     if not isinstance(scn, Scenario):
         raise ScenarioError(f"run_scenario runs a Scenario or a Booth, got {type(scn).__name__}")
+    if tasks is not None:
+        raise ScenarioError("run_scenario's tasks (parallel workers) plan a booth's parts and "
+                            "programs; a one-robot scenario runs in this process: drop tasks")
     timings: dict[str, float] = {}
     # disable=None: tqdm draws only on a terminal, so CI logs and pipes stay clean.
     bar = tqdm(total=len(STAGES), desc=f"{scn.name}", unit="stage",

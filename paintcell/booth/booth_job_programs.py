@@ -1,12 +1,14 @@
 """Each booth robot's static program for its jobs (`booth_programs` builds them for every
-allocation it tries): a job's program kept clear of the whole body
-(`paintcell.booth.booth_clearance`), a robot's jobs one after the other
-(`paintcell.booth.booth_chain`).
+allocation it tries): the booth's robot models (`load_robots`), a job's program kept clear of
+the whole body (`paintcell.booth.booth_clearance`), a robot's jobs one after the other
+(`paintcell.booth.booth_chain`); and a job's program as a worker of a task pool builds it
+(`remote_job_program`, sent by `paintcell.booth.booth_tasks.JobPrograms`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import threading
 from typing import Any
 
 import numpy as np
@@ -15,56 +17,79 @@ from paintcell.booth.booth import Booth, BoothError, Job
 from paintcell.core.errors import PaintcellError
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.surface.surface import Surface
+
+
+def robot_settings(booth: Booth, i: int) -> Any:
+    """Robot i's `TrajectorySettings`: the booth's `[trajectory]` with the robot's home."""
+    from paintcell.core.settings import settings_from
+    from paintcell.motion.trajectory import TrajectorySettings
+
+    kw = dict(booth.trajectory)
+    home = booth.robots[i].home
+    if home is not None:
+        kw["q_home"] = tuple(home)
+    return settings_from(TrajectorySettings, kw, "trajectory")
 
 
 def robot_programs(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
               jobs: dict[int, tuple[Job, ...]],
               T_wb: np.ndarray, T_bp: list[np.ndarray],
               cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
-              probes: list[Any] | None = None) -> list[JointTrajectory]:
+              probes: Any = None, remote: Any = None) -> list[JointTrajectory]:
     """Each robot's static program for its jobs (cached per robot and job, failures too), kept
     `Booth.body_clearance_m` from the whole body (`paintcell.booth.booth_clearance`); a
-    robot's jobs one after the other (`paintcell.booth.booth_chain.chain_programs`)."""
+    robot's jobs one after the other (`paintcell.booth.booth_chain.chain_programs`).
+    remote: a `paintcell.booth.booth_tasks.JobPrograms` the jobs not in the cache are taken from
+    (sent to its pool first; None: built here)."""
     from paintcell.booth.booth_chain import chain_programs
-    from paintcell.core.settings import settings_from
-    from paintcell.motion.trajectory import TrajectorySettings
 
+    if remote is not None:
+        remote.submit({i: js for i, js in jobs.items() if js})
     out = []
     for i, (spec, robot) in enumerate(zip(booth.robots, robots, strict=True)):
-        kw = dict(booth.trajectory)
-        if spec.home is not None:
-            kw["q_home"] = tuple(spec.home)
-        settings = settings_from(TrajectorySettings, kw, "trajectory")
         own = jobs.get(i)
         if not own:
             raise BoothError(f"robot {spec.name!r} got no job; remove it or give it one in "
                              "Booth.allocation")
-        built = [_job_program(booth, i, spec, robot, plans, job, T_wb, T_bp, cache, probes,
-                              settings) for job in own]
+        built = [_job_program(booth, i, robot, plans, job, T_wb, T_bp, cache, probes, remote)
+                 for job in own]
         out.append(chain_programs(built, robot))
         if len(built) > 1 and probes is not None and booth.body_clearance_m is not None:
             _check_transfer(booth, spec.name, probes[i], out[-1])
     return out
 
 
-def _job_program(booth: Booth, i: int, spec: Any, robot: Any, plans: list[CoveragePlan],
+def _job_program(booth: Booth, i: int, robot: Any, plans: list[CoveragePlan],
                  job: Job, T_wb: np.ndarray, T_bp: list[np.ndarray],
                  cache: dict[tuple[int, Job], JointTrajectory | PaintcellError],
-                 probes: list[Any] | None, settings: Any) -> JointTrajectory:
-    """Robot i's program for one job (cached, failures too)."""
+                 probes: Any, remote: Any) -> JointTrajectory:
+    """Robot i's program for one job (cached, failures too; taken from `remote` if given)."""
     if (i, job) not in cache:
-        plan = dataclasses.replace(plans[job.part],
-                                   passes=plans[job.part].passes[job.first:job.end])
-        try:
-            cache[(i, job)] = _clear_program(booth, spec.name, robot, plan,
-                                             T_wb @ T_bp[job.part], settings,
-                                             None if probes is None else probes[i])
-        except PaintcellError as exc:
-            cache[(i, job)] = exc
+        if remote is not None:
+            cache[(i, job)] = remote.take(i, job)
+        else:
+            plan = dataclasses.replace(plans[job.part],
+                                       passes=plans[job.part].passes[job.first:job.end])
+            settings = robot_settings(booth, i)
+            try:
+                cache[(i, job)] = job_program(booth, i, robot, plan, T_wb @ T_bp[job.part],
+                                              None if probes is None else probes[i], settings)
+            except PaintcellError as exc:
+                cache[(i, job)] = exc
     got = cache[(i, job)]
     if isinstance(got, PaintcellError):
         raise got
     return got
+
+
+def job_program(booth: Booth, i: int, robot: Any, plan: CoveragePlan, T_world_part: np.ndarray,
+                probe: Any, settings: Any) -> JointTrajectory:
+    """Robot i's program (`robot`: its model, rails as planned) for `plan` (a job's passes) at
+    `T_world_part` (4, 4) with its `settings` (`robot_settings`), kept clear of the body with
+    its `probe` (None: not checked)."""
+    return _clear_program(booth, booth.robots[i].name, robot, plan, T_world_part, settings,
+                          probe)
 
 
 def _check_transfer(booth: Booth, name: str, probe: Any, traj: JointTrajectory) -> None:
@@ -144,3 +169,72 @@ def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
                      f"{bc.CLEAR_FACTORS[-1]:g}x back-offs"
                      + (f" ({len(failed)} of those programs could not be built: {failed[0]})"
                         if failed else ""))
+
+
+def load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
+    """The booth's robots; rail robots with their travel shrunk by rail_shrink_m at both ends
+    (for planning the passes' carriage positions, leaving room for conveyor tracking)."""
+    from paintcell.robots import load_robot
+    from paintcell.robots.rail import RailSpec, load_rail_robot
+
+    out = []
+    for r in booth.robots:
+        if r.rail_m is not None or (rail_shrink_m > 0 and r.model.endswith("_rail")):
+            if not r.model.endswith("_rail"):
+                raise BoothError(f"robot {r.name!r} has rail_m but model {r.model!r} has no "
+                                 "rail; use '<arm>_rail'")
+            rng = r.rail_m if r.rail_m is not None else (-2.0, 2.0)
+            lo, hi = rng[0] + rail_shrink_m, rng[1] - rail_shrink_m
+            if lo >= hi:
+                raise BoothError(f"robot {r.name!r}: the conveyor tracking needs "
+                                 f"{2 * rail_shrink_m:.2f} m of its rail; lengthen rail_m or "
+                                 "slow the line")
+            out.append(load_rail_robot(r.model[:-5], T_world_rail=r.base.matrix,
+                                       rail=RailSpec(lower_m=lo, upper_m=hi,
+                                                     home_m=min(max(0.0, lo), hi))))
+        else:
+            out.append(load_robot(r.model, T_world_base=r.base.matrix))
+    return out
+
+
+def body_probe(booth: Booth, robot: Any, body: Surface, part_counts: tuple[int, ...]) -> Any:
+    """The robot's `paintcell.booth.booth_clearance.BodyProbe` of the whole body (`body`: the
+    parts stacked, part_counts: their vertex counts): its arm measured against every part."""
+    from paintcell.booth.booth_clearance import BodyProbe
+
+    part_of = np.concatenate([np.full(n, i) for i, n in enumerate(part_counts)])
+    return BodyProbe(robot, body, booth.body_placement.matrix, part_of)
+
+
+#: per worker thread: the last run's (key, robots, planners by rail shrink, probes).
+_LOCAL = threading.local()
+
+
+def _worker_state(run_key: str, booth: Booth, body: Surface, part_counts: tuple[int, ...],
+                  shrink_m: float, r: int, probes: bool) -> tuple[Any, Any]:
+    """Robot r's planning model (rails shrunk by shrink_m) and its body probe (None without
+    `probes`) on this worker thread, built on first use and kept for the run's later tasks (one
+    run at a time: a new key drops the older run's)."""
+    st = getattr(_LOCAL, "state", None)
+    if st is None or st["key"] != run_key:
+        st = _LOCAL.state = {"key": run_key, "robots": load_robots(booth), "planners": {},
+                             "probes": {}}
+    if shrink_m not in st["planners"]:
+        st["planners"][shrink_m] = load_robots(booth, shrink_m) if shrink_m > 0 \
+            else st["robots"]
+    if probes and r not in st["probes"]:
+        st["probes"][r] = body_probe(booth, st["robots"][r], body, part_counts)
+    return st["planners"][shrink_m][r], st["probes"][r] if probes else None
+
+
+def remote_job_program(run_key: str, booth: Booth, body: Surface, part_counts: tuple[int, ...],
+                       shrink_m: float, probes: bool, r: int, plan: CoveragePlan,
+                       T_world_part: np.ndarray) -> JointTrajectory | PaintcellError:
+    """On a worker: robot r's program for `plan` (its job's passes) at `T_world_part` (4, 4),
+    or the `PaintcellError` that refused it (returned, as the client caches refusals)."""
+    robot, probe = _worker_state(run_key, booth, body, part_counts, shrink_m, r, probes)
+    settings = robot_settings(booth, r)
+    try:
+        return job_program(booth, r, robot, plan, T_world_part, probe, settings)
+    except PaintcellError as exc:
+        return exc

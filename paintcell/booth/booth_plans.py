@@ -53,34 +53,59 @@ def part_settings(booth: Booth) -> list[dict[str, Any]]:
     return [{**booth.planner, **bp.planner} for bp in booth.parts]
 
 
-def plan_parts(booth: Booth, fast: bool) -> PartPlans:
-    """Load each part (the scenario's loader: import, repair, remesh, regions) and plan its skin."""
-    from paintcell.core.settings import settings_from
-    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
-    from paintcell.surface import parts
-    from paintcell.surface.part_surface import part_surface
-
+def plan_parts(booth: Booth, fast: bool, tasks: Any = None) -> PartPlans:
+    """Load each part (the scenario's loader: import, repair, remesh, regions) and plan its skin.
+    tasks: a `paintcell.booth.booth_tasks.TaskPool` that plans the parts at once (None: one
+    after the other in this process; the plans are the same)."""
     res = booth.fast_resolution_m if fast else booth.resolution_m
     app = Applicator.default() if booth.applicator is None \
         else Applicator.from_toml(booth.applicator)
     out = PartPlans([], [], [], [], [], app)
-    for bp, kw in zip(booth.parts, part_settings(booth), strict=True):
-        if bp.mesh is None and bp.part not in parts.PART_NAMES:
-            raise BoothError(f"booth part {bp.part!r} is not a library part "
-                             f"({', '.join(parts.PART_NAMES)}); a mesh/CAD file goes in a "
-                             "[parts.part] table with file = \"...\"")
-        s = part_surface(bp.part if bp.mesh is None else bp.mesh, res)
-        if booth.film_refine_pace:      # refined later with the pace held (refine_parts)
-            kw = {**kw, "film_refine": False}
-        st = settings_from(PlannerSettings, kw, "planner")
-        # a real part's planner covers its skin, as a scenario's (`pipeline.make_plan`)
-        skin = s.region_surface(("skin",))
-        out.plans.append(plan_coverage(skin, app, st))
+    if tasks is None:
+        planned = [plan_part(booth, i, res, app) for i in range(len(booth.parts))]
+    else:   # a mesh or CAD part's surface read here and sent, a library part's made there
+        futs = [tasks.submit(plan_part, booth, i, res, app,
+                             None if bp.mesh is None else part_surface_of(booth, i, res))
+                for i, bp in enumerate(booth.parts)]
+        planned = [f.result() for f in futs]
+    for bp, (s, skin, st, plan) in zip(booth.parts, planned, strict=True):
+        out.plans.append(plan)
         out.surfaces.append(s)
         out.skins.append(skin)
         out.settings.append(st)
         out.T_body_parts.append(bp.placement.matrix)
     return out
+
+
+def part_surface_of(booth: Booth, i: int, res: float) -> Surface:
+    """Part i's surface in its own frame at edge length res [m] (a library part made, a mesh or
+    CAD file read)."""
+    from paintcell.surface import parts
+    from paintcell.surface.part_surface import part_surface
+
+    bp = booth.parts[i]
+    if bp.mesh is None and bp.part not in parts.PART_NAMES:
+        raise BoothError(f"booth part {bp.part!r} is not a library part "
+                         f"({', '.join(parts.PART_NAMES)}); a mesh/CAD file goes in a "
+                         "[parts.part] table with file = \"...\"")
+    return part_surface(bp.part if bp.mesh is None else bp.mesh, res)
+
+
+def plan_part(booth: Booth, i: int, res: float, app: Applicator,
+              surface: Surface | None = None) -> tuple[Surface, Surface, Any, CoveragePlan]:
+    """Part i planned at edge length res [m] with the bell `app`: its surface (`surface`, else
+    `part_surface_of`), the skin the planner covers, its `PlannerSettings` and its plan."""
+    from paintcell.core.settings import settings_from
+    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+
+    s = part_surface_of(booth, i, res) if surface is None else surface
+    kw = part_settings(booth)[i]
+    if booth.film_refine_pace:      # refined later with the pace held (refine_parts)
+        kw = {**kw, "film_refine": False}
+    st = settings_from(PlannerSettings, kw, "planner")
+    # a real part's planner covers its skin, as a scenario's (`pipeline.make_plan`)
+    skin = s.region_surface(("skin",))
+    return s, skin, st, plan_coverage(skin, app, st)
 
 
 def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
@@ -94,9 +119,9 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
     names = [f"{i}:{bp.part}" for i, bp in enumerate(booth.parts)]
     refine: dict[str, Any] = {"rule": "off"}
     if booth.film_refine_pace:
+        from paintcell.booth.booth_refine import refine_parts
         from paintcell.core.settings import settings_from
         from paintcell.coverage.coverage import PlannerSettings
-        from paintcell.coverage.film_refine import refine_parts
 
         # a part whose planner says film_refine = false (booth or part table) is not refined
         kws = part_settings(booth)

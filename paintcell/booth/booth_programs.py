@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import re
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,7 +27,7 @@ from paintcell.booth.booth import (
 )
 from paintcell.booth.booth_chain import job_record
 from paintcell.booth.booth_hold import delayed, held_to
-from paintcell.booth.booth_job_programs import robot_programs
+from paintcell.booth.booth_job_programs import body_probe, load_robots, robot_programs
 from paintcell.booth.booth_plans import PartPlans, finish_plans, plan_parts
 from paintcell.booth.booth_speeds import Built, robot_aware_booth
 from paintcell.booth.booth_stagger import stagger_starts
@@ -79,26 +80,28 @@ class BoothPrograms:
     """How the seams between parts were blended (`paintcell.booth.booth_seams`)."""
 
 
-def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
-                   ) -> BoothPrograms:
+def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None,
+                   tasks: Any = None) -> BoothPrograms:
     """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc).
     part_plans: the parts as `plan_parts(booth, fast)` plans them, when already made (`paintcell
-    init` checks several robot layouts of one plan)."""
+    init` checks several robot layouts of one plan). tasks: a
+    `paintcell.booth.booth_tasks.TaskPool` that plans the parts and builds each allocation's
+    robot programs at once (None: in this process; the same plans and programs)."""
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
-    pp = plan_parts(booth, fast) if part_plans is None else part_plans
+    if part_plans is not None:
+        pp = part_plans
+    else:
+        pp = plan_parts(booth, fast) if tasks is None else plan_parts(booth, fast, tasks)
     fin = finish_plans(booth, pp, pp.plans)
     surfaces, T_body_parts, body = pp.surfaces, pp.T_body_parts, fin.body
     T_wb = booth.body_placement.matrix
     robots = load_robots(booth)
-    # Every robot's arm measured against the whole body, every part of it
-    # (`paintcell.booth.booth_clearance`).
-    probes = None
-    if booth.body_clearance_m is not None:
-        from paintcell.booth.booth_clearance import BodyProbe
-
-        part_of = np.concatenate([np.full(len(x.vertices), i) for i, x in enumerate(surfaces)])
-        probes = [BodyProbe(r, body, T_wb, part_of) for r in robots]
+    counts = tuple(len(x.vertices) for x in surfaces)
+    probes = None if booth.body_clearance_m is None else \
+        body_probes(booth, robots, body, counts, on_demand=tasks is not None)
+    remote_of = None if tasks is None else _remote_programs(tasks, booth, body, counts,
+                                                            probes is not None)
     timings["plan"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -110,12 +113,12 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
     speeds: dict[str, Any] = {"rule": "off"}
     for attempt in range(2):
         built = Built(*_choose(booth, robots, fin.plans, ranked, T_wb, T_body_parts, shrink,
-                               probes))
+                               probes, remote_of))
         if attempt == 0 and booth.robot_aware_speeds:
             def rebuild(pls: list[CoveragePlan], jobs: Any = built.jobs,
                         shrink_m: float = shrink) -> Built:
                 return Built(*_choose(booth, robots, pls, [jobs], T_wb, T_body_parts,
-                                      shrink_m, probes))
+                                      shrink_m, probes, remote_of))
 
             tried0 = built.tried          # the candidates of the allocation, as chosen
             fin, built, speeds = robot_aware_booth(booth, pp, fin, built, rebuild)
@@ -151,7 +154,8 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
 
 def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
             ranked: list[dict[int, tuple[Job, ...]]], T_wb: np.ndarray, T_bp: list[np.ndarray],
-            shrink_m: float, probes: list[Any] | None = None
+            shrink_m: float, probes: Any = None,
+            remote_of: Callable[[list[CoveragePlan], float], Any] | None = None
             ) -> tuple[dict[int, tuple[Job, ...]], list[JointTrajectory], list[JointTrajectory],
                        list[dict[str, Any]]]:
     """The allocation of the best ranked with the shortest REAL cycle (rails
@@ -169,8 +173,11 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     the estimate is not a lower bound, the margin covers its measured over-estimate). One
     holding a job already refused is passed over (recorded, not counted: MAX_ALLOCATIONS_TRIED
     counts the others). probes:
-    per robot, its `paintcell.booth.booth_clearance.BodyProbe` (None: no body clearance)."""
+    per robot, its `paintcell.booth.booth_clearance.BodyProbe` (None: no body clearance).
+    remote_of(plans, shrink_m): the `paintcell.booth.booth_tasks.JobPrograms` that builds the
+    programs of each allocation tried on a pool, all its robots' jobs at once (None: here)."""
     planners = load_robots(booth, shrink_m) if shrink_m > 0 else robots
+    remote = None if remote_of is None else remote_of(plans, shrink_m)
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
     chained: dict[tuple[int, tuple[Job, ...]], int] = {}   # a robot's jobs as built [samples]
     tried: list[dict[str, Any]] = []
@@ -197,7 +204,8 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
                                          "than the best real cycle"})
                 continue
         try:
-            trajs0 = robot_programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes)
+            trajs0 = robot_programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes,
+                                    remote)
             chained.update({(r, jobs[r]): len(tr.t_s) for r, tr in enumerate(trajs0)})
             delays = _stagger(booth, robots, trajs0)
         except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
@@ -244,30 +252,40 @@ def _longest_program_s(jobs: dict[int, tuple[Job, ...]],
                else sum(job_s(r, j) for j in js) for r, js in jobs.items())
 
 
-def load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
-    """The booth's robots; rail robots with their travel shrunk by rail_shrink_m at both ends
-    (for planning the passes' carriage positions, leaving room for conveyor tracking)."""
-    from paintcell.robots import load_robot
-    from paintcell.robots.rail import RailSpec, load_rail_robot
+def body_probes(booth: Booth, robots: list[Any], body: Surface, part_counts: tuple[int, ...],
+                on_demand: bool = False) -> Any:
+    """Per robot (indexed), its `paintcell.booth.booth_clearance.BodyProbe` of the whole body
+    (`booth_job_programs.body_probe`); on_demand: each built when first asked for (a run whose
+    programs are built on workers asks here only for a robot with several jobs)."""
+    if not on_demand:
+        return [body_probe(booth, r, body, part_counts) for r in robots]
+    return _OnDemand(lambda i: body_probe(booth, robots[i], body, part_counts))
 
-    out = []
-    for r in booth.robots:
-        if r.rail_m is not None or (rail_shrink_m > 0 and r.model.endswith("_rail")):
-            if not r.model.endswith("_rail"):
-                raise BoothError(f"robot {r.name!r} has rail_m but model {r.model!r} has no "
-                                 "rail; use '<arm>_rail'")
-            rng = r.rail_m if r.rail_m is not None else (-2.0, 2.0)
-            lo, hi = rng[0] + rail_shrink_m, rng[1] - rail_shrink_m
-            if lo >= hi:
-                raise BoothError(f"robot {r.name!r}: the conveyor tracking needs "
-                                 f"{2 * rail_shrink_m:.2f} m of its rail; lengthen rail_m or "
-                                 "slow the line")
-            out.append(load_rail_robot(r.model[:-5], T_world_rail=r.base.matrix,
-                                       rail=RailSpec(lower_m=lo, upper_m=hi,
-                                                     home_m=min(max(0.0, lo), hi))))
-        else:
-            out.append(load_robot(r.model, T_world_base=r.base.matrix))
-    return out
+
+class _OnDemand:
+    """make(i) for index i, made on first use and kept."""
+
+    def __init__(self, make: Callable[[int], Any]) -> None:
+        self._make = make
+        self._made: dict[int, Any] = {}
+
+    def __getitem__(self, i: int) -> Any:
+        if i not in self._made:
+            self._made[i] = self._make(i)
+        return self._made[i]
+
+
+def _remote_programs(tasks: Any, booth: Booth, body: Surface, part_counts: tuple[int, ...],
+                     probes: bool) -> Callable[[list[CoveragePlan], float], Any]:
+    """`_choose`'s remote_of on the pool `tasks`: the body sent once, one key for the run."""
+    from paintcell.booth.booth_tasks import JobPrograms, new_run_key
+
+    key, shared = new_run_key(), tasks.share(body)
+
+    def remote_of(plans: list[CoveragePlan], shrink_m: float) -> JobPrograms:
+        return JobPrograms(tasks, key, booth, shared, part_counts, plans, shrink_m, probes)
+
+    return remote_of
 
 
 def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: np.ndarray,

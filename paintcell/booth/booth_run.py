@@ -21,7 +21,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import mujoco
 import numpy as np
@@ -109,13 +109,15 @@ def robot_tcp(bcell: BoothCell, q_all: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 
 def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = False,
-              mode: Literal["servo", "kinematic"] = "servo", progress: bool = True
-              ) -> BoothResult:
-    """Run the booth (module doc); write results to `out_dir` if given."""
+              mode: Literal["servo", "kinematic"] = "servo", progress: bool = True,
+              tasks: Any = None) -> BoothResult:
+    """Run the booth (module doc); write results to `out_dir` if given. tasks: a
+    `paintcell.booth.booth_tasks.TaskPool` (e.g. Dask workers) that plans the parts and builds
+    the robots' programs at once (None: in this process; the results are the same)."""
     from paintcell.booth.booth_results import booth_metrics, write_booth_results
     from paintcell.core.results_dir import new_results
 
-    progs = booth_programs(booth, fast)
+    progs = booth_programs(booth, fast, tasks=tasks)
     timings = dict(progs.timings_s)
     robots = progs.robots
     assert robots is not None

@@ -46,6 +46,18 @@ def add_run(add_parser: Any) -> None:
                    "tcp_offset_m [m], gain_scale [-], standoff_error_m [m], trigger_delay_s [s], "
                    "flow_scale [-], flow_drift [-], seed [int]; e.g. --disturb "
                    "part_offset_m=0.005 --disturb seed=3")
+    r.add_argument("--workers", default=0,
+                   type=number_option("--workers", int, low=0, high=1024, example="2",
+                                      note="0: run in this process"),
+                   help="a booth: worker processes of a local Dask cluster that plan its parts "
+                   "and build its robots' programs at the same time (a count of processes, one "
+                   "thread each; 0, the default: everything in this process). The plans, "
+                   "programs and metrics are the same with any number")
+    r.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a booth: plan its parts and build its programs on an existing Dask "
+                   "cluster, e.g. tcp://10.0.0.5:8786 (then --workers is ignored; the workers "
+                   "need paintcell installed and read no file: the parts' surfaces and the "
+                   "bell are sent to them)")
     # Internal, for `paintcell check`: write the table row as JSON to an open file descriptor;
     # results under a folder; the check's pid (its child stops when the check dies).
     r.add_argument("--row-fd", default=None, help=argparse.SUPPRESS,
@@ -81,9 +93,12 @@ def _run(args: argparse.Namespace) -> int:
     worker = args.row_fd is not None
     out = args.out or (args.out_under / scn.name if args.out_under is not None
                        else None if worker else default_out(scn.name))
-    res = run_scenario(scn, out, fast=args.fast, mode=args.mode,
-                       report=not (args.no_report or worker), progress=not worker,
-                       video=args.video)
+    kw = {"fast": args.fast, "mode": args.mode, "report": not (args.no_report or worker),
+          "progress": not worker, "video": args.video}
+    if args.workers or args.scheduler is not None:
+        res = _run_on_dask(scn, out, args.workers, args.scheduler, kw)
+    else:
+        res = run_scenario(scn, out, **kw)
     r = row(scn.name, res.report)
     if worker:
         from paintcell.cli.sweep import (
@@ -99,6 +114,24 @@ def _run(args: argparse.Namespace) -> int:
         html = (out / "report.html").exists()
         print(f"results: {out}" + (f" (report: {out / 'report.html'})" if html else ""))
     return EXIT_OK if res.passed else EXIT_FAIL
+
+
+def _run_on_dask(scn: Any, out: Path | None, workers: int, scheduler: str | None,
+                 kw: dict[str, Any]) -> Any:
+    """A booth run whose parts and programs are made on Dask (`paintcell.sweeps.dask_cluster`:
+    a local cluster of `workers` processes, or the cluster at `scheduler`)."""
+    from paintcell.app.pipeline import run_scenario
+    from paintcell.booth.booth import Booth
+    from paintcell.sweeps.dask_cluster import DaskTasks, dask_client
+
+    if not isinstance(scn, Booth):
+        raise PaintcellError("--workers/--scheduler plan a booth's parts and build its robots' "
+                             "programs in parallel; a one-robot scenario runs in this process: "
+                             "drop them")
+    where = scheduler if scheduler is not None else \
+        f"(a local cluster of {max(1, workers)} worker processes)"
+    with dask_client(workers, scheduler) as client:
+        return run_scenario(scn, out, tasks=DaskTasks(client, where), **kw)
 
 
 # --- plan ---------------------------------------------------------------------------------------

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -240,27 +239,13 @@ def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
     """Nominal first, then every sample in `todo`, streamed to `store` as they complete."""
     from concurrent.futures import CancelledError
 
-    import dask
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, as_completed
+
+    from paintcell.sweeps.dask_cluster import start_local_cluster
 
     cluster = None
     if scheduler is None:
-        # one thread a worker process: MuJoCo and the film kernel are single-threaded inside
-        # a sample, the processes share the cores
-        old = os.environ.get("NUMBA_NUM_THREADS")
-        os.environ["NUMBA_NUM_THREADS"] = "1"   # inherited by the worker processes only
-        try:
-            # spawned, never forked: the client ran the OpenMP film kernel (the payload's films)
-            # and GNU OpenMP kills a forked child that uses it (dask's default is spawn; a
-            # user's dask config may say fork)
-            with dask.config.set({"distributed.worker.multiprocessing-method": "spawn"}):
-                cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1,
-                                       processes=True, dashboard_address=None, silence_logs=40)
-        finally:
-            if old is None:
-                os.environ.pop("NUMBA_NUM_THREADS", None)
-            else:
-                os.environ["NUMBA_NUM_THREADS"] = old
+        cluster = start_local_cluster(workers)
         client = Client(cluster)
     else:
         client = _connect(scheduler)
@@ -307,18 +292,9 @@ def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
 
 def _connect(scheduler: str) -> Any:
     """A `distributed.Client` of the cluster at `scheduler`, or a one-line SweepError."""
-    from distributed import Client
-
-    from paintcell.sweeps.scheduler_probe import SchedulerProbeError, probe_scheduler
+    from paintcell.sweeps.dask_cluster import ClusterError, connect
 
     try:
-        probe_scheduler(scheduler)   # a web server or garbage: refused in seconds, not by Dask
-    except SchedulerProbeError as exc:
+        return connect(scheduler)
+    except ClusterError as exc:
         raise SweepError(str(exc)) from None
-    try:
-        return Client(scheduler, timeout=15)
-    except (OSError, TimeoutError, ValueError) as exc:
-        msg = str(exc).strip().splitlines()
-        raise SweepError(f"cannot reach the Dask scheduler at {scheduler} "
-                         f"({msg[0] if msg else type(exc).__name__}); start one (dask "
-                         "scheduler) or drop --scheduler") from None
