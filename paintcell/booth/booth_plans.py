@@ -119,9 +119,9 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
     names = [f"{i}:{bp.part}" for i, bp in enumerate(booth.parts)]
     refine: dict[str, Any] = {"rule": "off"}
     if booth.film_refine_pace:
-        from paintcell.booth.booth_refine import refine_parts
         from paintcell.core.settings import settings_from
         from paintcell.coverage.coverage import PlannerSettings
+        from paintcell.coverage.film_refine import refine_parts
 
         # a part whose planner says film_refine = false (booth or part table) is not refined
         kws = part_settings(booth)
