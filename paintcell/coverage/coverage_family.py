@@ -23,6 +23,12 @@ from paintcell.coverage.family_geometry import (
 )
 from paintcell.coverage.film_refine import refine_plan
 from paintcell.coverage.index_width import planar_index_width
+from paintcell.coverage.notches import (
+    NOTCH_DEPTH_FRACTION,
+    closed_surface,
+    find_notches,
+    notch_samples,
+)
 from paintcell.coverage.offset import arc_length, check_offset_order, walk
 from paintcell.coverage.openings import (
     brush_off_openings,
@@ -90,10 +96,12 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
         raise PlanError("speed caps / bell axes do not fit this plan (" + "; ".join(bad) + "); "
                         "they must come from a plan of the same part and settings")
     n_brush_off = 0
-    if openings:
-        plan_passes, n_brush_off = brush_off_openings(
-            applicator, plan_passes, fill_samples(real_surface, openings),
-            st.max_opening_fraction)
+    if openings or geo.notches:
+        fill = [np.concatenate(x) for x in zip(fill_samples(real_surface, openings),
+                                               notch_samples(real_surface, geo.notches),
+                                               strict=True)]
+        plan_passes, n_brush_off = brush_off_openings(applicator, plan_passes, tuple(fill),
+                                                      st.max_opening_fraction)
     guard: dict[str, Any] = {}
     if st.optimize_speed and st.film_guard:
         plan_passes, guard = _film_guard(pl, real_surface, plan_passes)
@@ -110,6 +118,8 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
         "smoothing_scale_m": geo.smooth_scale_m,
         "smoothing_max_shift_m": geo.smoothing_max_shift_m,
         "openings": [{"perimeter_m": o.perimeter_m, "area_m2": o.area_m2} for o in openings],
+        "notches": [{"mouth_m": o.mouth_m, "depth_m": o.depth_m, "area_m2": o.area_m2}
+                    for o in geo.notches],
         "samples_brushed_off_over_openings": n_brush_off,
         "planar_width_m": geo.planar_width_m,
         "cross_profiles_computed": geo.profiles[0],
@@ -126,11 +136,15 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
 def _geometry(surface: Surface, applicator: Applicator, st: PlannerSettings,
               caps: dict[int, np.ndarray], axes_x: dict[int, np.ndarray],
               axis_turn_fails_fast: bool) -> FamilyGeometry:
-    """Openings, smoothing, start curve and the sweeps of each start order (`_plan_orders`,
-    the passes timed under `caps` / `axes_x` as Algorithm 1 generates them); the order kept."""
+    """Openings and notches, smoothing, start curve and the sweeps of each start order
+    (`_plan_orders`, the passes timed under `caps` / `axes_x` as Algorithm 1 generates them);
+    the order kept."""
     real_surface = surface
     openings = find_openings(surface) if st.plan_across_openings else []
     surface = filled_surface(surface, openings)
+    notches = find_notches(surface, NOTCH_DEPTH_FRACTION * applicator.footprint_radius_m) \
+        if st.plan_across_openings else []
+    surface = closed_surface(surface, notches)
     smooth_scale = smoothing_scale_m(surface, applicator.footprint_radius_m, st.smoothing_m)
     surface = smoothed_surface(surface, smooth_scale)
     pl = Planner(surface, applicator, st)
@@ -158,7 +172,7 @@ def _geometry(surface: Surface, applicator: Applicator, st: PlannerSettings,
         smooth_scale_m=smooth_scale,
         smoothing_max_shift_m=float(np.max(np.linalg.norm(
             surface.vertices[:len(real_surface.vertices)] - real_surface.vertices, axis=1))),
-        openings=openings, profiles=(len(pl.cache), pl.cache_hits))
+        openings=openings, profiles=(len(pl.cache), pl.cache_hits), notches=notches)
 
 
 

@@ -71,7 +71,8 @@ class PlannerSettings:
         (`paintcell.coverage.geodesic`; False: refuse the plan as before).
     plan_across_openings: plan on the surface with its openings (boundary loops other than the
         outer one) closed, so passes carry on straight across holes
-        (`paintcell.coverage.openings`).
+        (`paintcell.coverage.openings`), and the deep bays of its outline (a wheel arch)
+        closed too (`paintcell.coverage.notches`), brushing off over both.
     patches: split the part into normal-cone patches, plan each, blend the seams and order them
         (`paintcell.coverage.patches.plan_patches`; ordered from the part frame's origin).
     max_opening_fraction: brush off every sample that would send more than this share of the

@@ -23,7 +23,7 @@ import copy
 import dataclasses
 import hashlib
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -47,7 +47,8 @@ class FamilyGeometry:
     passes: the chosen start order's passes {side: pass}, untimed; reversed_start: that order;
     candidates: predicted worst σ/μ [%] of each start order planned; start_rule; planar;
     planar_width_m; smooth_scale_m; smoothing_max_shift_m; openings: the part's openings;
-    profiles: (cross profiles computed, cache hits) of the width searches."""
+    profiles: (cross profiles computed, cache hits) of the width searches; notches: the bays of
+    its outline closed for the plan (`paintcell.coverage.notches`)."""
 
     pl: Planner
     passes: dict[int, PassGeom]
@@ -60,6 +61,7 @@ class FamilyGeometry:
     smoothing_max_shift_m: float
     openings: list[Any]
     profiles: tuple[int, int]
+    notches: list[Any] = field(default_factory=list)
 
     def untimed(self) -> FamilyGeometry:
         """A copy whose passes are untimed and may be timed (the kept ones stay as they are)."""
@@ -68,7 +70,7 @@ class FamilyGeometry:
             reversed_start=self.reversed_start, candidates=list(self.candidates),
             start_rule=self.start_rule, planar=self.planar, planar_width_m=self.planar_width_m,
             smooth_scale_m=self.smooth_scale_m, smoothing_max_shift_m=self.smoothing_max_shift_m,
-            openings=self.openings, profiles=self.profiles)
+            openings=self.openings, profiles=self.profiles, notches=self.notches)
 
 
 def _untimed(p: PassGeom) -> PassGeom:

@@ -193,7 +193,15 @@ def fill_samples(surface: Surface, openings: list[Opening]
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points (P, 3), unit normals (P, 3) and area weights (P,) [m²] spread over the openings'
     fill triangles (a barycentric lattice per triangle; the weights sum to the fill area)."""
-    V, F = fill_triangles(surface, openings)
+    return lattice_samples(*fill_triangles(surface, openings))
+
+
+def lattice_samples(vertices: np.ndarray, faces: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points (P, 3), unit normals (P, 3) and area weights (P,) [m²] of a barycentric lattice
+    over each triangle `faces` (F, 3) of `vertices` (the weights sum to the triangles' area; the
+    normals are the faces' own, on the side their winding gives)."""
+    V, F = vertices, faces
     if len(F) == 0:
         return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0)
     k = _LATTICE
