@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -21,33 +20,26 @@ from paintcell.booth.line_allocation import LinePanel, allocate_line, partition
 from paintcell.booth.line_takt import LineTakt, return_home_s
 from paintcell.core.errors import PaintcellError
 from paintcell.core.placement import Placement
-
-
-@dataclass
-class _Panel:
-    """A body panel as `paintcell.surface.body_panels.load_body` gives it."""
-
-    name: str
-    mesh: Any
-    area_m2: float
-    side: tuple[float, float, float]
+from paintcell.surface.body_panels import SIDE_DIRECTIONS, BodyPanel
 
 
 def _library_panel(part: str, xyz: tuple[float, ...], rpy: tuple[float, ...],
-                   side: tuple[float, float, float]) -> _Panel:
-    """A library part placed in the body frame as scenarios/booth.toml places it."""
+                   side: str) -> BodyPanel:
+    """A library part placed in the body frame as scenarios/booth.toml places it, as
+    `paintcell.surface.body_panels.load_body` gives a panel."""
     from paintcell.surface.parts import get_part
 
     s = get_part(part, resolution_m=0.02)
     T = Placement(xyz, rpy).matrix  # type: ignore[arg-type]
     m = trimesh.Trimesh(s.vertices @ T[:3, :3].T + T[:3, 3], s.faces, process=False)
-    return _Panel(part, m, float(m.area), side)
+    return BodyPanel(part, m, float(m.area), side, SIDE_DIRECTIONS[side],
+                     SIDE_DIRECTIONS[side], "library")
 
 
-def _body() -> list[_Panel]:
+def _body() -> list[BodyPanel]:
     """Two panels: the booth's door on the car's right and its roof."""
-    return [_library_panel("door", (0.0, -0.9, 0.9), (math.pi / 2, 0.0, 0.0), (0.0, -1.0, 0.0)),
-            _library_panel("roof", (0.0, 0.0, 1.45), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))]
+    return [_library_panel("door", (0.0, -0.9, 0.9), (math.pi / 2, 0.0, 0.0), "right"),
+            _library_panel("roof", (0.0, 0.0, 1.45), (0.0, 0.0, 0.0), "top")]
 
 
 # -- the takt arithmetic ---------------------------------------------------------------------

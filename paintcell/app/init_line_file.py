@@ -70,10 +70,12 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         + (f" (before it: {'; '.join(line.failed)})" if line.failed else "") + ".",
         "Which robots: IRB 5500 paint arms on rails along the conveyor (closed-form IK for the "
         "reach checks; the carriage tracks the body). Floor rails on each side paint the side "
-        "panels and fascias; elevated rails at the top panels' height paint the hood, roof and "
-        "trunk, each top panel cut at the car's centre line between the left and right top "
-        "robots. Each rail is centred on its robot's stretch of the car and is that stretch "
-        "long plus the body's travel while it paints and 0.3 m at each end.",
+        "panels and fascias; the top robots, wall-mounted 3 m up beside the body (above the "
+        "floor robots' arms, as the IRB 5500 is mounted in scenarios/booth.toml), else on "
+        "elevated rails, paint the hood, roof and trunk, each top panel cut at the car's centre "
+        "line between the left and right top robots. Each rail is centred on its robot's stretch "
+        "of the car (robots of one zone at least 1.5 m apart) and reaches that stretch plus the "
+        "body's travel while it paints and 0.3 m at each end.",
         "Allocation (fixed below, pass ranges of the plan at 0.025 m, which both resolutions "
         "use): by zone, each zone's jobs front to rear cut into contiguous runs of least longest "
         "program (bisection with a greedy fill; a panel cut once at a pass boundary when it "
@@ -157,8 +159,9 @@ max_cycle_time_s = {cycle}
 
 def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, force: bool,
               source: str, name: str | None = None, say: Callable[[str], None] = print) -> Line:
-    """Lay out, verify and write the line for `panels` (each with `name`, `mesh` — a trimesh in
-    metres, body frame — and `side`) to `out` (module doc). Raises PaintcellError (one line)
+    """Lay out, verify and write the line for `panels` (`paintcell.surface.body_panels.BodyPanel`s:
+    `name`, `mesh` — a trimesh in metres, body frame — and `direction`, toward the painter) to
+    `out` (module doc). Raises PaintcellError (one line)
     with nothing written when no line up to `max_robots` makes the takt."""
     from dataclasses import replace
 
@@ -183,7 +186,7 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
     verts = np.concatenate([np.asarray(p.mesh.vertices, float) for p in panels])
     takt = LineTakt(float(takt_s), float(np.ptp(verts[:, 0])))
     name = name or "".join(c if c.isalnum() or c in "_-" else "_" for c in out.stem)
-    sides = [tuple(float(x) for x in p.side) for p in panels]
+    sides = [tuple(float(x) for x in p.direction) for p in panels]
     with tempfile.TemporaryDirectory(prefix="paintcell-line-") as tmp:
         specs = []
         for stem, p, side in zip(stems, panels, sides, strict=True):
