@@ -18,7 +18,6 @@ import trimesh
 from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S, Job
 from paintcell.booth.line_allocation import LinePanel, allocate_line, partition
 from paintcell.booth.line_takt import LineTakt, return_home_s
-from paintcell.core.errors import PaintcellError
 from paintcell.core.placement import Placement
 from paintcell.surface.body_panels import SIDE_DIRECTIONS, BodyPanel
 
@@ -140,11 +139,20 @@ def test_every_pass_is_allocated_once_and_zones_are_kept() -> None:
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    """`init_line` on the two-panel body at a takt of 40 s, and the plans it made (kept so the
-    other tests do not plan the body again)."""
-    import paintcell.booth.booth_plans as booth_plans
-    from paintcell.app.init_line_file import init_line
+    """`paintcell init BODY --line --takt 40` on the two-panel body (a body.json folder, read
+    by `load_body`), and the plans it made (kept so the other tests do not plan it again)."""
+    import json
 
+    import paintcell.booth.booth_plans as booth_plans
+    from paintcell.cli.main import main
+
+    tmp = tmp_path_factory.mktemp("line")
+    body = tmp / "body"
+    body.mkdir()
+    for p in _body():
+        p.mesh.export(body / f"{p.name}.stl")
+    (body / "body.json").write_text(json.dumps({"units": "m", "panels": [
+        {"name": p.name, "file": f"{p.name}.stl", "side": p.side} for p in _body()]}))
     made: dict[str, Any] = {}
     real = booth_plans.plan_parts
 
@@ -155,11 +163,11 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 
     booth_plans.plan_parts = keep
     try:
-        out = tmp_path_factory.mktemp("line") / "line.toml"
-        line = init_line(_body(), out, 40.0, 10, False, "body.glb", say=lambda s: None)
+        out = tmp / "line.toml"
+        assert main(["init", str(body), "--line", "--takt", "40", "--out", str(out)]) == 0
     finally:
         booth_plans.plan_parts = real
-    return {"out": out, "line": line, **made}
+    return {"out": out, "body": body, **made}
 
 
 def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None:
@@ -188,36 +196,44 @@ def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None
         back = d / 1.5 + 1.5 / 4.0 if d >= 1.5 ** 2 / 4.0 else 2 * math.sqrt(d / 4.0)
         assert program + back <= 40.0
     assert all((c == 1).all() for c in passes)   # every pass of the written file, once
-    assert written["line"].cycle_s > 0 and all(b > 0 for b in written["line"].built_s)
 
 
 def test_tighter_takt_never_gives_fewer_robots(written: dict[str, Any]) -> None:
     from paintcell.app.init_line import choose_line
 
     counts = []
+    length = written["booth"].conveyor.speed_m_s * 40.0 - 1.0       # pitch less the gap
     for takt_s in (60.0, 30.0, 20.0):
-        takt = LineTakt(takt_s, written["line"].takt.body_length_m)
+        takt = LineTakt(takt_s, length)
         line = choose_line(written["booth"], written["pp"], takt, 10, verify=False,
                            say=lambda s: None)
         counts.append(len(line.booth.robots))
         assert max(takt.robot_cycle_s(s.program_s) for s in line.shares) <= takt_s
     assert counts == sorted(counts) and counts[-1] > counts[0], counts
     # deterministic: the same inputs give the same line
-    again = choose_line(written["booth"], written["pp"], LineTakt(20.0, takt.body_length_m),
+    again = choose_line(written["booth"], written["pp"], LineTakt(20.0, length),
                         10, verify=False, say=lambda s: None)
     assert again.booth == line.booth
 
 
 def test_a_takt_no_line_makes_is_refused_in_one_line(
-        written: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+        written: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
     import paintcell.booth.booth_plans as booth_plans
-    from paintcell.app.init_line_file import init_line
+    from paintcell.cli.main import EXIT_USAGE, main
 
     monkeypatch.setattr(booth_plans, "plan_parts", lambda booth, fast: written["pp"])
     out = tmp_path / "fast.toml"
-    with pytest.raises(PaintcellError) as exc:
-        init_line(_body(), out, 8.0, 10, False, "body.glb", say=lambda s: None)
-    msg = str(exc.value)
-    assert "\n" not in msg and "every 8 s" in msg and "--takt" in msg
-    assert "1–10" in msg or "3: " in msg, msg
+    body = str(written["body"])
+    assert main(["init", body, "--line", "--takt", "8", "--out", str(out)]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "every 8 s" in err and "--takt" in err, err
+    assert "10: " in err, err                # each count up to --max-robots said
     assert not out.exists() and not (tmp_path / "fast_panels").exists()
+    # the options: a takt out of range, --takt without --line, an existing file without --force
+    assert main(["init", body, "--line", "--takt", "0", "--out", str(out)]) == EXIT_USAGE
+    assert main(["init", body, "--takt", "40", "--out", str(out)]) == EXIT_USAGE
+    assert main(["init", body, "--line", "--takt", "40", "--out",
+                 str(written["out"])]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "--force" in err and "--line and --takt go together" in err

@@ -7,16 +7,13 @@
   fascias, top robots for the hood, roof and trunk, each top panel cut at the car's centre line
   between the left and right top robots), balanced by estimated time along the car
   (`paintcell.booth.line_allocation`; written as the booth's fixed `[allocation]`).
-- Robots: `ARM` (the booth's IRB 5500: closed-form IK, which the booth's reach checks need) on
-  rails along the conveyor, each centred on its passes' stretch of the car, its travel that
-  stretch plus the body's travel while it paints (`TRACK_FACTOR` × half the line's travel over a
-  takt at each end, as the booth's own rail margin) plus `RAIL_MARGIN_M`. Floor robots: rail
-  `FLOOR_RAIL_Z_M` up, a gap of `SIDE_GAPS_M` beside the body's side (the first of those whose
-  arm reaches every pass of its jobs in closed form, `paintcell.booth.booth.pass_feasible`).
-  Top robots: wall-mounted high beside the body (`WALL_GAPS_M`, `WALL_Z_M`: scenarios/booth.toml's
-  roof_r), else elevated rails at the top panels' height less `TOP_DROPS_M`, `TOP_GAPS_M`
-  beside them (the first that reaches and builds). Robots of one zone stand
-  `STATION_SPACING_M` apart along the line at least.
+- Robots (`paintcell.app.init_line_robots`): IRB 5500s (closed-form IK, which the booth's
+  reach checks need) on rails along the conveyor, each centred on its passes' stretch of the car,
+  its travel that stretch plus the body's travel while it paints (`TRACK_FACTOR` × half the
+  line's travel over a takt at each end, as the booth's own rail margin) and a margin; floor
+  rails beside the body for the side zones, wall mounts 3 m up (else elevated rails) for the
+  top; the first frame that reaches every pass of its jobs and whose program builds alone.
+- The body rides on its skid: lifted until its lowest pass is `MIN_TCP_Z_M` above the floor.
 - Count: from the first estimate up to `max_robots`, the smallest whose every robot's estimated
   program plus return fits the takt, every robot reaches its passes, and whose programs the
   booth builds (`paintcell.booth.booth_programs.booth_programs`: IK, moves, clearance from the
@@ -35,42 +32,21 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.app.init_layout import ARM, HOME, TRAJECTORY_TRIES, rail_robots
+from paintcell.app.init_layout import TRAJECTORY_TRIES
+from paintcell.app.init_line_robots import ProgramBuilder, place_robots
 from paintcell.booth.line_allocation import LinePanel, RobotShare, allocate_line, zone_of
 from paintcell.booth.line_takt import LineTakt, first_count
 from paintcell.core.errors import PaintcellError
 
 __all__ = ["Line", "choose_line", "line_panels"]
 
-#: Carriage top of a floor rail above the floor [m] (scenarios/booth.toml's side robots).
-FLOOR_RAIL_Z_M = 0.3
-#: Gap between the body's side (its panels' outermost point) and a floor rail frame [m], tried
-#: in this order.
-SIDE_GAPS_M = (1.9, 1.6, 2.2)
-#: Wall-mounted top robots (scenarios/booth.toml's roof_r: the IRB 5500 is a wall-mount paint
-#: robot): base plate this far beside the body's side [m], tried in this order, `WALL_Z_M` up
-#: [m], J1 horizontal toward the car, the carriage along the line. Above the floor robots'
-#: arms, where an elevated rail at the roof's height stands in their way.
-WALL_GAPS_M = (1.3, 1.6)
-WALL_Z_M = 3.0
-#: Home of a wall-mounted robot: carriage at 0, the arm folded over the body (roof_r's).
-WALL_HOME = (0.0, 0.0, -0.9, 0.9, 0.0, 0.6, 0.0)
-#: How far past its stretch of the car a robot parks when it shares its side [m].
-PARK_M = 1.5
-#: Least distance between the rail centres of two robots of one zone [m].
-STATION_SPACING_M = 1.5
-#: Gap beside the top panels' box of an elevated rail frame [m], tried in this order.
-TOP_GAPS_M = (1.0, 0.7, 1.3)
-#: Drop of an elevated rail frame below the top of its panels [m], tried for each gap.
-TOP_DROPS_M = (0.05, 0.35)
+#: Lowest TCP height of a pass above the floor [m]; the body is lifted (its skid) until its
+#: plan clears it (`paintcell init`'s own rule for a part: below it the wrist and the bell sweep
+#: the floor).
+MIN_TCP_Z_M = 0.6
 #: Times half the body's travel over a takt that each end of a rail leaves for tracking [-]
 #: (`paintcell.booth.booth_programs`' own rail margin is 1.25 × half the travel).
 TRACK_FACTOR = 1.3
-#: Further carriage travel at each end of a rail [m].
-RAIL_MARGIN_M = 0.3
-#: Home of a floor robot: carriage at 0, the arm folded low (the wrist centre ~1.75 m up) so an
-#: elevated robot's carriage passes over it (scenarios/booth.toml's side robots).
-SIDE_HOME = (0.0, 0.0, -0.6, 0.9, 0.0, 0.6, 0.0)
 
 
 #: Planner table of a side panel or fascia: passes along the panel's straight direction (a car
@@ -119,173 +95,6 @@ def line_panels(pp: Any) -> list[LinePanel]:
     return out
 
 
-def _stations(shares: list[RobotShare], pts: list[np.ndarray]) -> list[float]:
-    """Each robot's rail centre along the car [m]: its passes' stretch's middle, the robots of
-    one zone (front to rear) at least `STATION_SPACING_M` apart (two on one panel's pieces would
-    otherwise stand on one spot), the zone's stations moved back round their middle."""
-    centre = [float((p[:, 0].min() + p[:, 0].max()) / 2) for p in pts]
-    out = list(centre)
-    for zone in dict.fromkeys(s.zone for s in shares):
-        idx = [i for i, s in enumerate(shares) if s.zone == zone]
-        x = [centre[i] for i in idx]
-        for k in range(1, len(x)):
-            x[k] = min(x[k], x[k - 1] - STATION_SPACING_M)
-        shift = float(np.mean([centre[i] for i in idx]) - np.mean(x))
-        for i, xi in zip(idx, x, strict=True):
-            out[i] = xi + shift
-    return out
-
-
-def _sides_and_parks(shares: list[RobotShare], stations: list[float]
-                     ) -> tuple[list[bool], list[int]]:
-    """Each robot's side of the car (True: left) and where it parks along the line (+1: past
-    its stretch toward the car's front, −1: toward its rear, 0: at its station). A lone top robot
-    stands on the side with fewer floor robots; of the robots on one side, ordered front to
-    rear, the front half park toward the front, the rear half toward the rear (a parked arm
-    would otherwise stand in a neighbour's stretch, which the booth's staggering cannot clear)."""
-    tops = [s.zone for s in shares if s.zone.startswith("top")]
-    floor_left = sum(s.zone == "left" for s in shares)
-    floor_right = sum(s.zone == "right" for s in shares)
-    left = [s.zone == "left" or (s.zone == "top_left" and (len(tops) > 1
-                                                           or floor_left <= floor_right))
-            for s in shares]
-    park = [0] * len(shares)
-    for side in (True, False):
-        idx = sorted((i for i in range(len(shares)) if left[i] == side),
-                     key=lambda i: -stations[i])
-        if len(idx) > 1:
-            for k, i in enumerate(idx):
-                park[i] = 1 if 2 * k + 1 < len(idx) else -1 if 2 * k + 1 > len(idx) else 0
-    return left, park
-
-
-def _robot_frames(share: RobotShare, k: int, pts: np.ndarray, x_m: float, left: bool,
-                  park: int, body_lo: np.ndarray, body_hi: np.ndarray, track_m: float
-                  ) -> list[tuple[str, Any]]:
-    """Candidate robots of one share at station `x_m` on the car's left (or right), parked as
-    `park` says (`_sides_and_parks`), in the order tried: (why, `BoothRobot`)."""
-    from paintcell.booth.booth import BoothRobot
-    from paintcell.core.placement import Placement
-
-    reach = float(np.abs(pts[:, 0] - x_m).max())
-    half = round(reach + (PARK_M if park else 0.0) + track_m + RAIL_MARGIN_M, 3)
-    # the carriage runs along world +x on the left, −x on the right (the arm faces the car)
-    home0 = round(park * (reach + PARK_M) * (1.0 if left else -1.0), 3)
-    name = f"{share.zone}_{k}" if share.zone in ("left", "right") \
-        else f"top_{'left' if left else 'right'}_{k}"
-    out = []
-    if share.zone in ("left", "right"):
-        for gap in SIDE_GAPS_M:
-            box_lo = np.array([x_m, body_lo[1], 0.0])
-            box_hi = np.array([x_m, body_hi[1], FLOOR_RAIL_Z_M])
-            r = rail_robots(2, box_lo, box_hi, gap, 0.0, ARM)[0 if left else 1]
-            out.append((f"floor rail {gap} m beside the body's side, {FLOOR_RAIL_Z_M} m up",
-                        replace(r, name=name, home=(home0, *SIDE_HOME[1:]),
-                                rail_m=(-half, half))))
-        return out
-    for gap in WALL_GAPS_M:      # J1 horizontal toward the car, the carriage along the line
-        y = float(body_hi[1] + gap if left else body_lo[1] - gap)
-        rpy = (0.0, np.pi / 2, -np.pi / 2 if left else np.pi / 2)
-        out.append((f"wall-mounted {gap} m beside the body, {WALL_Z_M} m up",
-                    BoothRobot(name, f"{ARM}_rail", Placement((round(x_m, 4), round(y, 4),
-                                                                WALL_Z_M), rpy),
-                               (home0, *WALL_HOME[1:]), (-half, half))))
-    for gap in TOP_GAPS_M:
-        for drop in TOP_DROPS_M:
-            box_lo = np.array([x_m, body_lo[1], pts[:, 2].min()])
-            box_hi = np.array([x_m, body_hi[1], pts[:, 2].max()])
-            r = rail_robots(2, box_lo, box_hi, gap, drop, ARM)[0 if left else 1]
-            out.append((f"elevated rail {gap} m beside the body, {drop} m below its top "
-                        "panels' top", replace(r, name=name, home=(home0, *HOME[1:]),
-                                               rail_m=(-half, half))))
-    return out
-
-
-class _Builder:
-    """Each robot's program alone, as the booth builds it (`paintcell.booth.booth_job_programs`:
-    IK, moves, clearance from the whole body), on the plans as the booth finishes them."""
-
-    def __init__(self, booth: Any, pp: Any) -> None:
-        from paintcell.booth.booth_plans import finish_plans
-
-        self.fin = finish_plans(booth, pp, pp.plans)
-        self.booth, self.pp = booth, pp
-        self.part_of = np.concatenate([np.full(len(x.vertices), i)
-                                       for i, x in enumerate(pp.surfaces)])
-        self.seen: dict[tuple[Any, ...], str | None] = {}    # a share's build, every count
-
-    def build(self, cand: Any, jobs: tuple[Any, ...], traj: dict[str, Any]) -> str | None:
-        """Why robot `cand` cannot run `jobs` under `traj` (None: its program builds)."""
-        key = (cand, jobs, tuple(sorted(traj.items())))
-        if key not in self.seen:
-            self.seen[key] = self._build(cand, jobs, traj)
-        return self.seen[key]
-
-    def _build(self, cand: Any, jobs: tuple[Any, ...], traj: dict[str, Any]) -> str | None:
-        from paintcell.booth.booth_clearance import BodyProbe
-        from paintcell.booth.booth_job_programs import robot_programs
-        from paintcell.booth.booth_programs import load_robots
-
-        booth = replace(self.booth, robots=(cand,), allocation=None, trajectory=dict(traj))
-        robot = load_robots(booth)[0]
-        T_wb = booth.body_placement.matrix
-        probe = BodyProbe(robot, self.fin.body, T_wb, self.part_of)
-        try:
-            robot_programs(booth, [robot], self.fin.plans, {0: jobs}, T_wb,
-                           self.pp.T_body_parts, {}, [probe])
-        except PaintcellError as exc:
-            return str(exc).split("; ")[0][:160]
-        return None
-
-
-def _place(booth: Any, pp: Any, shares: list[RobotShare], track_m: float,
-           builder: _Builder | None) -> tuple[list[Any], list[str], dict[str, Any]] | str:
-    """Each share's robot: the first candidate frame that reaches every pass of its jobs in
-    closed form and (with a builder) whose program alone builds, under the first `[trajectory]`
-    table of `TRAJECTORY_TRIES` that gives every robot one; or why a share has none."""
-    from paintcell.booth.booth import pass_feasible
-    from paintcell.booth.booth_programs import load_robots
-
-    body = np.concatenate([s.vertices for s in pp.surfaces])
-    body_lo, body_hi = body.min(0), body.max(0)
-    counts: dict[str, int] = {}
-    frames = []
-    pts = [np.concatenate([pp.surfaces[j.part].vertices for j in s.jobs]) for s in shares]
-    stations = _stations(shares, pts)
-    sides, parks = _sides_and_parks(shares, stations)
-    for share, p, x, left, park in zip(shares, pts, stations, sides, parks, strict=True):
-        counts[share.zone] = counts.get(share.zone, 0) + 1
-        tcp = [pp.plans[j.part].tcp_frames(i) for j in share.jobs for i in range(j.first, j.end)]
-        reach = []
-        for text, cand in _robot_frames(share, counts[share.zone], p, x, left, park, body_lo,
-                                        body_hi, track_m):
-            robot = load_robots(replace(booth, robots=(cand,), allocation=None))[0]
-            if all(pass_feasible(robot, T) for T in tcp):
-                reach.append((text, cand))
-        if not reach:
-            return f"{share.zone}_{counts[share.zone]} reaches no pass set of its jobs from " \
-                   "any rail frame tried"
-        frames.append(reach)
-    if builder is None:
-        return [f[0][1] for f in frames], [f[0][0] for f in frames], dict(TRAJECTORY_TRIES[0])
-    why = ""
-    for traj in TRAJECTORY_TRIES:
-        robots, texts = [], []
-        for share, reach in zip(shares, frames, strict=True):
-            for text, cand in reach:
-                bad = builder.build(cand, share.jobs, traj)
-                if bad is None:
-                    robots.append(cand)
-                    texts.append(text)
-                    break
-                why = why or f"{cand.name}: {bad}"
-            else:
-                break
-        if len(robots) == len(shares):
-            return robots, texts, dict(traj)
-    return f"no rail frame tried builds every robot's program (first: {why})"
-
-
 def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bool = True,
                 say: Callable[[str], None] = print) -> Line:
     """The line (module doc) for `booth` (its mesh parts in the body frame, its conveyor at the
@@ -293,14 +102,20 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
     `film_refine = false`). verify: build the programs (False: estimates and closed-form reach
     only). Raises PaintcellError (one line, why each count failed)."""
     from paintcell.booth.booth_programs import booth_programs
+    from paintcell.core.placement import Placement
 
+    # the body on its skid: its lowest pass MIN_TCP_Z_M above the floor, as `init` lifts a part
+    low = min(float(pl.tcp_frames(i)[:, 2, 3].min()) for pl in pp.plans
+              for i in range(len(pl.passes)))
+    booth = replace(booth, body_placement=Placement((0.0, 0.0, round(max(0.0, MIN_TCP_Z_M - low),
+                                                                      3)), (0.0, 0.0, 0.0)))
     panels = line_panels(pp)
     total = sum(takt.program_s([p.durations_s]) for p in panels)
     n0 = first_count(total, takt.takt_s)
     n_passes = [len(p.durations_s) for p in panels]
     track_m = TRACK_FACTOR * 0.5 * takt.conveyor_speed_m_s * takt.takt_s
     failed: list[str] = []
-    builder: _Builder | None = None
+    builder: ProgramBuilder | None = None
     seen: set[tuple[Any, ...]] = set()
     for n in range(1, max_robots + 1):
         if n < n0:
@@ -326,8 +141,8 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
         say(f"init: {len(shares)} robots, estimated programs + return "
             f"{', '.join(f'{c:.1f}' for c in cycles)} s; placing them")
         if verify and builder is None:
-            builder = _Builder(booth, pp)
-        placed = _place(booth, pp, shares, track_m, builder)
+            builder = ProgramBuilder(booth, pp)
+        placed = place_robots(booth, pp, shares, track_m, builder)
         if isinstance(placed, str):
             failed.append(f"{n}: {placed}")
             continue

@@ -104,6 +104,8 @@ side = {_v([round(float(x), 6) for x in side])}
         parts += (f"[parts.planner]   # passes along the panel's straight direction\n{planner}"
                   if planner else "")
     robots = ""
+    # angles written exactly: a rail off the line's direction by round-off leaves the conveyor's
+    # motion across it to the arm's IK (`paintcell.booth.conveyor.track_program`)
     for r in b.robots:
         x, y, z = r.base.xyz_m
         robots += f"""
@@ -116,7 +118,7 @@ home = {_v(list(r.home))}
 # up; the arm faces the body, the carriage runs along the conveyor
 [robots.base]
 xyz_m = {_v([round(v, 4) for v in r.base.xyz_m])}
-rpy_rad = {_v([round(v, 6) for v in r.base.rpy_rad])}
+rpy_rad = {_v([float(v) for v in r.base.rpy_rad])}
 """
     alloc = "".join(f"{name} = {_v([list(j) for j in jobs])}\n"
                     for name, jobs in b.allocation.items())
@@ -129,8 +131,9 @@ fast_resolution_m = {b.fast_resolution_m}
 film_refine_pace = true
 robot_aware_speeds = false
 
+# the body frame at conveyor position 0: lifted on its skid so its lowest pass is 0.6 m up
 [body_placement]
-xyz_m = [0.0, 0.0, 0.0]
+xyz_m = {_v(list(b.body_placement.xyz_m))}
 rpy_rad = [0.0, 0.0, 0.0]
 
 # pitch {t.pitch_m:.4f} m / takt {t.takt_s:g} s
