@@ -18,28 +18,6 @@ import trimesh
 from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S, Job
 from paintcell.booth.line_allocation import LinePanel, allocate_line, partition
 from paintcell.booth.line_takt import LineTakt, return_home_s
-from paintcell.core.placement import Placement
-from paintcell.surface.body_panels import SIDE_DIRECTIONS, BodyPanel
-
-
-def _library_panel(part: str, xyz: tuple[float, ...], rpy: tuple[float, ...],
-                   side: str) -> BodyPanel:
-    """A library part placed in the body frame as scenarios/booth.toml places it, as
-    `paintcell.surface.body_panels.load_body` gives a panel."""
-    from paintcell.surface.parts import get_part
-
-    s = get_part(part, resolution_m=0.02)
-    T = Placement(xyz, rpy).matrix  # type: ignore[arg-type]
-    m = trimesh.Trimesh(s.vertices @ T[:3, :3].T + T[:3, 3], s.faces, process=False)
-    return BodyPanel(part, m, float(m.area), side, SIDE_DIRECTIONS[side],
-                     SIDE_DIRECTIONS[side], "library")
-
-
-def _body() -> list[BodyPanel]:
-    """Two panels: the booth's door on the car's right and its roof."""
-    return [_library_panel("door", (0.0, -0.9, 0.9), (math.pi / 2, 0.0, 0.0), "right"),
-            _library_panel("roof", (0.0, 0.0, 1.45), (0.0, 0.0, 0.0), "top")]
-
 
 # -- the takt arithmetic ---------------------------------------------------------------------
 
@@ -139,20 +117,22 @@ def test_every_pass_is_allocated_once_and_zones_are_kept() -> None:
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    """`paintcell init BODY --line --takt 40` on the two-panel body (a body.json folder, read
-    by `load_body`), and the plans it made (kept so the other tests do not plan it again)."""
+    """`paintcell init BODY --line --takt 40` on two panels of a generated body (its front left
+    door and roof: a manifest of the generator's panel folder, read by `load_body`), and the
+    plans it made (kept so the other tests do not plan them again)."""
     import json
 
     import paintcell.booth.booth_plans as booth_plans
     from paintcell.cli.main import main
 
     tmp = tmp_path_factory.mktemp("line")
-    body = tmp / "body"
-    body.mkdir()
-    for p in _body():
-        p.mesh.export(body / f"{p.name}.stl")
-    (body / "body.json").write_text(json.dumps({"units": "m", "panels": [
-        {"name": p.name, "file": f"{p.name}.stl", "side": p.side} for p in _body()]}))
+    assert main(["generate", "body", "--out", str(tmp / "car.stl")]) == 0
+    manifest = json.loads((tmp / "car_panels" / "body.json").read_text())
+    manifest["panels"] = [p for p in manifest["panels"]
+                          if p["name"] in ("front_door_left", "roof")]
+    assert len(manifest["panels"]) == 2
+    body = tmp / "car_panels" / "door_roof.json"
+    body.write_text(json.dumps(manifest))
     made: dict[str, Any] = {}
     real = booth_plans.plan_parts
 
@@ -183,7 +163,7 @@ def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None
                          for bp in booth.parts])
     pitch = float(xs.max() - xs.min()) + 1.0
     v = booth.conveyor.speed_m_s
-    assert v * 40.0 == pytest.approx(pitch, rel=1e-9)
+    assert v * 40.0 == pytest.approx(pitch, rel=1e-6)   # STL stores float32 coordinates
     assert booth.allocation is not None and len(booth.robots) == len(booth.allocation)
     plans = plan_parts(booth, fast=True).plans
     passes = [np.zeros(len(pl.passes), int) for pl in plans]

@@ -69,8 +69,11 @@ def _sides_and_parks(shares: list[RobotShare], stations: list[float]
     """Each robot's side of the car (True: left) and where it parks along the line (+1: past
     its stretch toward the car's front, −1: toward its rear, 0: at its station). A lone top robot
     stands on the side with fewer floor robots; of the robots on one side, ordered front to
-    rear, the front half park toward the front, the rear half toward the rear (a parked arm
-    would otherwise stand in a neighbour's stretch, which the booth's staggering cannot clear)."""
+    rear, the front half park toward the front, the rear half toward the rear, the middle one
+    toward the front on the left and the rear on the right (a parked arm would otherwise stand in
+    a neighbour's stretch, which the booth's staggering cannot clear); so do two top robots
+    across the car from each other (each folded over the body at home, they meet over the
+    centre line). A robot alone on its side with no top partner parks at its station."""
     tops = [s.zone for s in shares if s.zone.startswith("top")]
     floor_left = sum(s.zone == "left" for s in shares)
     floor_right = sum(s.zone == "right" for s in shares)
@@ -81,9 +84,12 @@ def _sides_and_parks(shares: list[RobotShare], stations: list[float]
     for side in (True, False):
         idx = sorted((i for i in range(len(shares)) if left[i] == side),
                      key=lambda i: -stations[i])
-        if len(idx) > 1:
-            for k, i in enumerate(idx):
-                park[i] = 1 if 2 * k + 1 < len(idx) else -1 if 2 * k + 1 > len(idx) else 0
+        for k, i in enumerate(idx):
+            # the middle one (and a lone one) toward the front on the left, the rear on the right
+            park[i] = 1 if 2 * k + 1 < len(idx) else -1 if 2 * k + 1 > len(idx) \
+                else (1 if side else -1)
+        if len(idx) == 1 and not (len(tops) > 1 and shares[idx[0]].zone.startswith("top")):
+            park[idx[0]] = 0         # alone on its side, no top partner across: at its station
     return left, park
 
 
@@ -188,15 +194,20 @@ def place_robots(booth: Any, pp: Any, shares: list[RobotShare], track_m: float,
         counts[share.zone] = counts.get(share.zone, 0) + 1
         tcp = [T_wb @ pp.plans[j.part].tcp_frames(i) for j in share.jobs
                for i in range(j.first, j.end)]
-        reach = []
+        reach, missed = [], None
+        owner = [j.part for j in share.jobs for _ in range(j.first, j.end)]
         for text, cand in _robot_frames(share, counts[share.zone], p, x, left, park, body_lo,
                                         body_hi, track_m):
             robot = load_robots(replace(booth, robots=(cand,), allocation=None))[0]
-            if all(pass_feasible(robot, T) for T in tcp):
+            ok = [pass_feasible(robot, T) for T in tcp]
+            if all(ok):
                 reach.append((text, cand))
+            elif missed is None or sum(not o for o in ok) < len(missed):
+                missed = [o for o, k in zip(owner, ok, strict=True) if not k]
         if not reach:
-            return f"{share.zone}_{counts[share.zone]} reaches no pass set of its jobs from " \
-                   "any rail frame tried"
+            names = ", ".join(booth.parts[i].part for i in dict.fromkeys(missed or []))
+            return (f"the {share.zone} robot {counts[share.zone]} misses {len(missed or [])} "
+                    f"pass(es) of {names} from every rail frame tried")
         frames.append(reach)
     if builder is None:
         return [f[0][1] for f in frames], [f[0][0] for f in frames], dict(TRAJECTORY_TRIES[0])
