@@ -4,25 +4,33 @@ MultiMove synchronisation and the conveyor tracking stated and coordinated.
 
 - Synchronisation: every module declares the booth's task list and waits for the others with
   `WaitSyncTask` before its first move toward the part and after its program (the programs were
-  validated on one clock starting together).
-- Conveyor tracking: the pass moves (MoveL / TriggL / PaintL) are given in the conveyor work object
-  `wobjcnv1` (coordinated with mechanical unit CNV1, activated with `ActUnit`, picked up with
-  `WaitWObj`), whose zero is the part's nominal placement — the static cell the program was
-  built in — so the controller adds the line motion; the header states the speed and direction
-  it was validated at. The joint moves between passes (MoveAbsJ) are not coordinated.
-- A rail robot: the arm's targets are written in the rail frame and the carriage position goes
-  in the external axis `eax_a` [mm] of every target (the track as a coordinated external axis).
+  validated on one clock starting together). The robots paint apart, each on its own part, so
+  their moves are not paired one to one: `SyncMoveOn` (synchronised movement: the same number
+  of moves with an `ID` argument in every task) does not apply; each task's timing inside the
+  cycle is its validated program's.
+- Conveyor tracking: the pass moves (MoveL / TriggL / PaintL) are given in the conveyor work
+  object `wobjcnv1` (`wobjdata` with robhold FALSE, ufprog FALSE: a moving user frame, and ufmec
+  the conveyor's mechanical unit CNV1, activated with `ActUnit`). Their targets are in the body's
+  frame: the object frame (oframe) is the body at conveyor position 0 in the conveyor's base
+  frame, so the controller adds the line motion to every target. `WaitWObj` picks the body up
+  before the first move toward it, `DropWObj` releases it after the last pass move; the joint
+  moves between passes (MoveAbsJ) are not coordinated. The header states the line speed and
+  direction the programs were validated at and the conveyor base frame calibration they assume.
+- A rail robot: the carriage position goes in the external axis `eax_a` [mm] of every target (the
+  track as a coordinated external axis).
 """
 
 from __future__ import annotations
 
 import re
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
+from paintcell.core.transforms import quat_wxyz_from_matrix
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.output.export_rapid import program_runs, rapid_ident, rapid_module
+from paintcell.output.export_rapid import program_runs, rapid_ident, rapid_module, tool_load
 
 _EXT_RE = r"\[9E9,9E9,9E9,9E9,9E9,9E9\]"
 
@@ -57,19 +65,45 @@ def _rail_values_mm(traj: JointTrajectory, via_dt_s: float) -> tuple[dict[int, f
     return per_pass, vias
 
 
+def conveyor_base_frame(conveyor: Any) -> np.ndarray:
+    """(4, 4) the conveyor's base frame in the world, as the modules assume the controller's
+    CNV1 calibration: origin at the world origin, x along the line's direction of travel, z the
+    world's up made orthogonal to it (a vertical line: the world's x)."""
+    x = np.asarray(conveyor.unit, float)
+    up = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.99 else np.array([1.0, 0.0, 0.0])
+    z = up - (up @ x) * x
+    z /= np.linalg.norm(z)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T
+
+
+def _pose_text(T: np.ndarray) -> str:
+    """RAPID pose [[x,y,z],[q1,q2,q3,q4]] of a (4, 4) transform [m → mm]."""
+    p, q = 1000.0 * T[:3, 3], quat_wxyz_from_matrix(T[:3, :3])
+    return (f"[[{p[0]:.2f},{p[1]:.2f},{p[2]:.2f}],"
+            f"[{q[0]:.6f},{q[1]:.6f},{q[2]:.6f},{q[3]:.6f}]]")
+
+
 def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[str],
-                 conveyor: Any, delay_s: float = 0.0, via_dt_s: float = 0.2,
+                 conveyor: Any, T_world_body: np.ndarray, delay_s: float = 0.0,
+                 via_dt_s: float = 0.2,
                  flow_factor: float | tuple[float | None, ...] | None = None,
                  **options: Any) -> str:
-    """RAPID module text of one booth robot's static program (module doc); delay_s: its start
-    delay after the common start [s] (`paintcell.booth.booth_stagger.stagger_starts`);
-    flow_factor: its bell flow
+    """RAPID module text of one booth robot's static program (module doc); T_world_body: (4, 4)
+    the body at conveyor position 0 (the static cell the program was built in), the frame its
+    pass targets are written in; delay_s: its start delay after the common start [s]
+    (`paintcell.booth.booth_stagger.stagger_starts`); flow_factor: its bell flow
     relative to the applicator's (`paintcell.booth.booth_build`), stated in the header (a
     robot with several jobs: one per job). options: `rapid_module`'s style, max_spacing_m and
     validation (header lines)."""
     arm, arm_traj = _arm_view(robot, traj)
-    text = rapid_module(arm_traj, arm, module_name=name, via_dt_s=via_dt_s, **options)
-    lines = text.splitlines()
+    T_world_body = np.asarray(T_world_body, float)
+    # the exporter writes its Cartesian targets in its robot's base frame: give it the body's
+    in_body = SimpleNamespace(T_world_base=T_world_body, T_flange_tcp=arm.T_flange_tcp)
+    text = rapid_module(arm_traj, in_body, module_name=name, via_dt_s=via_dt_s,
+                        load=tool_load(arm), **options)
+    lines = [ln for ln in text.splitlines() if not ln.startswith("  ! Targets in the robot base")]
     if getattr(robot, "rail", None) is not None:
         per_pass, vias = _rail_values_mm(traj, via_dt_s)
         it = iter(vias)
@@ -90,12 +124,16 @@ def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[
         "with WaitSyncTask at the start and end.",
         f"  ! Conveyor tracking: validated at {conveyor.speed_m_s:.4f} m/s along "
         f"[{u[0]:.3f},{u[1]:.3f},{u[2]:.3f}] (world); pass moves in the conveyor work object "
-        "wobjcnv1 (unit CNV1), zero = the part's nominal placement.",
+        "wobjcnv1 (unit CNV1).",
+        "  ! CNV1's base frame calibrated at the world origin, x along the line, at conveyor "
+        "position 0; wobjcnv1's object frame: the body there.",
+        "  ! Pass targets in the body frame [mm]; joint targets: the arm's axes [deg]; speeds "
+        "reproduce the validated TCP speed between targets.",
         f"  PERS tasks booth_tasks{{{len(task_names)}}} := [{tasks}];",
         "  VAR syncident sync_start;",
         "  VAR syncident sync_end;",
         '  PERS wobjdata wobjcnv1 := [FALSE,FALSE,"CNV1",[[0,0,0],[1,0,0,0]],'
-        "[[0,0,0],[1,0,0,0]]];",
+        f"{_pose_text(np.linalg.inv(conveyor_base_frame(conveyor)) @ T_world_body)}];",
     ]
     if getattr(robot, "rail", None) is not None:
         head.append("  ! Rail: the carriage is external axis eax_a [mm] of every target.")
@@ -122,6 +160,8 @@ def booth_module(robot: Any, traj: JointTrajectory, name: str, task_names: list[
             if delay_s > 0:
                 out.append(f"    WaitTime {delay_s:.3f};   ! staggered start: arm clearance")
             out.extend(["    ActUnit CNV1;", "    WaitWObj wobjcnv1;"])
+    last = max(i for i, ln in enumerate(out) if ln.endswith(r"\WObj:=wobjcnv1;"))
+    out.insert(last + 1, "    DropWObj wobjcnv1;")
     end = out.index("  ENDPROC")
     out[end:end] = ["    DeactUnit CNV1;", "    WaitSyncTask sync_end, booth_tasks;"]
     return "\n".join(out) + "\n"
@@ -143,5 +183,6 @@ def booth_rapid_modules(booth: Any, metrics: dict[str, Any], jobs: dict[int, tup
         f = tuple(build.get(f"{j.part}:{booth.parts[j.part].part}", {}).get("flow_factor")
                   for j in jobs[i])
         flows.append(f[0] if len(f) == 1 else f)
-    return {n: booth_module(rb, tr, n, names, booth.conveyor, d, flow_factor=f, **options)
+    return {n: booth_module(rb, tr, n, names, booth.conveyor, booth.body_placement.matrix, d,
+                            flow_factor=f, **options)
             for n, rb, tr, d, f in zip(names, robots, static, delays, flows, strict=True)}

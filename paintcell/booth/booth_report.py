@@ -141,6 +141,55 @@ def _span(passes: list[Any]) -> str:
     return f"pass {a}" if b - a == 1 else f"passes {a}–{b - 1}"
 
 
+def _usage_tables(m: dict[str, Any]) -> list[str]:
+    """The per-robot time and paint table and the per-part film table
+    (`paintcell.booth.booth_usage`, `paintcell.booth.booth_part_film`); none for a folder
+    without those figures."""
+    if "part_film" not in m:
+        return []
+    out = ["<h2 id='robot-use'>Robots: time and paint</h2>"
+           f"<p>Paint (film volume) sent {m['paint_used_l']:.4f} L a body "
+           f"({m['planned_paint_used_l']:.4f} L planned), {m['film_on_body_l']:.4f} L on the "
+           f"body: transfer efficiency {m['executed_transfer_efficiency_pct']:.1f} % "
+           f"({m['planned_transfer_efficiency_pct']:.1f} % planned).</p>" + _table(
+               ["robot", "painting [% of cycle]", "moving [% of cycle]",
+                "waiting at home [% of cycle]", "paint sent [L]", "film on the body [L]",
+                "transfer efficiency [%]", "TCP error on passes, max [mm]",
+                "speed error over the body, RMS [%]", "joint range use, max [-]"],
+               [[n, r["painting_share_pct"], r["moving_share_pct"], r["waiting_share_pct"],
+                 _fmt(r["paint_used_l"], 4), _fmt(r["film_on_body_l"], 4),
+                 r["transfer_efficiency_pct"], r.get("tracking_error_max_mm"),
+                 r.get("speed_error_rms_pct"), r.get("max_joint_range_utilization")]
+                for n, r in m["robots"].items()])]
+    paint = m.get("part_paint", {})
+    rows = []
+    for k, f in m["part_film"].items():
+        u = paint.get(k, {})
+        rows.append([k, f["planned_nsd_pct"], f["executed_nsd_pct"],
+                     f["planned_inside_spec_pct"], f["executed_inside_spec_pct"],
+                     _fmt(f["loss_pp"], 3), _fmt(f["loss_time_law_pp"], 3),
+                     _fmt(f["loss_servo_pp"], 3), _fmt(f["loss_conveyor_pp"], 4),
+                     f["seam_executed_mean_um"], f["seam_executed_nsd_pct"],
+                     f["interior_executed_mean_um"], f["interior_executed_nsd_pct"],
+                     _fmt(u.get("paint_used_l"), 4), _fmt(u.get("film_on_part_l"), 4)])
+    sf = m["seam_film"]
+    out.append("<h2 id='part-film'>Parts</h2>"
+               f"<p>Seams: each part's points within {100 * m['seam_band_m']:.0f} cm of another "
+               f"part ({sf['seam_area_pct']:.1f} % of the body): executed mean "
+               f"{_fmt(sf['seam_executed_mean_um'])} µm, σ/μ "
+               f"{_fmt(sf['seam_executed_nsd_pct'])} % against the interiors' "
+               f"{_fmt(sf['interior_executed_mean_um'])} µm, "
+               f"{_fmt(sf['interior_executed_nsd_pct'])} %. Whole body in the spec window: "
+               f"{_fmt(m['planned_inside_spec_pct'], 1)} % planned, "
+               f"{_fmt(m.get('executed_inside_spec_pct'), 1)} % executed.</p>" + _table(
+                   ["part", "planned σ/μ [%]", "executed σ/μ [%]",
+                    "planned in spec window [%]", "executed in spec window [%]", "loss [pp]",
+                    "time law [pp]", "servo [pp]", "conveyor [pp]", "seam mean [µm]",
+                    "seam σ/μ [%]", "interior mean [µm]", "interior σ/μ [%]",
+                    "paint sent [L]", "film on the part [L]"], rows))
+    return out
+
+
 def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
                       images: list[str], film_3d: str = "") -> str:
     """The report's HTML from a booth's metrics.json and scenario.json dicts; images: figure
@@ -172,6 +221,7 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
           r["paint_credit_pct"], r["coverage_credit_pct"], r.get("max_torque_utilization"),
           (r.get("honest_reachability") or {}).get("verdict", "n/m")]
          for n, r in m["robots"].items()]))
+    s.extend(_usage_tables(m))
     a = m.get("allocation", {})
     alloc = [f"<p>Rule: {html.escape(str(a.get('rule', '')))}.</p>"]
     if "candidates" in a:

@@ -6,10 +6,12 @@ Metrics (all in `ValidationReport.metrics`, units in the names):
   that it could not reach it all), `speedup`;
 - per robot: busy share (its own program time ÷ the booth cycle), paint share (brush-on time ÷
   cycle), paint credit (its share of the film volume on the body) and coverage credit (the share
-  of the body's area where it lays most of the film);
+  of the body's area where it lays most of the film); its cycle split into painting / moving /
+  waiting at home, paint sent and laid, transfer efficiency (`paintcell.booth.booth_usage`,
+  also the booth's and each part's paint), TCP tracking and joint use (`booth_motion`);
 - film: planned / trajectory / executed σ/μ over the whole body and in the overlap bands (points
   where two robots each lay ≥ 10 % of the film), the loss split into time law, servo and
-  conveyor tracking;
+  conveyor tracking; per part and the seams (`paintcell.booth.booth_part_film`);
 - contacts: all collision events and the robot–robot ones; the smallest distance between two
   bells while both paint (reference programs).
 """
@@ -24,7 +26,10 @@ import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell
+from paintcell.booth.booth_motion import booth_motion
+from paintcell.booth.booth_part_film import part_film_figures
 from paintcell.booth.booth_spec import booth_spec_metrics
+from paintcell.booth.booth_usage import booth_usage
 from paintcell.core.atomic_io import atomic_write_text
 from paintcell.core.json_values import json_default
 from paintcell.coverage.plan import CoveragePlan
@@ -188,6 +193,17 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     }
     judged_faces = None if judged is None else np.asarray(judged, bool)[body.faces].all(axis=1)
     m.update(booth_spec_metrics(booth, body, tot, areas, judged_faces, offs))
+    # each part's film and loss split, the seams; each robot's time, paint and motion
+    m.update(part_film_figures(body, tot, areas, judged_faces, offs, list(per_part),
+                               1e-6 * m["spec_target_um"], booth.spec))
+    names = [r.name for r in booth.robots]
+    for per_robot, whole in (booth_usage(names, list(per_part), plans, jobs, trajs, own, trace.t_s,
+                                         cycle, films, body.vertex_areas, offs),
+                             booth_motion(names, trajs, traces, trace, bcell.columns, np.outer(
+                                 trajs_carrier(trace, booth, trajs), booth.conveyor.unit))):
+        for name, figures in per_robot.items():
+            robots[name].update(figures)
+        m.update(whole)
     th = booth.thresholds
     spec = [("collisions", "n_collisions", th.max_collisions, "events", "max"),
             ("robot-robot collisions", "n_robot_robot_collisions", th.max_robot_collisions,

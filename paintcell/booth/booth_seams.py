@@ -13,6 +13,9 @@ the merged body surface in the body frame, each part at its own flow), and the s
 σ/μ (1.0 when
 nothing is switched off at any share). Only paint switches: the passes' geometry and timing, so
 the robots' programs' motion, are unchanged.
+
+`seam_band` marks the body's vertices near another part (the seams' film, measured apart from
+each part's interior by `paintcell.booth.booth_part_film`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import dataclasses
 from typing import Any
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from paintcell.booth.booth_film import plan_gun_in_body
 from paintcell.coverage.patches import SEAM_SHARES, ownership_brush_off, seam_volumes
@@ -28,6 +32,28 @@ from paintcell.coverage.plan import CoveragePlan, PassPlan
 from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import uniformity
 from paintcell.surface.surface import Surface
+
+#: a vertex is in a seam band when another part's nearest vertex lies within this [m]: about a
+#: bell footprint's half-width, the reach of the neighbour's edge passes and overspray.
+SEAM_BAND_M = 0.10
+
+
+def seam_band(vertices_m: np.ndarray, part_counts: list[int], band_m: float = SEAM_BAND_M
+              ) -> np.ndarray:
+    """(N,) bool over the merged body's vertices (N, 3) [m], parts stacked in order,
+    `part_counts` vertices each: True where another part's nearest vertex is within band_m [m]
+    (straight-line distance)."""
+    v = np.asarray(vertices_m, float)
+    offs = np.cumsum([0, *part_counts])
+    out = np.zeros(len(v), bool)
+    for k in range(len(part_counts)):                          # a few parts
+        own = np.zeros(len(v), bool)
+        own[offs[k]:offs[k + 1]] = True
+        if own.all() or not own.any():
+            continue
+        d, _ = cKDTree(v[~own]).query(v[own], k=1, distance_upper_bound=band_m)
+        out[offs[k]:offs[k + 1]] = d <= band_m
+    return out
 
 
 def pass_in_body(p: PassPlan, T_body_part: np.ndarray) -> PassPlan:

@@ -46,8 +46,9 @@ def add_generate(add_parser: Any) -> None:
     add_out_force(g, "mesh file to write (.stl/.ply/.obj; a family's or the body's "
                   "<stem>.truth.json too, and the body's <stem>_panels/ folder)")
     g.add_argument("--seed", type=SEED, default=0,
-                   help="seed of the sizes, shape, tessellation, units and orientation "
-                   "(default 0)")
+                   help="seed of the sizes, shape, tessellation, units and orientation; of "
+                   "a body its kind (even: compact sedan, odd: SUV), sizes, gaps and "
+                   "tessellation (default 0)")
     g.set_defaults(func=_cmd_generate)
 
 

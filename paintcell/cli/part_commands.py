@@ -1,7 +1,8 @@
 """`paintcell inspect`, `paintcell init` and `paintcell generate`: real part files in.
 
 - inspect PART_FILE: what the import finds (units and why, size, pieces, openings, hems, repairs,
-  curvature) and a PNG of the regions seen from the painted side.
+  curvature) and a PNG of the regions seen from the painted side; with --body, the panels of a
+  car body (a mesh, or a folder holding body.json: `paintcell.surface.body_panels.load_body`).
 - init PART_FILE --out scenarios/NAME.toml: a commented TOML scenario (part, placement in front of
   the robot, the first robot model whose base reaches the fast plan, `init_cell.choose_cell`)
   that `paintcell run` and `plan` accept as written; none reaches it: a one-line refusal.
@@ -38,10 +39,16 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
     i = add_parser("inspect", help="what paintcell finds in a part file",
                    description="Read, repair and classify a mesh (STL/OBJ/PLY) or CAD (STEP/IGES) "
                    "part file; print units chosen and why, size, pieces with areas, openings, "
-                   "hems, repairs and curvature range; write a PNG of the regions.")
+                   "hems, repairs and curvature range; write a PNG of the regions. With --body, "
+                   "read a whole car body instead (one mesh split into panels at their gaps, or "
+                   "a folder holding a body.json manifest) and list its panels: name, area, the "
+                   "side the paint goes on, and how many pieces each is made of.")
     _part_options(i)
     i.add_argument("--png", type=Path, default=None,
                    help="regions picture (default: <file stem>_regions.png in the current folder)")
+    i.add_argument("--body", action="store_true",
+                   help="FILE is a car body (a mesh, or a folder holding body.json): list its "
+                   "panels instead of importing one part (--units applies)")
     i.set_defaults(func=_cmd_inspect)
     n = add_parser("init", help="write a ready scenario for a part file",
                    description="Write a commented TOML scenario for a part file: units, pieces, "
@@ -122,6 +129,8 @@ def _spec(args: argparse.Namespace) -> MeshPart:
 def _cmd_inspect(args: argparse.Namespace) -> int:
     from paintcell.surface.part_import import import_part
 
+    if args.body:
+        return _inspect_body(args)
     if args.png is not None:  # before the import's work, not after
         check_write_target(args.png, "--png")
     res = args.resolution if args.resolution > 0 else None
@@ -130,6 +139,26 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     png = args.png or Path(f"{surf.name}_regions.png")
     _plot_regions(surf, png)
     print(f"regions picture: {png}")
+    return 0
+
+
+def _inspect_body(args: argparse.Namespace) -> int:
+    """`inspect --body`: the panels `load_body` finds, one line each."""
+    import trimesh
+
+    from paintcell.surface.body_panels import load_body
+
+    if args.png is not None:
+        raise PaintcellError("--png draws one part's regions; drop it with --body")
+    panels = load_body(args.file, units=args.units)
+    print(f"body: {args.file}: {len(panels)} panels, "
+          f"{sum(p.area_m2 for p in panels):.3f} m² in all")
+    print(f"  {'panel':<22} {'area m²':>8}  {'side':<5}  pieces")
+    for p in panels:
+        m = p.mesh
+        n = len(trimesh.graph.connected_components(m.face_adjacency, nodes=np.arange(len(m.faces)),
+                                                   min_len=1))
+        print(f"  {p.name:<22} {p.area_m2:8.4f}  {p.side:<5}  {n}")
     return 0
 
 

@@ -37,6 +37,7 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from paintcell.core.errors import SurfaceError
+from paintcell.core.safe_paths import kind_of
 from paintcell.surface.mesh_io import choose_units, read_part_file
 from paintcell.surface.part_import import split_pieces
 from paintcell.surface.part_spec import UNITS_M
@@ -62,8 +63,9 @@ _SIDE_NAMES = {1: ("side",), 2: ("front_door", "rear_door"),
                3: ("front_fender", "door", "rear_quarter"),
                4: ("front_fender", "front_door", "rear_door", "rear_quarter")}
 _TOP_NAMES = {1: ("roof",), 2: ("hood", "roof"), 3: ("hood", "roof", "trunk_lid")}
-_END_NAMES = {"front": {1: ("front_bumper",)}, "rear": {1: ("rear_bumper",),
-                                                        2: ("rear_bumper", "tailgate")}}
+_END_NAMES: dict[str, dict[int, tuple[str, ...]]] = {
+    "front": {1: ("front_bumper",)},
+    "rear": {1: ("rear_bumper",), 2: ("rear_bumper", "tailgate")}}
 
 
 class BodyError(SurfaceError):
@@ -132,7 +134,7 @@ def _oriented(name: str, v: np.ndarray, f: np.ndarray, side: str | None,
     if side is None:
         side = max(BODY_SIDES, key=lambda s: float(n @ np.asarray(SIDE_DIRECTIONS[s])))
     return BodyPanel(name, m, float(m.area), side, SIDE_DIRECTIONS[side],
-                     tuple(float(x) for x in n), source)
+                     (float(n[0]), float(n[1]), float(n[2])), source)
 
 
 def _from_mesh(p: Path, units: str, join_gap_m: float, stray_fraction: float
@@ -163,7 +165,7 @@ def _centre(v: np.ndarray) -> np.ndarray:
 def _join(v: np.ndarray, f: np.ndarray, groups: list[np.ndarray], gap_m: float
           ) -> list[np.ndarray]:
     """`groups` with those closer than `gap_m` merged (closest distance between the pieces'
-    surfaces, vertex to triangle both ways), largest first."""
+    surfaces, vertex to triangle both ways)."""
     piece = np.empty(len(v), np.int64)
     rims = []
     for i, g in enumerate(groups):
@@ -213,6 +215,7 @@ def panel_names(panels: list[tuple[str, np.ndarray, float]]) -> list[str]:
     roof); the front: front_bumper; the rear bottom to top: rear_bumper, tailgate. Other counts
     are numbered from the front or the bottom (`left_1`, `top_2`)."""
     names = [""] * len(panels)
+    table: dict[int, tuple[str, ...]]
     for side in BODY_SIDES:
         idx = [i for i, (s, _, _) in enumerate(panels) if s == side]
         if side in ("front", "rear"):
@@ -233,8 +236,11 @@ def panel_names(panels: list[tuple[str, np.ndarray, float]]) -> list[str]:
 def _from_manifest(path: Path, units: str) -> list[BodyPanel]:
     from scipy.spatial.transform import Rotation
 
+    if path.exists() and not path.is_file():   # a FIFO would block the read: refuse at once
+        raise BodyError(f"manifest {path} is a {kind_of(path.stat().st_mode)}, not a regular "
+                        "file; give the body.json itself")
     if not path.is_file():
-        raise BodyError(f"body folder {path.parent} holds no {MANIFEST_NAME}; write one naming "
+        raise BodyError(f"{path.parent} holds no {path.name}; write a {MANIFEST_NAME} naming "
                         "each panel's file (paintcell.surface.body_panels), or give the body's "
                         "mesh file")
     try:
@@ -278,7 +284,7 @@ def _from_manifest(path: Path, units: str) -> list[BodyPanel]:
         unit = choose_units(np.ptp(allv, axis=0), "auto").units
     out = []
     for rec, v, f, src in read:
-        pl = rec.get("placement") or {}
+        pl: Any = rec.get("placement") or {}
         if not isinstance(pl, dict):
             raise BodyError(f"{path}: panel {rec['name']!r} placement must be a table like "
                             "{\"xyz_m\": [0, 0, 0], \"rpy_rad\": [0, 0, 0]}")
