@@ -24,7 +24,7 @@ from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S
 from paintcell.booth.line_takt import UTILISATION
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["init_line", "line_toml"]
+__all__ = ["init_body_line", "init_line", "line_toml"]
 
 #: The booth cycle's threshold over the verified one [-] (room for the run's own moves).
 CYCLE_MARGIN = 1.15
@@ -213,3 +213,24 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
             for bp, stem in zip(line.booth.parts, stems, strict=True)))
         atomic_write_text(out, line_toml(line, rel, sides, source))
     return line
+
+
+def init_body_line(body: Path, out: Path, takt_s: float | None, max_robots: int, force: bool,
+                   name: str | None, line_flag: bool, robot_options: bool) -> str:
+    """`paintcell init BODY --line --takt T`: the options checked (one line each), the body read
+    (`paintcell.surface.body_panels.load_body`), the line laid out and written; what to print."""
+    from paintcell.core.safe_paths import check_new_target
+    from paintcell.surface.body_panels import load_body
+
+    if not line_flag or takt_s is None:
+        raise PaintcellError("--line and --takt go together: write `paintcell init BODY --line "
+                             "--takt 75 --out line.toml` (a body every 75 s)")
+    if robot_options:
+        raise PaintcellError("--robot/--robots do not apply to --line (its robots are IRB 5500s, "
+                             "their count from --takt); use --max-robots N")
+    check_new_target(out, "--out", force)    # before minutes of planning
+    line = init_line(load_body(body), out, takt_s, max_robots, force, str(body), name)
+    t = line.takt
+    return (f"line: {len(line.booth.robots)} robots for a body every {t.takt_s:g} s; conveyor "
+            f"{t.conveyor_speed_m_s:.4f} m/s (pitch {t.pitch_m:.3f} m); longest program + return "
+            f"{max(t.robot_cycle_s(b) for b in line.built_s):.1f} s\nscenario written: {out}")

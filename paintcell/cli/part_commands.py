@@ -71,19 +71,16 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "([[robots]]) with the reason for each choice. 1: one robot only (refused "
                    "when none reaches); 2–4: that many, laid out the same way")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
-    n.add_argument("--line", action="store_true",
-                   help="FILE is a car body (`paintcell generate body`): lay out a paint line "
-                   "for it from --takt (conveyor speed, robot count, floor and elevated rails, "
-                   "panels allocated by zone) and write a booth file plus its panels' meshes "
-                   "(<out stem>_panels/), once the booth's checks pass on it")
-    n.add_argument("--takt", default=None, metavar="SECONDS",
+    n.add_argument("--line", action="store_true", help="FILE is a car body (`paintcell generate "
+                   "body`): write a paint line for it from --takt (a booth file + its panels' "
+                   "meshes in <out stem>_panels/), once the booth's checks pass on it")
+    n.add_argument("--takt", default=None, metavar="SECONDS", help="with --line: a body every "
+                   "SECONDS [s]; the conveyor runs one body length + 1 m per takt",
                    type=number_option("--takt", float, low=1.0, high=3600.0, unit="s",
-                                      example="75"),
-                   help="with --line: a body every SECONDS [s]; the conveyor runs one body "
-                   "length + 1 m per takt and every robot's program plus its return home fits it")
-    n.add_argument("--max-robots", default=10, metavar="N",
-                   type=number_option("--max-robots", int, low=1, high=30, example="10"),
-                   help="with --line: most robots the line may have [robots] (default 10)")
+                                      example="75"))
+    n.add_argument("--max-robots", default=10, metavar="N", help="with --line: most robots "
+                   "the line may have [robots] (default 10)",
+                   type=number_option("--max-robots", int, low=1, high=30, example="10"))
     n.set_defaults(func=_cmd_init)
     add_generate(add_parser)
 
@@ -278,8 +275,11 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.surface.part_import import import_part
 
     out: Path = args.out
-    if args.line or args.takt is not None:
-        return _init_line(args)
+    if args.line or args.takt is not None:      # a paint line (`init_line_file`)
+        from paintcell.app.init_line_file import init_body_line
+        print(init_body_line(args.file, out, args.takt, args.max_robots, args.force, args.name,
+                             args.line, args.robots is not None or args.robot != "auto"))
+        return 0
     if out.suffix != ".toml":
         raise PaintcellError(f"--out {out}: a scenario file ends in .toml")
     check_new_target(out, "--out", args.force)  # before minutes of planning, and again below
@@ -374,28 +374,6 @@ def _init_multi(args: argparse.Namespace, name: str, spec: MeshPart, spec_rel: M
     atomic_write_text(args.out, text)
     print(_describe(rep, surf))
     print(f"cell: {len(cell.booth.robots)} {model} robots on rails; {cell.why['jobs']}")
-    print(f"scenario written: {args.out}")
-    return 0
-
-
-def _init_line(args: argparse.Namespace) -> int:
-    """`init BODY --line --takt T` (`paintcell.app.init_line_file.init_line`)."""
-    from paintcell.app.init_line_file import init_line
-    from paintcell.surface.body_panels import load_body
-
-    if not args.line or args.takt is None:
-        raise PaintcellError("--line and --takt go together: write `paintcell init BODY --line "
-                             "--takt 75 --out line.toml` (a body every 75 s)")
-    if args.robots is not None or args.robot != "auto":
-        raise PaintcellError("--robot/--robots do not apply to --line (its robots are IRB 5500s, "
-                             "their count from --takt); use --max-robots N")
-    check_new_target(args.out, "--out", args.force)    # before minutes of planning
-    line = init_line(load_body(args.file), args.out, args.takt, args.max_robots, args.force,
-                     str(args.file), args.name)
-    t = line.takt
-    print(f"line: {len(line.booth.robots)} robots for a body every {t.takt_s:g} s; conveyor "
-          f"{t.conveyor_speed_m_s:.4f} m/s (pitch {t.pitch_m:.3f} m); longest program + return "
-          f"{max(t.robot_cycle_s(b) for b in line.built_s):.1f} s")
     print(f"scenario written: {args.out}")
     return 0
 
