@@ -71,6 +71,16 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "([[robots]]) with the reason for each choice. 1: one robot only (refused "
                    "when none reaches); 2–4: that many, laid out the same way")
     n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
+    n.add_argument("--line", action="store_true", help="FILE is a car body (`paintcell generate "
+                   "body`): write a paint line for it from --takt (a booth file + its panels' "
+                   "meshes in <out stem>_panels/), once the booth's checks pass on it")
+    n.add_argument("--takt", default=None, metavar="SECONDS", help="with --line: a body every "
+                   "SECONDS [s]; the conveyor runs one body length + 1 m per takt",
+                   type=number_option("--takt", float, low=1.0, high=3600.0, unit="s",
+                                      example="75"))
+    n.add_argument("--max-robots", default=10, metavar="N", help="with --line: most robots "
+                   "the line may have [robots] (default 10)",
+                   type=number_option("--max-robots", int, low=1, high=30, example="10"))
     n.set_defaults(func=_cmd_init)
     add_generate(add_parser)
 
@@ -265,6 +275,11 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.surface.part_import import import_part
 
     out: Path = args.out
+    if args.line or args.takt is not None:      # a paint line (`init_line_file`)
+        from paintcell.app.init_line_file import init_body_line
+        print(init_body_line(args.file, out, args.takt, args.max_robots, args.force, args.name,
+                             args.line, args.robots is not None or args.robot != "auto"))
+        return 0
     if out.suffix != ".toml":
         raise PaintcellError(f"--out {out}: a scenario file ends in .toml")
     check_new_target(out, "--out", args.force)  # before minutes of planning, and again below

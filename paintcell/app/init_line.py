@@ -1,0 +1,196 @@
+"""`paintcell init BODY --line --takt T`: a paint line laid out for a whole car body from its takt
+(a body every T seconds), checked by the booth's own program build before anything is written.
+
+- Takt: pitch, conveyor speed, each robot's program plus its carriage's return home, the first
+  robot count (`paintcell.booth.line_takt`).
+- Allocation: panels to robots by zone (left and right floor robots for the side panels and
+  fascias, top robots for the hood, roof and trunk, each top panel cut at the car's centre line
+  between the left and right top robots), balanced by estimated time along the car
+  (`paintcell.booth.line_allocation`; written as the booth's fixed `[allocation]`).
+- Robots (`paintcell.app.init_line_robots`): IRB 5500s (closed-form IK, which the booth's
+  reach checks need) on rails along the conveyor, each centred on its passes' stretch of the car,
+  its travel that stretch plus the body's travel while it paints (`TRACK_FACTOR` × half the
+  line's travel over a takt at each end, as the booth's own rail margin) and a margin; floor
+  rails beside the body for the side zones, wall mounts 3 m up (else elevated rails) for the
+  top; the first frame that reaches every pass of its jobs and whose program builds alone.
+- The body rides on its skid: lifted until its lowest pass is `MIN_TCP_Z_M` above the floor.
+- Count: from the first estimate up to `max_robots`, the smallest whose every robot's estimated
+  program plus return fits the takt, every robot reaches its passes, and whose programs the
+  booth builds (`paintcell.booth.booth_programs.booth_programs`: IK, moves, clearance from the
+  whole body, the robots staggered apart) with every built program plus return within the takt;
+  no count: one line naming why each failed.
+- The plans are made once, at the fast resolution, without the film refinement (the written
+  line refines each panel's film with every pass's duration held, `film_refine_pace`, so the
+  durations estimated here are those it runs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from paintcell.app.init_layout import TRAJECTORY_TRIES
+from paintcell.app.init_line_robots import ProgramBuilder, place_robots
+from paintcell.booth.line_allocation import LinePanel, RobotShare, allocate_line, zone_of
+from paintcell.booth.line_takt import LineTakt, first_count
+from paintcell.core.errors import PaintcellError
+
+__all__ = ["Line", "choose_line", "line_panels"]
+
+#: Lowest TCP height of a pass above the floor [m]; the body is lifted (its skid) until its
+#: plan clears it (`paintcell init`'s own rule for a part: below it the wrist and the bell sweep
+#: the floor).
+MIN_TCP_Z_M = 0.6
+#: Times half the body's travel over a takt that each end of a rail leaves for tracking [-]
+#: (`paintcell.booth.booth_programs`' own rail margin is 1.25 × half the travel).
+TRACK_FACTOR = 1.3
+
+
+#: Planner table of a side panel or fascia: passes along the panel's straight direction (a car
+#: side's is along the car: the passes run along the rails; the library door's default passes
+#: bring its robot's flange onto the door).
+SIDE_PLANNER: dict[str, Any] = {"orientation": "zero-curvature"}
+
+
+def _planner(zone: str) -> dict[str, Any]:
+    """A panel's planner table by its zone (top panels: the planner's defaults)."""
+    return {} if zone == "top" else dict(SIDE_PLANNER)
+
+
+@dataclass
+class Line:
+    """The chosen line: the booth as written (mesh parts, robots, fixed allocation, conveyor),
+    its takt arithmetic, each robot's share and estimated and built program [s], the real booth
+    cycle [s], the first estimate of the count, the panels' pass counts and whole programs'
+    total [s], why each count before it failed, each robot's rail frame (why) and the build's
+    record."""
+
+    booth: Any
+    takt: LineTakt
+    shares: list[RobotShare]
+    built_s: list[float]
+    cycle_s: float
+    first_count: int
+    n_passes: list[int]
+    total_s: float
+    failed: list[str] = field(default_factory=list)
+    frames: list[str] = field(default_factory=list)
+    record: dict[str, Any] = field(default_factory=dict)
+
+
+def line_panels(pp: Any) -> list[LinePanel]:
+    """The allocation's view of planned panels (`plan_parts`' plans; part frame = body frame):
+    painted side, area-weighted centroid, pass durations and mean y."""
+    out = []
+    for surf, plan in zip(pp.surfaces, pp.plans, strict=True):
+        w = surf.vertex_areas / surf.vertex_areas.sum()
+        side = np.asarray(surf.regions.painted_direction, float)
+        out.append(LinePanel(surf.name, tuple(side / np.linalg.norm(side)),
+                             tuple(float(x) for x in w @ surf.vertices),
+                             np.array([p.duration_s for p in plan.passes]),
+                             np.array([float(np.mean(p.positions[:, 1])) for p in plan.passes])))
+    return out
+
+
+def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bool = True,
+                say: Callable[[str], None] = print) -> Line:
+    """The line (module doc) for `booth` (its mesh parts in the body frame, its conveyor at the
+    takt's speed; robots are replaced) planned as `pp` (`plan_parts(booth, fast=True)` with
+    `film_refine = false`). verify: build the programs (False: estimates and closed-form reach
+    only). Raises PaintcellError (one line, why each count failed)."""
+    from paintcell.booth.booth_programs import booth_programs
+    from paintcell.core.placement import Placement
+
+    # the body on its skid: its lowest pass MIN_TCP_Z_M above the floor, as `init` lifts a part
+    low = min(float(pl.tcp_frames(i)[:, 2, 3].min()) for pl in pp.plans
+              for i in range(len(pl.passes)))
+    booth = replace(booth, body_placement=Placement((0.0, 0.0, round(max(0.0, MIN_TCP_Z_M - low),
+                                                                      3)), (0.0, 0.0, 0.0)))
+    panels = line_panels(pp)
+    total = sum(takt.program_s([p.durations_s]) for p in panels)
+    n0 = first_count(total, takt.takt_s)
+    n_passes = [len(p.durations_s) for p in panels]
+    track_m = TRACK_FACTOR * 0.5 * takt.conveyor_speed_m_s * takt.takt_s
+    failed: list[str] = []
+    builder: ProgramBuilder | None = None
+    seen: set[tuple[Any, ...]] = set()
+    for n in range(1, max_robots + 1):
+        if n < n0:
+            continue
+        try:
+            shares = allocate_line(panels, n, takt.robot_cycle_s)
+        except ValueError as exc:
+            failed.append(f"{n}: {exc}")
+            continue
+        key = tuple((s.zone, s.jobs) for s in shares)
+        if key in seen:      # every zone saturated: no larger count differs
+            failed.append(f"{n}–{max_robots}: the zones' jobs cannot be cut further (each panel "
+                          f"at most in two pieces), so more robots give the {len(shares)} robots' "
+                          "line")
+            break
+        seen.add(key)
+        cycles = [takt.robot_cycle_s(s.program_s) for s in shares]
+        if max(cycles) > takt.takt_s:
+            worst = int(np.argmax(cycles))
+            failed.append(f"{n}: the {shares[worst].zone} robot's program + return is "
+                          f"{cycles[worst]:.1f} s estimated > takt {takt.takt_s:g} s")
+            continue
+        say(f"init: {len(shares)} robots, estimated programs + return "
+            f"{', '.join(f'{c:.1f}' for c in cycles)} s; placing them")
+        if verify and builder is None:
+            builder = ProgramBuilder(booth, pp)
+        placed = place_robots(booth, pp, shares, track_m, builder)
+        if isinstance(placed, str):
+            failed.append(f"{n}: {placed}")
+            continue
+        robots, frames, traj = placed
+        alloc = {r.name: tuple((j.part, j.first, j.end) for j in s.jobs)
+                 for r, s in zip(robots, shares, strict=True)}
+        cand = replace(booth, robots=tuple(robots), allocation=alloc, trajectory=traj)
+        if not verify:
+            return Line(cand, takt, shares, [], float("nan"), n0, n_passes, total, failed,
+                        frames)
+        say(f"init: building the {len(robots)} robots' programs (IK, moves, body clearance, "
+            "staggering)")
+        try:
+            progs = booth_programs(cand, True, pp)
+        except PaintcellError as exc:
+            failed.append(f"{n}: the booth cannot build it ({str(exc).split('; ')[0][:160]})")
+            continue
+        built = [float(tr.duration_s) for tr in progs.static]
+        real = [takt.robot_cycle_s(b) for b in built]
+        if max(real) > takt.takt_s:
+            worst = int(np.argmax(real))
+            failed.append(f"{n}: {robots[worst].name}'s built program + return is "
+                          f"{real[worst]:.1f} s > takt {takt.takt_s:g} s")
+            continue
+        cycle = float(max(len(tr.t_s) for tr in progs.trajs) - 1) * progs.trajs[0].dt_s
+        return Line(cand, takt, shares, built, cycle, n0, n_passes, total, failed, frames,
+                    {"start_delays_s": progs.record.get("start_delays_s", []),
+                     "body_clearance": progs.record.get("body_clearance", {})})
+    raise PaintcellError(
+        f"no line of up to {max_robots} robots paints a body every {takt.takt_s:g} s "
+        f"(conveyor {takt.conveyor_speed_m_s:.3f} m/s, estimated {total:.0f} s of programs, first "
+        f"estimate {n0} robots): {' | '.join(failed) or 'the first estimate exceeds the limit'}; "
+        "lengthen --takt or raise --max-robots")
+
+
+def panel_booth(name: str, files: Sequence[Any], takt: LineTakt) -> Any:
+    """The booth of the body's panels (each a `MeshPart` in the body frame, placed at the
+    identity), robots to be laid out (a placeholder), the conveyor at the takt's speed, as
+    `choose_line` plans it (film refinement off: `film_refine_pace` in the written line)."""
+    from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
+    from paintcell.booth.conveyor import Conveyor
+    from paintcell.core.placement import Placement
+
+    parts = tuple(BodyPart(f.stem, Placement(), {**_planner(zone_of(f.side, (0, 0, 0))),
+                                                 "film_refine": False}, mesh=f) for f in files)
+    return Booth(name=name, parts=parts, robots=(BoothRobot("placeholder"),),
+                 conveyor=Conveyor(takt.conveyor_speed_m_s, (1.0, 0.0, 0.0)),
+                 servo={"gain_inertia": "effective"},
+                 trajectory=dict(TRAJECTORY_TRIES[0]),
+                 film_refine_pace=True, robot_aware_speeds=False,
+                 thresholds=BoothThresholds(min_bell_distance_m=0.6))

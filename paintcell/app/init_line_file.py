@@ -1,0 +1,236 @@
+"""What `paintcell init BODY --line --takt T` writes: the body's panels as mesh files (binary STL in
+metres, body frame, in `<out stem>_panels/` beside the booth file) and a booth TOML (the format of
+`paintcell.booth.booth_data`: `[[parts]]` with `[parts.part]` tables, `[[robots]]` on rails, the
+conveyor at the takt's speed, the fixed `[allocation]`), with a comment giving the reason for each
+choice: the count, the kind and place of each robot, the conveyor speed, the allocation and each
+robot's estimated program against the takt (`write_line`). Nothing is written unless the line
+was laid out and verified (`paintcell.app.init_line.choose_line`); the panels are planned from
+a temporary folder first.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import textwrap
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from paintcell.app.init_line import Line
+from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S
+from paintcell.booth.line_takt import UTILISATION
+from paintcell.core.errors import PaintcellError
+
+__all__ = ["init_body_line", "init_line", "line_toml"]
+
+#: The booth cycle's threshold over the verified one [-] (room for the run's own moves).
+CYCLE_MARGIN = 1.15
+
+
+def _v(x: Any) -> str:
+    return json.dumps(list(x) if isinstance(x, tuple) else x)
+
+
+def _fill(text: str) -> str:
+    return textwrap.fill(text, 96, initial_indent="# ", subsequent_indent="# ")
+
+
+def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]],
+              source: str) -> str:
+    """The booth file of `line` (module doc); files: each panel's mesh file relative to the
+    written file; sides: each panel's painted side (body frame); source: the body file named
+    in the header."""
+    b, t = line.booth, line.takt
+    names = [p.part for p in b.parts]
+    rows = []
+    for r, s, est, built, frame in zip(b.robots, line.shares, [s.program_s for s in line.shares],
+                                       line.built_s, line.frames, strict=True):
+        jobs = ", ".join(names[j.part] + ("" if j.first == 0 and j.end == line.n_passes[j.part]
+                                           else f" passes {j.first}–{j.end - 1}")
+                         for j in s.jobs)
+        rows.append(f"{r.name}: {jobs}; program {est:.1f} s estimated, {built:.1f} s built, "
+                    f"+ return {t.robot_cycle_s(built) - built:.1f} s = "
+                    f"{t.robot_cycle_s(built):.1f} s ≤ takt {t.takt_s:g} s ({frame})")
+    head = [
+        f"Written by `paintcell init {source} --line --takt {t.takt_s:g}`: a paint line of "
+        f"{len(b.robots)} robots for a body every {t.takt_s:g} s; every choice below is editable.",
+        f"Conveyor: pitch = body length {t.body_length_m:.3f} m + gap {t.gap_m:g} m = "
+        f"{t.pitch_m:.3f} m; speed = pitch / takt = {t.conveyor_speed_m_s:.5f} m/s "
+        f"({t.conveyor_speed_m_s * 60:.2f} m/min).",
+        f"Why {len(b.robots)} robots: the panels' programs total {line.total_s:.1f} s (paint at "
+        f"each pass's planned speed + {TURN_S} s per turn-around + {APPROACH_RETRACT_S} s "
+        f"approach and retract per job); a first estimate of ⌈total / (takt × {UTILISATION})⌉ "
+        f"= {line.first_count}; the smallest count from there whose every robot's program plus "
+        "its carriage's return home (the distance the body carried it, at the rail's 1.5 m/s, "
+        "4 m/s²) fits the takt, every robot reaches its passes in closed form and the booth "
+        "builds every program clear of the body with the arms staggered apart"
+        + (f" (before it: {'; '.join(line.failed)})" if line.failed else "") + ".",
+        "Which robots: IRB 5500 paint arms on rails along the conveyor (closed-form IK for the "
+        "reach checks; the carriage tracks the body). Floor rails on each side paint the side "
+        "panels and fascias; the top robots, wall-mounted 3 m up beside the body (above the "
+        "floor robots' arms, as the IRB 5500 is mounted in scenarios/booth.toml), else on "
+        "elevated rails, paint the hood, roof and trunk, each top panel cut at the car's centre "
+        "line between the left and right top robots. Each rail is centred on its robot's stretch "
+        "of the car (robots of one zone at least 1.5 m apart) and reaches that stretch plus the "
+        "body's travel while it paints and 0.3 m at each end.",
+        "Allocation (fixed below, pass ranges of the plan at 0.025 m, which both resolutions "
+        "use): by zone, each zone's jobs front to rear cut into contiguous runs of least longest "
+        "program (bisection with a greedy fill; a panel cut once at a pass boundary when it "
+        "does not fit whole), robots given to the zone with the longest program.",
+        *rows,
+        f"Verified booth cycle (one body, start delays "
+        f"{', '.join(f'{d:.1f}' for d in line.record.get('start_delays_s', []))} s): "
+        f"{line.cycle_s:.1f} s; its threshold {CYCLE_MARGIN:g} × that.",
+        "The film: each panel refined with every pass's duration held (film_refine_pace), so "
+        "the programs keep the durations estimated; the speeds are not re-planned per robot "
+        "(robot_aware_speeds = false) so the programs run are the ones verified."]
+    text = "\n".join(_fill(h) for h in head)
+    parts = ""
+    for f, side, bp in zip(files, sides, b.parts, strict=True):
+        planner = "".join(f"{k} = {_v(v)}\n" for k, v in bp.planner.items())
+        parts += f"""
+[[parts]]
+xyz_m = [0.0, 0.0, 0.0]
+rpy_rad = [0.0, 0.0, 0.0]
+[parts.part]
+file = {_v(f)}   # relative to this file; the body frame, metres
+units = "m"
+pieces = "all"
+side = {_v([round(float(x), 6) for x in side])}
+"""
+        parts += (f"[parts.planner]   # passes along the panel's straight direction\n{planner}"
+                  if planner else "")
+    robots = ""
+    # angles written exactly: a rail off the line's direction by round-off leaves the conveyor's
+    # motion across it to the arm's IK (`paintcell.booth.conveyor.track_program`)
+    for r in b.robots:
+        x, y, z = r.base.xyz_m
+        robots += f"""
+[[robots]]
+name = {_v(r.name)}
+model = "irb5500"
+rail = {_v([round(v, 4) for v in r.rail_m])}
+home = {_v(list(r.home))}
+# rail frame at x = {x:.2f} m, {abs(y):.2f} m {'left (+y)' if y > 0 else 'right (−y)'}, {z:.2f} m
+# up; the arm faces the body, the carriage runs along the conveyor
+[robots.base]
+xyz_m = {_v([round(v, 4) for v in r.base.xyz_m])}
+rpy_rad = {_v([float(v) for v in r.base.rpy_rad])}
+"""
+    alloc = "".join(f"{name} = {_v([list(j) for j in jobs])}\n"
+                    for name, jobs in b.allocation.items())
+    traj = "".join(f"{k} = {_v(v)}\n" for k, v in b.trajectory.items())
+    cycle = round(CYCLE_MARGIN * line.cycle_s, 1)
+    return f"""{text}
+name = {_v(b.name)}
+resolution_m = {b.fast_resolution_m}
+fast_resolution_m = {b.fast_resolution_m}
+film_refine_pace = true
+robot_aware_speeds = false
+
+# the body frame at conveyor position 0: lifted on its skid so its lowest pass is 0.6 m up
+[body_placement]
+xyz_m = {_v(list(b.body_placement.xyz_m))}
+rpy_rad = [0.0, 0.0, 0.0]
+
+# pitch {t.pitch_m:.4f} m / takt {t.takt_s:g} s
+[conveyor]
+speed_m_s = {t.conveyor_speed_m_s!r}
+direction = [1.0, 0.0, 0.0]
+{parts}{robots}
+# robot = [[panel index, first pass, end pass], ...], run one after the other
+[allocation]
+{alloc}
+[trajectory]
+{traj}
+# gains from each joint's effective inertia (the IRB 5500's J3 loop rings with the diagonal
+# inertia in fast turn-arounds)
+[servo]
+gain_inertia = "effective"
+
+[thresholds]
+reachability_pct = 100.0
+max_collisions = 0
+max_robot_collisions = 0
+min_bell_distance_m = {b.thresholds.min_bell_distance_m}
+max_cycle_time_s = {cycle}
+"""
+
+
+def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, force: bool,
+              source: str, name: str | None = None, say: Callable[[str], None] = print) -> Line:
+    """Lay out, verify and write the line for `panels` (`paintcell.surface.body_panels.BodyPanel`s:
+    `name`, `mesh` — a trimesh in metres, body frame — and `direction`, toward the painter) to
+    `out` (module doc). Raises PaintcellError (one line)
+    with nothing written when no line up to `max_robots` makes the takt."""
+    from dataclasses import replace
+
+    from paintcell.app.init_line import choose_line, panel_booth
+    from paintcell.booth.booth_plans import plan_parts
+    from paintcell.booth.line_takt import LineTakt
+    from paintcell.core.atomic_io import atomic_path, atomic_write_text
+    from paintcell.core.safe_paths import check_new_target
+    from paintcell.surface.part_spec import MeshPart
+
+    if out.suffix != ".toml":
+        raise PaintcellError(f"--out {out}: a booth file ends in .toml")
+    check_new_target(out, "--out", force)
+    folder = out.parent / f"{out.stem}_panels"
+    if folder.exists() and (not folder.is_dir() or folder.is_symlink() or not force):
+        raise PaintcellError(f"{folder} exists (the panels' folder of --out {out}); pass --force "
+                             "to replace its panel files, or choose another --out")
+    if not panels:
+        raise PaintcellError(f"{source} holds no panel; give a body file with panels")
+    stems = [f"{i:02d}_" + "".join(c if c.isalnum() or c in "_-" else "_" for c in str(p.name))
+             for i, p in enumerate(panels)]
+    verts = np.concatenate([np.asarray(p.mesh.vertices, float) for p in panels])
+    takt = LineTakt(float(takt_s), float(np.ptp(verts[:, 0])))
+    name = name or "".join(c if c.isalnum() or c in "_-" else "_" for c in out.stem)
+    sides = [tuple(float(x) for x in p.direction) for p in panels]
+    with tempfile.TemporaryDirectory(prefix="paintcell-line-") as tmp:
+        specs = []
+        for stem, p, side in zip(stems, panels, sides, strict=True):
+            f = Path(tmp) / f"{stem}.stl"
+            p.mesh.export(f, file_type="stl")
+            specs.append(MeshPart(file=str(f), units="m", pieces="all", side=side))
+        booth = panel_booth(name, specs, takt)
+        say(f"init: planning {len(specs)} panels (fast resolution, no film refinement)")
+        pp = plan_parts(booth, fast=True)
+        line = choose_line(booth, pp, takt, max_robots, say=say)
+        check_new_target(out, "--out", force)
+        folder.mkdir(parents=True, exist_ok=True)
+        rel = []
+        for stem, spec in zip(stems, specs, strict=True):
+            with atomic_path(folder / f"{stem}.stl") as dst:
+                dst.write_bytes(Path(spec.file).read_bytes())
+            rel.append(f"{folder.name}/{stem}.stl")
+        line.booth = replace(line.booth, parts=tuple(
+            replace(bp, planner={k: v for k, v in bp.planner.items() if k != "film_refine"},
+                    mesh=replace(bp.mesh, file=str(folder / f"{stem}.stl")))
+            for bp, stem in zip(line.booth.parts, stems, strict=True)))
+        atomic_write_text(out, line_toml(line, rel, sides, source))
+    return line
+
+
+def init_body_line(body: Path, out: Path, takt_s: float | None, max_robots: int, force: bool,
+                   name: str | None, line_flag: bool, robot_options: bool) -> str:
+    """`paintcell init BODY --line --takt T`: the options checked (one line each), the body read
+    (`paintcell.surface.body_panels.load_body`), the line laid out and written; what to print."""
+    from paintcell.core.safe_paths import check_new_target
+    from paintcell.surface.body_panels import load_body
+
+    if not line_flag or takt_s is None:
+        raise PaintcellError("--line and --takt go together: write `paintcell init BODY --line "
+                             "--takt 75 --out line.toml` (a body every 75 s)")
+    if robot_options:
+        raise PaintcellError("--robot/--robots do not apply to --line (its robots are IRB 5500s, "
+                             "their count from --takt); use --max-robots N")
+    check_new_target(out, "--out", force)    # before minutes of planning
+    line = init_line(load_body(body), out, takt_s, max_robots, force, str(body), name)
+    t = line.takt
+    return (f"line: {len(line.booth.robots)} robots for a body every {t.takt_s:g} s; conveyor "
+            f"{t.conveyor_speed_m_s:.4f} m/s (pitch {t.pitch_m:.3f} m); longest program + return "
+            f"{max(t.robot_cycle_s(b) for b in line.built_s):.1f} s\nscenario written: {out}")

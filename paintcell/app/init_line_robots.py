@@ -1,0 +1,229 @@
+"""Where each robot of a paint line stands (`paintcell init BODY --line`,
+`paintcell.app.init_line`): its station along the car, its side, where it parks, the candidate
+rail frames of its zone (floor rails for the side panels, wall mounts 3 m up or elevated rails for
+the top panels), the first of them from which it reaches every pass of its jobs in closed form
+(`paintcell.booth.booth.pass_feasible`) and whose program the booth builds alone
+(`ProgramBuilder`: IK, moves, clearance from the whole body).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from paintcell.app.init_layout import ARM, HOME, TRAJECTORY_TRIES, rail_robots
+from paintcell.booth.line_allocation import RobotShare
+from paintcell.core.errors import PaintcellError
+
+__all__ = ["ProgramBuilder", "place_robots"]
+
+#: Carriage top of a floor rail above the floor [m] (scenarios/booth.toml's side robots).
+FLOOR_RAIL_Z_M = 0.3
+#: Gap between the body's side (its panels' outermost point) and a floor rail frame [m], tried
+#: in this order.
+SIDE_GAPS_M = (1.9, 1.6, 2.2)
+#: Wall-mounted top robots (scenarios/booth.toml's roof_r: the IRB 5500 is a wall-mount paint
+#: robot): base plate this far beside the body's side [m], tried in this order, `WALL_Z_M` up
+#: [m], J1 horizontal toward the car, the carriage along the line. Above the floor robots'
+#: arms, where an elevated rail at the roof's height stands in their way.
+WALL_GAPS_M = (1.3, 1.6)
+WALL_Z_M = 3.0
+#: Home of a wall-mounted robot: carriage at 0, the arm folded over the body (roof_r's).
+WALL_HOME = (0.0, 0.0, -0.9, 0.9, 0.0, 0.6, 0.0)
+#: How far past its stretch of the car a robot parks when it shares its side [m].
+PARK_M = 1.5
+#: Least distance between the rail centres of two robots of one zone [m].
+STATION_SPACING_M = 1.5
+#: Gap beside the top panels' box of an elevated rail frame [m], tried in this order.
+TOP_GAPS_M = (1.0, 0.7, 1.3)
+#: Drop of an elevated rail frame below the top of its panels [m], tried for each gap.
+TOP_DROPS_M = (0.05, 0.35)
+#: Further carriage travel at each end of a rail [m].
+RAIL_MARGIN_M = 0.3
+#: Home of a floor robot: carriage at 0, the arm folded low (the wrist centre ~1.75 m up) so an
+#: elevated robot's carriage passes over it (scenarios/booth.toml's side robots).
+SIDE_HOME = (0.0, 0.0, -0.6, 0.9, 0.0, 0.6, 0.0)
+
+
+def _stations(shares: list[RobotShare], pts: list[np.ndarray]) -> list[float]:
+    """Each robot's rail centre along the car [m]: its passes' stretch's middle, the robots of
+    one zone (front to rear) at least `STATION_SPACING_M` apart (two on one panel's pieces would
+    otherwise stand on one spot), the zone's stations moved back round their middle."""
+    centre = [float((p[:, 0].min() + p[:, 0].max()) / 2) for p in pts]
+    out = list(centre)
+    for zone in dict.fromkeys(s.zone for s in shares):
+        idx = [i for i, s in enumerate(shares) if s.zone == zone]
+        x = [centre[i] for i in idx]
+        for k in range(1, len(x)):
+            x[k] = min(x[k], x[k - 1] - STATION_SPACING_M)
+        shift = float(np.mean([centre[i] for i in idx]) - np.mean(x))
+        for i, xi in zip(idx, x, strict=True):
+            out[i] = xi + shift
+    return out
+
+
+def _sides_and_parks(shares: list[RobotShare], stations: list[float]
+                     ) -> tuple[list[bool], list[int]]:
+    """Each robot's side of the car (True: left) and where it parks along the line (+1: past
+    its stretch toward the car's front, −1: toward its rear, 0: at its station). A lone top robot
+    stands on the side with fewer floor robots; of the robots on one side, ordered front to
+    rear, the front half park toward the front, the rear half toward the rear, the middle one
+    toward the front on the left and the rear on the right (a parked arm would otherwise stand in
+    a neighbour's stretch, which the booth's staggering cannot clear); so do two top robots
+    across the car from each other (each folded over the body at home, they meet over the
+    centre line). A robot alone on its side with no top partner parks at its station."""
+    tops = [s.zone for s in shares if s.zone.startswith("top")]
+    floor_left = sum(s.zone == "left" for s in shares)
+    floor_right = sum(s.zone == "right" for s in shares)
+    left = [s.zone == "left" or (s.zone == "top_left" and (len(tops) > 1
+                                                           or floor_left <= floor_right))
+            for s in shares]
+    park = [0] * len(shares)
+    for side in (True, False):
+        idx = sorted((i for i in range(len(shares)) if left[i] == side),
+                     key=lambda i: -stations[i])
+        for k, i in enumerate(idx):
+            # the middle one (and a lone one) toward the front on the left, the rear on the right
+            park[i] = 1 if 2 * k + 1 < len(idx) else -1 if 2 * k + 1 > len(idx) \
+                else (1 if side else -1)
+        if len(idx) == 1 and not (len(tops) > 1 and shares[idx[0]].zone.startswith("top")):
+            park[idx[0]] = 0         # alone on its side, no top partner across: at its station
+    return left, park
+
+
+def _robot_frames(share: RobotShare, k: int, pts: np.ndarray, x_m: float, left: bool,
+                  park: int, body_lo: np.ndarray, body_hi: np.ndarray, track_m: float
+                  ) -> list[tuple[str, Any]]:
+    """Candidate robots of one share at station `x_m` on the car's left (or right), parked as
+    `park` says (`_sides_and_parks`), in the order tried: (why, `BoothRobot`)."""
+    from paintcell.booth.booth import BoothRobot
+    from paintcell.core.placement import Placement
+
+    reach = float(np.abs(pts[:, 0] - x_m).max())
+    half = round(reach + (PARK_M if park else 0.0) + track_m + RAIL_MARGIN_M, 3)
+    # the carriage runs along world +x on the left, −x on the right (the arm faces the car)
+    home0 = round(park * (reach + PARK_M) * (1.0 if left else -1.0), 3)
+    name = f"{share.zone}_{k}" if share.zone in ("left", "right") \
+        else f"top_{'left' if left else 'right'}_{k}"
+    out = []
+    if share.zone in ("left", "right"):
+        for gap in SIDE_GAPS_M:
+            box_lo = np.array([x_m, body_lo[1], 0.0])
+            box_hi = np.array([x_m, body_hi[1], FLOOR_RAIL_Z_M])
+            r = rail_robots(2, box_lo, box_hi, gap, 0.0, ARM)[0 if left else 1]
+            out.append((f"floor rail {gap} m beside the body's side, {FLOOR_RAIL_Z_M} m up",
+                        replace(r, name=name, home=(home0, *SIDE_HOME[1:]),
+                                rail_m=(-half, half))))
+        return out
+    for gap in WALL_GAPS_M:      # J1 horizontal toward the car, the carriage along the line
+        y = float(body_hi[1] + gap if left else body_lo[1] - gap)
+        rpy = (0.0, np.pi / 2, -np.pi / 2 if left else np.pi / 2)
+        out.append((f"wall-mounted {gap} m beside the body, {WALL_Z_M} m up",
+                    BoothRobot(name, f"{ARM}_rail", Placement((round(x_m, 4), round(y, 4),
+                                                                WALL_Z_M), rpy),
+                               (home0, *WALL_HOME[1:]), (-half, half))))
+    for gap in TOP_GAPS_M:
+        for drop in TOP_DROPS_M:
+            box_lo = np.array([x_m, body_lo[1], pts[:, 2].min()])
+            box_hi = np.array([x_m, body_hi[1], pts[:, 2].max()])
+            r = rail_robots(2, box_lo, box_hi, gap, drop, ARM)[0 if left else 1]
+            out.append((f"elevated rail {gap} m beside the body, {drop} m below its top "
+                        "panels' top", replace(r, name=name, home=(home0, *HOME[1:]),
+                                               rail_m=(-half, half))))
+    return out
+
+
+class ProgramBuilder:
+    """Each robot's program alone, as the booth builds it (`paintcell.booth.booth_job_programs`:
+    IK, moves, clearance from the whole body), on the plans as the booth finishes them."""
+
+    def __init__(self, booth: Any, pp: Any) -> None:
+        from paintcell.booth.booth_plans import finish_plans
+
+        self.fin = finish_plans(booth, pp, pp.plans)
+        self.booth, self.pp = booth, pp
+        self.part_of = np.concatenate([np.full(len(x.vertices), i)
+                                       for i, x in enumerate(pp.surfaces)])
+        self.seen: dict[tuple[Any, ...], str | None] = {}    # a share's build, every count
+
+    def build(self, cand: Any, jobs: tuple[Any, ...], traj: dict[str, Any]) -> str | None:
+        """Why robot `cand` cannot run `jobs` under `traj` (None: its program builds)."""
+        key = (cand, jobs, tuple(sorted(traj.items())))
+        if key not in self.seen:
+            self.seen[key] = self._build(cand, jobs, traj)
+        return self.seen[key]
+
+    def _build(self, cand: Any, jobs: tuple[Any, ...], traj: dict[str, Any]) -> str | None:
+        from paintcell.booth.booth_clearance import BodyProbe
+        from paintcell.booth.booth_job_programs import robot_programs
+        from paintcell.booth.booth_programs import load_robots
+
+        booth = replace(self.booth, robots=(cand,), allocation=None, trajectory=dict(traj))
+        robot = load_robots(booth)[0]
+        T_wb = booth.body_placement.matrix
+        probe = BodyProbe(robot, self.fin.body, T_wb, self.part_of)
+        try:
+            robot_programs(booth, [robot], self.fin.plans, {0: jobs}, T_wb,
+                           self.pp.T_body_parts, {}, [probe])
+        except PaintcellError as exc:
+            return str(exc).split("; ")[0][:160]
+        return None
+
+
+def place_robots(booth: Any, pp: Any, shares: list[RobotShare], track_m: float,
+           builder: ProgramBuilder | None) -> tuple[list[Any], list[str], dict[str, Any]] | str:
+    """Each share's robot: the first candidate frame that reaches every pass of its jobs in
+    closed form and (with a builder) whose program alone builds, under the first `[trajectory]`
+    table of `TRAJECTORY_TRIES` that gives every robot one; or why a share has none."""
+    from paintcell.booth.booth import pass_feasible
+    from paintcell.booth.booth_programs import load_robots
+
+    body = np.concatenate([s.vertices for s in pp.surfaces])
+    T_wb = booth.body_placement.matrix
+    body = body @ T_wb[:3, :3].T + T_wb[:3, 3]
+    body_lo, body_hi = body.min(0), body.max(0)
+    counts: dict[str, int] = {}
+    frames = []
+    pts = [np.concatenate([pp.surfaces[j.part].vertices for j in s.jobs]) @ T_wb[:3, :3].T
+           + T_wb[:3, 3] for s in shares]
+    stations = _stations(shares, pts)
+    sides, parks = _sides_and_parks(shares, stations)
+    for share, p, x, left, park in zip(shares, pts, stations, sides, parks, strict=True):
+        counts[share.zone] = counts.get(share.zone, 0) + 1
+        tcp = [T_wb @ pp.plans[j.part].tcp_frames(i) for j in share.jobs
+               for i in range(j.first, j.end)]
+        reach, missed = [], None
+        owner = [j.part for j in share.jobs for _ in range(j.first, j.end)]
+        for text, cand in _robot_frames(share, counts[share.zone], p, x, left, park, body_lo,
+                                        body_hi, track_m):
+            robot = load_robots(replace(booth, robots=(cand,), allocation=None))[0]
+            ok = [pass_feasible(robot, T) for T in tcp]
+            if all(ok):
+                reach.append((text, cand))
+            elif missed is None or sum(not o for o in ok) < len(missed):
+                missed = [o for o, k in zip(owner, ok, strict=True) if not k]
+        if not reach:
+            names = ", ".join(booth.parts[i].part for i in dict.fromkeys(missed or []))
+            return (f"the {share.zone} robot {counts[share.zone]} misses {len(missed or [])} "
+                    f"pass(es) of {names} from every rail frame tried")
+        frames.append(reach)
+    if builder is None:
+        return [f[0][1] for f in frames], [f[0][0] for f in frames], dict(TRAJECTORY_TRIES[0])
+    why = ""
+    for traj in TRAJECTORY_TRIES:
+        robots, texts = [], []
+        for share, reach in zip(shares, frames, strict=True):
+            for text, cand in reach:
+                bad = builder.build(cand, share.jobs, traj)
+                if bad is None:
+                    robots.append(cand)
+                    texts.append(text)
+                    break
+                why = why or f"{cand.name}: {bad}"
+            else:
+                break
+        if len(robots) == len(shares):
+            return robots, texts, dict(traj)
+    return f"no rail frame tried builds every robot's program (first: {why})"

@@ -1,0 +1,221 @@
+"""`paintcell init BODY --line --takt T`: a paint line laid out from a takt. The written file is
+re-measured (its conveyor against the pitch of its own panel files; every robot's program, from a
+fresh plan of the written file and its allocation, against the takt); the allocation is checked
+against brute force; the count against tighter takts; a takt no line makes is refused in one line
+with nothing written."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import trimesh
+
+from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S, Job
+from paintcell.booth.line_allocation import LinePanel, allocate_line, partition
+from paintcell.booth.line_takt import LineTakt, return_home_s
+
+# -- the takt arithmetic ---------------------------------------------------------------------
+
+def test_return_home_is_the_rest_to_rest_move_at_the_rail_limits() -> None:
+    """Against a simulated bang-coast-bang move (10 µs steps) at 1.5 m/s and 4 m/s²."""
+    for d in (0.1, 0.5625, 2.0, 6.0):
+        x, v, t, dt, brake = 0.0, 0.0, 0.0, 1e-5, False
+        while t == 0.0 or v > 0.0:                            # until it is at rest
+            brake = brake or v * v / (2 * 4.0) >= d - x      # once braking, to rest
+            a = -4.0 if brake else (4.0 if v < 1.5 else 0.0)
+            v_next = max(min(v + a * dt, 1.5), 0.0)
+            x += 0.5 * (v + v_next) * dt
+            v = v_next
+            t += dt
+        assert x == pytest.approx(d, abs=1e-4)
+        assert return_home_s(d) == pytest.approx(t, abs=1e-3)
+    takt = LineTakt(75.0, 4.5)
+    assert takt.pitch_m == 5.5 and takt.conveyor_speed_m_s * 75.0 == pytest.approx(5.5)
+
+
+# -- the allocation ---------------------------------------------------------------------------
+
+def _panel(name: str, side: tuple[float, float, float], x: float, n: int, s: float,
+           y: float = 0.0) -> LinePanel:
+    return LinePanel(name, side, (x, y, 1.0), np.full(n, s),
+                     np.linspace(0.8, -0.8, n) if side[2] > 0.5 else np.full(n, y))
+
+
+def _coverage(panels: list[LinePanel], shares: Any) -> None:
+    """Every pass of every panel in exactly one job; a panel in at most two pieces, each piece
+    on its own robot."""
+    for p, panel in enumerate(panels):
+        owned = np.zeros(len(panel.durations_s), int)
+        robots = []
+        for r, s in enumerate(shares):
+            for j in s.jobs:
+                if j.part == p:
+                    owned[j.first:j.end] += 1
+                    robots.append(r)
+        assert (owned == 1).all(), (panel.name, owned)
+        assert len(robots) <= 2 and len(set(robots)) == len(robots)
+
+
+def _est(durations: np.ndarray) -> float:
+    """The booth's estimate, written out: paint + turns + approach and retract."""
+    return float(durations.sum()) + TURN_S * (len(durations) - 1) + APPROACH_RETRACT_S
+
+
+def test_whole_jobs_partition_is_the_brute_force_best() -> None:
+    """Contiguous runs of whole jobs: the bisection's longest program is the least over every
+    way of cutting the run (brute force over the cut positions)."""
+    rng = np.random.default_rng(3)
+    for _ in range(12):
+        n_jobs, k = int(rng.integers(3, 7)), int(rng.integers(2, 4))
+        # one pass per job: a job cannot be cut, so only whole jobs are placed
+        panels = [_panel(f"p{i}", (0.0, 1.0, 0.0), -float(i), 1, float(rng.uniform(2, 30)))
+                  for i in range(n_jobs)]
+        jobs = [Job(i, 0, 1) for i in range(n_jobs)]
+        got = max(sum(_est(panels[j.part].durations_s) for j in g)
+                  for g in partition(panels, jobs, k, float))
+        best = min(max(sum(_est(panels[i].durations_s) for i in range(a, b))
+                       for a, b in itertools.pairwise((0, *cuts, n_jobs)))
+                   for m in range(k) for cuts in itertools.combinations(range(1, n_jobs), m))
+        assert got == pytest.approx(best, rel=1e-9)
+
+
+def test_every_pass_is_allocated_once_and_zones_are_kept() -> None:
+    panels = [_panel("fender_l", (0.0, 1.0, 0.0), 1.2, 5, 3.2, 0.9),
+              _panel("door_l", (0.0, 1.0, 0.0), 0.0, 6, 3.0, 0.9),
+              _panel("quarter_l", (0.0, 1.0, 0.0), -1.3, 5, 3.1, 0.9),
+              _panel("fender_r", (0.0, -1.0, 0.0), 1.2, 5, 3.2, -0.9),
+              _panel("door_r", (0.0, -1.0, 0.0), 0.0, 6, 3.0, -0.9),
+              _panel("hood", (0.0, 0.0, 1.0), 1.5, 6, 3.9),
+              _panel("roof", (0.0, 0.0, 1.0), -0.2, 6, 4.1),
+              _panel("bumper_f", (1.0, 0.0, 0.0), 2.2, 4, 3.0)]
+    for n in range(4, 11):
+        shares = allocate_line(panels, n)
+        assert len(shares) <= n
+        _coverage(panels, shares)
+        for s in shares:
+            for j in s.jobs:
+                side = panels[j.part].side
+                if s.zone == "left":
+                    assert side[1] > 0 or abs(side[0]) > 0.5
+                elif s.zone == "right":
+                    assert side[1] < 0 or abs(side[0]) > 0.5
+                else:
+                    assert side[2] > 0.5
+            assert s.program_s == pytest.approx(sum(_est(panels[j.part].durations_s[
+                j.first:j.end]) for j in s.jobs))
+    # more robots never lengthen the longest program
+    worst = [max(s.program_s for s in allocate_line(panels, n)) for n in range(4, 11)]
+    assert all(b <= a + 1e-9 for a, b in itertools.pairwise(worst))
+
+
+# -- the line, laid out, verified and written ---------------------------------------------
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """`paintcell init BODY --line --takt 40` on two panels of a generated body (its front left
+    door and roof: a manifest of the generator's panel folder, read by `load_body`), and the
+    plans it made (kept so the other tests do not plan them again)."""
+    import json
+
+    import paintcell.booth.booth_plans as booth_plans
+    from paintcell.cli.main import main
+
+    tmp = tmp_path_factory.mktemp("line")
+    assert main(["generate", "body", "--out", str(tmp / "car.stl")]) == 0
+    manifest = json.loads((tmp / "car_panels" / "body.json").read_text())
+    manifest["panels"] = [p for p in manifest["panels"]
+                          if p["name"] in ("front_door_left", "roof")]
+    assert len(manifest["panels"]) == 2
+    body = tmp / "car_panels" / "door_roof.json"
+    body.write_text(json.dumps(manifest))
+    made: dict[str, Any] = {}
+    real = booth_plans.plan_parts
+
+    def keep(booth: Any, fast: bool) -> Any:
+        made["pp"] = real(booth, fast)
+        made["booth"] = booth
+        return made["pp"]
+
+    booth_plans.plan_parts = keep
+    try:
+        out = tmp / "line.toml"
+        assert main(["init", str(body), "--line", "--takt", "40", "--out", str(out)]) == 0
+    finally:
+        booth_plans.plan_parts = real
+    return {"out": out, "body": body, **made}
+
+
+def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None:
+    """Conveyor × takt = pitch of the written panel files (read back by trimesh); every robot's
+    program, estimated from a fresh plan of the written file and its [allocation], plus the
+    carriage's return over the distance the line carried it, is within the takt."""
+    from paintcell.booth.booth_data import load_toml_booth
+    from paintcell.booth.booth_plans import plan_parts
+
+    out: Path = written["out"]
+    booth = load_toml_booth(out)
+    xs = np.concatenate([trimesh.load(bp.mesh.file, force="mesh").vertices[:, 0]
+                         for bp in booth.parts])
+    pitch = float(xs.max() - xs.min()) + 1.0
+    v = booth.conveyor.speed_m_s
+    assert v * 40.0 == pytest.approx(pitch, rel=1e-6)   # STL stores float32 coordinates
+    assert booth.allocation is not None and len(booth.robots) == len(booth.allocation)
+    plans = plan_parts(booth, fast=True).plans
+    passes = [np.zeros(len(pl.passes), int) for pl in plans]
+    for triples in booth.allocation.values():
+        program = 0.0
+        for p, a, b in triples:
+            passes[p][a:b] += 1
+            program += _est(np.array([ps.duration_s for ps in plans[p].passes[a:b]]))
+        d = v * program                          # the carriage runs back at 1.5 m/s, 4 m/s²
+        back = d / 1.5 + 1.5 / 4.0 if d >= 1.5 ** 2 / 4.0 else 2 * math.sqrt(d / 4.0)
+        assert program + back <= 40.0
+    assert all((c == 1).all() for c in passes)   # every pass of the written file, once
+
+
+def test_tighter_takt_never_gives_fewer_robots(written: dict[str, Any]) -> None:
+    from paintcell.app.init_line import choose_line
+
+    counts = []
+    length = written["booth"].conveyor.speed_m_s * 40.0 - 1.0       # pitch less the gap
+    for takt_s in (60.0, 32.0, 25.0):
+        takt = LineTakt(takt_s, length)
+        line = choose_line(written["booth"], written["pp"], takt, 10, verify=False,
+                           say=lambda s: None)
+        counts.append(len(line.booth.robots))
+        assert max(takt.robot_cycle_s(s.program_s) for s in line.shares) <= takt_s
+    assert counts == sorted(counts) and counts[-1] > counts[0], counts
+    # deterministic: the same inputs give the same line
+    again = choose_line(written["booth"], written["pp"], LineTakt(25.0, length),
+                        10, verify=False, say=lambda s: None)
+    assert again.booth == line.booth
+
+
+def test_a_takt_no_line_makes_is_refused_in_one_line(
+        written: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    import paintcell.booth.booth_plans as booth_plans
+    from paintcell.cli.main import EXIT_USAGE, main
+
+    monkeypatch.setattr(booth_plans, "plan_parts", lambda booth, fast: written["pp"])
+    out = tmp_path / "fast.toml"
+    body = str(written["body"])
+    assert main(["init", body, "--line", "--takt", "8", "--out", str(out)]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "every 8 s" in err and "--takt" in err, err
+    assert "10: " in err, err                # each count up to --max-robots said
+    assert not out.exists() and not (tmp_path / "fast_panels").exists()
+    # the options: a takt out of range, --takt without --line, an existing file without --force
+    with pytest.raises(SystemExit) as usage:               # argparse's range check
+        main(["init", body, "--line", "--takt", "0", "--out", str(out)])
+    assert usage.value.code == EXIT_USAGE
+    assert main(["init", body, "--takt", "40", "--out", str(out)]) == EXIT_USAGE
+    assert main(["init", body, "--line", "--takt", "40", "--out",
+                 str(written["out"])]) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert "--force" in err and "--line and --takt go together" in err
