@@ -18,6 +18,7 @@ from paintcell.cli.common import (
     key_values,
     number_option,
 )
+from paintcell.core.errors import PaintcellError
 
 # --- run ----------------------------------------------------------------------------------------
 
