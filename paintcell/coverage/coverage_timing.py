@@ -84,13 +84,11 @@ def time_pass(pl: Planner, p: PassGeom, w_local: float) -> None:
     foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
                                              (ext[0] + p.extra_m[0], ext[1] + p.extra_m[1]),
                                              st.sample_spacing_m, h)
-    axes = smooth_along(foot, -normals, 0.5 * pl.smooth_scale)
-    if pl.smooth_scale <= 0:
-        # a surface planned as it is: its axes fitted along the pass (a scan's ragged rim: its
-        # boundary normals, which an edge pass and every pass's overspray take, wiggle from
-        # facet to facet, and the standoff magnifies each wiggle into a sideways TCP jerk the
-        # time law slows the pass for); on a smoothed one `smooth_along` has low-passed them
-        axes = denoise_along(foot, axes, AXIS_NOISE_FRACTION * app.footprint_radius_m)
+    # the axes fitted along the pass (a scan's ragged rim: its boundary normals, which an edge
+    # pass and every pass's overspray take, wiggle from facet to facet; the standoff magnifies
+    # each wiggle into a sideways TCP jerk the time law slows the pass for)
+    axes = denoise_along(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
+                         AXIS_NOISE_FRACTION * app.footprint_radius_m)
     axes = limit_turn_rate(foot, axes, st.max_axis_turn_rad_m, h)
     pos = foot - h * axes
     seg = np.diff(pos, axis=0)
