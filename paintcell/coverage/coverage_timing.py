@@ -11,12 +11,7 @@ from paintcell.coverage.coverage_planner import PassGeom, Planner
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.offset import arc_length, geodesic_curvature, tangents, unit, walk
 from paintcell.coverage.plan import PassPlan, times_from_speeds
-from paintcell.coverage.smoothing import (
-    AXIS_NOISE_FRACTION,
-    denoise_along,
-    limit_turn_rate,
-    smooth_along,
-)
+from paintcell.coverage.smoothing import limit_turn_rate, smooth_along
 from paintcell.coverage.speed_qp import SubOffsetBand, optimize_pass_speed
 from paintcell.surface.surface import Surface
 
@@ -84,12 +79,8 @@ def time_pass(pl: Planner, p: PassGeom, w_local: float) -> None:
     foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
                                              (ext[0] + p.extra_m[0], ext[1] + p.extra_m[1]),
                                              st.sample_spacing_m, h)
-    # the axes fitted along the pass (a scan's ragged rim: its boundary normals, which an edge
-    # pass and every pass's overspray take, wiggle from facet to facet; the standoff magnifies
-    # each wiggle into a sideways TCP jerk the time law slows the pass for)
-    axes = denoise_along(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
-                         AXIS_NOISE_FRACTION * app.footprint_radius_m)
-    axes = limit_turn_rate(foot, axes, st.max_axis_turn_rad_m, h)
+    axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
+                           st.max_axis_turn_rad_m, h)
     pos = foot - h * axes
     seg = np.diff(pos, axis=0)
     seg_len = np.linalg.norm(seg, axis=1)

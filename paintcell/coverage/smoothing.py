@@ -16,10 +16,6 @@ scale; the deposition model and the film metrics keep the real mesh.
 - `smooth_along`: on a smoothed surface, the pass's axes are also low-passed along the pass at
   half the smoothing scale (facet-to-facet wiggles of a scan's normals, magnified by the standoff,
   are lateral TCP jerks).
-- `denoise_along`: on every pass, the axes are fitted along the pass by a local quadratic at a
-  fraction of the footprint (`AXIS_NOISE_FRACTION`): a field that bends like a quadratic over
-  that span (every smooth part's normals) is kept as it is, a facet-scale wiggle (a scan's
-  ragged outline, whose boundary normals an edge pass takes) is removed.
 - `limit_turn_rate`: the bound on how fast the bell axis may turn along a pass [rad/m]: the
   axis field is diffused along the pass until its turning rate is under the bound.
 """
@@ -38,11 +34,6 @@ from paintcell.surface.surface import Surface, surface_from_triangles
 
 #: the smoothing scale is this fraction of the spray footprint radius (a 0.33 m bell: 82 mm).
 FOOTPRINT_FRACTION = 0.25
-#: the Gaussian weight's standard deviation of `denoise_along` is this fraction of the footprint
-#: radius (a 0.33 m bell: 41 mm, two samples at the default 20 mm spacing; the bell cannot
-#: paint detail that fine, and a wiggle of the axis that short, times the 0.25 m standoff, is a
-#: lateral TCP jerk the time law slows the pass for).
-AXIS_NOISE_FRACTION = 0.125
 
 
 def cotan_laplacian(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
@@ -119,26 +110,6 @@ def smooth_along(points: np.ndarray, vectors: np.ndarray, sigma_m: float) -> np.
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
     w = np.exp(-0.5 * ((s[:, None] - s[None, :]) / sigma_m) ** 2)      # (M, M), M ~ 100
     v = w @ vectors
-    return v / np.linalg.norm(v, axis=1, keepdims=True)
-
-
-def denoise_along(points: np.ndarray, vectors: np.ndarray, sigma_m: float) -> np.ndarray:
-    """Unit `vectors` (M, 3) fitted along the polyline `points` (M, 3) by a Gaussian-weighted
-    local quadratic in arc length (standard deviation `sigma_m` [m]), renormalized.
-
-    Unlike `smooth_along` (a local mean), the local quadratic reproduces any field that is a
-    quadratic of arc length over the kernel's span exactly, at the ends too: the axes of a
-    smooth part, turning steadily along a pass, come back unchanged (to round-off), while a
-    wiggle a few samples long is averaged out."""
-    if sigma_m <= 0 or len(vectors) < 5:
-        return np.array(vectors, float)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-    d = (s[None, :] - s[:, None]) / sigma_m                          # (M, M), M ~ 100
-    w = np.exp(-0.5 * d**2)
-    basis = np.stack([np.ones_like(d), d, d**2], axis=-1)            # (M, M, 3)
-    gram = np.einsum("ij,ijk,ijl->ikl", w, basis, basis)              # (M, 3, 3)
-    rhs = np.einsum("ij,ijk,jc->ikc", w, basis, np.asarray(vectors, float))   # (M, 3, 3)
-    v = np.linalg.solve(gram, rhs)[:, 0, :]          # each fit's value at its own sample
     return v / np.linalg.norm(v, axis=1, keepdims=True)
 
 
