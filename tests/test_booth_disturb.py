@@ -33,7 +33,7 @@ def runs():
         key = tuple(sorted(dist.items()))
         if key not in done:
             mp = pytest.MonkeyPatch()
-            mp.setattr(booth_run, "booth_programs", lambda booth, fast: progs)
+            mp.setattr(booth_run, "booth_programs", lambda booth, fast, tasks=None: progs)
             try:
                 done[key] = booth_run.run_booth(
                     dataclasses.replace(ROOF_BOOTH, disturbances=dist), fast=True,
