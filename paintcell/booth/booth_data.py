@@ -27,7 +27,9 @@ area-weighted planned mean) set one film build over the parts (`paintcell.booth.
 (`paintcell.coverage.film_refine`). `robot_aware_speeds` (default true) re-plans the parts'
 speeds under what the robots' programs reach (`paintcell.booth.booth_speeds`).
 `body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
-the whole body (`paintcell.booth.booth_clearance`).
+the whole body (`paintcell.booth.booth_clearance`). `[generated_body]` (seed, read, areas_m2;
+written by `paintcell init BODY --line` for a generated body) writes the parts' panel files
+again from the body generator when they are missing (`paintcell.surface.generated_body`).
 """
 
 from __future__ import annotations
@@ -60,7 +62,7 @@ _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor
         "robots", "planner", "trajectory", "servo", "disturbances", "thresholds", "allocation",
         "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
         "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds",
-        "spec")
+        "spec", "generated_body")
 _PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse", "robots")
 _ROBOT = ("name", "model", "base", "home", "rail")
 _PLACEMENT = ("xyz_m", "rpy_rad")
@@ -118,6 +120,8 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     here, before any work (`paintcell.booth.booth_checks`)."""
     d = _check_keys(d, _TOP, where)
     check_structure(d, where)
+    if "generated_body" in d and source is not None:
+        _generated_files(d, where, Path(source).parent)
     parts = []
     for i, p in enumerate(d["parts"]):
         p = _check_keys(p, _PART, f"{where} [[parts]] #{i}")
@@ -206,6 +210,23 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     except PaintcellError as exc:
         raise BoothDataError(str(exc) if str(exc).startswith(where) else f"{where}: {exc}") \
             from exc
+
+
+def _generated_files(d: dict[str, Any], where: str, base: Path) -> None:
+    """The panel files of a generated body's line, written again when missing or changed
+    (`paintcell.surface.generated_body.ensure_panel_files`)."""
+    from paintcell.surface.generated_body import ensure_panel_files
+
+    files = [p.get("part", {}).get("file") if isinstance(p, dict)
+             and isinstance(p.get("part"), dict) else None for p in d["parts"]]
+    if not all(isinstance(f, str) for f in files):
+        raise BoothDataError(f"{where} [generated_body]: every [[parts]] needs a [parts.part] "
+                             "file (the body's panels, as `paintcell init BODY --line` writes "
+                             "them)")
+    try:
+        ensure_panel_files(d["generated_body"], [base / f for f in files], where)
+    except PaintcellError as exc:
+        raise BoothDataError(str(exc)) from exc
 
 
 def _mesh_part(v: Any, where: str, source: str | None) -> MeshPart | None:
