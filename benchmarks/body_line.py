@@ -10,12 +10,12 @@ cluster's start, writing the results); then the ratio of the 1-worker time to th
 of each, and whether every metric equals the first run's. Planning and programs are the stages
 the workers share; execution and validation run in the client.
 
-Then the same on a generated car body's paint line (`paintcell generate body`, then `paintcell
-init BODY --line --takt T`), when this paintcell has those commands; when it has not, it says so
-and skips that part. Other jobs may share the machine: the load average is printed beside the
-figures.
+Then the same on a generated car body's paint line (`paintcell generate body --seed S`, then
+`paintcell init BODY --line --takt T`, each command's wall time printed), when this paintcell
+has those commands; when it has not, it says so and skips that part. Other jobs may share the
+machine: the load average is printed beside the figures.
 
-    .venv/bin/python benchmarks/body_line.py [--workers 1 2] [--takt 75] [--no-body]
+    .venv/bin/python benchmarks/body_line.py [--workers 1 2] [--takt 75] [--seed 1] [--no-body]
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def bench(label: str, scenario: Path, workers: list[int], tmp: Path) -> None:
         print(f"  {'wall time':<28} {a['wall'] / b['wall']:8.2f} ×")
 
 
-def body_line(tmp: Path, takt_s: float) -> Path | None:
+def body_line(tmp: Path, takt_s: float, seed: int) -> Path | None:
     """A generated body's paint line (booth file), or None with the reason printed when this
     paintcell cannot make one."""
     gen = _paintcell("generate", "--help")
@@ -98,13 +98,22 @@ def body_line(tmp: Path, takt_s: float) -> Path | None:
         return None
     body = tmp / "body.stl"
     line = tmp / "line.toml"
-    for args in (("generate", "body", "--seed", "0", "--out", str(body)),
+    print(f"\n== body line: paintcell generate body --seed {seed}, then init --line --takt "
+          f"{takt_s:g}")
+    for args in (("generate", "body", "--seed", str(seed), "--out", str(body)),
                  ("init", str(body), "--line", "--takt", f"{takt_s:g}", "--out", str(line))):
+        load = os.getloadavg()[0]
+        t0 = time.perf_counter()
         r = _paintcell(*args)
+        wall = time.perf_counter() - t0
         if r.returncode != 0:
-            print(f"\n== body line: skipped — `paintcell {' '.join(args)}` failed "
+            print(f"body line: skipped — `paintcell {' '.join(args)}` failed "
                   f"(rc {r.returncode}): {(r.stderr or r.stdout).strip()[-300:]}")
             return None
+        print(f"  wall time of `paintcell {args[0]}`{' ' * (12 - len(args[0]))} {wall:8.1f} s "
+              f"(load average {load:.1f} before, {os.getloadavg()[0]:.1f} after)")
+        if args[0] == "init":
+            print("  " + r.stdout.strip().splitlines()[0])
     return line
 
 
@@ -114,13 +123,15 @@ def main() -> None:
                     help="local Dask worker counts to time, in order (0: in this process)")
     ap.add_argument("--takt", type=float, default=75.0,
                     help="the generated body line's takt [s] (a body every TAKT seconds)")
+    ap.add_argument("--seed", type=int, default=1,
+                    help="the generated body's seed (odd: an SUV; scenarios/body_line.toml's: 1)")
     ap.add_argument("--no-body", action="store_true", help="only scenarios/booth.toml")
     args = ap.parse_args()
     print(f"{os.cpu_count()} CPU cores; load average {os.getloadavg()[0]:.1f}")
     with tempfile.TemporaryDirectory(prefix="paintcell-body-line-") as d:
         tmp = Path(d)
         bench("booth", BOOTH, args.workers, tmp)
-        if not args.no_body and (line := body_line(tmp, args.takt)) is not None:
+        if not args.no_body and (line := body_line(tmp, args.takt, args.seed)) is not None:
             bench("body line", line, args.workers, tmp)
 
 

@@ -7,6 +7,9 @@
   fascias, top robots for the hood, roof and trunk, each top panel cut at the car's centre line
   between the left and right top robots), balanced by estimated time along the car
   (`paintcell.booth.line_allocation`; written as the booth's fixed `[allocation]`).
+- Passes (`PASS_AXIS`): a side panel's along its straight direction, a top panel's along the
+  car and a fascia's up and down it, so that both step across the car and are cut at the
+  centre line between the left and right robots.
 - Robots (`paintcell.app.init_line_robots`): IRB 5500s (closed-form IK, which the booth's
   reach checks need) on rails along the conveyor, each centred on its passes' stretch of the car,
   its travel that stretch plus the body's travel while it paints (`TRACK_FACTOR` × half the
@@ -34,7 +37,13 @@ import numpy as np
 
 from paintcell.app.init_layout import TRAJECTORY_TRIES
 from paintcell.app.init_line_robots import ProgramBuilder, place_robots
-from paintcell.booth.line_allocation import LinePanel, RobotShare, allocate_line, zone_of
+from paintcell.booth.line_allocation import (
+    FLOOR_ROBOTS_PER_SIDE,
+    LinePanel,
+    RobotShare,
+    allocate_line,
+    zone_of,
+)
 from paintcell.booth.line_takt import LineTakt, first_count
 from paintcell.core.errors import PaintcellError
 
@@ -55,9 +64,36 @@ TRACK_FACTOR = 1.3
 SIDE_PLANNER: dict[str, Any] = {"orientation": "zero-curvature"}
 
 
-def _planner(zone: str) -> dict[str, Any]:
-    """A panel's planner table by its zone (top panels: the planner's defaults)."""
-    return {} if zone == "top" else dict(SIDE_PLANNER)
+def pass_orientation(mesh: Any, side: Sequence[float], axis: Sequence[float]) -> float:
+    """The planner's pass angle [rad] (`paintcell.coverage.start_curve`: about the mean normal
+    n̄, from its `tangent_basis` e1 toward e2) that runs a panel's passes along `axis` (body
+    frame) projected on the plane ⟂ n̄. mesh: a trimesh in the body frame; side: toward the
+    painter (n̄'s sign)."""
+    from paintcell.coverage.start_curve import tangent_basis
+
+    n = np.asarray(mesh.area_faces, float) @ np.asarray(mesh.face_normals, float)
+    n = n / np.linalg.norm(n)
+    if n @ np.asarray(side, float) < 0:
+        n = -n
+    e1, e2 = tangent_basis(n)
+    a = np.asarray(axis, float)
+    a = a - (a @ n) * n
+    return round(float(np.arctan2(a @ e2, a @ e1)), 6)
+
+
+#: Pass axis of a zone's panels (body frame): a top panel's passes along the car, a fascia's up
+#: and down it, so the passes step across the car and the line cuts the panel at the centre
+#: line between its left and right robots (the far half of a hood, a roof, a bumper or a
+#: tailgate is beyond one side's reach); None: the straight direction (`SIDE_PLANNER`).
+PASS_AXIS: dict[str, tuple[float, float, float] | None] = {
+    "top": (1.0, 0.0, 0.0), "fascia": (0.0, 0.0, 1.0), "left": None, "right": None}
+
+
+def _planner(zone: str, mesh: Any, side: Sequence[float]) -> dict[str, Any]:
+    """A panel's planner table by its zone (`PASS_AXIS`)."""
+    axis = PASS_AXIS[zone]
+    return dict(SIDE_PLANNER) if axis is None else {"orientation": pass_orientation(mesh, side,
+                                                                                     axis)}
 
 
 @dataclass
@@ -91,7 +127,8 @@ def line_panels(pp: Any) -> list[LinePanel]:
         out.append(LinePanel(surf.name, tuple(side / np.linalg.norm(side)),
                              tuple(float(x) for x in w @ surf.vertices),
                              np.array([p.duration_s for p in plan.passes]),
-                             np.array([float(np.mean(p.positions[:, 1])) for p in plan.passes])))
+                             np.array([float(np.mean(p.positions[:, 1])) for p in plan.passes]),
+                             (float(surf.vertices[:, 0].min()), float(surf.vertices[:, 0].max()))))
     return out
 
 
@@ -128,8 +165,8 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
         key = tuple((s.zone, s.jobs) for s in shares)
         if key in seen:      # every zone saturated: no larger count differs
             failed.append(f"{n}–{max_robots}: the zones' jobs cannot be cut further (each panel "
-                          f"at most in two pieces), so more robots give the {len(shares)} robots' "
-                          "line")
+                          f"at most in two pieces, at most {FLOOR_ROBOTS_PER_SIDE} floor robot(s) "
+                          f"a side), so more robots give the {len(shares)} robots' line")
             break
         seen.add(key)
         cycles = [takt.robot_cycle_s(s.program_s) for s in shares]
@@ -145,6 +182,7 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
         placed = place_robots(booth, pp, shares, track_m, builder)
         if isinstance(placed, str):
             failed.append(f"{n}: {placed}")
+            say(f"init: {failed[-1]}")
             continue
         robots, frames, traj = placed
         alloc = {r.name: tuple((j.part, j.first, j.end) for j in s.jobs)
@@ -159,6 +197,7 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
             progs = booth_programs(cand, True, pp)
         except PaintcellError as exc:
             failed.append(f"{n}: the booth cannot build it ({str(exc).split('; ')[0][:160]})")
+            say(f"init: {failed[-1]}")
             continue
         built = [float(tr.duration_s) for tr in progs.static]
         real = [takt.robot_cycle_s(b) for b in built]
@@ -182,12 +221,15 @@ def panel_booth(name: str, files: Sequence[Any], takt: LineTakt) -> Any:
     """The booth of the body's panels (each a `MeshPart` in the body frame, placed at the
     identity), robots to be laid out (a placeholder), the conveyor at the takt's speed, as
     `choose_line` plans it (film refinement off: `film_refine_pace` in the written line)."""
+    import trimesh
+
     from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
     from paintcell.booth.conveyor import Conveyor
     from paintcell.core.placement import Placement
 
-    parts = tuple(BodyPart(f.stem, Placement(), {**_planner(zone_of(f.side, (0, 0, 0))),
-                                                 "film_refine": False}, mesh=f) for f in files)
+    parts = tuple(BodyPart(f.stem, Placement(), {
+        **_planner(zone_of(f.side, (0, 0, 0)), trimesh.load(f.file, force="mesh"), f.side),
+        "film_refine": False}, mesh=f) for f in files)
     return Booth(name=name, parts=parts, robots=(BoothRobot("placeholder"),),
                  conveyor=Conveyor(takt.conveyor_speed_m_s, (1.0, 0.0, 0.0)),
                  servo={"gain_inertia": "effective"},

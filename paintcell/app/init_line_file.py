@@ -39,10 +39,12 @@ def _fill(text: str) -> str:
 
 
 def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]],
-              source: str) -> str:
+              source: str, generated: dict[str, Any] | None = None) -> str:
     """The booth file of `line` (module doc); files: each panel's mesh file relative to the
     written file; sides: each panel's painted side (body frame); source: the body file named
-    in the header."""
+    in the header; generated: the body generator's seed and read (`paintcell.surface.
+    generated_body.generated_origin`) and each panel file's area [m²] ("areas_m2"), written as
+    the `[generated_body]` table."""
     b, t = line.booth, line.takt
     names = [p.part for p in b.parts]
     rows = []
@@ -69,13 +71,18 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         "builds every program clear of the body with the arms staggered apart"
         + (f" (before it: {'; '.join(line.failed)})" if line.failed else "") + ".",
         "Which robots: IRB 5500 paint arms on rails along the conveyor (closed-form IK for the "
-        "reach checks; the carriage tracks the body). Floor rails on each side paint the side "
-        "panels and fascias; the top robots, wall-mounted 3 m up beside the body (above the "
-        "floor robots' arms, as the IRB 5500 is mounted in scenarios/booth.toml), else on "
-        "elevated rails, paint the hood, roof and trunk, each top panel cut at the car's centre "
-        "line between the left and right top robots. Each rail is centred on its robot's stretch "
-        "of the car (robots of one zone at least 1.5 m apart) and reaches that stretch plus the "
-        "body's travel while it paints and 0.3 m at each end.",
+        "reach checks; the carriage tracks the body). Floor rails on each side (0.3 m up, else "
+        "on a pedestal for passes high at the centre line) paint that side's panels and its "
+        "half of each bumper fascia, cut at the car's centre line (a fascia's passes run up and "
+        "down it, stepping across the car; its far half is beyond one side's reach); the top "
+        "robots, wall-mounted 3 m up beside the body (above the floor robots' arms, as the IRB "
+        "5500 is mounted in scenarios/booth.toml), else on elevated rails, paint the hood, roof "
+        "and trunk and a fascia above the belt line (a tailgate), each cut at the centre line "
+        "between the left and right top robots (the hood's and roof's passes run along the "
+        "car). Each rail is centred on its robot's stretch of the car (robots of one zone at "
+        "least 1.5 m apart) and reaches that stretch plus the body's travel while it paints and "
+        "0.3 m at each end; a robot sharing its side parks past its stretch and past the body's "
+        "travel.",
         "Allocation (fixed below, pass ranges of the plan at 0.025 m, which both resolutions "
         "use): by zone, each zone's jobs front to rear cut into contiguous runs of least longest "
         "program (bisection with a greedy fill; a panel cut once at a pass boundary when it "
@@ -101,8 +108,8 @@ units = "m"
 pieces = "all"
 side = {_v([round(float(x), 6) for x in side])}
 """
-        parts += (f"[parts.planner]   # passes along the panel's straight direction\n{planner}"
-                  if planner else "")
+        parts += (f"[parts.planner]   # the passes' direction (module doc of "
+                  f"paintcell.app.init_line)\n{planner}" if planner else "")
     robots = ""
     # angles written exactly: a rail off the line's direction by round-off leaves the conveyor's
     # motion across it to the arm's IK (`paintcell.booth.conveyor.track_program`)
@@ -120,6 +127,16 @@ home = {_v(list(r.home))}
 xyz_m = {_v([round(v, 4) for v in r.base.xyz_m])}
 rpy_rad = {_v([float(v) for v in r.base.rpy_rad])}
 """
+    gen = ""
+    if generated:
+        how = ("its one mesh, the panels found from the gaps" if generated["read"] == "mesh"
+               else "its panel folder's body.json")
+        why = (f"The panels are those of `paintcell generate body --seed {generated['seed']}` "
+               f"read from {how}: a panel file missing or changed (its area) is written again "
+               "from the generator, so the line needs no mesh files beside it.")
+        gen = (f"\n{_fill(why)}\n[generated_body]\nseed = {generated['seed']}\n"
+               f"read = {_v(generated['read'])}\n"
+               f"areas_m2 = {_v([float(a) for a in generated['areas_m2']])}\n")
     alloc = "".join(f"{name} = {_v([list(j) for j in jobs])}\n"
                     for name, jobs in b.allocation.items())
     traj = "".join(f"{k} = {_v(v)}\n" for k, v in b.trajectory.items())
@@ -136,6 +153,7 @@ robot_aware_speeds = false
 xyz_m = {_v(list(b.body_placement.xyz_m))}
 rpy_rad = [0.0, 0.0, 0.0]
 
+{gen}
 # pitch {t.pitch_m:.4f} m / takt {t.takt_s:g} s
 [conveyor]
 speed_m_s = {t.conveyor_speed_m_s!r}
@@ -161,12 +179,17 @@ max_cycle_time_s = {cycle}
 
 
 def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, force: bool,
-              source: str, name: str | None = None, say: Callable[[str], None] = print) -> Line:
+              source: str, name: str | None = None, say: Callable[[str], None] = print,
+              generated: dict[str, Any] | None = None) -> Line:
     """Lay out, verify and write the line for `panels` (`paintcell.surface.body_panels.BodyPanel`s:
     `name`, `mesh` — a trimesh in metres, body frame — and `direction`, toward the painter) to
-    `out` (module doc). Raises PaintcellError (one line)
-    with nothing written when no line up to `max_robots` makes the takt."""
+    `out` (module doc); generated: the body generator's {"seed", "read"} when the panels are its
+    body (`paintcell.surface.generated_body.generated_origin`: the file then carries a
+    `[generated_body]` table). Raises PaintcellError (one line) with nothing written when no
+    line up to `max_robots` makes the takt."""
     from dataclasses import replace
+
+    import trimesh
 
     from paintcell.app.init_line import choose_line, panel_booth
     from paintcell.booth.booth_plans import plan_parts
@@ -211,7 +234,10 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
             replace(bp, planner={k: v for k, v in bp.planner.items() if k != "film_refine"},
                     mesh=replace(bp.mesh, file=str(folder / f"{stem}.stl")))
             for bp, stem in zip(line.booth.parts, stems, strict=True)))
-        atomic_write_text(out, line_toml(line, rel, sides, source))
+        gen = None if generated is None else {
+            **generated, "areas_m2": [float(trimesh.load(spec.file, force="mesh").area)
+                                      for spec in specs]}
+        atomic_write_text(out, line_toml(line, rel, sides, source, gen))
     return line
 
 
@@ -221,6 +247,7 @@ def init_body_line(body: Path, out: Path, takt_s: float | None, max_robots: int,
     (`paintcell.surface.body_panels.load_body`), the line laid out and written; what to print."""
     from paintcell.core.safe_paths import check_new_target
     from paintcell.surface.body_panels import load_body
+    from paintcell.surface.generated_body import generated_origin
 
     if not line_flag or takt_s is None:
         raise PaintcellError("--line and --takt go together: write `paintcell init BODY --line "
@@ -229,7 +256,9 @@ def init_body_line(body: Path, out: Path, takt_s: float | None, max_robots: int,
         raise PaintcellError("--robot/--robots do not apply to --line (its robots are IRB 5500s, "
                              "their count from --takt); use --max-robots N")
     check_new_target(out, "--out", force)    # before minutes of planning
-    line = init_line(load_body(body), out, takt_s, max_robots, force, str(body), name)
+    panels = load_body(body)
+    line = init_line(panels, out, takt_s, max_robots, force, str(body), name,
+                     generated=generated_origin(body, panels))
     t = line.takt
     return (f"line: {len(line.booth.robots)} robots for a body every {t.takt_s:g} s; conveyor "
             f"{t.conveyor_speed_m_s:.4f} m/s (pitch {t.pitch_m:.3f} m); longest program + return "

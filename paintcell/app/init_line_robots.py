@@ -19,20 +19,24 @@ from paintcell.core.errors import PaintcellError
 
 __all__ = ["ProgramBuilder", "place_robots"]
 
-#: Carriage top of a floor rail above the floor [m] (scenarios/booth.toml's side robots).
-FLOOR_RAIL_Z_M = 0.3
+#: Carriage top of a floor rail above the floor [m], tried in this order: 0.3 m as
+#: scenarios/booth.toml's side robots, then on a pedestal for a robot whose passes reach high at
+#: the car's centre line (a tailgate's or a high fascia's half: from 0.3 m up the arm's reach
+#: ends short of it).
+FLOOR_RAIL_Z_M = (0.3, 0.8, 1.3)
 #: Gap between the body's side (its panels' outermost point) and a floor rail frame [m], tried
-#: in this order.
+#: in this order for each carriage height.
 SIDE_GAPS_M = (1.9, 1.6, 2.2)
 #: Wall-mounted top robots (scenarios/booth.toml's roof_r: the IRB 5500 is a wall-mount paint
 #: robot): base plate this far beside the body's side [m], tried in this order, `WALL_Z_M` up
 #: [m], J1 horizontal toward the car, the carriage along the line. Above the floor robots'
 #: arms, where an elevated rail at the roof's height stands in their way.
-WALL_GAPS_M = (1.3, 1.6)
+WALL_GAPS_M = (1.3, 1.6, 1.9)
 WALL_Z_M = 3.0
 #: Home of a wall-mounted robot: carriage at 0, the arm folded over the body (roof_r's).
 WALL_HOME = (0.0, 0.0, -0.9, 0.9, 0.0, 0.6, 0.0)
-#: How far past its stretch of the car a robot parks when it shares its side [m].
+#: How far past its stretch of the car, and past the body's travel, a robot parks when it
+#: shares its side [m].
 PARK_M = 1.5
 #: Least distance between the rail centres of two robots of one zone [m].
 STATION_SPACING_M = 1.5
@@ -104,18 +108,22 @@ def _robot_frames(share: RobotShare, k: int, pts: np.ndarray, x_m: float, left: 
     reach = float(np.abs(pts[:, 0] - x_m).max())
     half = round(reach + (PARK_M if park else 0.0) + track_m + RAIL_MARGIN_M, 3)
     # the carriage runs along world +x on the left, −x on the right (the arm faces the car)
-    home0 = round(park * (reach + PARK_M) * (1.0 if left else -1.0), 3)
+    # parked past its stretch and past the body's travel: the body moves ± track_m while the
+    # neighbours paint, so a robot parked only past its stretch stands where a neighbour paints
+    # the body's middle at the cycle's start or end (waiting out a start delay there)
+    home0 = round(park * (reach + PARK_M + track_m) * (1.0 if left else -1.0), 3)
     name = f"{share.zone}_{k}" if share.zone in ("left", "right") \
         else f"top_{'left' if left else 'right'}_{k}"
     out = []
     if share.zone in ("left", "right"):
-        for gap in SIDE_GAPS_M:
-            box_lo = np.array([x_m, body_lo[1], 0.0])
-            box_hi = np.array([x_m, body_hi[1], FLOOR_RAIL_Z_M])
-            r = rail_robots(2, box_lo, box_hi, gap, 0.0, ARM)[0 if left else 1]
-            out.append((f"floor rail {gap} m beside the body's side, {FLOOR_RAIL_Z_M} m up",
-                        replace(r, name=name, home=(home0, *SIDE_HOME[1:]),
-                                rail_m=(-half, half))))
+        for z in FLOOR_RAIL_Z_M:
+            for gap in SIDE_GAPS_M:
+                box_lo = np.array([x_m, body_lo[1], 0.0])
+                box_hi = np.array([x_m, body_hi[1], z])
+                r = rail_robots(2, box_lo, box_hi, gap, 0.0, ARM)[0 if left else 1]
+                out.append((f"floor rail {gap} m beside the body's side, {z} m up",
+                            replace(r, name=name, home=(home0, *SIDE_HOME[1:]),
+                                    rail_m=(-half, half))))
         return out
     for gap in WALL_GAPS_M:      # J1 horizontal toward the car, the carriage along the line
         y = float(body_hi[1] + gap if left else body_lo[1] - gap)

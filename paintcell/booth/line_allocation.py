@@ -2,10 +2,13 @@
 (`paintcell init BODY --line`, `paintcell.app.init_line`).
 
 Zones: a panel whose painted side points up (side · z ≥ `TOP_MIN_Z`) is a top panel (hood,
-roof, trunk); one whose side points more along the car than across it is a fascia, taken by the
-floor robots of the car's side it lies on (the lighter side when it straddles the middle); the
-rest are side panels, left (side · y > 0) or right. The floor robots of each side take that
-side's panels; the top robots sit on elevated rails, alternately left and right, and with two or
+roof, trunk); one whose side points more along the car than across it is a fascia: centred
+above every side panel's centroid (a tailgate, above the belt line) it is a top panel, else the
+floor robots of each side take their half of it when its passes step across the car (cut at the
+pass boundary nearest the centre line: a bumper's far half is beyond one side's reach), or the
+whole of it on the side it lies on (the lighter side when it straddles the middle); the rest
+are side panels, left (side · y > 0) or right. The floor robots of each side take that side's
+panels; the top robots sit on elevated rails, alternately left and right, and with two or
 more of them each top panel whose passes run along the car is cut at the pass boundary nearest
 the car's centre line, its left piece to the left top robots, its right piece to the right.
 
@@ -17,6 +20,13 @@ needs more robots for the rest), so the bisection finds the least longest progra
 does not fit whole is cut once at a pass boundary, its first piece to the robot being filled,
 the rest to the next (a booth job of two pieces, as `paintcell.booth.booth.job_options`).
 Robots are given to the zone whose longest program is longest, one at a time.
+
+Order: neighbouring floor robots of one side work away from each other — the first (front) one
+runs its jobs rear to front, the second front to rear, and so on — so they start at their
+common boundary, one of them held back by the booth's staggering
+(`paintcell.booth.booth_stagger`), and part; run in the same direction their arms meet
+wherever the two paces differ (two robots on a side, 2.2 m apart: no start delay up to 20 s
+kept them 0.6 m apart).
 
 Why not the booth's enumeration (`paintcell.booth.booth.rank_allocations`): it tries every cut
 of every part against every assignment of jobs to robots — a product over the parts of their cut
@@ -35,12 +45,20 @@ import numpy as np
 
 from paintcell.booth.booth import Job, estimate_s
 
-__all__ = ["TOP_MIN_Z", "LinePanel", "RobotShare", "allocate_line", "zone_of"]
+__all__ = ["FLOOR_ROBOTS_PER_SIDE", "TOP_MIN_Z", "LinePanel", "RobotShare", "allocate_line",
+           "floor_robots_max", "zone_of"]
 
 #: A panel whose unit painted-side vector has at least this z is a top panel [-].
 TOP_MIN_Z = 0.6
 #: A fascia whose centroid lies within this of the car's centre line straddles it [m].
 FASCIA_MID_M = 0.1
+#: Most floor robots on one side of the car [robots]. Robots of one side share its rail line,
+#: whose carriages cannot pass each other, but the booth plans each carriage on a rail of its
+#: own: two robots on a side, 2.2 m apart, drove their carriages through each other (the bases
+#: met while each arm reached 1.9 m from its carriage toward the other robot's stretch, at every
+#: start delay up to 20 s, in either order of their jobs). Until carriages of one rail line are
+#: kept in order, a side takes one floor robot; the line's takt follows from it.
+FLOOR_ROBOTS_PER_SIDE = 1
 #: Bisection steps on the longest program (the bound's bracket shrinks 2⁻⁴⁰).
 _BISECT_STEPS = 40
 
@@ -49,19 +67,26 @@ _BISECT_STEPS = 40
 class LinePanel:
     """A panel as the line's allocation sees it: name, painted side (body frame, unit), centroid
     (body frame) [m], its passes' planned durations [s] and their mean y in the body frame [m]
-    (execution order)."""
+    (execution order), and its extent along the car (min x, max x) [m]."""
 
     name: str
     side: tuple[float, float, float]
     centroid_m: tuple[float, float, float]
     durations_s: np.ndarray
     pass_y_m: np.ndarray
+    x_range_m: tuple[float, float] | None = None
+
+    @property
+    def x_span_m(self) -> tuple[float, float]:
+        """Its extent along the car [m] (the centroid's x when not given)."""
+        return self.x_range_m or (self.centroid_m[0], self.centroid_m[0])
 
 
 @dataclass(frozen=True)
 class RobotShare:
     """One robot of the line: zone ("left", "right": floor rails; "top_left", "top_right":
-    elevated rails), its jobs (part index, passes [first, end)) front to rear, and its estimated
+    elevated rails), its jobs (part index, passes [first, end)) in the order it runs them (front
+    to rear, a side's first, third, … floor robot rear to front: module doc), and its estimated
     program [s]."""
 
     zone: str
@@ -80,18 +105,30 @@ def zone_of(side: Sequence[float], centroid_m: Sequence[float]) -> str:
     return "left" if s[1] > 0 else "right"
 
 
-def _pieces(p: int, panel: LinePanel, split: bool) -> list[tuple[str, Job]]:
-    """A top panel's (zone, job) pieces: cut at the pass boundary nearest the centre line when
-    its passes run along the car (their mean y changes sign once), else whole to the left."""
+def centre_cut(panel: LinePanel) -> int | None:
+    """The pass boundary at the car's centre line: k such that passes [0, k) lie on one side
+    (their mean y) and [k, n) on the other (the passes step across the car, as a top panel's
+    passes along it or a fascia's passes up and down it), else None."""
+    left = np.asarray(panel.pass_y_m, float) > 0
+    if len(left) < 2 or not (left != left[0]).any():
+        return None
+    k = int(np.argmax(left != left[0]))
+    return k if (left[k:] != left[0]).all() else None
+
+
+def _pieces(p: int, panel: LinePanel, split: bool, zones: tuple[str, str] = ("top_left",
+                                                                             "top_right")
+            ) -> list[tuple[str, Job]]:
+    """A panel's (zone, job) pieces: cut at the centre line (`centre_cut`) into its left piece
+    for zones[0] and its right piece for zones[1], else whole to the left (split False, or the
+    passes do not step across the car: the side its passes' mean y lies on)."""
     n = len(panel.durations_s)
     y = np.asarray(panel.pass_y_m, float)
-    if split and n >= 2:
-        left = y > 0
-        k = int(np.argmax(left != left[0])) if (left != left[0]).any() else 0
-        if k > 0 and (left[k:] != left[0]).all():     # one sign change: two sides
-            first, second = ("top_left", "top_right") if left[0] else ("top_right", "top_left")
-            return [(first, Job(p, 0, k)), (second, Job(p, k, n))]
-    return [("top_left" if not split or y.mean() >= 0 else "top_right", Job(p, 0, n))]
+    k = centre_cut(panel) if split else None
+    if k is not None:
+        first, second = zones if y[0] > 0 else zones[::-1]
+        return [(first, Job(p, 0, k)), (second, Job(p, k, n))]
+    return [(zones[0] if not split or y.mean() >= 0 else zones[1], Job(p, 0, n))]
 
 
 def zone_jobs(panels: Sequence[LinePanel], top_split: bool) -> dict[str, list[Job]]:
@@ -112,7 +149,17 @@ def zone_jobs(panels: Sequence[LinePanel], top_split: bool) -> dict[str, list[Jo
     def load(z: str) -> float:
         return sum(float(np.sum(panels[j.part].durations_s)) for j in zones[z])
 
+    belt = max((panels[j.part].centroid_m[2] for z in ("left", "right") for j in zones[z]),
+               default=np.inf)
     for p in fascias:
+        if panels[p].centroid_m[2] > belt and any(zones[z] for z in ("top_left", "top_right")):
+            for zone, job in _pieces(p, panels[p], top_split):     # a tailgate: from above
+                zones[zone].append(job)
+            continue
+        if centre_cut(panels[p]) is not None:   # each side's floor robots take their half
+            for zone, job in _pieces(p, panels[p], True, ("left", "right")):
+                zones[zone].append(job)
+            continue
         y = panels[p].centroid_m[1]
         z = "left" if y > FASCIA_MID_M else "right" if y < -FASCIA_MID_M \
             else min(("right", "left"), key=load)
@@ -174,6 +221,11 @@ def partition(panels: Sequence[LinePanel], jobs: list[Job], k: int,
     return [g for g in best if g]
 
 
+def floor_robots_max(panels: Sequence[LinePanel], jobs: Sequence[Job]) -> int:
+    """Most robots a side's floor zone takes (`FLOOR_ROBOTS_PER_SIDE`)."""
+    return FLOOR_ROBOTS_PER_SIDE
+
+
 def allocate_line(panels: Sequence[LinePanel], n_robots: int,
                   cost: Callable[[float], float] = float) -> list[RobotShare]:
     """The line's robots for `n_robots` (module doc), zone by zone (left, right, top_left,
@@ -181,7 +233,7 @@ def allocate_line(panels: Sequence[LinePanel], n_robots: int,
     [s] (default: the program itself; `LineTakt.robot_cycle_s` adds the return home), the
     quantity balanced. Fewer robots than zones with work: ValueError. A zone more robots do
     not shorten (one job left per robot, each a piece already) takes no more, so fewer than
-    `n_robots` may come back."""
+    `n_robots` may come back; a side's floor zone takes at most `floor_robots_max`."""
     top_split = sum(zone_of(p.side, p.centroid_m) == "top" for p in panels) > 0
     zones = zone_jobs(panels, top_split and n_robots >= 2)
     if "top_right" in zones and n_robots < len(zones):     # one top robot: the whole top
@@ -191,6 +243,8 @@ def allocate_line(panels: Sequence[LinePanel], n_robots: int,
                          f"{n_robots} robots cannot cover them")
     count = dict.fromkeys(zones, 1)
     parts = {z: partition(panels, zones[z], 1, cost) for z in zones}
+    most = {z: floor_robots_max(panels, zones[z]) if z in ("left", "right") else n_robots
+            for z in zones}
 
     def worst(z: str) -> float:
         return max(cost(sum(_job_s(panels, j) for j in g)) for g in parts[z])
@@ -201,11 +255,16 @@ def allocate_line(panels: Sequence[LinePanel], n_robots: int,
         if not open_:
             break
         z = max(open_, key=lambda z: (worst(z), -list(zones).index(z)))
+        if count[z] >= most[z]:
+            full.add(z)
+            continue
         got = partition(panels, zones[z], count[z] + 1, cost)
         if len(got) <= len(parts[z]):
             full.add(z)
             continue
         count[z] += 1
         parts[z] = got
-    return [RobotShare(z, tuple(g), float(sum(_job_s(panels, j) for j in g)))
-            for z in zones for g in parts[z]]
+    return [RobotShare(z, tuple(g[::-1] if z in ("left", "right") and len(parts[z]) > 1
+                                and k % 2 == 0 else g),
+                       float(sum(_job_s(panels, j) for j in g)))
+            for z in zones for k, g in enumerate(parts[z])]

@@ -1,0 +1,184 @@
+"""A whole body on a paint line (`paintcell init BODY --line`): the fascias and top panels cut at
+the car's centre line between the two sides' robots (each piece's passes re-measured on their
+side), their passes run across the car (the planner's start curve measured against the axis),
+a side's floor robots kept a stretch of the car apart, and a generated body's panel files
+written again from the generator (their areas against the generator's own truth file)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from paintcell.booth.line_allocation import (
+    FLOOR_ROBOTS_PER_SIDE,
+    LinePanel,
+    allocate_line,
+)
+from paintcell.core.errors import PaintcellError
+
+
+def _side(name: str, y: float, x0: float, x1: float, n: int = 5) -> LinePanel:
+    return LinePanel(name, (0.0, float(np.sign(y)), 0.0), ((x0 + x1) / 2, y, 0.8),
+                     np.full(n, 3.0), np.full(n, y), (x0, x1))
+
+
+def _across(name: str, side: tuple[float, float, float], x: float, n: int,
+            y0: float = 0.85, z: float = 0.5) -> LinePanel:
+    """A panel whose passes step across the car from y0 to −y0, centred z up [m]."""
+    return LinePanel(name, side, (x, 0.0, z), np.full(n, 1.5), np.linspace(y0, -y0, n),
+                     (x - 0.2, x + 0.2))
+
+
+def _body() -> list[LinePanel]:
+    return [_across("bumper_f", (1.0, 0.0, 0.0), 2.3, 9),
+            _side("fender_l", 0.85, 0.8, 1.8), _side("door_l", 0.85, -1.2, 0.8, 7),
+            _side("quarter_l", 0.85, -1.9, -1.2),
+            _side("fender_r", -0.85, 0.8, 1.8), _side("door_r", -0.85, -1.2, 0.8, 7),
+            _side("quarter_r", -0.85, -1.9, -1.2),
+            _across("hood", (0.0, 0.0, 1.0), 1.4, 6, 0.75, 1.0),
+            _across("roof", (0.0, 0.0, 1.0), -0.9, 5, 0.7, 1.6),
+            _across("tailgate", (-1.0, 0.0, 0.0), -2.2, 5, 0.7, 1.1),   # above the belt
+            _across("bumper_r", (-1.0, 0.0, 0.0), -2.3, 8)]
+
+
+@pytest.mark.parametrize("n", [4, 6, 8, 10])
+def test_fascias_and_tops_are_cut_at_the_centre_line(n: int) -> None:
+    """Each piece of a panel whose passes step across the car lies on its robot's side: a
+    floor or top robot on the left paints only passes at y > 0, on the right only y ≤ 0;
+    every pass is painted once; the bumpers are the floor robots', the tailgate (centred above
+    the side panels) the top robots'."""
+    panels = _body()
+    shares = allocate_line(panels, n)
+    owned = [np.zeros(len(p.durations_s), int) for p in panels]
+    for s in shares:
+        for j in s.jobs:
+            owned[j.part][j.first:j.end] += 1
+            y = panels[j.part].pass_y_m[j.first:j.end]
+            if panels[j.part].name in ("bumper_f", "tailgate", "hood", "roof") \
+                    and s.zone in ("left", "right", "top_left", "top_right") \
+                    and sum(r.zone.startswith("top") for r in shares) != 1:
+                assert (y > 0).all() if s.zone.endswith("left") else (y <= 0).all(), \
+                    (s.zone, panels[j.part].name, y)
+    assert all((o == 1).all() for o in owned)
+    def zones(name: str) -> set[str]:
+        return {s.zone for s in shares for j in s.jobs if panels[j.part].name == name}
+
+    assert zones("bumper_f") == zones("bumper_r") == {"left", "right"}
+    assert zones("tailgate") <= {"top_left", "top_right"} and zones("tailgate")
+
+
+def test_a_fascia_whose_passes_do_not_cross_the_car_goes_whole_to_one_side() -> None:
+    panels = _body()[1:9] + [LinePanel("bumper_f", (1.0, 0.0, 0.0), (2.3, 0.0, 0.6),
+                                       np.full(4, 3.0), np.zeros(4), (2.1, 2.5))]
+    shares = allocate_line(panels, 4)
+    pieces = [(s.zone, j) for s in shares for j in s.jobs if j.part == len(panels) - 1]
+    assert len(pieces) == 1 and pieces[0][1].first == 0 and pieces[0][1].end == 4
+
+
+def test_a_side_takes_no_more_floor_robots_than_its_rail_line_holds() -> None:
+    """Counted on the shares, for every count: each side's floor robots, at least one and at
+    most `FLOOR_ROBOTS_PER_SIDE`; the rest go to the top zones."""
+    panels = _body()
+    for n in range(4, 13):
+        shares = allocate_line(panels, n)
+        for zone in ("left", "right"):
+            assert 1 <= sum(s.zone == zone for s in shares) <= FLOOR_ROBOTS_PER_SIDE
+
+
+def test_pass_orientation_runs_the_planners_passes_along_the_axis() -> None:
+    """A fascia curved up and down (a cylinder about the car's y axis, facing −x, as a
+    tailgate) and a hood tilted 10° about y: the planner's start curve, at the angle
+    `pass_orientation` gives, runs along the axis asked for (projected on the panel)."""
+    from paintcell.app.init_line import pass_orientation
+    from paintcell.coverage.start_curve import average_normal, select_start_curve
+    from paintcell.surface import parts
+    from paintcell.surface.surface import plane
+
+    cyl = parts.cylinder_section(0.025)            # axis x, R = 1 m
+    nbar = average_normal(cyl)
+    # turn the axis to y and the mean normal to −x
+    a = np.cross(nbar, [0.0, 0.0, 1.0])
+    R1 = trimesh.transformations.rotation_matrix(np.pi / 2, [0.0, 0.0, 1.0])  # x → y
+    n1 = R1[:3, :3] @ nbar
+    ang = np.arctan2(np.linalg.norm(np.cross(n1, [-1.0, 0.0, 0.0])), n1 @ [-1.0, 0.0, 0.0])
+    R2 = trimesh.transformations.rotation_matrix(ang, np.cross(n1, [-1.0, 0.0, 0.0]))
+    tail = cyl.transformed(R2 @ R1)
+    del a
+    hood = plane(1.2, 1.6, 0.025).transformed(
+        trimesh.transformations.rotation_matrix(np.deg2rad(10.0), [0.0, 1.0, 0.0]))
+    for surf, axis in ((tail, (0.0, 0.0, 1.0)), (hood, (1.0, 0.0, 0.0))):
+        n = average_normal(surf)
+        mesh = trimesh.Trimesh(surf.vertices, surf.faces, process=False)
+        angle = pass_orientation(mesh, tuple(n), axis)
+        sc = select_start_curve(surf, angle)
+        want = np.asarray(axis) - (np.asarray(axis) @ n) * n
+        assert abs(sc.pass_dir @ want / np.linalg.norm(want)) > np.cos(np.deg2rad(0.5))
+
+
+def test_a_generated_bodys_panel_files_are_written_again(tmp_path: Path) -> None:
+    """`ensure_panel_files` writes every missing panel file; each file's area equals the
+    generator's truth file's area of that panel (computed there in mm, float64), and a table
+    whose areas the generator does not give is refused in one line."""
+    from paintcell.cli.main import main
+    from paintcell.surface.body_panels import load_body
+    from paintcell.surface.generated_body import ensure_panel_files, generated_origin
+
+    assert main(["generate", "body", "--seed", "1", "--out", str(tmp_path / "car.stl")]) == 0
+    truth = {p["name"]: p["area_m2"]
+             for p in json.loads((tmp_path / "car.truth.json").read_text())["panels"]}
+    panels = load_body(tmp_path / "car.stl")
+    assert generated_origin(tmp_path / "car.stl", panels) == {"seed": 1, "read": "mesh"}
+    assert generated_origin(tmp_path / "car_panels", load_body(tmp_path / "car_panels")) \
+        == {"seed": 1, "read": "panels"}
+    # a manifest of two of its panels is not the generator's body
+    doc = json.loads((tmp_path / "car_panels" / "body.json").read_text())
+    doc["panels"] = doc["panels"][:2]
+    (tmp_path / "car_panels" / "two.json").write_text(json.dumps(doc))
+    two = tmp_path / "car_panels" / "two.json"
+    assert generated_origin(two, load_body(two)) is None
+
+    files = [tmp_path / "line_panels" / f"{i:02d}_{p.name}.stl" for i, p in enumerate(panels)]
+    areas = [truth[p.name] for p in panels]
+    table = {"seed": 1, "read": "mesh", "areas_m2": areas}
+    ensure_panel_files(table, files, "line.toml")
+    for f, p in zip(files, panels, strict=True):
+        assert trimesh.load(f, force="mesh").area == pytest.approx(truth[p.name], rel=1e-6)
+    stamp = [f.stat().st_mtime_ns for f in files]
+    ensure_panel_files(table, files, "line.toml")            # all there: nothing written
+    assert [f.stat().st_mtime_ns for f in files] == stamp
+    files[3].unlink()
+    ensure_panel_files(table, files, "line.toml")
+    assert files[3].is_file()
+    with pytest.raises(PaintcellError) as bad:
+        ensure_panel_files({**table, "areas_m2": [a * 1.01 for a in areas]}, files, "line.toml")
+    assert "\n" not in str(bad.value) and "--seed 1" in str(bad.value)
+    with pytest.raises(PaintcellError):
+        ensure_panel_files({"seed": 1, "read": "mesh"}, files, "line.toml")
+
+
+def test_neighbouring_floor_robots_of_a_side_work_away_from_each_other(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two floor robots a side: re-measured on the jobs' centroids, the first runs its jobs
+    rear to front (x rising), the next front to rear, so the pair starts at its common
+    boundary."""
+    import paintcell.booth.line_allocation as la
+
+    monkeypatch.setattr(la, "FLOOR_ROBOTS_PER_SIDE", 2)
+    panels = _body()
+    for n in (6, 8):
+        shares = allocate_line(panels, n)
+        for zone in ("left", "right"):
+            side = [s for s in shares if s.zone == zone]
+            assert len(side) == 2
+            for k, s in enumerate(side):
+                x = [panels[j.part].centroid_m[0] for j in s.jobs]
+                assert x == sorted(x, reverse=k % 2 == 1), (zone, k, x)
+            # the boundary: the first robot's first job meets the second's first job
+            a, b = side[0].jobs[0], side[1].jobs[0]
+            assert a.part == b.part or abs(panels[a.part].x_span_m[0]
+                                           - panels[b.part].x_span_m[1]) < 1e-9
+
