@@ -35,8 +35,7 @@ WALL_GAPS_M = (1.3, 1.6, 1.9)
 WALL_Z_M = 3.0
 #: Home of a wall-mounted robot: carriage at 0, the arm folded over the body (roof_r's).
 WALL_HOME = (0.0, 0.0, -0.9, 0.9, 0.0, 0.6, 0.0)
-#: How far past its stretch of the car, and past the body's travel, a robot parks when it
-#: shares its side [m].
+#: How far past its stretch of the car a robot parks when it shares its side [m].
 PARK_M = 1.5
 #: Least distance between the rail centres of two robots of one zone [m].
 STATION_SPACING_M = 1.5
@@ -108,10 +107,7 @@ def _robot_frames(share: RobotShare, k: int, pts: np.ndarray, x_m: float, left: 
     reach = float(np.abs(pts[:, 0] - x_m).max())
     half = round(reach + (PARK_M if park else 0.0) + track_m + RAIL_MARGIN_M, 3)
     # the carriage runs along world +x on the left, −x on the right (the arm faces the car)
-    # parked past its stretch and past the body's travel: the body moves ± track_m while the
-    # neighbours paint, so a robot parked only past its stretch stands where a neighbour paints
-    # the body's middle at the cycle's start or end (waiting out a start delay there)
-    home0 = round(park * (reach + PARK_M + track_m) * (1.0 if left else -1.0), 3)
+    home0 = round(park * (reach + PARK_M) * (1.0 if left else -1.0), 3)
     name = f"{share.zone}_{k}" if share.zone in ("left", "right") \
         else f"top_{'left' if left else 'right'}_{k}"
     out = []
