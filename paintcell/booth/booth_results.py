@@ -256,8 +256,8 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     reads the data files back."""
     from paintcell.booth.booth_data import booth_snapshot
     from paintcell.booth.booth_plots import booth_figure
-    from paintcell.booth.booth_rapid import booth_rapid_modules
     from paintcell.core.atomic_io import atomic_write_npz
+    from paintcell.output.export_rapid import cell_modules
 
     booth = result.scenario
     d = result.report.to_dict()
@@ -282,8 +282,8 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
         ex.save_npz(out / f"trace_{spec.name}.npz")
     if result.trace is not None:
         result.trace.save_npz(out / "trace.npz")
-    for name, text in booth_rapid_modules(booth, result.report.metrics, result.jobs,
-                                          result.static_trajectories, robots).items():
+    for name, text in cell_modules(booth, result.report.metrics, result.jobs,
+                                   result.static_trajectories, robots).items():
         atomic_write_text(out / f"{name}.mod", text)
     booth_figure(result, out / "booth.png")
     from paintcell.booth.booth_film import overlap_mask
