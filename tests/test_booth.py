@@ -456,9 +456,12 @@ def test_booth_toml_is_read_and_checked(tmp_path):
 def test_booth_figure_is_written(roof_booth, tmp_path):
     from PIL import Image
 
-    from paintcell.booth.booth_plots import booth_figure
+    from paintcell.output.plots import plot_robot_timeline
 
-    path = booth_figure(roof_booth, tmp_path / "booth.png")
+    m = roof_booth.report.metrics
+    path = plot_robot_timeline(tmp_path / "booth.png", [r.name for r in ROOF_BOOTH.robots],
+                               roof_booth.trajectories,
+                               [len(s.t_s) for s in roof_booth.static_trajectories], m, "roof")
     with Image.open(path) as im:
         assert im.format == "PNG" and im.size[0] > 800
 
