@@ -1,4 +1,5 @@
 """What a booth run measures beside its film checks (paintcell.booth.booth_usage,
+paintcell.validation.validate_motion.robots_motion,
 paintcell.booth.booth_part_film, paintcell.booth.booth_seams.seam_band,
 paintcell.output.export_rapid.cell_modules): each robot's time and paint, each part's film
 and loss split, the seams, the report's tables and the conveyor-tracked RAPID modules.

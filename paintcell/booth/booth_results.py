@@ -8,7 +8,7 @@ Metrics (all in `ValidationReport.metrics`, units in the names):
   cycle), paint credit (its share of the film volume on the body) and coverage credit (the share
   of the body's area where it lays most of the film); its cycle split into painting / moving /
   waiting at home, paint sent and laid, transfer efficiency (`paintcell.booth.booth_usage`,
-  also the booth's and each part's paint), TCP tracking and joint use (`booth_motion`);
+  also the booth's and each part's paint), TCP tracking and joint use (`robots_motion`);
 - film: planned / trajectory / executed σ/μ over the whole body and in the overlap bands (points
   where two robots each lay ≥ 10 % of the film), the loss split into time law, servo and
   conveyor tracking; per part and the seams (`paintcell.booth.booth_part_film`);
@@ -26,7 +26,6 @@ import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell
-from paintcell.booth.booth_motion import booth_motion
 from paintcell.booth.booth_part_film import part_film_figures
 from paintcell.booth.booth_spec import booth_spec_metrics
 from paintcell.booth.booth_usage import booth_usage
@@ -39,6 +38,7 @@ from paintcell.output.gltf_film import FilmScene
 from paintcell.output.report_film import FilmData
 from paintcell.surface.surface import Surface
 from paintcell.validation.paint_spec import spec_checks
+from paintcell.validation.validate_motion import robots_motion
 from paintcell.validation.validate_report import Check, ValidationReport
 
 #: half-width of the body's spec window as a fraction of its planned mean film (±10 %, as a
@@ -199,7 +199,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     names = [r.name for r in booth.robots]
     for per_robot, whole in (booth_usage(names, list(per_part), plans, jobs, trajs, own, trace.t_s,
                                          cycle, films, body.vertex_areas, offs),
-                             booth_motion(names, trajs, traces, trace, bcell.columns, np.outer(
+                             robots_motion(names, trajs, traces, trace, bcell.columns, np.outer(
                                  trajs_carrier(trace, booth, trajs), booth.conveyor.unit))):
         for name, figures in per_robot.items():
             robots[name].update(figures)
