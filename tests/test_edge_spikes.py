@@ -35,7 +35,7 @@ def test_smooth_curves_have_no_spike(curve: np.ndarray) -> None:
     assert not spikes(curve, 6, 2 * STEP_M).any()
 
 
-@pytest.mark.parametrize("at,width", [(20, 1), (30, 3), (0, 2), (57, 3)])
+@pytest.mark.parametrize("at,width", [(20, 1), (30, 3), (2, 1), (55, 2)])
 def test_a_displaced_run_of_samples_is_flagged_exactly(at: int, width: int) -> None:
     c = _arc()
     c[at:at + width] += np.array([0.0, 0.0, 0.15])       # off the arc's plane by 0.15 m
@@ -43,6 +43,14 @@ def test_a_displaced_run_of_samples_is_flagged_exactly(at: int, width: int) -> N
     want = np.zeros(len(c), bool)
     want[at:at + width] = True
     np.testing.assert_array_equal(flagged, want)
+
+
+def test_an_end_sample_is_its_own_median() -> None:
+    """The window shrinks symmetrically toward an end: the end sample has no neighbours to be
+    judged by (an end-point extrapolation flagged the ends of curved edge passes)."""
+    c = _arc()
+    c[[0, -1]] += np.array([0.0, 0.0, 0.15])
+    assert not spikes(c, 6, 2 * STEP_M).any()
 
 
 def test_missing_samples_are_skipped_and_never_flagged() -> None:

@@ -84,9 +84,8 @@ def spikes(points: npt.ArrayLike, half_window: int, tol_m: float) -> np.ndarray:
     """(M,) bool: the points of a sampled curve (M, 3) [m] (NaN rows: no point) farther than
     `tol_m` [m] from where their neighbours put them: the coordinate-wise median of the finite
     points in a window symmetric about each point (`half_window` samples each way, fewer where
-    the curve ends), and within `half_window` of an end, the quadratic through the medians of
-    the first three full windows, extrapolated (a missing sample drops its mirror image in the
-window too). Each coordinate that runs monotonically over a
+    the curve ends: an end sample is its own median and is never flagged; a missing sample
+    drops its mirror image from the window too). Each coordinate that runs monotonically over a
     symmetric window has its own value as the median, so a smooth curve sampled finely against
     the window is not flagged; a sample or a few that jump off the curve and back (a spike)
     are. NaN rows are never flagged."""
@@ -103,15 +102,5 @@ window too). Each coordinate that runs monotonically over a
     with warnings.catch_warnings():                              # an all-NaN window: NaN
         warnings.simplefilter("ignore", RuntimeWarning)
         ref = np.nanmedian(win, axis=1)
-    if m >= 2 * h + 3:
-        for ends, nodes in ((i[:h], i[h:h + 3]), (i[m - h:], i[m - h - 3:m - h])):
-            y = ref[nodes]
-            if np.all(np.isfinite(y)):
-                x = (ends[:, None] - nodes[None, :]).astype(float)     # Lagrange basis
-                n0, n1, n2 = nodes.astype(float)
-                w = np.column_stack([x[:, 1] * x[:, 2] / ((n0 - n1) * (n0 - n2)),
-                                     x[:, 0] * x[:, 2] / ((n1 - n0) * (n1 - n2)),
-                                     x[:, 0] * x[:, 1] / ((n2 - n0) * (n2 - n1))])
-                ref[ends] = w @ y
     dev = np.linalg.norm(p - ref, axis=1)
     return np.isfinite(dev) & (dev > tol_m)
