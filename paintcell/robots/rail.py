@@ -38,9 +38,6 @@ from paintcell.robots.robot import Robot, write_generated_mjcf
 #: worst-case margin [rad] to joint limits / wrist singularity below which a rail position costs
 #: more (a pass at the edge of the arm's range leaves the moves between passes no room).
 COMFORT_MARGIN_RAD = 0.5
-#: the carriage holds a pass at least this far inside its travel [m]: parked on an end stop, the
-#: servo's settling overshoots the limit (the carriage's use of its range read 1.0000002).
-RAIL_END_MARGIN_M = 0.005
 #: an extra cost of a rail position: penalty(s_m, Q (M, 6) arm joints [rad]) -> float.
 RailPenalty = Callable[[float, np.ndarray], float]
 #: names in the generated MJCF.
@@ -299,8 +296,7 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
         return c + float(penalty(float(s), Q)) if ok and penalty is not None \
             and Q is not None else c
 
-    low, high = spec.lower_m + RAIL_END_MARGIN_M, spec.upper_m - RAIL_END_MARGIN_M
-    grid = np.linspace(low, high, n_scan)
+    grid = np.linspace(spec.lower_m, spec.upper_m, n_scan)
     scan = rail_branches(robot, sub, grid, q_pref, settings, jump_scale=js)
     costs = np.array([c for c, _, _ in scan])
     # The penalty (≥ 0) is evaluated in order of the plain cost until no unevaluated grid point
@@ -312,7 +308,7 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
         totals[i] = total(float(grid[i]), *scan[i])
     k = int(np.argmin(totals))
     h = grid[1] - grid[0]
-    lo, hi = max(low, grid[k] - h), min(high, grid[k] + h)
+    lo, hi = max(spec.lower_m, grid[k] - h), min(spec.upper_m, grid[k] + h)
     res = minimize_scalar(lambda s: base(s)[0], bounds=(lo, hi), method="bounded",
                           options={"xatol": 1e-4})
     # the refinement of the plain cost, kept where its total is no worse than the grid's
