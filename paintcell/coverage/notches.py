@@ -135,24 +135,14 @@ def _trimmed(chain: np.ndarray, p2: np.ndarray, tol_m: float) -> np.ndarray:
     """The chain without its end stretches that run along the mouth (within `tol_m` [m] of the
     line between its ends, in the plane p2 (L, 2)): a hull corner a little outside the bay's own
     corner (a slightly bulging edge beside it) would otherwise put a piece of that edge into the
-    bay, and the mouth would run back over it. A point is trimmed only while it lies within
-    `tol_m` of the hull's edge too: judged against the mouth alone, which turns with each
-    trimmed point, a bay whose side leaves the hull steeply in steps shorter than `tol_m` was
-    trimmed away a step at a time, down to its two corners."""
+    bay, and the mouth would run back over it."""
     lo, hi = 0, len(chain) - 1
-    d0 = p2[hi] - p2[lo]                  # the hull's edge: the mouth before any trimming
-    n0 = np.array([-d0[1], d0[0]]) / max(float(np.linalg.norm(d0)), 1e-12)
-
-    def along(k: int, n: np.ndarray) -> bool:   # point k within tol of the mouth and the edge
-        return abs(float((p2[k] - p2[lo]) @ n)) < tol_m and \
-            abs(float((p2[k] - p2[0]) @ n0)) < tol_m
-
     while hi - lo >= 2:                   # at most the chain's length in steps
         d = p2[hi] - p2[lo]
         n = np.array([-d[1], d[0]]) / max(float(np.linalg.norm(d)), 1e-12)
-        if along(lo + 1, n):
+        if abs(float((p2[lo + 1] - p2[lo]) @ n)) < tol_m:
             lo += 1
-        elif along(hi - 1, n):
+        elif abs(float((p2[hi - 1] - p2[lo]) @ n)) < tol_m:
             hi -= 1
         else:
             break
