@@ -2,7 +2,7 @@
 (`paintcell.coverage.family_geometry`): byte-identical plans, and the time saved.
 
 For each single-robot scenario: the --fast (or full) plan, its joint program, the program's
-speed caps (`paintcell.motion.speed_feedback.speed_caps`; where the program slows no pose,
+speed caps (`paintcell.motion.speed_caps.speed_caps`; where the program slows no pose,
 0.9 × the speeds it reaches, so the caps still bind) and bell x axes (`tool_axes`); then the
 capped re-plan twice — with the geometry kept from the first plan, and planned anew (kept geometry
 dropped) — both saved with `CoveragePlan.save` and compared file by file (plan.json, plan.npz).
@@ -55,7 +55,7 @@ def check(path: Path, fast: bool, n: list[int]) -> dict[str, object]:
     from paintcell.app.scenario_files import load_scenario
     from paintcell.coverage import family_geometry
     from paintcell.coverage.coverage import plan_coverage
-    from paintcell.motion.speed_feedback import achieved_speeds, speed_caps, tool_axes
+    from paintcell.motion.speed_caps import achieved_speeds, speed_caps, tool_axes
 
     scn = load_scenario(path)
     surface = load_surface(scn, fast)

@@ -1,5 +1,5 @@
 """The booth (paintcell.booth.booth, paintcell.booth.booth_run,
-paintcell.booth.booth_rapid): superposition of the robots' films,
+paintcell.output.export_rapid's cell_modules): superposition of the robots' films,
 allocation and staggering against brute force, RAPID modules per robot.
 
 (`paintcell check scenarios/ --fast` runs the four-robot scenarios/booth.toml end to end in CI.)
@@ -28,11 +28,11 @@ from paintcell.booth.booth import (
 )
 from paintcell.booth.booth_film import gun_in_body, plan_gun_in_body
 from paintcell.booth.booth_programs import load_robots
-from paintcell.booth.booth_rapid import booth_rapid_modules
 from paintcell.booth.booth_run import BoothResult
 from paintcell.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagger_starts
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.placement import Placement
+from paintcell.output.export_rapid import cell_modules
 from paintcell.paint.deposition import GunSamples, thickness
 from paintcell.validation.paint_spec import PaintSpec
 
@@ -255,8 +255,8 @@ def test_pace_refinement_leaves_a_part_whose_planner_says_no(roof_booth, monkeyp
 
 def test_rapid_modules_are_synchronised_and_conveyor_coordinated(roof_booth):
     robots = load_robots(ROOF_BOOTH)
-    mods = booth_rapid_modules(roof_booth.scenario, roof_booth.report.metrics, roof_booth.jobs,
-                               roof_booth.static_trajectories, robots)
+    mods = cell_modules(roof_booth.scenario, roof_booth.report.metrics, roof_booth.jobs,
+                        roof_booth.static_trajectories, robots)
     assert set(mods) == {"T_ROOF_L", "T_ROOF_R"}
     for text, traj in zip(mods.values(), roof_booth.static_trajectories, strict=True):
         syncs = [ln.strip() for ln in text.splitlines() if ln.strip().startswith("WaitSync")]
@@ -456,9 +456,12 @@ def test_booth_toml_is_read_and_checked(tmp_path):
 def test_booth_figure_is_written(roof_booth, tmp_path):
     from PIL import Image
 
-    from paintcell.booth.booth_plots import booth_figure
+    from paintcell.output.plots import plot_robot_timeline
 
-    path = booth_figure(roof_booth, tmp_path / "booth.png")
+    m = roof_booth.report.metrics
+    path = plot_robot_timeline(tmp_path / "booth.png", [r.name for r in ROOF_BOOTH.robots],
+                               roof_booth.trajectories,
+                               [len(s.t_s) for s in roof_booth.static_trajectories], m, "roof")
     with Image.open(path) as im:
         assert im.format == "PNG" and im.size[0] > 800
 

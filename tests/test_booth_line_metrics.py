@@ -1,7 +1,8 @@
 """What a booth run measures beside its film checks (paintcell.booth.booth_usage,
+paintcell.validation.validate_motion.robots_motion,
 paintcell.booth.booth_part_film, paintcell.booth.booth_seams.seam_band,
-paintcell.booth.booth_rapid): each robot's time and paint, each part's film and loss split, the
-seams, the report's tables and the conveyor-tracked RAPID modules.
+paintcell.output.export_rapid.cell_modules): each robot's time and paint, each part's film
+and loss split, the seams, the report's tables and the conveyor-tracked RAPID modules.
 
 The booth figures are checked on one `--fast` run of scenarios/booth.toml (four robots, servo
 execution), each re-measured from the results folder's files (traces, plans, film.npz, the

@@ -1,7 +1,7 @@
-"""Robot-aware speeds in a booth (paintcell.booth.booth_speeds, measured by
-paintcell.motion.speed_feedback.part_speeds for any number of robots): a robot's slowdown, measured
-on its chained program, lands as caps on the very samples it ran slow — found again by where they
-are in space — through a part run backwards and a robot with two jobs."""
+"""Robot-aware speeds in a cell of N robots (paintcell.motion.speed_feedback.robot_aware_parts,
+measured by paintcell.motion.speed_caps.part_speeds for any number of robots): a robot's
+slowdown, measured on its chained program, lands as caps on the very samples it ran slow — found
+again by where they are in space — through a part run backwards and a robot with two jobs."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 from paintcell.booth.booth import Job
 from paintcell.booth.booth_build import reversed_plan
 from paintcell.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.motion.speed_feedback import (
+from paintcell.motion.speed_caps import (
     caps_from_speeds,
     part_speeds,
     planner_order,

@@ -11,7 +11,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from paintcell.execution.cell import CameraSpec, Cell, CellError, build_cell
+from paintcell.execution.cell import CameraSpec, Cell, build_cell
+from paintcell.execution.cell_robots import CellError
 from paintcell.surface.surface import plane
 from tests.test_execute import make_case, make_cell
 

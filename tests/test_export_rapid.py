@@ -219,3 +219,34 @@ def test_bad_options_raise() -> None:
     for bad in (0.0, float("nan"), -1.0):
         with pytest.raises(ValueError, match="spacing"):
             rapid_module(_traj(), ROBOT, load=LOAD, max_spacing_m=bad)
+
+
+def test_a_rail_robot_writes_its_carriage_as_an_external_axis() -> None:
+    """A robot on a rail (its program's first column the carriage [m]): every joint target
+    holds the arm's six axes [deg] and the carriage [mm] as eax_a, every pass target its pass's
+    carriage, the tool data the arm's; the module passes rapidchecker's independent grammar."""
+    from tests.trust_cases import flat, rapid_parse, small_program
+
+    arm = small_program()
+    carriage = np.linspace(0.3, 0.5, len(arm.t_s))
+    traj = JointTrajectory(**{**{n: getattr(arm, n) for n in (
+        "t_s", "tcp_pos_world", "tcp_rot_world", "v_tcp_planned", "paint_on", "pass_index",
+        "segment", "s_pass_m")}, "q": np.c_[carriage, arm.q], "qd": np.c_[carriage, arm.qd],
+        "qdd": np.c_[carriage, arm.qdd]}, robot_name="rail",
+        joint_names=("rail", *arm.joint_names))
+    placed = SimpleNamespace(T_world_base=ROBOT.T_world_base, T_flange_tcp=ROBOT.T_flange_tcp)
+    robot = SimpleNamespace(T_world_base=ROBOT.T_world_base, T_flange_tcp=np.eye(4),
+                            rail=SimpleNamespace(arm=SimpleNamespace(placed=lambda T: placed)))
+    text = rapid_module(traj, robot, load=LOAD, max_spacing_m=0.2)
+    assert "MoveAbsJ" in flat(rapid_parse(text))
+    joints = re.findall(r"CONST jointtarget (\w+) := \[\[([^\]]*)\],\[([-\d.]+),9E9", text)
+    assert len(joints) >= 2
+    for name, axes, eax in joints:
+        deg = np.array(axes.split(","), float)
+        i = int(np.argmin(np.abs(np.degrees(arm.q) - deg).max(axis=1)))   # the sample it is
+        assert len(deg) == 6 and np.abs(np.degrees(arm.q[i]) - deg).max() < 1e-3, name
+        assert abs(float(eax) - 1000 * carriage[i]) < 0.05, name
+    first = np.flatnonzero(traj.segment == PAINT)[0]
+    eaxes = re.findall(r"CONST robtarget p0_\d+ := .*,\[(-?[\d.]+),9E9", text)
+    assert eaxes and all(abs(float(e) - 1000 * carriage[first]) < 0.05 for e in eaxes)
+    assert "[[85.00,0.00,245.00]" in text          # the arm's tool, not the rail robot's

@@ -1,6 +1,6 @@
-"""Robot-aware speeds (paintcell.motion.speed_feedback): caps measured from a joint program's
-TCP speeds, mapped
-onto the plan's samples in each pass's generation direction, and obeyed by the re-plan."""
+"""Robot-aware speeds (paintcell.motion.speed_caps, paintcell.motion.speed_feedback): caps
+measured from a joint program's TCP speeds, mapped onto the plan's samples in each pass's
+generation direction, and obeyed by the re-plan."""
 
 from __future__ import annotations
 
@@ -9,13 +9,8 @@ from dataclasses import replace
 import numpy as np
 
 from paintcell.coverage.coverage import PlannerSettings, plan_coverage
-from paintcell.motion.speed_feedback import (
-    SLOW_REL,
-    achieved_speeds,
-    speed_caps,
-    tool_axes,
-    with_targets,
-)
+from paintcell.motion.speed_caps import SLOW_REL, achieved_speeds, speed_caps, tool_axes
+from paintcell.motion.speed_feedback import with_targets
 from paintcell.paint.applicator import Applicator
 from paintcell.surface import parts
 from tests.helpers import stand_in_program

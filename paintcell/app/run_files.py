@@ -183,10 +183,10 @@ def program_modules(files: dict[str, Any], metrics: dict[str, Any], header: list
     options: dict[str, Any] = {"style": style, "max_spacing_m": spacing_m, "validation": header}
     if files["kind"] == "booth":
         from paintcell.booth.booth_programs import load_robots
-        from paintcell.booth.booth_rapid import booth_rapid_modules
+        from paintcell.output.export_rapid import cell_modules
 
-        return booth_rapid_modules(scn, metrics, files["jobs"], files["static"],
-                                   load_robots(scn), **options)
+        return cell_modules(scn, metrics, files["jobs"], files["static"], load_robots(scn),
+                            **options)
     from paintcell.app.pipeline import load_robot_for
     from paintcell.output.export_rapid import rapid_module
 

@@ -196,8 +196,9 @@ class Booth:
     `film_refine = false` (the booth's `[planner]` or its own) is not refined at all."""
     robot_aware_speeds: bool = True
     """Measure each robot's program on its passes and re-plan the parts' speeds under what the
-    robots reached where they ran slower than planned (`paintcell.booth.booth_speeds`, as
-    a one-robot run does); False: the plans as the planner made them."""
+    robots reached where they ran slower than planned
+    (`paintcell.motion.speed_feedback.robot_aware_parts`, as a one-robot run does); False: the
+    plans as the planner made them."""
     blend_seams: bool = True
     """Switch off the samples that paint other parts more than their own
     (`paintcell.booth.booth_seams`)."""

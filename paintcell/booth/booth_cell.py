@@ -30,18 +30,16 @@ import numpy.typing as npt
 
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.transforms import check_pose, quat_wxyz_from_matrix
-from paintcell.execution.cell import (
+from paintcell.execution.cell import Cell, index_cell, new_cell_spec
+from paintcell.execution.cell_part import add_part_geoms
+from paintcell.execution.cell_robots import (
     BOOTH_BODY,
-    COLLISION_BIT,
     PART_BODY,
-    Cell,
     CellError,
     RobotLike,
     add_contact_sensors,
-    add_part_geoms,
-    index_cell,
-    new_cell_spec,
-    riding_bodies,
+    attach_robots,
+    stand_robots,
 )
 from paintcell.surface.surface import Surface
 
@@ -128,18 +126,8 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
     spec.stat.center = 0.5 * (T_wp[:3, 3] + bases.mean(axis=0))
     spec.stat.extent = max(3.0, float(np.ptp(np.vstack([bases, T_wp[None, :3, 3]]), axis=0).max()))
 
-    holder = spec.worldbody.add_body(name=ROBOTS_BODY)
-    for i, robot in enumerate(robots):
-        rs = mujoco.MjSpec.from_file(str(robot.mjcf_path))
-        for key in list(rs.keys):
-            rs.delete(key)
-        T = robot.T_world_base
-        frame = holder.add_frame(pos=T[:3, 3], quat=quat_wxyz_from_matrix(T[:3, :3]))
-        spec.attach(rs, prefix=robot_prefix(i), frame=frame)
-    for geom in spec.geoms:   # only robot geoms so far: collision geoms collide with each other
-        if geom.contype or geom.conaffinity:
-            geom.contype |= COLLISION_BIT
-            geom.conaffinity |= COLLISION_BIT
+    prefixes = [robot_prefix(i) for i in range(len(robots))]
+    attach_robots(spec, spec.worldbody.add_body(name=ROBOTS_BODY), robots, prefixes)
 
     part = spec.worldbody.add_body(name=PART_BODY, pos=T_wp[:3, 3],
                                    quat=quat_wxyz_from_matrix(T_wp[:3, :3]))
@@ -160,16 +148,7 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
         floor = spec.worldbody.add_body(name=BOOTH_BODY)
         floor.add_geom(name="booth_floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
                        rgba=[0.5, 0.52, 0.55, 1])
-    for i, robot in enumerate(robots):
-        base = spec.body(robot_prefix(i) + robot.base_body_name)
-        if base is None:
-            raise CellError(f"robot {i} MJCF has no body {robot.base_body_name!r}")
-        if booth:   # the foot, and on a rail the carriage, stand on the floor by design
-            for body in [base, *riding_bodies(base)]:
-                spec.add_exclude(bodyname1=body.name, bodyname2=BOOTH_BODY)
-        # as paintcell.execution.cell: the foot against its moving children
-        for child in base.bodies:
-            spec.add_exclude(bodyname1=base.name, bodyname2=child.name)
+    stand_robots(spec, robots, prefixes, booth)
     spec.worldbody.add_light(name="key", pos=[0, 0, 6], dir=[0, 0, -1],
                              type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL,
                              diffuse=[0.6, 0.6, 0.6], castshadow=False)

@@ -4,7 +4,7 @@ plans together (`finish_plans`): passes run backwards where a part says `reverse
 refined with the robots' pace held (`paintcell.coverage.film_refine.refine_parts`), one film build
 (`paintcell.booth.booth_build`) and blended seams (`paintcell.booth.booth_seams`).
 
-The two steps are apart so the robot-aware speeds (`paintcell.booth.booth_speeds`) can plan
+The two steps are apart so the robot-aware speeds (`paintcell.motion.speed_feedback`) can plan
 a part again under its robots' speed caps and finish the plans the same way.
 """
 

@@ -29,12 +29,12 @@ from paintcell.booth.booth_chain import job_record
 from paintcell.booth.booth_hold import delayed, held_to
 from paintcell.booth.booth_job_programs import body_probe, load_robots, robot_programs
 from paintcell.booth.booth_plans import PartPlans, finish_plans, plan_parts
-from paintcell.booth.booth_speeds import Built, robot_aware_booth
 from paintcell.booth.booth_stagger import stagger_starts
 from paintcell.booth.conveyor import ConveyorError, track_program
 from paintcell.core.errors import PaintcellError
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import JointTrajectory
+from paintcell.motion.speed_feedback import CellPrograms, robot_aware_parts
 from paintcell.surface.surface import Surface
 
 #: allocations tried, best first, before giving up (their programs are cached per robot and job).
@@ -112,16 +112,18 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
     shrink = 0.5 * booth.conveyor.speed_m_s * record.get("estimated_cycle_s", 0.0) * 1.25
     speeds: dict[str, Any] = {"rule": "off"}
     for attempt in range(2):
-        built = Built(*_choose(booth, robots, fin.plans, ranked, T_wb, T_body_parts, shrink,
-                               probes, remote_of))
+        built = CellPrograms(*_choose(booth, robots, fin.plans, ranked, T_wb, T_body_parts,
+                                      shrink, probes, remote_of))
         if attempt == 0 and booth.robot_aware_speeds:
             def rebuild(pls: list[CoveragePlan], jobs: Any = built.jobs,
-                        shrink_m: float = shrink) -> Built:
-                return Built(*_choose(booth, robots, pls, [jobs], T_wb, T_body_parts,
-                                      shrink_m, probes, remote_of))
+                        shrink_m: float = shrink) -> CellPrograms:
+                return CellPrograms(*_choose(booth, robots, pls, [jobs], T_wb, T_body_parts,
+                                             shrink_m, probes, remote_of))
 
             tried0 = built.tried          # the candidates of the allocation, as chosen
-            fin, built, speeds = robot_aware_booth(booth, pp, fin, built, rebuild)
+            fin, built, speeds = robot_aware_parts(
+                [bp.part for bp in booth.parts], [bp.reverse for bp in booth.parts], pp, fin,
+                built, lambda pls, caps: finish_plans(booth, pp, pls, caps), rebuild)
             built.tried = tried0
         jobs, static, trajs0, tried = built.jobs, built.static, built.trajs, built.tried
         K = max(len(tr.t_s) for tr in trajs0)

@@ -8,7 +8,7 @@ Metrics (all in `ValidationReport.metrics`, units in the names):
   cycle), paint credit (its share of the film volume on the body) and coverage credit (the share
   of the body's area where it lays most of the film); its cycle split into painting / moving /
   waiting at home, paint sent and laid, transfer efficiency (`paintcell.booth.booth_usage`,
-  also the booth's and each part's paint), TCP tracking and joint use (`booth_motion`);
+  also the booth's and each part's paint), TCP tracking and joint use (`robots_motion`);
 - film: planned / trajectory / executed σ/μ over the whole body and in the overlap bands (points
   where two robots each lay ≥ 10 % of the film), the loss split into time law, servo and
   conveyor tracking; per part and the seams (`paintcell.booth.booth_part_film`);
@@ -26,7 +26,6 @@ import numpy as np
 
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell
-from paintcell.booth.booth_motion import booth_motion
 from paintcell.booth.booth_part_film import part_film_figures
 from paintcell.booth.booth_spec import booth_spec_metrics
 from paintcell.booth.booth_usage import booth_usage
@@ -39,6 +38,7 @@ from paintcell.output.gltf_film import FilmScene
 from paintcell.output.report_film import FilmData
 from paintcell.surface.surface import Surface
 from paintcell.validation.paint_spec import spec_checks
+from paintcell.validation.validate_motion import robots_motion
 from paintcell.validation.validate_report import Check, ValidationReport
 
 #: half-width of the body's spec window as a fraction of its planned mean film (±10 %, as a
@@ -199,7 +199,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
     names = [r.name for r in booth.robots]
     for per_robot, whole in (booth_usage(names, list(per_part), plans, jobs, trajs, own, trace.t_s,
                                          cycle, films, body.vertex_areas, offs),
-                             booth_motion(names, trajs, traces, trace, bcell.columns, np.outer(
+                             robots_motion(names, trajs, traces, trace, bcell.columns, np.outer(
                                  trajs_carrier(trace, booth, trajs), booth.conveyor.unit))):
         for name, figures in per_robot.items():
             robots[name].update(figures)
@@ -251,13 +251,12 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     counts, the judged vertices, the jobs), per robot its static program `static_<robot>.npz`,
     its tracked program `trajectory_<robot>.npz` and its trace `trace_<robot>.npz`, the booth's
     one trace `trace.npz` (with the carrier), one RAPID module per robot, the body's film
-    (`film.npz`, `film.glb`: `booth_film`), `booth.png` (`paintcell.booth.booth_plots`),
-    `body_film.png` and `report.html` (`paintcell.booth.booth_report`). `read_booth_results`
-    reads the data files back."""
+    (`film.npz`, `film.glb`: `booth_film`), `booth.png` (`plot_robot_timeline`), `body_film.png`
+    and `report.html` (`paintcell.booth.booth_report`). `read_booth_results` reads them back."""
     from paintcell.booth.booth_data import booth_snapshot
-    from paintcell.booth.booth_plots import booth_figure
-    from paintcell.booth.booth_rapid import booth_rapid_modules
     from paintcell.core.atomic_io import atomic_write_npz
+    from paintcell.output.export_rapid import cell_modules
+    from paintcell.output.plots import plot_robot_timeline
 
     booth = result.scenario
     d = result.report.to_dict()
@@ -282,10 +281,13 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
         ex.save_npz(out / f"trace_{spec.name}.npz")
     if result.trace is not None:
         result.trace.save_npz(out / "trace.npz")
-    for name, text in booth_rapid_modules(booth, result.report.metrics, result.jobs,
-                                          result.static_trajectories, robots).items():
+    m = result.report.metrics
+    for name, text in cell_modules(booth, m, result.jobs, result.static_trajectories,
+                                   robots).items():
         atomic_write_text(out / f"{name}.mod", text)
-    booth_figure(result, out / "booth.png")
+    plot_robot_timeline(out / "booth.png", [r.name for r in booth.robots], result.trajectories,
+                        [len(s.t_s) for s in result.static_trajectories], m,
+                        f"{booth.name}: conveyor {m['conveyor_speed_m_s']:.3f} m/s")
     from paintcell.booth.booth_film import overlap_mask
     from paintcell.booth.booth_report import body_film_figure, write_booth_report
 
@@ -294,7 +296,7 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
                      [r.name for r in booth.robots], out / "body_film.png",
                      band=overlap_mask(ex),
                      title=f"{booth.name}: executed film over the whole body "
-                           f"(σ/μ {result.report.metrics['executed_nsd_pct']:.2f} %)")
+                           f"(σ/μ {m['executed_nsd_pct']:.2f} %)")
     from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
     from paintcell.output.report_film import FILM_NAME, save_film_data
 
@@ -309,8 +311,6 @@ def read_booth_results(out: Path, booth: Booth, read: Any) -> dict[str, Any]:
     snapshot): plans, body, part_vertex_counts, judged, jobs, and per robot static,
     trajectories, traces, with the booth's trace. read(name, loader): reads one file, naming
     it in a one-line error when it is missing or unreadable."""
-    from paintcell.coverage.plan import CoveragePlan
-
     cell = read("cell.npz", lambda p: dict(np.load(p)))
     jobs: dict[int, tuple[Job, ...]] = {}
     for r, part, first, end in np.asarray(cell["jobs"], int).reshape(-1, 4):

@@ -29,7 +29,7 @@ import numpy as np
 from paintcell.booth.booth import Booth, Job
 from paintcell.booth.booth_cell import BoothCell, build_booth_cell
 from paintcell.booth.booth_film import booth_disturbances, judged_body_mask, robot_films
-from paintcell.booth.booth_programs import MAX_ALLOCATIONS_TRIED, BoothPrograms, booth_programs
+from paintcell.booth.booth_programs import booth_programs
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
@@ -38,8 +38,7 @@ from paintcell.validation.painted_side import parts_painted_side
 from paintcell.validation.validate_motion import collision_events
 from paintcell.validation.validate_report import ValidationReport
 
-__all__ = ["MAX_ALLOCATIONS_TRIED", "BoothPrograms", "BoothResult", "booth_programs",
-           "combined_program", "robot_tcp", "run_booth"]
+__all__ = ["BoothResult", "combined_program", "robot_tcp", "robot_traces", "run_booth"]
 
 
 @dataclass

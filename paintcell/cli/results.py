@@ -84,14 +84,15 @@ def _cmd_export(args: argparse.Namespace) -> int:
         require_results,
     )
     from paintcell.core.safe_paths import check_new_target, check_write_target
-    from paintcell.output.export_rapid import rapid_ident, recorded_mismatches, validation_header
+    from paintcell.output.export_rapid import task_names
+    from paintcell.output.rapid_text import rapid_ident, recorded_mismatches, validation_header
 
     marker = require_results(args.dir)
     with lock_results(args.dir, "export"):
         metrics = read_json(args.dir / "metrics.json")
         f = load_run_dir(args.dir)
         names = [rapid_ident(f["scenario"].name)] if f["kind"] != "booth" else \
-            [rapid_ident(f"T_{r.name.upper()}") for r in f["scenario"].robots]
+            task_names([r.name for r in f["scenario"].robots])
         # one module: --out names its file; several (a booth's robots): the folder they go in
         if len(names) == 1:
             outs = {names[0]: args.out or args.dir / f"{names[0]}.mod"}

@@ -1,6 +1,6 @@
 """The pass geometry of one pass family, kept for robot-aware re-plans (lengths in m).
 
-A robot-aware re-plan (`paintcell.motion.speed_feedback`, `paintcell.booth.booth_speeds`)
+A robot-aware re-plan (`paintcell.motion.speed_feedback`, for one robot or N)
 plans the same part with the same settings under per-sample speed caps and bell x axes. What
 those change is the passes' timing only: the start curve, the offsets, the index-width searches
 (eq. 3 on the markers' cross profiles), the back-fill and the choice of the start order read the

@@ -318,10 +318,9 @@ def plan_patches(surface: Surface, app: Applicator, settings: object = None,
 def _uncapped_plans(pts: list[Patch], app: Applicator, st: PlannerSettings
                     ) -> list[list[PassPlan]]:
     """Each patch's plan without caps: a robot-aware re-plan of the same part and settings
-    (`paintcell.motion.speed_feedback`, `paintcell.booth.booth_speeds`) needs their
-    passes and order, which caps do not move; `plan_family` re-times the pass geometry kept
-    from the first plan (`paintcell.coverage.family_geometry`), so asking again is
-    cheap."""
+    (`paintcell.motion.speed_feedback`, for one robot or N) needs their passes and order,
+    which caps do not move; `plan_family` re-times the pass geometry kept from the first plan
+    (`paintcell.coverage.family_geometry`), so asking again is cheap."""
     from paintcell.coverage.coverage_family import plan_family
 
     return [list(plan_family(pt.surface, app, st).passes) for pt in pts]

@@ -13,68 +13,42 @@ detectors let `paintcell.execution.execute` roll the whole program out inside Mu
 Self-collision: every robot collision geom collides with every other (`COLLISION_BIT` in both
 contype and conaffinity), except what MuJoCo filters (parent–child bodies, bodies welded together)
 and the excluded pairs — the robot MJCF's own `<contact><exclude>` neighbours, whose collision
-capsules overlap by construction at a joint, and the foot against its moving children (below).
+capsules overlap by construction at a joint, and the foot against its moving children
+(`paintcell.execution.cell_robots`, which attaches the robots of a booth's cell too).
 The `contact_self` sensor (robot subtree against the same subtree) sees exactly those contacts.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import mujoco
 import numpy as np
 import numpy.typing as npt
 
-from paintcell.core.errors import PaintcellError
 from paintcell.core.transforms import check_pose, quat_wxyz_from_matrix
 from paintcell.execution.cell_part import add_part_geoms
-from paintcell.execution.cell_sensors import (
+from paintcell.execution.cell_robots import (
     BOOTH_BODY,
     PART_BODY,
     SELF_CONTACT_SENSOR,
+    CellError,
+    RobotLike,
     add_contact_sensors,
+    attach_robots,
+    stand_robots,
 )
 from paintcell.surface.surface import Surface
 
-__all__ = ["BOOTH_BODY", "PART_BODY", "ROBOT_PREFIX", "SELF_CONTACT_SENSOR", "TIMESTEP_S",
-           "CameraSpec", "Cell", "CellError", "RobotLike", "add_contact_sensors", "add_part_geoms",
-           "build_cell", "riding_bodies"]
+__all__ = ["ROBOT_PREFIX", "TIMESTEP_S", "CameraSpec", "Cell", "build_cell", "index_cell",
+           "new_cell_spec"]
 
 #: physics and control rate: 1 kHz (DESIGN.md, execution).
 TIMESTEP_S = 1e-3
 #: prefix of every name that comes from the robot's MJCF inside the cell.
 ROBOT_PREFIX = "robot/"
-#: contype/conaffinity bit shared by the robot's collision geoms, the part slabs and the floor
-#: (MuJoCo's default 1): any two of them collide, the robot's links with each other included.
-COLLISION_BIT = 1
-
-
-class CellError(PaintcellError):
-    """The MuJoCo cell cannot be assembled from the robot, part and placement given."""
-
-
-class RobotLike(Protocol):
-    """What the cell needs of a `paintcell.robots.Robot` (read-only)."""
-
-    @property
-    def name(self) -> str: ...
-    @property
-    def mjcf_path(self) -> str | os.PathLike[str]: ...
-    @property
-    def T_world_base(self) -> np.ndarray: ...
-    @property
-    def tcp_site_name(self) -> str: ...
-    @property
-    def base_body_name(self) -> str: ...
-    @property
-    def joint_names(self) -> tuple[str, ...]: ...
-    @property
-    def tau_max(self) -> np.ndarray: ...
-    @property
-    def q_home(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -219,24 +193,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     spec.stat.extent = max(2.0, float(np.linalg.norm(T_world_part[:3, 3] - T_world_base[:3, 3])))
 
     # --- robot ----------------------------------------------------------------------------
-    try:
-        robot_spec = mujoco.MjSpec.from_file(str(robot.mjcf_path))
-    except Exception as exc:  # mujoco raises ValueError with its own message
-        raise CellError(f"cannot read the robot MJCF {robot.mjcf_path}: {exc}") from exc
-    for key in list(robot_spec.keys):  # keyframes of the arm alone do not fit the cell's state
-        robot_spec.delete(key)
-    robot_spec.nkey = 0
-    frame = spec.worldbody.add_frame(pos=T_world_base[:3, 3],
-                                     quat=quat_wxyz_from_matrix(T_world_base[:3, :3]))
-    spec.attach(robot_spec, prefix=ROBOT_PREFIX, frame=frame)
-    # The robot's collision geoms (those with a contype or conaffinity bit; visual geoms have
-    # neither) must collide with each other, not only with the part and the floor: a robot MJCF
-    # may split the bits (contype 2 / conaffinity 1 is a common way to switch self-collision off).
-    # Only the robot's geoms exist at this point.
-    for geom in spec.geoms:
-        if geom.contype or geom.conaffinity:
-            geom.contype |= COLLISION_BIT
-            geom.conaffinity |= COLLISION_BIT
+    attach_robots(spec, spec.worldbody, [robot], [ROBOT_PREFIX])
 
     # --- part: visual mesh (exact surface) + thin convex collision slabs ---------------------
     part = spec.worldbody.add_body(name=PART_BODY, pos=T_world_part[:3, 3],
@@ -260,24 +217,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
         floor = spec.worldbody.add_body(name=BOOTH_BODY)
         floor.add_geom(name="booth_floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
                        material="booth_floor")
-        # The robot's foot stands on the floor by design: not a collision. On a rail, the
-        # carriage and the arm's foot on it ride at the rail's height (no rotating joint between
-        # them and the rail's frame): on a rail at floor level they stand on it by design too.
-        foot = spec.body(ROBOT_PREFIX + robot.base_body_name)   # None: refused below
-        for body in [] if foot is None else [foot, *riding_bodies(foot)]:
-            spec.add_exclude(bodyname1=body.name, bodyname2=BOOTH_BODY)
-    # MuJoCo filters parent-child contacts except for a parent welded to the world (the robot's
-    # foot): exclude the foot from its moving children too, as the arm's own parents are (the
-    # rotating base stands in the foot plate by construction, e.g. the ABB link1 cylinder
-    # overlaps the foot box by 20 mm). Neighbours two joints apart whose collision geoms overlap
-    # by construction are excluded by the robot MJCF itself (`<contact><exclude>`, e.g. the ABB
-    # link1/link3, link3/link5, link4/flange); no other robot pair touches at the home pose
-    # (tests/test_cell.py checks this for every robot), so self-contacts are real collisions.
-    base_body = spec.body(ROBOT_PREFIX + robot.base_body_name)
-    if base_body is None:
-        raise CellError(f"robot MJCF has no body {robot.base_body_name!r}; fix base_body_name")
-    for child in base_body.bodies:
-        spec.add_exclude(bodyname1=base_body.name, bodyname2=child.name)
+    stand_robots(spec, [robot], [ROBOT_PREFIX], booth)
 
     # --- lights, sky and (optional) cameras ------------------------------------------------------
     spec.add_texture(name="booth_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
@@ -378,15 +318,6 @@ def index_cell(model: mujoco.MjModel, spec: mujoco.MjSpec, robot: RobotLike, sur
         q_home=np.asarray(robot.q_home, float).copy(),
         surface_name=surface.name,
     )
-
-
-def riding_bodies(body: mujoco.MjsBody) -> list[mujoco.MjsBody]:
-    """The bodies below `body` that only slide with it (no hinge or ball joint on the way)."""
-    out = []
-    for child in body.bodies:
-        if all(j.type == mujoco.mjtJoint.mjJNT_SLIDE for j in child.joints):
-            out += [child, *riding_bodies(child)]
-    return out
 
 
 def _is_descendant(model: mujoco.MjModel, body: int, ancestor: int) -> bool:

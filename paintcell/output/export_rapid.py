@@ -12,7 +12,25 @@ in simulation; brush on/off fires where the trajectory switches paint on and off
 
 Targets are expressed in the robot base frame (`wobj0`), in millimetres, with the tool's TCP and
 load in `tooldata` (from the robot model). Quaternions follow RAPID's [q1 = w, q2 = x, q3 = y,
-q4 = z] order.
+q4 = z] order. A rail robot's carriage goes in the external axis `eax_a` [mm] of every target
+(the track as a coordinated external axis); its joint targets hold the arm's six axes.
+
+A cell of N robots on a conveyor (`MultiMove`, `cell_modules`) gets one module per robot, a
+MultiMove task each:
+- Synchronisation: every module declares the cell's task list and waits for the others with
+  `WaitSyncTask` before its first move toward the part and after its program (the programs were
+  validated on one clock starting together). The robots paint apart, each on its own part, so
+  their moves are not paired one to one: `SyncMoveOn` (synchronised movement: the same number
+  of moves with an `ID` argument in every task) does not apply; each task's timing inside the
+  cycle is its validated program's.
+- Conveyor tracking: the pass moves (MoveL / TriggL / PaintL) are given in the conveyor work
+  object `wobjcnv1` (`wobjdata` with robhold FALSE, ufprog FALSE: a moving user frame, and ufmec
+  the conveyor's mechanical unit CNV1, activated with `ActUnit`). Their targets are in the body's
+  frame: the object frame (oframe) is the body at conveyor position 0 in the conveyor's base
+  frame, so the controller adds the line motion to every target. `WaitWObj` picks the body up
+  before the first move toward it, `DropWObj` releases it after the last pass move; the joint
+  moves between passes (MoveAbsJ) are not coordinated. The header states the line speed and
+  direction the programs were validated at and the conveyor base frame calibration they assume.
 """
 
 from __future__ import annotations
@@ -27,6 +45,7 @@ import numpy as np
 
 from paintcell.core.transforms import quat_wxyz_from_matrix
 from paintcell.motion.joint_trajectory import PAINT, JointTrajectory
+from paintcell.output.rapid_text import IDENT, RESERVED, comment_text, rapid_ident
 
 _EXT = "[9E9,9E9,9E9,9E9,9E9,9E9]"
 
@@ -66,51 +85,10 @@ def confdata(q: np.ndarray) -> tuple[int, int, int, int]:
     return cf[0], cf[1], cf[2], (backward << 2) | (elbow_down << 1) | wrist_flip
 
 
-#: RAPID's reserved words (ABB, Technical reference manual RAPID kernel, "Reserved words"), and
-#: the predefined names and data types the module uses: an identifier may be none of them.
-RESERVED = frozenset("""
-    ALIAS AND BACKWARD CASE CONNECT CONST DEFAULT DIV DO ELSE ELSEIF ENDFOR ENDFUNC ENDIF
-    ENDMODULE ENDPROC ENDRECORD ENDTEST ENDTRAP ENDWHILE ERROR EXIT FALSE FOR FROM FUNC GOTO IF
-    INOUT LOCAL MOD MODULE NOSTEPIN NOT NOVIEW OR PERS PROC RAISE READONLY RECORD RETRY RETURN
-    STEP SYSMODULE TEST THEN TO TRAP TRUE TRYNEXT UNDO VAR VIEWONLY WHILE WITH XOR TASK
-    NUM BOOL STRING ROBTARGET JOINTTARGET SPEEDDATA ZONEDATA TOOLDATA WOBJDATA TRIGGDATA
-    LOADDATA CONFDATA POSE POS ORIENT EXTJOINT FINE V1000 TOOL0 WOBJ0 LOAD0 MAIN TBELL JHOME
-    TBRUSHON TBRUSHOFF MOVEL MOVEABSJ TRIGGL TRIGGIO PAINTL SETBRUSH SETDO
-""".split())
-_IDENT = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,31}$")
-#: Characters a comment may carry beyond printable ASCII, spelt out (RAPID files are ISO 8859-1,
-#: and a controller's editor shows nothing else reliably).
-_SPELT = {"σ": "sigma", "μ": "mu", "µ": "u", "≤": "<=", "≥": ">=", "→": "->", "—": "-",
-          "–": "-", "×": "x", "²": "2", "³": "3", "°": "deg"}
-
-
-def rapid_ident(name: str, what: str = "module") -> str:
-    """A valid RAPID identifier for `name`: letters, digits and `_`, starting with a letter, at
-    most 32 characters, and none of `RESERVED` (case-insensitive, as RAPID is); a name that is
-    one gets the prefix `m_`/`m`."""
-    s = re.sub(r"[^A-Za-z0-9_]", "_", name)
-    if not s or not s[0].isalpha():
-        s = "m" + s
-    s = s[:32]
-    if s.upper() in RESERVED:
-        s = ("m_" + s)[:32]
-    if not _IDENT.match(s):  # cannot happen for the rules above; never write an invalid name
-        raise ValueError(f"cannot make a RAPID identifier of {what} name {name!r}")
-    return s
-
-
-def comment_text(text: object) -> str:
-    """`text` made safe for one RAPID comment line: printable ASCII only (a few symbols spelt
-    out, others `?`), no control character, newline or line separator, at most 200 characters."""
-    s = "".join(_SPELT.get(c, c) for c in str(text))
-    s = "".join(c if " " <= c <= "~" else ("?" if c.isprintable() else " ") for c in s)
-    s = re.sub(r" {2,}", " ", s).strip()
-    return s if len(s) <= 200 else s[:197] + "..."
-
-
-def _pass_targets(traj: JointTrajectory, T_base_world: np.ndarray, idx: np.ndarray, k: int,
-                  max_spacing_m: float) -> list[RapidTarget]:
-    """Targets of one pass (sample indices `idx`, in time order) at most `max_spacing_m` apart.
+def _pass_targets(traj: JointTrajectory, q: np.ndarray, T_base_world: np.ndarray,
+                  idx: np.ndarray, k: int, max_spacing_m: float) -> list[RapidTarget]:
+    """Targets of one pass (sample indices `idx`, in time order) at most `max_spacing_m` apart
+    (q: the arm's six joint columns of `traj.q` [rad], for the configuration).
 
     The first target is where the pass starts (reached by the previous move); each later target
     carries the speed distance ÷ time from the previous target in the trajectory.
@@ -145,14 +123,15 @@ def _pass_targets(traj: JointTrajectory, T_base_world: np.ndarray, idx: np.ndarr
         if j == len(keep) - 1 and on[i]:
             brush = 0  # the brush goes off where the pass (and its painting) ends
         targets.append(RapidTarget(f"p{k}_{j}", pos_base_mm[j], quats[j],
-                                   confdata(traj.q[idx[i]]), float(speed_mm_s[j]), brush))
+                                   confdata(q[idx[i]]), float(speed_mm_s[j]), brush))
     return targets
 
 
-def _via_targets(traj: JointTrajectory, idx: np.ndarray, via_dt_s: float) -> list[tuple[
-        np.ndarray, float]]:
-    """Joint via points of a move between passes: (q [rad], TCP speed [mm/s]) every `via_dt_s`
-    of the trajectory and at its end (the move's start is the previous segment's end)."""
+def _via_targets(traj: JointTrajectory, idx: np.ndarray, via_dt_s: float
+                 ) -> list[tuple[int, float]]:
+    """Joint via points of a move between passes: (sample index, TCP speed [mm/s]) every
+    `via_dt_s` of the trajectory and at its end (the move's start is the previous segment's
+    end)."""
     t = traj.t_s[idx]
     picks = np.unique(np.concatenate([np.searchsorted(t, np.arange(t[0] + via_dt_s, t[-1],
                                                                     via_dt_s)),
@@ -164,7 +143,7 @@ def _via_targets(traj: JointTrajectory, idx: np.ndarray, via_dt_s: float) -> lis
         seg = traj.tcp_pos_world[prev:i + 1]
         dist = float(np.linalg.norm(np.diff(seg, axis=0), axis=1).sum())
         dt = max(float(traj.t_s[i] - traj.t_s[prev]), 1e-9)
-        out.append((traj.q[i], max(dist / dt * 1000.0, MIN_VIA_SPEED_MM_S)))
+        out.append((int(i), max(dist / dt * 1000.0, MIN_VIA_SPEED_MM_S)))
         prev = i
     return out
 
@@ -196,15 +175,98 @@ def program_runs(traj: JointTrajectory) -> list[tuple[bool, int, np.ndarray]]:
                                                                             strict=True)]
 
 
+@dataclass(frozen=True)
+class MultiMove:
+    """One robot's task in a cell of several on a conveyor (module doc).
+
+    tasks: every task's name, this one's included (RAPID identifiers, `task_names`).
+    conveyor: has `unit` (3,) the line's direction in the world and `speed_m_s` [m/s].
+    T_world_body: (4, 4) the body at conveyor position 0 (the static cell the program was built
+        in): the frame its pass targets are written in.
+    delay_s: the task's start delay after the common start [s].
+    flow_factor: its bell flow relative to the applicator's, stated in the header (a robot with
+        several jobs: one per job, None where a job's is not set).
+    """
+
+    tasks: tuple[str, ...]
+    conveyor: Any
+    T_world_body: np.ndarray
+    delay_s: float = 0.0
+    flow_factor: float | tuple[float | None, ...] | None = None
+
+
+def task_names(robot_names: Sequence[str]) -> list[str]:
+    """The MultiMove task (and module, and .mod file) name of each robot: a RAPID identifier."""
+    return [rapid_ident(f"T_{n.upper()}") for n in robot_names]
+
+
+def conveyor_base_frame(conveyor: Any) -> np.ndarray:
+    """(4, 4) the conveyor's base frame in the world, as the modules assume the controller's
+    CNV1 calibration: origin at the world origin, x along the line's direction of travel, z the
+    world's up made orthogonal to it (a vertical line: the world's x)."""
+    x = np.asarray(conveyor.unit, float)
+    up = np.array([0.0, 0.0, 1.0]) if abs(x[2]) < 0.99 else np.array([1.0, 0.0, 0.0])
+    z = up - (up @ x) * x
+    z /= np.linalg.norm(z)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T
+
+
+def _pose_text(T: np.ndarray) -> str:
+    """RAPID pose [[x,y,z],[q1,q2,q3,q4]] of a (4, 4) transform [m → mm]."""
+    p, q = 1000.0 * T[:3, 3], quat_wxyz_from_matrix(T[:3, :3])
+    return (f"[[{p[0]:.2f},{p[1]:.2f},{p[2]:.2f}],"
+            f"[{q[0]:.6f},{q[1]:.6f},{q[2]:.6f},{q[3]:.6f}]]")
+
+
+def _multimove_head(mm: MultiMove, name: str, rail: bool, job_first_pass: list[int]) -> list[str]:
+    """The declarations and header comments of a MultiMove task (module doc)."""
+    u, n = mm.conveyor.unit, len(mm.tasks)
+    tasks = ",".join(f'["{t}"]' for t in mm.tasks)
+    head = [
+        f"  ! Booth: task {name} of {n} ({', '.join(mm.tasks)}), synchronised "
+        "with WaitSyncTask at the start and end.",
+        f"  ! Conveyor tracking: validated at {mm.conveyor.speed_m_s:.4f} m/s along "
+        f"[{u[0]:.3f},{u[1]:.3f},{u[2]:.3f}] (world); pass moves in the conveyor work object "
+        "wobjcnv1 (unit CNV1).",
+        "  ! CNV1's base frame calibrated at the world origin, x along the line, at conveyor "
+        "position 0; wobjcnv1's object frame: the body there.",
+        "  ! Pass targets in the body frame [mm]; joint targets: the arm's axes [deg]; speeds "
+        "reproduce the validated TCP speed between targets.",
+        f"  PERS tasks booth_tasks{{{n}}} := [{tasks}];",
+        "  VAR syncident sync_start;",
+        "  VAR syncident sync_end;",
+        '  PERS wobjdata wobjcnv1 := [FALSE,FALSE,"CNV1",[[0,0,0],[1,0,0,0]],'
+        f"{_pose_text(np.linalg.inv(conveyor_base_frame(mm.conveyor)) @ mm.T_world_body)}];",
+    ]
+    if rail:
+        head.append("  ! Rail: the carriage is external axis eax_a [mm] of every target.")
+    if isinstance(mm.flow_factor, tuple):        # several jobs, each at its part's flow
+        for k, (f, p0) in enumerate(zip(mm.flow_factor, job_first_pass, strict=True)):
+            if f is not None:
+                head.append(f"  ! Bell flow of job {k + 1} (from pass p{p0}_): {f:.3f} x the "
+                            "applicator's nominal rate (paintcell.booth.booth_build): set it "
+                            "in the brush table.")
+    elif mm.flow_factor is not None:
+        head.append(f"  ! Bell flow: {mm.flow_factor:.3f} x the applicator's nominal rate (the "
+                    "booth's common film build, paintcell.booth.booth_build): set it in the "
+                    "brush table.")
+    return head
+
+
 def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcell",
                  style: str = "trigg", max_spacing_m: float = 0.05, via_dt_s: float = 0.2,
                  brush_signal: str = "doBrush",
                  load: tuple[float, np.ndarray] | None = None,
-                 validation: list[str] | None = None) -> str:
+                 validation: list[str] | None = None,
+                 multimove: MultiMove | None = None) -> str:
     """RAPID module text of the whole program in `traj` for `robot`.
 
     robot: needs `T_world_base` (4, 4) and `T_flange_tcp` (4, 4) for `tooldata`, and (unless
-        `load` is given) `mjcf_path` + `flange_site_name` for the tool load.
+        `load` is given) `mjcf_path` + `flange_site_name` for the tool load; a rail robot
+        (`robot.rail` not None: `traj.q`'s first column is the carriage [m]) the same of its
+        arm, `robot.rail.arm`.
     style: "trigg" — `TriggL` with `TriggIO` on the digital output `brush_signal`; "paintl" —
         `PaintL` with `SetBrush` (ABB paint option).
     max_spacing_m: the longest stretch of a pass between two exported targets [m].
@@ -213,69 +275,80 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
         robot model.
     validation: header comment lines saying whether and how the program was validated (from
         `validation_header`); None: the header makes no claim about validation.
+    multimove: this robot's task in a cell of several on a conveyor (module doc); None: a robot
+        alone, its targets in its base frame.
     """
     if style not in ("trigg", "paintl"):
         raise ValueError(f"unknown RAPID style {style!r}; use 'trigg' or 'paintl'")
-    if not _IDENT.match(brush_signal) or brush_signal.upper() in RESERVED:
+    if not IDENT.match(brush_signal) or brush_signal.upper() in RESERVED:
         raise ValueError(f"brush signal {brush_signal!r} is not a RAPID identifier; name a "
                          "digital output like doBrush")
     for name, v in (("target spacing", max_spacing_m), ("via point interval", via_dt_s)):
         if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a positive finite number, got {v!r}")
-    T_base_world = np.linalg.inv(np.asarray(robot.T_world_base, float))
-    T_flange_tcp = np.asarray(robot.T_flange_tcp, float)
+    rail = getattr(robot, "rail", None) is not None
+    arm = robot.rail.arm.placed(robot.T_world_base) if rail else robot
+    q = traj.q[:, 1:] if rail else traj.q                       # the arm's six axes [rad]
+    ext = [f"[{1000.0 * c:.1f},9E9,9E9,9E9,9E9,9E9]" for c in traj.q[:, 0]] if rail \
+        else [_EXT] * len(q)                                    # the carriage [mm] as eax_a
+    T_world_frame = arm.T_world_base if multimove is None else multimove.T_world_body
+    T_base_world = np.linalg.inv(np.asarray(T_world_frame, float))
+    T_flange_tcp = np.asarray(arm.T_flange_tcp, float)
     tq = quat_wxyz_from_matrix(T_flange_tcp[:3, :3])
     tp = T_flange_tcp[:3, 3] * 1000.0
-    mass, cog_m = load if load is not None else tool_load(robot)
+    mass, cog_m = load if load is not None else tool_load(arm)
     cog = np.asarray(cog_m, float) * 1000.0
+    tool = "tBell" if multimove is None else r"tBell \WObj:=wobjcnv1"    # of the pass moves
 
     decl: list[str] = []
     proc: list[str] = []
     n_via = 0
     n_pass = 0
-    segments = program_runs(traj)
-    for is_paint, k, idx in segments:
+    last_pass_move = -1
+    for is_paint, k, idx in program_runs(traj):
         if is_paint:
             n_pass += 1
             proc.append(f"    ! pass {k}")
-            for tg in _pass_targets(traj, T_base_world, idx, k, max_spacing_m):
+            for tg in _pass_targets(traj, q, T_base_world, idx, k, max_spacing_m):
                 p, qq, c = tg.pos_mm, tg.quat_wxyz, tg.conf
                 decl.append(f"  CONST robtarget {tg.name} := [[{p[0]:.2f},{p[1]:.2f},{p[2]:.2f}],"
                             f"[{qq[0]:.6f},{qq[1]:.6f},{qq[2]:.6f},{qq[3]:.6f}],"
-                            f"[{c[0]},{c[1]},{c[2]},{c[3]}],{_EXT}];")
+                            f"[{c[0]},{c[1]},{c[2]},{c[3]}],{ext[idx[0]]}];")
                 decl.append(f"  CONST speeddata v_{tg.name} := [{tg.speed_mm_s:.1f},500,5000,"
                             "1000];")
-                if style == "trigg":
-                    if tg.brush is None:
-                        proc.append(f"    MoveL {tg.name}, v_{tg.name}, {PASS_ZONE}, tBell;")
-                    else:
-                        trig = "tBrushOn" if tg.brush else "tBrushOff"
-                        proc.append(f"    TriggL {tg.name}, v_{tg.name}, {trig}, {PASS_ZONE}, "
-                                    "tBell;")
-                else:
+                trig = "" if tg.brush is None else ("tBrushOn, " if tg.brush else "tBrushOff, ")
+                move = "PaintL" if style == "paintl" else "TriggL" if trig else "MoveL"
+                proc.append(f"    {move} {tg.name}, v_{tg.name}, "
+                            f"{trig if style == 'trigg' else ''}{PASS_ZONE}, {tool};")
+                last_pass_move = len(proc)
+                if style == "paintl" and tg.brush is not None:
                     # SetBrush acts from the start of the next move, i.e. at this target.
-                    proc.append(f"    PaintL {tg.name}, v_{tg.name}, {PASS_ZONE}, tBell;")
-                    if tg.brush is not None:
-                        proc.append(f"    SetBrush {tg.brush};")
+                    proc.append(f"    SetBrush {tg.brush};")
         else:
-            for q, v in _via_targets(traj, idx, via_dt_s):
+            for i, v in _via_targets(traj, idx, via_dt_s):
                 name = f"j{n_via}"
                 n_via += 1
                 decl.append(f"  CONST jointtarget {name} := [[" + ",".join(
-                    f"{a:.3f}" for a in np.degrees(q)) + "]," + _EXT + "];")
+                    f"{a:.3f}" for a in np.degrees(q[i])) + "]," + ext[i] + "];")
                 decl.append(f"  CONST speeddata v_{name} := [{v:.1f},500,5000,1000];")
                 proc.append(f"    MoveAbsJ {name}, v_{name}, {VIA_ZONE}, tBell;")
     # The program ends standing still at home.
-    last = proc[-1]
-    proc[-1] = re.sub(r", (z\d+), tBell;$", ", fine, tBell;", last)
+    proc[-1] = re.sub(r", (z\d+), (tBell[^;]*);$", r", fine, \2;", proc[-1])
 
     name = rapid_ident(module_name)
     L: list[str] = [f"MODULE {name}"]
     L.append(f"  ! Generated by paintcell: {n_pass} passes, cycle time {traj.duration_s:.2f} s.")
     for line in validation or []:
         L.append(f"  ! {comment_text(line)}".rstrip())
-    L.append("  ! Targets in the robot base frame (wobj0) [mm]; speeds reproduce the validated "
-             "TCP speed between targets.")
+    if multimove is None:
+        L.append("  ! Targets in the robot base frame (wobj0) [mm]; speeds reproduce the "
+                 "validated TCP speed between targets.")
+    else:
+        L.extend(_multimove_head(multimove, name, rail,
+                                 list(traj.meta.get("job_first_pass_index", []))))
+        if last_pass_move >= 0:
+            proc.insert(last_pass_move, "    DropWObj wobjcnv1;")
+        proc.extend(["    DeactUnit CNV1;", "    WaitSyncTask sync_end, booth_tasks;"])
     L.append(f"  PERS tooldata tBell := [TRUE,[[{tp[0]:.2f},{tp[1]:.2f},{tp[2]:.2f}],"
              f"[{tq[0]:.6f},{tq[1]:.6f},{tq[2]:.6f},{tq[3]:.6f}]],"
              f"[{mass:.2f},[{cog[0]:.1f},{cog[1]:.1f},{cog[2]:.1f}],[1,0,0,0],0,0,0]];")
@@ -283,7 +356,7 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
         L.append("  VAR triggdata tBrushOn;")
         L.append("  VAR triggdata tBrushOff;")
     L.append("  CONST jointtarget jHome := [[" + ",".join(
-        f"{a:.3f}" for a in np.degrees(traj.q[0])) + "]," + _EXT + "];")
+        f"{a:.3f}" for a in np.degrees(q[0])) + "]," + ext[0] + "];")
     L.extend(decl)
     L.append("")
     L.append("  PROC main()")
@@ -291,58 +364,34 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
         L.append(f"    TriggIO tBrushOn, 0 \\DOp:={brush_signal}, 1;")
         L.append(f"    TriggIO tBrushOff, 0 \\DOp:={brush_signal}, 0;")
     L.append("    MoveAbsJ jHome, v1000, fine, tBell;")
+    if multimove is not None:
+        L.append("    WaitSyncTask sync_start, booth_tasks;")
+        if multimove.delay_s > 0:
+            L.append(f"    WaitTime {multimove.delay_s:.3f};   ! staggered start: arm clearance")
+        L.extend(["    ActUnit CNV1;", "    WaitWObj wobjcnv1;"])
     L.extend(proc)
     L.append("  ENDPROC")
     L.append("ENDMODULE")
     return "\n".join(L) + "\n"
 
 
-def validation_header(checks: Sequence[Any], plan_digest: str,
-                      mismatches: Sequence[str] = ()) -> list[str]:
-    """Header lines for a module exported from a results folder.
-
-    checks: the thresholds' `Check`s re-derived from the folder's data (`paintcell validate`'s
-    computation with the thresholds of its scenario.json), never the verdict metrics.json states;
-    mismatches: where metrics.json disagrees with them (a hand-edited or stale file).
-    VALIDATED needs at least one check, every check passed with a finite value, and no mismatch;
-    it names the digest of the plan (which the folder's plan.json, trajectory and trace carry; a
-    digest, not the run id, so reruns export byte-identical modules). Otherwise the header says,
-    first, that the run is NOT VALIDATED and why, so nobody loads it on a robot thinking it was
-    proven.
-    """
-    bad = [c for c in checks if not (c.passed and math.isfinite(float(c.value)))]
-    if checks and not bad and not mismatches:
-        return [f"VALIDATED in MuJoCo simulation: PASS, all {len(checks)} thresholds met "
-                f"(plan {plan_digest[:16]})."]
-    why = "; ".join([f"{c.name} {c.value:.6g} vs limit {c.limit:.6g}" for c in bad]
-                    + [f"metrics.json does not match its data: {m}" for m in mismatches]) \
-        or "no threshold checked"
-    return ["!!! NOT VALIDATED: THIS RUN FAILED VALIDATION - DO NOT RUN ON A ROBOT AS IS !!!",
-            f"Failed: {why}.",
-            f"Exported with --allow-failed (plan {plan_digest[:16]})."]
-
-
-def recorded_mismatches(metrics: dict[str, Any], checks: Sequence[Any], passed: bool,
-                        rel_tol: float = 1e-6) -> list[str]:
-    """Where a results folder's `metrics.json` disagrees with the checks re-derived from its data:
-    its verdict, a check missing or extra, a value off by more than `rel_tol` (NaN, null or text
-    included) or a check's verdict. Empty when metrics.json states what the data give."""
-    out: list[str] = []
-    if metrics.get("passed") is not passed:
-        out.append(f"passed = {metrics.get('passed')!r}, the data give {passed}")
-    rec = {c.get("name"): c for c in metrics.get("checks") or [] if isinstance(c, dict)}
-    for c in checks:
-        r = rec.pop(c.name, None)
-        if r is None:
-            out.append(f"check {c.name!r} is missing")
-            continue
-        v = r.get("value")
-        same = isinstance(v, int | float) and not isinstance(v, bool) and (
-            math.isclose(float(v), c.value, rel_tol=rel_tol, abs_tol=1e-12)
-            if math.isfinite(c.value) else False)
-        if not same and not (v is None and not math.isfinite(c.value)):
-            out.append(f"{c.name} = {v!r}, the data give {c.value:.6g}")
-        elif r.get("passed") is not c.passed:
-            out.append(f"{c.name} passed = {r.get('passed')!r}, the data give {c.passed}")
-    out.extend(f"check {n!r} is not one the scenario sets" for n in rec)
-    return out
+def cell_modules(cell: Any, metrics: dict[str, Any], jobs: dict[int, tuple[Any, ...]],
+                 programs: Sequence[JointTrajectory], robots: Sequence[Any],
+                 **options: Any) -> dict[str, str]:
+    """{task name: module text} for every robot of a cell on a conveyor (module doc): robot i's
+    static program `programs[i]` as task `task_names(...)[i]`, its start delay and flow from the
+    run's `metrics` (allocation, film build). cell: has `robots` (each `.name`), `parts` (each
+    `.part`, its name), `conveyor` and `body_placement.matrix`; jobs: {robot: its jobs, each
+    with `.part`}. options: `rapid_module`'s style, max_spacing_m and validation."""
+    names = task_names([r.name for r in cell.robots])
+    delays = metrics["allocation"].get("start_delays_s", [0.0] * len(names))
+    build = metrics.get("film_build", {}).get("parts", {})
+    flows: list[Any] = []
+    for i in range(len(names)):
+        f = tuple(build.get(f"{j.part}:{cell.parts[j.part].part}", {}).get("flow_factor")
+                  for j in jobs[i])
+        flows.append(f[0] if len(f) == 1 else f)
+    T_body = np.asarray(cell.body_placement.matrix, float)
+    return {n: rapid_module(tr, rb, module_name=n, multimove=MultiMove(
+                tuple(names), cell.conveyor, T_body, d, f), **options)
+            for n, rb, tr, d, f in zip(names, robots, programs, delays, flows, strict=True)}

@@ -1,4 +1,5 @@
-"""Matplotlib figures of a run: thickness maps, TCP speed and tracking, joints, σ/μ vs index width.
+"""Matplotlib figures of a run: thickness maps, TCP speed and tracking, joints, σ/μ vs index width,
+and the robots of a cell on one clock.
 
 Every function draws with the object-oriented API on the Agg canvas (no pyplot, no global
 backend switch), writes one PNG atomically and returns its path. Film thickness is shown in µm,
@@ -342,4 +343,47 @@ def plot_index_width_curve(path: str | os.PathLike[str], widths_m: npt.ArrayLike
     ax.set_title("Uniformity vs index width" + (f" — {applicator_name}" if applicator_name else ""))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    return save_figure(fig, path)
+
+
+def plot_robot_timeline(path: str | os.PathLike[str], names: Sequence[str],
+                        programs: Sequence[Any], own_samples: Sequence[int],
+                        metrics: dict[str, Any], title: str) -> Path:
+    """The robots of a cell at a glance (PNG, atomically). Left: a Gantt chart of the cycle, per
+    robot its program (from its `meta["start_delay_s"]` [s], `own_samples[i]` samples long) and
+    its brush-on runs on the common clock, against `metrics["executed_cycle_time_s"]` and
+    `metrics["one_robot_cycle_s"]` (one robot running every program back to back) [s]. Right:
+    per robot its busy share, paint share and paint credit [%] (`metrics["robots"][name]`).
+    programs: each robot's `JointTrajectory` on the common clock."""
+    def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+        d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+        return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True))
+
+    fig = Figure(figsize=(11, 0.6 * len(names) + 2.4))
+    FigureCanvasAgg(fig)                                  # tight_layout needs its renderer
+    ax, bx = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.2, 1]})
+    for i, tr in enumerate(programs):
+        t, active = tr.t_s, np.zeros(len(tr.t_s), bool)
+        start = int(round(tr.meta.get("start_delay_s", 0.0) / tr.dt_s))
+        active[start:start + own_samples[i]] = True
+        for mask, colour in ((active, "#c8d3e0"), (tr.paint_on, "#d9534f")):
+            for a, b in runs(mask):
+                ax.broken_barh([(t[a], t[b - 1] - t[a])], (i - 0.3, 0.6), color=colour)
+    cycle = metrics["executed_cycle_time_s"]
+    ax.axvline(cycle, color="k", lw=1)
+    ax.text(cycle, len(names) - 0.45, f"booth cycle {cycle:.1f} s\n one robot, all programs: "
+            f"{metrics['one_robot_cycle_s']:.1f} s ", va="top", ha="right", fontsize=8,
+            bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})
+    ax.set_yticks(range(len(names)), names)
+    ax.set_xlabel("time [s] (grey: program, red: brush on)")
+    ax.set_title(title)
+    y = np.arange(len(names))
+    for k, (key, label) in enumerate((("busy_share_pct", "busy"), ("paint_share_pct", "paint"),
+                                      ("paint_credit_pct", "film credit"))):
+        bx.barh(y + (k - 1) * 0.25, [metrics["robots"][n][key] for n in names], height=0.25,
+                label=label)
+    bx.set_yticks(y, names)
+    bx.set_xlabel("% of the cycle / of the film")
+    bx.legend(fontsize=8)
+    fig.tight_layout()
     return save_figure(fig, path)

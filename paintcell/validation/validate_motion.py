@@ -1,11 +1,13 @@
 """How the executed motion went: TCP tracking and speed-following errors against the trajectory,
-joint-range and torque utilization, and collision events grouped from per-step contacts.
+joint-range and torque utilization, and collision events grouped from per-step contacts; for one
+robot, or per robot of a cell of N with the cell's worst (`robots_motion`).
 
 Errors in mm, degrees and % of the planned speed; utilizations as fractions [-]; times [s].
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -90,3 +92,43 @@ def utilization(trace: ExecutedTrace) -> tuple[np.ndarray, np.ndarray, np.ndarra
         tau_use = np.max(tau, axis=0) / tau_max
         saturated = 100.0 * np.mean(tau > tau_max, axis=0)
     return q_use, tau_use, np.where(np.isfinite(tau_max), saturated, np.nan)
+
+
+#: the cell's figure is its worst robot's (`robots_motion`).
+_WORST = ("tracking_error_max_mm", "tracking_error_max_all_mm", "spray_axis_error_max_deg",
+          "speed_error_max_pct", "max_joint_range_utilization", "max_contact_depth_mm")
+
+
+def robots_motion(names: list[str], trajs: list[JointTrajectory], traces: list[ExecutedTrace],
+                  trace: ExecutedTrace, columns: tuple[np.ndarray, ...], body_shift_m: np.ndarray
+                  ) -> tuple[dict[str, dict[str, float]], dict[str, Any]]:
+    """(per robot figures, the cell's figures) of a cell of N robots: each robot's executed trace
+    (cut from the cell's one trace) against its program on the cell's clock, as `tracking_errors`
+    measures one robot's, with its largest joint range use (`utilization`, its rail included),
+    its contact samples and their deepest penetration [mm]; the cell's figures are the worst
+    robot's, its contact samples the one trace's (a robot–robot contact once).
+
+    trajs / traces: each robot's program and executed trace on the cell clock; trace: the cell's
+    one trace (its joint limits in `meta`); columns: each robot's columns in its joint vector;
+    body_shift_m: (K, 3) the part's nominal displacement on a conveyor at each time stamp [m],
+    taken off both TCPs so the speeds are the TCP's over the part, as the plan times them (the
+    position and axis errors do not change: both TCPs shift alike)."""
+    q_use, _, _ = utilization(trace)
+    shift = np.asarray(body_shift_m, float)
+    robots: dict[str, dict[str, float]] = {}
+    for name, tr, ex, cols in zip(names, trajs, traces, columns, strict=True):
+        use = q_use[cols]
+        robots[name] = {
+            **tracking_errors(replace(tr, tcp_pos_world=tr.tcp_pos_world - shift),
+                              replace(ex, tcp_pos_world=ex.tcp_pos_world - shift)),
+            "max_joint_range_utilization": (float(np.nanmax(use)) if np.isfinite(use).any()
+                                            else float("nan")),
+            "n_contact_samples": len(ex.contacts),
+            "max_contact_depth_mm": 1e3 * max((c.depth_m for c in ex.contacts), default=0.0),
+        }
+    cell: dict[str, Any] = {}
+    for k in _WORST:
+        v = np.array([r[k] for r in robots.values()], float)
+        cell[k] = float(np.nanmax(v)) if np.isfinite(v).any() else float("nan")
+    cell["n_contact_samples"] = len(trace.contacts)     # a robot–robot contact counts once
+    return robots, cell

@@ -28,12 +28,8 @@ from paintcell.cli.main import main
 from paintcell.core.atomic_io import atomic_path, atomic_write_npz, atomic_write_text
 from paintcell.core.results_dir import MARKER, ResultsDirError, lock_results, new_results
 from paintcell.core.safe_paths import UnsafePathError
-from paintcell.output.export_rapid import (
-    comment_text,
-    rapid_module,
-    recorded_mismatches,
-    validation_header,
-)
+from paintcell.output.export_rapid import rapid_module
+from paintcell.output.rapid_text import comment_text, recorded_mismatches, validation_header
 from paintcell.validation.validate_report import Thresholds, ValidationReport, threshold_checks
 from tests.trust_cases import dead_pid, flat, rapid_parse, small_program, snapshot
 
