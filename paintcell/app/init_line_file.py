@@ -189,13 +189,12 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
     line up to `max_robots` makes the takt."""
     from dataclasses import replace
 
-    import trimesh
-
     from paintcell.app.init_line import choose_line, panel_booth
     from paintcell.booth.booth_plans import plan_parts
     from paintcell.booth.line_takt import LineTakt
     from paintcell.core.atomic_io import atomic_path, atomic_write_text
     from paintcell.core.safe_paths import check_new_target
+    from paintcell.surface.generated_body import file_area_m2
     from paintcell.surface.part_spec import MeshPart
 
     if out.suffix != ".toml":
@@ -235,8 +234,7 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
                     mesh=replace(bp.mesh, file=str(folder / f"{stem}.stl")))
             for bp, stem in zip(line.booth.parts, stems, strict=True)))
         gen = None if generated is None else {
-            **generated, "areas_m2": [float(trimesh.load(spec.file, force="mesh").area)
-                                      for spec in specs]}
+            **generated, "areas_m2": [file_area_m2(spec.file) for spec in specs]}
         atomic_write_text(out, line_toml(line, rel, sides, source, gen))
     return line
 

@@ -27,7 +27,8 @@ import numpy as np
 
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["AREA_RTOL", "ensure_panel_files", "generated_origin", "generated_panels"]
+__all__ = ["AREA_RTOL", "ensure_panel_files", "file_area_m2", "generated_origin",
+           "generated_panels"]
 
 #: Relative tolerance on a panel's area for "the same panel" [-] (a float32 STL round trip
 #: moves a 0.3 m² panel's area by ~1e-8 relative).
@@ -90,16 +91,23 @@ def generated_origin(path: str | Path, panels: Sequence[Any]) -> dict[str, Any] 
     return {"seed": rec[0], "read": rec[1]} if _same(panels, fresh) else None
 
 
-def _areas(files: Sequence[Path]) -> list[float] | None:
+def file_area_m2(path: str | Path) -> float:
+    """Area of a mesh file's triangles [file units²] (a panel file: m²)."""
     import trimesh
 
+    m = trimesh.load(str(path), force="mesh")
+    assert isinstance(m, trimesh.Trimesh)
+    return float(m.area)
+
+
+def _areas(files: Sequence[Path]) -> list[float] | None:
     out = []
     for f in files:
         if not f.is_file():
             return None
         try:
-            out.append(float(trimesh.load(f, force="mesh").area))
-        except (ValueError, OSError):
+            out.append(file_area_m2(f))
+        except (ValueError, OSError, AssertionError):
             return None
     return out
 
