@@ -1,4 +1,4 @@
-"""Read a package's import graph (module and folder level) and module sizes from its source
+"""Read a package's import graph (module and folder level) and private-name uses from its source
 (tests/test_structure.py)."""
 
 from __future__ import annotations
@@ -7,9 +7,6 @@ import ast
 from pathlib import Path
 
 import networkx as nx
-
-#: Longest module the house allows [lines].
-MAX_MODULE_LINES = 400
 
 
 def _modules(pkg: Path) -> dict[str, Path]:
@@ -153,12 +150,3 @@ def against_order(fgraph: dict[str, set[str]], order: list[str]) -> list[tuple[s
     return sorted((a, b) for a, bs in fgraph.items() for b in bs
                   if a not in rank or b not in rank or rank[b] > rank[a])
 
-
-def long_modules(pkg: Path) -> dict[str, int]:
-    """Files over MAX_MODULE_LINES lines, as path relative to the package's parent → lines."""
-    out = {}
-    for p in sorted(pkg.rglob("*.py")):
-        n = len(p.read_text().splitlines())
-        if n > MAX_MODULE_LINES:
-            out[str(p.relative_to(pkg.parent))] = n
-    return out
