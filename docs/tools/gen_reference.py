@@ -43,7 +43,7 @@ TABLE_TITLES = {
     "fast_planner": ("[fast_planner]", "Planner settings applied over `[planner]` in `--fast` "
                      "runs."),
     "trajectory": ("[trajectory]", "Settings of the time law and the moves between passes "
-                   "(`paintcell.motion.trajectory_settings.TrajectorySettings`)."),
+                   "(`paintcell.motion.trajectory.TrajectorySettings`)."),
     "servo": ("[servo]", "The joint servo of the execution "
               "(`paintcell.execution.execute_settings.ServoSettings`)."),
     "disturbances": ("[disturbances]", "Seeded errors between the planned cell and the "

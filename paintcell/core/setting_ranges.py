@@ -50,7 +50,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("planner", "max_axis_turn_rad_m"): (1e-3, _INF, "rad/m (inf: no bound)"),
     ("planner", "smoothing_m"): (0.0, 1.0, "m"),
     ("planner", "start_position"): (0.0, 1.0, "a fraction of the altitude"),
-    # TrajectorySettings (`paintcell.motion.trajectory_settings`)
+    # TrajectorySettings (`paintcell.motion.trajectory`)
     ("trajectory", "control_rate_hz"): (50.0, 10000.0, "Hz"),
     ("trajectory", "tcp_a_max_m_s2"): (0.01, 500.0, "m/s²"),
     ("trajectory", "velocity_margin"): (0.01, 1.0, "a fraction"),
