@@ -45,9 +45,9 @@ TABLE_TITLES = {
     "trajectory": ("[trajectory]", "Settings of the time law and the moves between passes "
                    "(`paintcell.motion.trajectory.TrajectorySettings`)."),
     "servo": ("[servo]", "The joint servo of the execution "
-              "(`paintcell.execution.execute_settings.ServoSettings`)."),
+              "(`paintcell.execution.execute.ServoSettings`)."),
     "disturbances": ("[disturbances]", "Seeded errors between the planned cell and the "
-                     "executed one (`paintcell.execution.execute_settings.Disturbances`); "
+                     "executed one (`paintcell.execution.execute.Disturbances`); "
                      "empty: the nominal cell."),
     "thresholds": ("[thresholds]", "The limits `paintcell run` and `paintcell check` hold the "
                    "run to (`paintcell.validation.validate_report.Thresholds`)."),

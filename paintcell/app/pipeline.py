@@ -243,13 +243,13 @@ def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, 
 
 def servo_settings(scn: Scenario) -> Any:
     """The scenario's servo settings (`[servo]` table) as `ServoSettings`."""
-    from paintcell.execution.execute_settings import ServoSettings
+    from paintcell.execution.execute import ServoSettings
 
     return settings_from(ServoSettings, scn.servo, "servo")
 
 
 def _disturbances(scn: Scenario) -> Any:
-    from paintcell.execution.execute_settings import Disturbances
+    from paintcell.execution.execute import Disturbances
 
     return settings_from(Disturbances, scn.disturbances, "disturbances") \
         if scn.disturbances else None

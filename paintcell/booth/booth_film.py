@@ -63,7 +63,7 @@ def booth_disturbances(table: dict[str, Any]) -> Any:
     """A booth's `disturbances` table as the `Disturbances` its one execution runs under (None:
     an empty table, the nominal cell)."""
     from paintcell.core.settings import settings_from
-    from paintcell.execution.execute_settings import Disturbances
+    from paintcell.execution.execute import Disturbances
 
     return settings_from(Disturbances, table, "disturbances") if table else None
 
@@ -78,7 +78,7 @@ def disturbed_robot(trace: ExecutedTrace, pos: np.ndarray, rot: np.ndarray,
     d = trace.meta.get("disturbances")
     if d is None:
         return pos, paint_on, {}
-    from paintcell.execution.execute_settings import Disturbances
+    from paintcell.execution.execute import Disturbances
 
     off = np.asarray(trace.meta.get("tcp_offset_tool_m", (0.0, 0.0, 0.0)), float)
     return (pos + rot @ off, Disturbances(**d).paint_on(paint_on, cell.model.opt.timestep),
