@@ -15,7 +15,7 @@ from PIL import Image
 
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.output import report
-from paintcell.output.render_images import write_png, write_video
+from paintcell.output.render import write_png, write_video
 from paintcell.surface.surface import plane
 
 METRICS = {
