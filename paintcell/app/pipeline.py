@@ -321,7 +321,8 @@ def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = 
                                                        default=json_default))
     write_film_files(out, result.scenario, result.surface, result.plan, result.report)
     if cell is not None:
-        from paintcell.output.report import make_figures, write_report
+        from paintcell.output.report import write_report
+        from paintcell.output.report_figures import make_figures
 
         make_figures(out, surface=result.surface, plan=result.plan, trajectory=result.trajectory,
                      trace=result.trace, report=result.report, cell=cell, video=video)

@@ -239,7 +239,7 @@ def _booth_sample(ctx: WorkerContext, dist: Any, factors: dict[str, float]
     from paintcell.booth.booth_results import booth_metrics
     from paintcell.booth.booth_run import robot_tcp, robot_traces
     from paintcell.execution.execute import execute
-    from paintcell.validation.validate import collision_events
+    from paintcell.validation.validate_motion import collision_events
 
     p, booth, bcell = ctx.payload, ctx.payload.scenario, ctx.cell
     progs = p.programs
