@@ -150,3 +150,25 @@ def against_order(fgraph: dict[str, set[str]], order: list[str]) -> list[tuple[s
     return sorted((a, b) for a, bs in fgraph.items() for b in bs
                   if a not in rank or b not in rank or rank[b] > rank[a])
 
+
+
+def reexports(pkg: Path) -> dict[str, list[str]]:
+    """Module → the names its `__all__` lists that it only imports (a re-export facade), for
+    every module but a package's `__init__.py` (a package's public face may gather names)."""
+    out = {}
+    for mod, path in _modules(pkg).items():
+        if path.name == "__init__.py":
+            continue
+        tree = ast.parse(path.read_text(), filename=str(path))
+        imported: set[str] = set()
+        exported: list[str] = []
+        for node in tree.body:
+            if isinstance(node, ast.Import | ast.ImportFrom):
+                imported.update((a.asname or a.name).split(".")[0] for a in node.names)
+            elif isinstance(node, ast.Assign) and any(
+                    isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
+                exported = list(ast.literal_eval(node.value))
+        found = sorted(n for n in exported if n in imported)
+        if found:
+            out[mod] = found
+    return out

@@ -4,7 +4,8 @@ count; `if TYPE_CHECKING:` blocks do not run and do not count), a folder per sta
 "Where things live" table that matches the tree. Modules are cut by concept, not by length: no
 line cap.
 
-Nor does a module use another's private (underscored) names.
+Nor does a module use another's private (underscored) names, nor list in `__all__` names it
+imports (a re-export facade; the few that remain are listed and may only go).
 
 The checkers are also run on small synthetic packages that break each rule, so a checker that
 stopped finding anything would fail here too.
@@ -25,6 +26,7 @@ from tests.structure import (
     import_cycles,
     import_graph,
     private_imports,
+    reexports,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -98,6 +100,26 @@ def test_no_private_name_crosses_a_module() -> None:
     found = private_imports(PKG)
     assert not found, "private names used across modules: " + "; ".join(
         f"{a} uses {b}.{n}" for a, b, n in found)
+
+
+#: Modules whose `__all__` still lists names they import from elsewhere; callers should import
+#: those names from the module that defines them. The list only shrinks.
+REEXPORTING = {
+    "paintcell.app.scenario_checks", "paintcell.cli.check", "paintcell.cli.main",
+    "paintcell.core.budget", "paintcell.coverage.coverage", "paintcell.coverage.offset",
+    "paintcell.paint.deposition", "paintcell.surface.surface",
+}
+
+
+def test_no_new_reexport_facade() -> None:
+    """A module's `__all__` names what it defines; a module that gathers other modules' names
+    (a facade) hides where they live. Package `__init__.py` files are the exception."""
+    found = reexports(PKG)
+    new = sorted(set(found) - REEXPORTING)
+    assert not new, "modules re-exporting imported names: " + "; ".join(
+        f"{m}: {found[m]}" for m in new)
+    gone = sorted(REEXPORTING - set(found))
+    assert not gone, f"no longer re-exporting, drop from REEXPORTING: {gone}"
 
 
 def test_every_stage_has_its_folder_and_every_folder_is_a_stage() -> None:
@@ -212,6 +234,18 @@ def test_checker_finds_private_names_across_modules(tmp_path: Path) -> None:
         ("paintcell.s.c", "paintcell.s.m", "_X"),
         ("paintcell.s.d", "paintcell.s.m", "_f"),
     ]
+
+
+def test_checker_finds_a_reexport(tmp_path: Path) -> None:
+    """A name imported and listed in `__all__` is a re-export; a defined one is not, nor is an
+    `__init__.py` gathering names."""
+    pkg = _write(tmp_path, {
+        "paintcell/__init__.py": "from paintcell.m import Y\n__all__ = ['Y']\n",
+        "paintcell/m.py": "Y = 2\n__all__ = ['Y']\n",
+        "paintcell/f.py": ("import os\nfrom paintcell.m import Y\nZ = 1\n"
+                           "__all__ = ['Y', 'Z', 'os']\n"),
+    })
+    assert reexports(pkg) == {"paintcell.f": ["Y", "os"]}
 
 
 @pytest.mark.parametrize("stmt,target", [
