@@ -19,7 +19,8 @@ from paintcell.booth.booth_cell import BoothCell
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.paint.deposition import GunSamples, thickness
+from paintcell.paint.deposition import thickness
+from paintcell.paint.deposition_samples import GunSamples
 from paintcell.paint.metrics import uniformity
 from paintcell.surface.surface import Surface
 from paintcell.validation.validate_samples import executed_gun_samples
