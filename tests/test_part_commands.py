@@ -97,6 +97,8 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     assert table["spec"] == {"window_pct": 20.0, "min_inside_pct": 90.0, "max_nsd_pct": 10.0}
     assert "max_executed_nsd_pct" not in table["thresholds"]
     assert table["part"]["pieces"] == "auto" and table["part"]["pieces_gap_m"] == 0.04
+    # servo gains from the effective joint inertias, as the booth's init writes them
+    assert table["servo"] == {"gain_inertia": "effective"}
     assert main(["plan", str(toml), "--fast", "--out", str(tmp_path / "plan")]) == 0
     assert (tmp_path / "plan" / "plan.json").is_file()
     scn = load_scenario(toml)

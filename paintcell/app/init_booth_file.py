@@ -17,6 +17,7 @@ from paintcell.app.init_layout import (
     RAIL_GAPS_M,
     MultiCell,
 )
+from paintcell.app.init_toml import SPEC
 
 __all__ = ["booth_toml"]
 
@@ -120,5 +121,10 @@ gain_inertia = "effective"
 reachability_pct = 100.0
 max_collisions = 0
 max_robot_collisions = 0
-max_executed_nsd_pct = 8.0
+
+[spec]
+# the paint spec every part's executed film is judged against (paintcell.validation.paint_spec)
+window_pct = {_v(SPEC.window_pct)}               # the window: target ± this [%]
+min_inside_pct = {_v(SPEC.min_inside_pct)}           # least share of the judged area inside it [%]
+max_nsd_pct = {_v(SPEC.max_nsd_pct)}              # largest executed σ/μ [%]
 """

@@ -26,7 +26,8 @@ def scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, base
     """The scenario text: name, robot, the `[part]` table `spec` with what the import found
     (`rep`, an `ImportReport`), the placements `pl` and `base` (`Placement`), the base's
     `verdict`, the planner settings that planned the part (and the `tried` ones that failed),
-    the trajectory settings and the program's clearance [m], thresholds and the paint spec."""
+    the trajectory settings and the program's clearance [m], the servo's gain rule, thresholds
+    and the paint spec."""
     ops = rep.openings
     pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m² {'painted' if p.painted else 'not'}"
                        for p in rep.pieces[:6])
@@ -79,6 +80,11 @@ rpy_rad = {toml_value([round(x, 6) for x in base.rpy_rad])}
 {planner_lines}
 [trajectory]
 {traj_lines}
+# gains from each joint's effective inertia: with the diagonal one a joint coupled to others
+# (the IRB 5500's J3) is tuned stiffer than it moves, and its loop rings in fast turn-arounds
+[servo]
+gain_inertia = "effective"
+
 [thresholds]
 reachability_pct = 100.0
 max_collisions = 0

@@ -12,7 +12,7 @@ import numpy as np
 
 from paintcell.core.errors import AxisTurnError, PlanError
 from paintcell.coverage.back_fill import back_fill
-from paintcell.coverage.coverage_planner import PassGeom, Planner, mirrored_curve
+from paintcell.coverage.coverage_planner import PassGeom, Planner, edge_spikes, mirrored_curve
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.coverage_timing import time_pass, time_passes
 from paintcell.coverage.family_geometry import (
@@ -257,6 +257,9 @@ def _sweeps(pl: Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarray
                     inside = np.zeros(len(pts), bool)
             side = sign * k
             if inside.sum() < 2:            # nothing (or a single point) left on the surface
+                if st.edge_passes and ok.sum() >= 2:
+                    ok = ok & ~edge_spikes(pl, pts)
+                    pts = np.where(ok[:, None], pts, np.nan)
                 if st.edge_passes and ok.sum() >= 2:
                     foot, normals, on_part = pl.build_pass(pts, nrm, np.zeros(len(pts), bool),
                                                            extend=False)

@@ -30,7 +30,15 @@ from paintcell.coverage.offset import (
     tangents,
     unit,
 )
+from paintcell.coverage.offset_polyline import spikes
 from paintcell.paint.applicator import Applicator
+
+#: An edge pass's samples are checked against the median of their neighbours within this
+#: fraction of the spray footprint radius (a 0.46 m footprint: ±115 mm, ±5 samples at 20 mm) …
+SPIKE_WINDOW_FRACTION = 0.25
+#: … and dropped farther than this many sample spacings from it (40 mm at 20 mm): the pass
+#: is then drawn straight across where they were.
+SPIKE_TOL_SPACINGS = 2.0
 
 
 @dataclass(eq=False)
@@ -63,6 +71,19 @@ def mirrored_curve(c: IndexingCurve | None) -> IndexingCurve | None:
 def _length_to(piece: np.ndarray, start: np.ndarray) -> float:
     """Arc length [m] of the polyline from `start` (3,) through the points of `piece` (K, 3)."""
     return float(arc_length(np.vstack([start[None], piece]))[-1]) if len(piece) else 0.0
+
+
+def edge_spikes(pl: Planner, points: np.ndarray) -> np.ndarray:
+    """(S,) bool: the samples of an edge pass (S, 3) [m] (NaN: none) that jump off its line and
+    back (`paintcell.coverage.offset_polyline.spikes` at the footprint's scale). An edge pass
+    lies wholly on the virtual extension past the part's edge: each sample is its own indexing
+    curve continued straight from where that curve left the part, and where the edge turns a
+    corner (a frame member meeting its panel) one curve can leave through the member's side and
+    go on in another direction — a sample 0.1–0.2 m off the line and back, a 170° turn of the
+    pass that piles film where it dips onto the part."""
+    st = pl.st
+    h = int(np.ceil(SPIKE_WINDOW_FRACTION * pl.app.footprint_radius_m / st.sample_spacing_m))
+    return spikes(points, h, SPIKE_TOL_SPACINGS * st.sample_spacing_m)
 
 
 def outside_span(foot: np.ndarray, inside: np.ndarray, max_gap_m: float) -> tuple[int, int]:

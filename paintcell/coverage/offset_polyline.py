@@ -1,8 +1,11 @@
 """Polylines in 3-D: rows scaled to unit length, cumulative arc length [m], resampling at uniform
-arc-length spacing, tangents, and the geodesic curvature [1/m] of a curve lying in a surface.
+arc-length spacing, tangents, the geodesic curvature [1/m] of a curve lying in a surface, and the
+samples that spike off a sampled curve.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import numpy.typing as npt
@@ -75,3 +78,29 @@ def geodesic_curvature(points: npt.ArrayLike, normals: npt.ArrayLike,
     k_vec = (r[2:] - 2.0 * r[1:-1] + r[:-2]) / (h * h)
     kg = np.einsum("ij,ij->i", k_vec, np.cross(nq[1:-1], t))
     return np.interp(s, q[1:-1], kg)
+
+
+def spikes(points: npt.ArrayLike, half_window: int, tol_m: float) -> np.ndarray:
+    """(M,) bool: the points of a sampled curve (M, 3) [m] (NaN rows: no point) farther than
+    `tol_m` [m] from where their neighbours put them: the coordinate-wise median of the finite
+    points in a window symmetric about each point (`half_window` samples each way, fewer where
+    the curve ends: an end sample is its own median and is never flagged; a missing sample
+    drops its mirror image from the window too). Each coordinate that runs monotonically over a
+    symmetric window has its own value as the median, so a smooth curve sampled finely against
+    the window is not flagged; a sample or a few that jump off the curve and back (a spike)
+    are. NaN rows are never flagged."""
+    p = np.asarray(points, float)
+    m, h = len(p), int(half_window)
+    if m < 3 or h < 1:
+        return np.zeros(m, bool)
+    i = np.arange(m)
+    off = np.arange(-h, h + 1)
+    k = np.minimum(np.minimum(i, m - 1 - i), h)                  # symmetric half-width
+    win = p[np.clip(i[:, None] + off[None, :], 0, m - 1)]         # (M, 2h + 1, 3)
+    gone = (np.abs(off)[None, :] > k[:, None]) | np.isnan(win[:, :, 0])
+    win[gone | gone[:, ::-1]] = np.nan                          # kept symmetric about the point
+    with warnings.catch_warnings():                              # an all-NaN window: NaN
+        warnings.simplefilter("ignore", RuntimeWarning)
+        ref = np.nanmedian(win, axis=1)
+    dev = np.linalg.norm(p - ref, axis=1)
+    return np.isfinite(dev) & (dev > tol_m)
