@@ -23,14 +23,14 @@ import numba
 import numpy as np
 
 from paintcell.paint.applicator import Applicator
-from paintcell.paint.deposition import GunSamples, deposition_rate_reference, thickness
+from paintcell.paint.deposition import deposition_rate_reference, thickness
 from paintcell.paint.deposition_kernel import (
     BLOCK_POINTS,
     CHUNK_SAMPLES,
     candidate_blocks,
     make_blocks,
 )
-from paintcell.paint.deposition_samples import tool_axes
+from paintcell.paint.deposition_samples import GunSamples, tool_axes
 
 
 def door_points() -> tuple[str, np.ndarray, np.ndarray]:

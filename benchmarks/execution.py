@@ -16,7 +16,7 @@ does them (the planned and time-law films, which do not depend on the execution,
 second thread while MuJoCo steps on one core: `validate.start_program_films`; every film is still
 inside the timed span), and a sweep sample (feed-forward cached, planned and trajectory films
 reused). On the compiled paths a program's inverse-dynamics feed-forward runs in two halves on two
-threads (`execute_models._inverse_compiled`). Real-time factor = simulated time ÷ time; the
+threads (`execute._inverse_compiled`). Real-time factor = simulated time ÷ time; the
 issue's target is execute + validate ≥ 50× on the door. Wall time is what a user waits; CPU time
 (all threads counted) is what a busy machine pays: on 2 cores shared with other jobs the threads
 gain little wall time. The main thread's own CPU time (`time.thread_time`) is printed beside the
@@ -55,9 +55,10 @@ from paintcell.app.pipeline import load_robot_for, load_surface, make_plan, make
 from paintcell.app.scenario_files import load_scenario
 from paintcell.execution import execute_compiled
 from paintcell.execution.cell import build_cell
-from paintcell.execution.execute import ServoSettings, execute
-from paintcell.execution.execute_models import (
+from paintcell.execution.execute import (
+    ServoSettings,
     controller_model,
+    execute,
     inverse_dynamics,
     set_torque_actuators,
 )

@@ -23,7 +23,8 @@ import numpy as np
 
 from paintcell.coverage.coverage import PlannerSettings, plan_coverage
 from paintcell.paint.applicator import Applicator
-from paintcell.paint.deposition import GunSamples, thickness
+from paintcell.paint.deposition import thickness
+from paintcell.paint.deposition_samples import GunSamples
 from paintcell.surface import parts
 
 #: (part, copies) of the coupé's skin.

@@ -1,4 +1,4 @@
-"""Read a package's import graph (module and folder level) and module sizes from its source
+"""Read a package's import graph (module and folder level) and private-name uses from its source
 (tests/test_structure.py)."""
 
 from __future__ import annotations
@@ -7,9 +7,6 @@ import ast
 from pathlib import Path
 
 import networkx as nx
-
-#: Longest module the house allows [lines].
-MAX_MODULE_LINES = 400
 
 
 def _modules(pkg: Path) -> dict[str, Path]:
@@ -154,11 +151,24 @@ def against_order(fgraph: dict[str, set[str]], order: list[str]) -> list[tuple[s
                   if a not in rank or b not in rank or rank[b] > rank[a])
 
 
-def long_modules(pkg: Path) -> dict[str, int]:
-    """Files over MAX_MODULE_LINES lines, as path relative to the package's parent → lines."""
+
+def reexports(pkg: Path) -> dict[str, list[str]]:
+    """Module → the names its `__all__` lists that it only imports (a re-export facade), for
+    every module but a package's `__init__.py` (a package's public face may gather names)."""
     out = {}
-    for p in sorted(pkg.rglob("*.py")):
-        n = len(p.read_text().splitlines())
-        if n > MAX_MODULE_LINES:
-            out[str(p.relative_to(pkg.parent))] = n
+    for mod, path in _modules(pkg).items():
+        if path.name == "__init__.py":
+            continue
+        tree = ast.parse(path.read_text(), filename=str(path))
+        imported: set[str] = set()
+        exported: list[str] = []
+        for node in tree.body:
+            if isinstance(node, ast.Import | ast.ImportFrom):
+                imported.update((a.asname or a.name).split(".")[0] for a in node.names)
+            elif isinstance(node, ast.Assign) and any(
+                    isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets):
+                exported = list(ast.literal_eval(node.value))
+        found = sorted(n for n in exported if n in imported)
+        if found:
+            out[mod] = found
     return out

@@ -33,7 +33,8 @@ from paintcell.booth.booth_stagger import STAGGER_STEP_S, pair_offsets_ok, stagg
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.placement import Placement
 from paintcell.output.export_rapid import cell_modules
-from paintcell.paint.deposition import GunSamples, thickness
+from paintcell.paint.deposition import thickness
+from paintcell.paint.deposition_samples import GunSamples
 from paintcell.validation.paint_spec import PaintSpec
 
 HOME = (0.0, 0.0, -0.6, 0.3, 0.0, 0.9, 0.0)

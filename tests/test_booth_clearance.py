@@ -125,7 +125,7 @@ def test_a_back_off_rung_out_of_reach_does_not_end_the_ladder(monkeypatch):
     from paintcell.booth.booth_clearance import CLEAR_FACTORS, Clearance
     from paintcell.motion import trajectory
     from paintcell.motion.joint_trajectory import TrajectoryError
-    from paintcell.motion.trajectory_settings import TrajectorySettings
+    from paintcell.motion.trajectory import TrajectorySettings
 
     built = []
 

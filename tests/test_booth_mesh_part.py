@@ -117,7 +117,8 @@ def test_booth_judges_a_mesh_part_on_its_skin():
     # straight pass 0.25 m off the door's skin centroid, along the door (a plan's duck type)
     from paintcell.booth.booth_build import planned_mean_m
     from paintcell.paint.applicator import Applicator
-    from paintcell.paint.deposition import GunSamples, thickness
+    from paintcell.paint.deposition import thickness
+    from paintcell.paint.deposition_samples import GunSamples
 
     c = door.vertices[own].mean(axis=0)
     n = door.normals[own].mean(axis=0)

@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 from paintcell.execution.cell import build_cell
-from paintcell.execution.execute import execute
-from paintcell.execution.execute_settings import Disturbances
+from paintcell.execution.execute import Disturbances, execute
 from paintcell.execution.trace import ExecutedTrace
 from tests.test_execute import make_case
 
@@ -62,7 +61,7 @@ def test_a_displaced_part_takes_its_slabs_along() -> None:
     moved = [abs(c.depth_m - depth.get((c.body1, round(c.time_s, 6)), 0.0)) for c in new.contacts]
     assert max(moved) > 0.01
     # The world body's tree still bounds every moved slab (MuJoCo's midphase reaches them all).
-    from paintcell.execution.execute_models import disturbed_model
+    from paintcell.execution.execute import disturbed_model
 
     model, _, _ = disturbed_model(new_cell, dist)
     d = mujoco.MjData(model)

@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.cli.main import EXIT_OK, EXIT_USAGE, build_parser, main, write_junit
+from paintcell.cli.common import EXIT_OK, EXIT_USAGE
+from paintcell.cli.junit import write_junit
+from paintcell.cli.main import build_parser, main
 
 COMMANDS = ["run", "check", "plan", "validate", "export", "report"]
 

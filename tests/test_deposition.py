@@ -13,13 +13,8 @@ import trimesh
 from scipy import integrate
 
 from paintcell.paint.applicator import Applicator
-from paintcell.paint.deposition import (
-    DepositionError,
-    GunSamples,
-    deposition_rate,
-    deposition_rate_reference,
-    thickness,
-)
+from paintcell.paint.deposition import deposition_rate, deposition_rate_reference, thickness
+from paintcell.paint.deposition_samples import DepositionError, GunSamples
 
 from .helpers import DEPOSITION_EXACT_RTOL, DEPOSITION_INTEGRAL_RTOL, KERNEL_CULL_RTOL
 

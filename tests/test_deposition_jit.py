@@ -22,12 +22,8 @@ import pytest
 from paintcell.paint import deposition_cpu as cpu
 from paintcell.paint import deposition_jit as jit
 from paintcell.paint.applicator import Applicator
-from paintcell.paint.deposition import (
-    DepositionError,
-    GunSamples,
-    deposition_rate_reference,
-    thickness,
-)
+from paintcell.paint.deposition import deposition_rate_reference, thickness
+from paintcell.paint.deposition_samples import DepositionError, GunSamples
 
 pytestmark = pytest.mark.skipif(not jit.HAVE_NUMBA, reason="numba is a dependency")
 

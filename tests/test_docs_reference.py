@@ -139,7 +139,7 @@ def test_each_documented_default_is_accepted_and_is_the_default(
 
 def _effective(scn: Any, table: str, key: str) -> Any:
     """What a scenario loaded without `key` runs with (tuples as lists)."""
-    from paintcell.app.scenario_checks import settings_classes
+    from paintcell.validation.settings_tables import settings_classes
     from paintcell.validation.sweep_spec import spec_from_scenario
 
     if table == "":

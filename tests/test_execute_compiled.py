@@ -20,10 +20,12 @@ import mujoco
 import numpy as np
 import pytest
 
-from paintcell.execution import execute_compiled, execute_models
-from paintcell.execution.execute import ServoSettings, execute
-from paintcell.execution.execute_models import (
+import paintcell.execution.execute as execute_module
+from paintcell.execution import execute_compiled
+from paintcell.execution.execute import (
+    ServoSettings,
     controller_model,
+    execute,
     inverse_dynamics,
     set_torque_actuators,
 )
@@ -82,10 +84,10 @@ def test_inverse_dynamics_equals_the_per_sample_mj_inverse_loop(
     model = copy.copy(cell.model)
     set_torque_actuators(model, cell)
     ctrl_model = controller_model(model, cell, ServoSettings())
-    # long enough for the two-thread split (execute_models._inverse_compiled), which runs on
+    # long enough for the two-thread split (execute._inverse_compiled), which runs on
     # any machine with two cores
-    assert len(traj.q) >= execute_models.SPLIT_MIN_SAMPLES
-    monkeypatch.setattr(execute_models, "_cores", lambda: 2)
+    assert len(traj.q) >= execute_module.SPLIT_MIN_SAMPLES
+    monkeypatch.setattr(execute_module, "_cores", lambda: 2)
     got = inverse_dynamics(ctrl_model, cell, traj.q, traj.qd, traj.qdd)
     ref = _python_inverse(ctrl_model, cell, traj.q, traj.qd, traj.qdd)
     assert np.abs(ref).max() > 1.0  # real torques (gravity alone is tens of N·m)

@@ -27,7 +27,8 @@ from paintcell.robots.paths import solve_paths
 from paintcell.robots.reachability import ReachabilityReport
 from paintcell.surface.surface import plane
 from paintcell.validation.honest_reach import honest_reachability
-from paintcell.validation.validate import Thresholds, validate
+from paintcell.validation.validate import validate
+from paintcell.validation.validate_report import Thresholds
 from tests.test_trajectory import N_PASSES, _plan
 
 

@@ -200,7 +200,8 @@ def test_a_takt_no_line_makes_is_refused_in_one_line(
         written: dict[str, Any], tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:
     import paintcell.booth.booth_plans as booth_plans
-    from paintcell.cli.main import EXIT_USAGE, main
+    from paintcell.cli.common import EXIT_USAGE
+    from paintcell.cli.main import main
 
     monkeypatch.setattr(booth_plans, "plan_parts", lambda booth, fast: written["pp"])
     out = tmp_path / "fast.toml"

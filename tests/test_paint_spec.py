@@ -22,7 +22,8 @@ from paintcell.validation.paint_spec import (
     spec_checks,
     spec_metrics,
 )
-from paintcell.validation.validate import Thresholds, validate
+from paintcell.validation.validate import validate
+from paintcell.validation.validate_report import Thresholds
 from tests.helpers import lattice_share
 
 

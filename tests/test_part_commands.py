@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from paintcell.cli.main import EXIT_USAGE, build_parser, main
+from paintcell.cli.common import EXIT_USAGE
+from paintcell.cli.main import build_parser, main
 from paintcell.paint.metrics import uniformity
 
 

@@ -99,7 +99,7 @@ def test_validate_export_and_report_on_the_results(run_dir: Path) -> None:
     assert len(out.stderr.strip().splitlines()) == 1
     out = _cli("report", "res", cwd=run_dir)
     assert out.returncode == 0, out.stderr
-    from paintcell.output.report import format_value
+    from paintcell.output.report_sections import format_value
 
     html = (res / "report.html").read_text()
     assert "small_panel" in html and format_value(after["executed_nsd_pct"]) in html

@@ -149,7 +149,7 @@ def test_refined_pass_keeps_the_carriage_still(roof_case):
     placement put it for the pass). Every 8th IK sample of a roof pass leaves the spline
     centimetres off the path, so knots are inserted; re-measured: the rail column is exactly
     constant, and the inserted knots are on the path."""
-    from paintcell.motion.trajectory_paths import refined_path
+    from paintcell.motion.trajectory import refined_path
     from paintcell.robots.paths import solve_paths
 
     scn, _, plan, robot = roof_case

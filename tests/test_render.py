@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from paintcell.output import render, render_backend
+from paintcell.output import render
 from paintcell.surface.surface import plane
 from tests.helpers import RENDER_MIN_PIXEL_STD, RENDER_RAMP_MIN_LEVEL_GAP
 
@@ -45,11 +45,9 @@ def test_backend_is_chosen():
 
 
 def test_no_backend_is_a_clear_error(monkeypatch):
-    # The backend choice lives in paintcell.output.render_backend (render re-exports it): patch
-    # it there.
-    monkeypatch.setattr(render_backend, "_backend", None)
+    monkeypatch.setattr(render, "_backend", None)
     monkeypatch.delenv("MUJOCO_GL", raising=False)
-    monkeypatch.setattr(render_backend, "probe_backend",
+    monkeypatch.setattr(render, "probe_backend",
                         lambda name, timeout_s=0: "cannot open display")
     with pytest.raises(render.RenderBackendError) as e:
         render.backend_name()

@@ -15,7 +15,9 @@ from PIL import Image
 
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.output import report
-from paintcell.output.render_images import write_png, write_video
+from paintcell.output.render import write_png, write_video
+from paintcell.output.report_figures import make_figures
+from paintcell.output.report_sections import format_value
 from paintcell.surface.surface import plane
 
 METRICS = {
@@ -129,7 +131,7 @@ def test_report_is_self_contained_html_with_every_metric(results):
     # the thresholds: every check's name, value, limit and unit, and the overall verdict
     for c in METRICS["checks"]:
         for field in ("name", "value", "limit", "unit"):
-            assert report.format_value(c[field]) in body, f"check {c['name']} {field} missing"
+            assert format_value(c[field]) in body, f"check {c['name']} {field} missing"
     assert "Verdict: FAIL" in body
     # every metric, nested ones included: its key and its value
     for key, value in _leaves(METRICS):
@@ -137,9 +139,9 @@ def test_report_is_self_contained_html_with_every_metric(results):
         if isinstance(value, list) and len(value) > report.MAX_LIST_ITEMS:
             assert f"{len(value)} values" in body
         elif isinstance(value, list):
-            assert ", ".join(report.format_value(x) for x in value) in body
+            assert ", ".join(format_value(x) for x in value) in body
         else:
-            assert report.format_value(value) in body, f"value of {key} missing"
+            assert format_value(value) in body, f"value of {key} missing"
     # pass/fail per threshold and units in the headers
     assert body.count("PASS") >= 1 and body.count("FAIL") >= 2
     assert "max depth [mm]" in body and "2 (" not in body
@@ -184,7 +186,7 @@ def test_make_figures_without_cell(tmp_path):
     s = plane(0.6, 0.4, resolution_m=0.05)
     planned = 20e-6 + 5e-6 * np.cos(6 * s.vertices[:, 0])
     rep = SimpleNamespace(planned_thickness_m=planned, executed_thickness_m=planned * 1.05)
-    files = report.make_figures(tmp_path, surface=s, report=rep, size=(160, 120),
+    files = make_figures(tmp_path, surface=s, report=rep, size=(160, 120),
                                 index_curve=False)
     names = {f.name for f in files}
     assert {"thickness_maps.png", "render_planned_front.png", "render_executed_top.png"} <= names
@@ -213,7 +215,7 @@ def test_make_figures_with_cell_robot_and_video(tmp_path):
     trace = SimpleNamespace(t_s=t, q=q, paint_on=on)
     planned = 20e-6 + 5e-6 * np.cos(6 * s.vertices[:, 0])
     rep = SimpleNamespace(planned_thickness_m=planned, executed_thickness_m=planned * 0.9)
-    files = report.make_figures(tmp_path, surface=s, trace=trace, report=rep, cell=cell,
+    files = make_figures(tmp_path, surface=s, trace=trace, report=rep, cell=cell,
                                 size=(160, 120), video_size=(96, 72), video_max_frames=12,
                                 index_curve=False)
     names = {f.name for f in files}
@@ -236,7 +238,7 @@ def test_no_gl_backend_skips_renders_but_keeps_plots(tmp_path, monkeypatch):
     s = plane(0.6, 0.4, resolution_m=0.05)
     planned = np.full(len(s.vertices), 2e-5)
     rep = SimpleNamespace(planned_thickness_m=planned, executed_thickness_m=planned)
-    files = report.make_figures(tmp_path, surface=s, report=rep, index_curve=False)
+    files = make_figures(tmp_path, surface=s, report=rep, index_curve=False)
     assert [f.name for f in files] == ["thickness_maps.png"]
     (tmp_path / "metrics.json").write_text(json.dumps({"passed": True}))
     text = html.unescape(report.write_report(tmp_path).read_text(encoding="utf-8"))

@@ -15,6 +15,7 @@ from PIL import Image
 
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.output import report
+from paintcell.output.report_figures import make_figures
 from paintcell.output.report_film import FilmFileError, histogram_png, load_film, save_film
 from paintcell.output.report_names import check_reason, headline_rows, number, with_unit
 from paintcell.output.report_sections import pass_rows
@@ -156,7 +157,7 @@ def test_spec_map_render_colours_the_window(tmp_path):
     film = np.where(x < 0.0, 0.7 * 25e-6, 25e-6)
     rep = SimpleNamespace(planned_thickness_m=np.full(len(x), 25e-6), executed_thickness_m=film,
                           metrics={"planned_mean_um": 25.0, "tolerance_fraction": 0.1})
-    files = report.make_figures(tmp_path, surface=s, report=rep, size=(200, 150),
+    files = make_figures(tmp_path, surface=s, report=rep, size=(200, 150),
                                 index_curve=False)
     assert tmp_path / "render_executed_spec.png" in files
     img = np.asarray(Image.open(tmp_path / "render_executed_spec.png").convert("RGB"), int)

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.cli.main import EXIT_INTERRUPTED, EXIT_USAGE, main
+from paintcell.cli.common import EXIT_INTERRUPTED, EXIT_USAGE
+from paintcell.cli.main import main
 from paintcell.core.results_dir import MARKER, new_results
 from tests.helpers import LOOSE_SPEC_TOML
 

@@ -10,11 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.app.scenario_checks import settings_classes
 from paintcell.app.scenario_files import load_scenario
 from paintcell.booth.booth import Booth
 from paintcell.core.errors import ScenarioDataError
 from paintcell.core.settings import settings_from
+from paintcell.validation.settings_tables import settings_classes
 
 SCENARIOS = sorted((Path(__file__).resolve().parents[1] / "scenarios").glob("*.toml"))
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from paintcell.execution.cell import build_cell
-from paintcell.execution.execute_settings import ExecutionError, ServoSettings
+from paintcell.execution.execute import ExecutionError, ServoSettings
 from paintcell.robots.rail import load_rail_robot
 from paintcell.surface import parts
 

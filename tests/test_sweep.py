@@ -21,7 +21,7 @@ from scipy import stats
 
 from paintcell.app.scenario_files import load_scenario
 from paintcell.cli.main import main
-from paintcell.execution.execute_settings import Disturbances
+from paintcell.execution.execute import Disturbances
 from paintcell.sweeps.sweep import run_sweep, sample_path
 from paintcell.sweeps.sweep_worker import RUN_KEYS
 from paintcell.validation.sweep_spec import SweepError, spec_from_scenario

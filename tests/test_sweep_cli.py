@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.cli.main import EXIT_USAGE, build_parser, main
+from paintcell.cli.common import EXIT_USAGE
+from paintcell.cli.main import build_parser, main
 
 ROOT = Path(__file__).resolve().parent.parent
 

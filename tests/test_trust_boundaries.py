@@ -24,7 +24,8 @@ from pathlib import Path
 
 import pytest
 
-from paintcell.cli.main import EXIT_USAGE, main
+from paintcell.cli.common import EXIT_USAGE
+from paintcell.cli.main import main
 from paintcell.core.results_dir import MARKER, ResultsDirError, new_results
 from tests.sweep_cases import plate_scenario
 from tests.trust_cases import cli, dead_pid, env, flat, rapid_parse, snapshot

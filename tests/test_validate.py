@@ -17,15 +17,10 @@ from paintcell.execution.trace import Contact, ExecutedTrace
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
 from paintcell.validation.paint_spec import PaintSpec
-from paintcell.validation.validate import (
-    Thresholds,
-    ValidationError,
-    ValidationReport,
-    collision_events,
-    executed_gun_samples,
-    start_program_films,
-    validate,
-)
+from paintcell.validation.validate import start_program_films, validate
+from paintcell.validation.validate_motion import collision_events
+from paintcell.validation.validate_report import Thresholds, ValidationError, ValidationReport
+from paintcell.validation.validate_samples import executed_gun_samples
 from tests.helpers import (
     BINNED_FILM_RTOL,
     KINEMATIC_REPLAY_LOSS_PP,

@@ -43,11 +43,11 @@ TABLE_TITLES = {
     "fast_planner": ("[fast_planner]", "Planner settings applied over `[planner]` in `--fast` "
                      "runs."),
     "trajectory": ("[trajectory]", "Settings of the time law and the moves between passes "
-                   "(`paintcell.motion.trajectory_settings.TrajectorySettings`)."),
+                   "(`paintcell.motion.trajectory.TrajectorySettings`)."),
     "servo": ("[servo]", "The joint servo of the execution "
-              "(`paintcell.execution.execute_settings.ServoSettings`)."),
+              "(`paintcell.execution.execute.ServoSettings`)."),
     "disturbances": ("[disturbances]", "Seeded errors between the planned cell and the "
-                     "executed one (`paintcell.execution.execute_settings.Disturbances`); "
+                     "executed one (`paintcell.execution.execute.Disturbances`); "
                      "empty: the nominal cell."),
     "thresholds": ("[thresholds]", "The limits `paintcell run` and `paintcell check` hold the "
                    "run to (`paintcell.validation.validate_report.Thresholds`)."),

@@ -243,13 +243,13 @@ def robot_aware_run(scn: Any, surface: Surface, robot: Any, plan: CoveragePlan, 
 
 def servo_settings(scn: Scenario) -> Any:
     """The scenario's servo settings (`[servo]` table) as `ServoSettings`."""
-    from paintcell.execution.execute_settings import ServoSettings
+    from paintcell.execution.execute import ServoSettings
 
     return settings_from(ServoSettings, scn.servo, "servo")
 
 
 def _disturbances(scn: Scenario) -> Any:
-    from paintcell.execution.execute_settings import Disturbances
+    from paintcell.execution.execute import Disturbances
 
     return settings_from(Disturbances, scn.disturbances, "disturbances") \
         if scn.disturbances else None
@@ -321,7 +321,8 @@ def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = 
                                                        default=json_default))
     write_film_files(out, result.scenario, result.surface, result.plan, result.report)
     if cell is not None:
-        from paintcell.output.report import make_figures, write_report
+        from paintcell.output.report import write_report
+        from paintcell.output.report_figures import make_figures
 
         make_figures(out, surface=result.surface, plan=result.plan, trajectory=result.trajectory,
                      trace=result.trace, report=result.report, cell=cell, video=video)

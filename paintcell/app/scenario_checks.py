@@ -16,7 +16,7 @@ from paintcell.validation.settings_tables import (
     settings_classes,
 )
 
-__all__ = ["SETTINGS_TABLES", "check_settings", "settings_classes"]
+__all__ = ["check_settings"]
 
 _settings_classes = settings_classes     # tests/test_scenario_checks.py reads the classes here
 

@@ -16,7 +16,7 @@ import typing
 from dataclasses import MISSING, Field, dataclass, fields
 from typing import Any
 
-from paintcell.app.scenario_checks import SETTINGS_TABLES
+from paintcell.validation.settings_tables import SETTINGS_TABLES
 
 __all__ = ["LENGTH_RANGE_M", "ScenarioKey", "TABLES", "TOP_LEVEL", "scenario_keys",
            "table_class", "toml_type"]
@@ -76,10 +76,10 @@ SETTINGS = SETTINGS_TABLES
 
 def table_class(table: str) -> type | None:
     """The class whose fields are the keys of `table` (None for `sweep` and the top level)."""
-    from paintcell.app.scenario_checks import settings_classes
     from paintcell.core.placement import Placement
     from paintcell.surface.part_spec import MeshPart
     from paintcell.validation.paint_spec import PaintSpec
+    from paintcell.validation.settings_tables import settings_classes
     from paintcell.validation.validate_report import Thresholds
 
     if table in SETTINGS:

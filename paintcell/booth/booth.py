@@ -165,7 +165,7 @@ class Booth:
     trajectory: dict[str, Any] = field(default_factory=dict)
     servo: dict[str, Any] = field(default_factory=dict)
     disturbances: dict[str, Any] = field(default_factory=dict)
-    """`paintcell.execution.execute_settings.Disturbances` fields the run executes under, as a
+    """`paintcell.execution.execute.Disturbances` fields the run executes under, as a
     one-robot scenario's `[disturbances]`: every robot's TCP and trigger, the body's placement
     on the skid, the paint flow and the servo gains (empty: the nominal cell)."""
     thresholds: BoothThresholds = BoothThresholds()

@@ -7,7 +7,7 @@ prefix (`r0/`, `r1/`, ...), the part — the deposition mesh and thin convex col
 slide joint
 `conveyor` (a prismatic carrier with the part + skid mass), and the booth floor. Contact sensors
 see the `robots` subtree against the part, the floor and itself, so robot–robot contacts count
-like self-collisions; `_contacts` in `paintcell.execution.execute_contacts` names them.
+like self-collisions; `_contacts` in `paintcell.execution.execute` names them.
 
 The result is a `paintcell.execution.cell.Cell` whose "robot" is the whole booth — all robots'
 joints, then the

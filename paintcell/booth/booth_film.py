@@ -19,7 +19,8 @@ from paintcell.booth.booth_cell import BoothCell
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.paint.deposition import GunSamples, thickness
+from paintcell.paint.deposition import thickness
+from paintcell.paint.deposition_samples import GunSamples
 from paintcell.paint.metrics import uniformity
 from paintcell.surface.surface import Surface
 from paintcell.validation.validate_samples import executed_gun_samples
@@ -63,7 +64,7 @@ def booth_disturbances(table: dict[str, Any]) -> Any:
     """A booth's `disturbances` table as the `Disturbances` its one execution runs under (None:
     an empty table, the nominal cell)."""
     from paintcell.core.settings import settings_from
-    from paintcell.execution.execute_settings import Disturbances
+    from paintcell.execution.execute import Disturbances
 
     return settings_from(Disturbances, table, "disturbances") if table else None
 
@@ -78,7 +79,7 @@ def disturbed_robot(trace: ExecutedTrace, pos: np.ndarray, rot: np.ndarray,
     d = trace.meta.get("disturbances")
     if d is None:
         return pos, paint_on, {}
-    from paintcell.execution.execute_settings import Disturbances
+    from paintcell.execution.execute import Disturbances
 
     off = np.asarray(trace.meta.get("tcp_offset_tool_m", (0.0, 0.0, 0.0)), float)
     return (pos + rot @ off, Disturbances(**d).paint_on(paint_on, cell.model.opt.timestep),

@@ -39,7 +39,7 @@ from paintcell.cli.junit import clean_text, write_junit
 from paintcell.cli.process_group import Children, stop_group, wait_exit
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["add_check", "clean_text", "format_table", "row", "run_isolated", "write_junit"]
+__all__ = ["add_check", "format_table", "row", "run_isolated"]
 
 _JOBS = number_option("--jobs", int, low=0, high=256, example="2",
                       note="0: one per CPU core")

@@ -22,11 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from paintcell.cli.check import add_check, format_table
+from paintcell.cli.check import add_check
 from paintcell.cli.common import (
-    EXIT_FAIL,
     EXIT_INTERRUPTED,
-    EXIT_OK,
     EXIT_USAGE,
     one_line,
     os_error_line,
@@ -39,8 +37,7 @@ from paintcell.cli.run import add_plan, add_run
 from paintcell.core import interrupts
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["EXIT_FAIL", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_USAGE", "UsageExit", "build_parser",
-           "error_line", "format_table", "main", "one_line", "run_script", "write_junit"]
+__all__ = ["UsageExit", "build_parser", "error_line", "main", "run_script"]
 
 EXIT_HELP = """\
 exit codes:

@@ -35,15 +35,12 @@ from paintcell.core.memory import (
     BudgetError,
     available_bytes,
     gib,
-    memory_cap_bytes,
-    memory_room,
     room_text,
 )
 
-__all__ = ["BYTES_PER_INPUT_FACE", "BYTES_PER_VERTEX", "BudgetError", "available_bytes",
-           "check_mesh_file_budget", "check_planner_budget", "check_profile_budget",
-           "check_surface_budget", "check_sweep_budget", "check_validation_budget",
-           "file_face_estimate", "gib", "memory_cap_bytes", "memory_room", "planner_bytes"]
+__all__ = ["BYTES_PER_INPUT_FACE", "BYTES_PER_VERTEX", "check_mesh_file_budget",
+           "check_planner_budget", "check_profile_budget", "check_surface_budget",
+           "check_sweep_budget", "check_validation_budget", "file_face_estimate", "planner_bytes"]
 
 #: Bytes per surface vertex over the run (measured: the door at 5 mm, ~35 k vertices, peaks
 #: ~0.1 GB above the interpreter in the surface and validation stages ≈ 3 kB/vertex).

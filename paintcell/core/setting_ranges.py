@@ -50,7 +50,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("planner", "max_axis_turn_rad_m"): (1e-3, _INF, "rad/m (inf: no bound)"),
     ("planner", "smoothing_m"): (0.0, 1.0, "m"),
     ("planner", "start_position"): (0.0, 1.0, "a fraction of the altitude"),
-    # TrajectorySettings (`paintcell.motion.trajectory_settings`)
+    # TrajectorySettings (`paintcell.motion.trajectory`)
     ("trajectory", "control_rate_hz"): (50.0, 10000.0, "Hz"),
     ("trajectory", "tcp_a_max_m_s2"): (0.01, 500.0, "m/s²"),
     ("trajectory", "velocity_margin"): (0.01, 1.0, "a fraction"),
@@ -64,7 +64,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("trajectory", "path_tolerance_m"): (1e-6, 0.05, "m"),
     ("trajectory", "slowdown_threshold"): (1e-6, 0.999, "a fraction"),
     ("trajectory", "q_home"): (-100.0, 100.0, "rad (a rail: m)"),
-    # ServoSettings (`paintcell.execution.execute_settings`)
+    # ServoSettings (`paintcell.execution.execute`)
     ("servo", "bandwidth_hz"): (0.01, 200.0, "Hz"),
     ("servo", "damping_ratio"): (0.0, 100.0, "-"),
     ("servo", "kp"): (0.0, 1e9, "N·m/rad"),
@@ -72,7 +72,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("servo", "gain_scale"): (1e-3, 100.0, "a factor"),
     ("servo", "latency_steps"): (0, 100, "control periods"),
     ("servo", "seed"): (-2**63, 2**63 - 1, "an integer"),
-    # Disturbances (`paintcell.execution.execute_settings`)
+    # Disturbances (`paintcell.execution.execute`)
     ("disturbances", "part_offset_m"): (0.0, 1.0, "m"),
     ("disturbances", "part_rotation_rad"): (0.0, math.pi, "rad"),
     ("disturbances", "tcp_offset_m"): (0.0, 0.5, "m"),

@@ -21,7 +21,7 @@ import numpy.typing as npt
 from paintcell.core.atomic_io import atomic_write_npz, atomic_write_text
 from paintcell.core.errors import ApplicatorError, PlanError
 from paintcell.paint.applicator import Applicator
-from paintcell.paint.deposition import GunSamples
+from paintcell.paint.deposition_samples import GunSamples
 
 _PASS_ARRAYS = ("positions", "spray_axes", "travel_dirs", "speeds_m_s", "times_s", "on_part",
                 "paint_on")

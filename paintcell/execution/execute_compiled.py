@@ -261,7 +261,7 @@ def servo_steps(c: MujocoC, model: mujoco.MjModel, data: mujoco.MjData, qpos_adr
                 dof_adr: Any, actuator_ids: Any, base: np.ndarray, kp_g: np.ndarray,
                 kd_g: np.ndarray, lag: int, k0: int, k1: int, q_meas: np.ndarray,
                 qd_meas: np.ndarray, sens_out: np.ndarray, ctrl_out: np.ndarray) -> None:
-    """Steps k0 ≤ k < k1 of the digital servo (`paintcell.execution.execute_rollout`):
+    """Steps k0 ≤ k < k1 of the digital servo (`paintcell.execution.execute`):
     ctrl[k] = base[k] − (Kp/g · q + Kd/g · q̇) measured at t_{max(k − lag, 0)}, on the robot's
     actuators (base[k] alone on the others), then `mj_step`.
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from paintcell.core.atomic_io import atomic_write_npz
 from paintcell.core.errors import PaintcellError
-from paintcell.paint.deposition import GunSamples
+from paintcell.paint.deposition_samples import GunSamples
 
 
 class TraceError(PaintcellError):

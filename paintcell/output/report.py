@@ -34,8 +34,8 @@ from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import read_regular_bytes
 from paintcell.output.film_view import film_view_html
 from paintcell.output.gltf_film import FILM_GLB_NAME
-from paintcell.output.report_figures import FIGURES_JSON, make_figures
-from paintcell.output.report_film import FILM_NAME, load_film
+from paintcell.output.report_figures import FIGURES_JSON
+from paintcell.output.report_film import load_film
 from paintcell.output.report_sections import (
     FILM_MAP_FILES,
     checks_table,
@@ -51,8 +51,7 @@ from paintcell.output.report_sections import (
 )
 from paintcell.output.report_sections import table as _table
 
-__all__ = ["FIGURES_JSON", "FILM_NAME", "MAX_LIST_ITEMS", "REPORT_NAME", "ReportError",
-           "flatten", "format_value", "make_figures", "unit_of", "write_report"]
+__all__ = ["MAX_LIST_ITEMS", "REPORT_NAME", "ReportError", "flatten", "unit_of", "write_report"]
 
 REPORT_NAME = "report.html"
 VIDEO_NAME = "execution.gif"

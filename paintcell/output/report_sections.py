@@ -36,7 +36,7 @@ from paintcell.output.report_names import (
 _MIME = {".png": "image/png", ".gif": "image/gif", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
 #: PNGs at least this large are embedded with a 256-colour palette [bytes].
 PALETTE_MIN_BYTES = 20_000
-#: the images shown as the film map, best first (paintcell.output.report.make_figures names).
+#: the images shown as the film map, best first (names `report_figures.make_figures` writes).
 FILM_MAP_FILES = ("render_executed_spec.png", "render_executed_front.png", "thickness_maps.png",
                   "render_planned_front.png")
 

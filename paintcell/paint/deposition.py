@@ -39,7 +39,6 @@ from paintcell.paint.deposition_kernel import (
     sample_rates,
 )
 from paintcell.paint.deposition_samples import (
-    UNIT_NORMAL_TOL,
     DepositionError,
     GunSamples,
     as_normals,
@@ -47,18 +46,7 @@ from paintcell.paint.deposition_samples import (
     tool_axes,
 )
 
-__all__ = [
-    "BACKENDS",
-    "BLOCK_POINTS",
-    "CHUNK_SAMPLES",
-    "MAX_PAIRS_PER_CALL",
-    "UNIT_NORMAL_TOL",
-    "DepositionError",
-    "GunSamples",
-    "deposition_rate",
-    "deposition_rate_reference",
-    "thickness",
-]
+__all__ = ["BACKENDS", "deposition_rate", "deposition_rate_reference", "thickness"]
 
 
 def deposition_rate(app: Applicator, positions: npt.ArrayLike, spray_axes: npt.ArrayLike,

@@ -135,7 +135,7 @@ def context(payload: SweepPayload) -> WorkerContext:
 
     def build() -> WorkerContext:
         from paintcell.core.settings import settings_from
-        from paintcell.execution.execute_settings import ServoSettings
+        from paintcell.execution.execute import ServoSettings
 
         t0 = time.perf_counter()
         scn = payload.scenario
@@ -166,7 +166,7 @@ def disturbances_for(payload: SweepPayload, values: np.ndarray | None, seed: int
     `Disturbances` field) and the sample's seed (values None: the nominal run, the scenario as
     declared)."""
     from paintcell.core.settings import settings_from
-    from paintcell.execution.execute_settings import Disturbances
+    from paintcell.execution.execute import Disturbances
 
     kw = dict(payload.scenario.disturbances)
     if values is None:
@@ -239,7 +239,7 @@ def _booth_sample(ctx: WorkerContext, dist: Any, factors: dict[str, float]
     from paintcell.booth.booth_results import booth_metrics
     from paintcell.booth.booth_run import robot_tcp, robot_traces
     from paintcell.execution.execute import execute
-    from paintcell.validation.validate import collision_events
+    from paintcell.validation.validate_motion import collision_events
 
     p, booth, bcell = ctx.payload, ctx.payload.scenario, ctx.cell
     progs = p.programs

@@ -24,7 +24,7 @@ SETTINGS_TABLES = ("planner", "fast_planner", "trajectory", "servo", "disturbanc
 def settings_classes() -> dict[str, type]:
     """The settings dataclass each table builds."""
     from paintcell.coverage.coverage import PlannerSettings
-    from paintcell.execution.execute_settings import Disturbances, ServoSettings
+    from paintcell.execution.execute import Disturbances, ServoSettings
     from paintcell.motion.trajectory import TrajectorySettings
 
     return {"planner": PlannerSettings, "fast_planner": PlannerSettings,

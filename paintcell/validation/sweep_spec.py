@@ -275,7 +275,8 @@ MAX_WORKERS = 256
 
 def _check_budget(samples: int, setting: str) -> None:
     """A sample count the sweep's memory budget holds (`paintcell.core.budget`), as SweepError."""
-    from paintcell.core.budget import BudgetError, check_sweep_budget
+    from paintcell.core.budget import check_sweep_budget
+    from paintcell.core.memory import BudgetError
 
     try:
         check_sweep_budget(samples, setting)

@@ -26,7 +26,7 @@ saturates), reachability and collisions — each checked against caller threshol
 The result types and threshold checks (`paintcell.validation.validate_report`), the motion
 metrics (`paintcell.validation.validate_motion`) and the binned TCP samples
 (`paintcell.validation.validate_samples`) are modules of their
-own; every public name is importable from here.
+own, imported from where they are defined.
 """
 
 from __future__ import annotations
@@ -52,7 +52,6 @@ from paintcell.validation.painted_side import painted_side_checks, painted_side_
 from paintcell.validation.region_film import region_film
 from paintcell.validation.validate_motion import collision_events, tracking_errors, utilization
 from paintcell.validation.validate_report import (
-    Check,
     Thresholds,
     ValidationError,
     ValidationReport,
@@ -60,11 +59,7 @@ from paintcell.validation.validate_report import (
 )
 from paintcell.validation.validate_samples import executed_gun_samples, trajectory_gun_samples
 
-__all__ = [
-    "Check", "Thresholds", "ValidationError", "ValidationReport", "collision_events",
-    "executed_gun_samples", "program_films", "start_program_films", "tracking_errors",
-    "trajectory_gun_samples", "validate",
-]
+__all__ = ["program_films", "start_program_films", "validate"]
 
 
 def _reachability_summary(reach: dict[str, Any] | None) -> tuple[dict[str, Any] | None, float]:

@@ -10,7 +10,7 @@ import numpy as np
 
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.paint.deposition import GunSamples
+from paintcell.paint.deposition_samples import GunSamples
 
 
 def executed_gun_samples(trace: ExecutedTrace, T_part_world: np.ndarray,

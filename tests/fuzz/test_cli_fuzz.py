@@ -32,7 +32,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from junitparser import Error, JUnitXml, TestSuite
 
-from paintcell.cli.main import EXIT_INTERRUPTED, EXIT_USAGE, build_parser, error_line, main
+from paintcell.cli.common import EXIT_INTERRUPTED, EXIT_USAGE
+from paintcell.cli.main import build_parser, error_line, main
 
 ROOT = Path(__file__).resolve().parents[2]
 
