@@ -158,6 +158,26 @@ def test_a_generated_bodys_panel_files_are_written_again(tmp_path: Path) -> None
     assert "\n" not in str(bad.value) and "--seed 1" in str(bad.value)
     with pytest.raises(PaintcellError):
         ensure_panel_files({"seed": 1, "read": "mesh"}, files, "line.toml")
+    # a user's own file where a panel belongs is refused and left as it was, never replaced
+    files[5].write_bytes(b"solid mine\nendsolid mine\n")
+    with pytest.raises(PaintcellError) as mine:
+        ensure_panel_files(table, files, "line.toml")
+    assert "\n" not in str(mine.value) and str(files[5]) in str(mine.value)
+    assert files[5].read_bytes() == b"solid mine\nendsolid mine\n"
+
+
+def test_a_generated_bodys_panel_files_stay_in_the_booth_folder(tmp_path: Path) -> None:
+    """A booth file's [generated_body] panels outside its folder are refused in one line before
+    anything is written (an absolute path, a '..')."""
+    from paintcell.booth.booth_data import BoothDataError, _generated_files
+
+    for bad in ("/tmp/elsewhere.stl", "../up.stl", "panels/../../up.stl"):
+        d = {"generated_body": {"seed": 1, "read": "mesh", "areas_m2": [1.0]},
+             "parts": [{"part": {"file": bad}}]}
+        with pytest.raises(BoothDataError) as err:
+            _generated_files(d, "line.toml", tmp_path)
+        assert "\n" not in str(err.value) and repr(bad) in str(err.value)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_neighbouring_floor_robots_of_a_side_work_away_from_each_other(

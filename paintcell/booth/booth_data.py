@@ -213,7 +213,8 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
 
 
 def _generated_files(d: dict[str, Any], where: str, base: Path) -> None:
-    """The panel files of a generated body's line, written again when missing or changed
+    """The panel files of a generated body's line, in the booth file's folder, written again
+    when missing, never over a file that is there
     (`paintcell.surface.generated_body.ensure_panel_files`)."""
     from paintcell.surface.generated_body import ensure_panel_files
 
@@ -223,8 +224,16 @@ def _generated_files(d: dict[str, Any], where: str, base: Path) -> None:
         raise BoothDataError(f"{where} [generated_body]: every [[parts]] needs a [parts.part] "
                              "file (the body's panels, as `paintcell init BODY --line` writes "
                              "them)")
+    names = [str(f) for f in files]
+    root = base.resolve()
+    for f in names:
+        if Path(f).is_absolute() or ".." in Path(f).parts \
+                or not (root / f).resolve().is_relative_to(root):
+            raise BoothDataError(f"{where} [generated_body]: file = {f!r} must lie in the booth "
+                                 "file's folder (a relative path without '..'), where `paintcell "
+                                 "init BODY --line` writes the panels")
     try:
-        ensure_panel_files(d["generated_body"], [base / f for f in files], where)
+        ensure_panel_files(d["generated_body"], [base / f for f in names], where)
     except PaintcellError as exc:
         raise BoothDataError(str(exc)) from exc
 

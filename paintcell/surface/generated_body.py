@@ -10,9 +10,9 @@
 - `generated_panels(seed, read)`: those panels, from the generator (deterministic).
 - `ensure_panel_files(table, files, where)`: the booth file's `[generated_body]` table
   (`seed`, `read`, `areas_m2`: each panel's area in the order of its `[[parts]]`) and its parts'
-  files: every file there with its area, else all of them written again (binary STL in metres,
-  body frame, as `init --line` writes them); a body the generator no longer makes is refused
-  in one line.
+  files: every file there with its area is kept, the missing ones are written again (binary STL
+  in metres, body frame, as `init --line` writes them); a file there that is not its panel, or
+  a body the generator no longer makes, is refused in one line, nothing replaced.
 """
 
 from __future__ import annotations
@@ -100,15 +100,14 @@ def file_area_m2(path: str | Path) -> float:
     return float(m.area)
 
 
-def _areas(files: Sequence[Path]) -> list[float] | None:
-    out = []
+def _areas(files: Sequence[Path]) -> list[float | None]:
+    """Each file's area [m²]; None where it is missing or not a readable mesh."""
+    out: list[float | None] = []
     for f in files:
-        if not f.is_file():
-            return None
         try:
-            out.append(file_area_m2(f))
-        except (ValueError, OSError, AssertionError):
-            return None
+            out.append(file_area_m2(f) if f.is_file() and not f.is_symlink() else None)
+        except Exception:   # noqa: BLE001 — any unreadable file is one to write again
+            out.append(None)
     return out
 
 
@@ -129,7 +128,8 @@ def ensure_panel_files(table: Any, files: Sequence[Path], where: str) -> None:
                              f"{', '.join(_READS)}, areas_m2 one area [m²] per [[parts]] "
                              f"({len(files)})")
     have = _areas(files)
-    if have is not None and np.allclose(have, areas, rtol=AREA_RTOL, atol=0.0):
+    if all(a is not None for a in have) and np.allclose(np.asarray(have, float), areas,
+                                                          rtol=AREA_RTOL, atol=0.0):
         return
     panels = generated_panels(seed, read)
     fresh = [p.area_m2 for p in panels]
@@ -138,7 +138,15 @@ def ensure_panel_files(table: Any, files: Sequence[Path], where: str) -> None:
                              f"the body this line was laid out for ({len(panels)} panels, "
                              f"{sum(fresh):.4f} m² against {len(files)}, {sum(areas):.4f} m²); "
                              "lay the line out again with `paintcell init BODY --line`")
-    for f, p in zip(files, panels, strict=True):
+    for f, a, want in zip(files, have, areas, strict=True):
+        if f.exists() or f.is_symlink():
+            if a is None or not np.isclose(a, want, rtol=AREA_RTOL, atol=0.0):
+                raise PaintcellError(f"{where}: {f} is not the panel of `paintcell generate "
+                                     f"body --seed {seed}` this line was laid out for; delete "
+                                     "it to have it written again, or lay the line out again")
+    for f, a, p in zip(files, have, panels, strict=True):
+        if a is not None:
+            continue                                     # kept: the panel it should be
         f.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(f) as dst:
             p.mesh.export(str(dst), file_type="stl")
