@@ -19,7 +19,6 @@ from paintcell.core.errors import PaintcellError
 
 # Segment kinds of each sample (the `segment` array).
 APPROACH, PAINT, TURNAROUND, RETRACT = 0, 1, 2, 3
-SEGMENT_NAMES = {APPROACH: "approach", PAINT: "paint", TURNAROUND: "turnaround", RETRACT: "retract"}
 
 
 class TrajectoryError(PaintcellError):

@@ -24,7 +24,6 @@ records the shrink factor it needed); where tightening does not, the grid is hal
 
 from __future__ import annotations
 
-import importlib.metadata
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -40,8 +39,6 @@ from toppra.constraint.linear_constraint import LinearConstraint, canlinear_coll
 from toppra.interpolator import AbstractGeometricPath
 
 from paintcell.motion.joint_trajectory import TrajectoryError
-
-TOPPRA_VERSION = importlib.metadata.version("toppra")
 
 # toppra logs a warning for every uncontrollable start velocity we probe; we handle those.
 logging.getLogger("toppra").setLevel(logging.ERROR)
@@ -98,10 +95,6 @@ class JointPath(AbstractGeometricPath):
     @property
     def path_interval(self) -> np.ndarray:
         return np.array([self.s_knots[0], self.s_knots[-1]])
-
-    @property
-    def waypoints(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.s_knots, self.q_knots
 
 
 def tcp_path_derivatives(path: JointPath, fk_pos: FkPositions,
@@ -184,7 +177,6 @@ class PassTimeLaw:
     path: the joint path q(s).
     s_grid: (N+1,) grid arc lengths [m]; sd_grid: (N+1,) ṡ there [m/s]; sdd: (N,) s̈ on each
         interval [m/s²]; t_grid: (N+1,) times of the grid points from the pass start [s].
-    v_planned_grid: (N+1,) planned TCP speed at the grid points [m/s].
     tcp_speed_scale_grid: (N+1,) |p'(s)| (TCP speed per unit ṡ, ≈ 1).
     limit_shrink: factor (≤ 1) applied to the joint/TCP limits handed to TOPP-RA so that the
         sampled output respects the limits (1 when no tightening was needed).
@@ -197,7 +189,6 @@ class PassTimeLaw:
     sd_grid: np.ndarray
     sdd: np.ndarray
     t_grid: np.ndarray
-    v_planned_grid: np.ndarray
     tcp_speed_scale_grid: np.ndarray
     limit_shrink: float
     sd_start_clipped: bool
@@ -321,8 +312,7 @@ def parameterize_pass(path: JointPath, fk_pos: FkPositions, v_planned_knots_m_s:
                                       "interval); the path is not traversable under the limits")
             t_grid = np.concatenate([[0.0], np.cumsum(2 * ds / vsum)])
             law = PassTimeLaw(path=path, s_grid=grid, sd_grid=sd, sdd=sdd, t_grid=t_grid,
-                              v_planned_grid=np.sqrt(v2_grid), tcp_speed_scale_grid=scale,
-                              limit_shrink=shrink,
+                              tcp_speed_scale_grid=scale, limit_shrink=shrink,
                               sd_start_clipped=bool(sd_start < v_start * (1 - 1e-6)),
                               sd_end_clipped=bool(sd_end < v_end * (1 - 1e-6)))
             excess = _sampled_excess(law, fk_pos, v_lim, a_lim, tcp_a_max_m_s2, check_dt_s)

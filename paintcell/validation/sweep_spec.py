@@ -201,12 +201,6 @@ class SweepSpec:
         return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
-def factor_help() -> str:
-    """One line a factor: name [unit]: meaning (for --help)."""
-    return "; ".join(f"{n} [{u}]: {m}" for n, (u, m) in FACTORS.items())
-
-
-
 #: keys of a scenario's sweep table and their defaults (fast_samples None: `samples`; workers:
 #: local Dask processes, 0 runs the samples in this process).
 SCENARIO_DEFAULTS: dict[str, Any] = {"factors": {}, "samples": 100, "fast_samples": None,

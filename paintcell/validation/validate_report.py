@@ -7,15 +7,12 @@ verdict, `ValidationReport` the metrics (report units in the key names: σ/μ in
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import asdict, dataclass, field, fields
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from paintcell.core.atomic_io import atomic_write_text
 from paintcell.core.errors import PaintcellError, ScenarioDataError
 
 
@@ -183,10 +180,6 @@ class ValidationReport:
         d["torque_utilization"] = [_json_num(x) for x in self.torque_utilization]
         d["torque_saturation_pct"] = [_json_num(x) for x in self.torque_saturation_pct]
         return d
-
-    def save_json(self, path: str | Path) -> None:
-        """Write `to_dict()` as JSON atomically."""
-        atomic_write_text(path, json.dumps(self.to_dict(), indent=2, allow_nan=False))
 
 
 def _json_num(v: Any) -> Any:
