@@ -20,11 +20,12 @@ same function to both), so `fit_applicator_from_crossing_stripes` determines A0,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 
 from paintcell.core.errors import ApplicatorError
 from paintcell.paint.applicator import Applicator
@@ -124,26 +125,10 @@ def fit_applicator_from_crossing_stripes(y_m: npt.ArrayLike, thickness_y_m: npt.
     order = np.argsort(y)
     volume_rate = float(np.sum(w[order] * np.gradient(y[order]))) * speed_m_s
     init = _initial_guess(initial, standoff_m, width, volume_rate)
-    theta0, lo, hi = _pack(init, stripe=False)
-    amp_idx = np.array([0, 3, 4])
-    amp_scale = max(float(np.max(theta0[amp_idx])), 1e-30)
-    theta0[amp_idx] /= amp_scale
-
-    def model(theta: np.ndarray) -> np.ndarray:
-        th = theta.copy()
-        th[amp_idx] *= amp_scale
-        app = _unpack(th, standoff_m, None, init.name)
-        return np.concatenate([stripe_profile(app, y, speed_m_s),
-                               stripe_profile_across_x(app, x, speed_m_s)])
-
-    data = np.concatenate([ty, tx])
-    res = least_squares(lambda th: (model(th) - data) / peak, theta0, bounds=(lo, hi),
-                        x_scale="jac", method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12,
-                        max_nfev=2000)
-    th = res.x.copy()
-    th[amp_idx] *= amp_scale
-    app = _unpack(th, standoff_m, None, "calibrated")
-    rms = float(np.sqrt(np.mean((model(res.x) - data) ** 2)))
+    app, rms, _, res = _fit(
+        init, standoff_m, None, (), np.concatenate([ty, tx]), peak,
+        lambda app, c: np.concatenate([stripe_profile(app, y, speed_m_s),
+                                       stripe_profile_across_x(app, x, speed_m_s)]))
     return CalibrationResult(app, rms, rms / peak, (0.0, 0.0), bool(res.success),
                              str(res.message))
 
@@ -215,6 +200,42 @@ def _pack(app: Applicator, stripe: bool) -> tuple[np.ndarray, np.ndarray, np.nda
     return theta, lo, hi
 
 
+def _fit(init: Applicator, standoff_m: float, ratio_x_y: float | None,
+         center0: tuple[float, ...], data: np.ndarray, peak: float,
+         predict: Callable[[Applicator, np.ndarray], np.ndarray],
+         ) -> tuple[Applicator, float, tuple[float, ...], OptimizeResult]:
+    """Least-squares fit of the model parameters (σx tied to σy by `ratio_x_y` unless None) and,
+    when `center0` is not empty, of a centre offset starting there, so that
+    `predict(applicator, centre)` matches `data` (residual scaled by `peak`).
+
+    Returns (fitted applicator named "calibrated", RMS residual in the unit of `data`, the fitted
+    centre (empty when none was fitted), the optimizer's result).
+    """
+    theta0, lo, hi = _pack(init, stripe=ratio_x_y is not None)
+    n = len(theta0)
+    amp_idx = np.array([0, 2, 3]) if ratio_x_y is not None else np.array([0, 3, 4])
+    amp_scale = max(float(np.max(theta0[amp_idx])), 1e-30)
+    theta0[amp_idx] /= amp_scale
+    if center0:
+        theta0 = np.append(theta0, center0)
+        lo = np.append(lo, [-np.inf] * len(center0))
+        hi = np.append(hi, [np.inf] * len(center0))
+
+    def model(theta: np.ndarray) -> np.ndarray:
+        th = theta.copy()
+        th[amp_idx] *= amp_scale
+        return predict(_unpack(th[:n], standoff_m, ratio_x_y, init.name), th[n:])
+
+    res = least_squares(lambda th: (model(th) - data) / peak, theta0, bounds=(lo, hi),
+                        x_scale="jac", method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12,
+                        max_nfev=2000)
+    th = res.x.copy()
+    th[amp_idx] *= amp_scale
+    app = _unpack(th[:n], standoff_m, ratio_x_y, "calibrated")
+    rms = float(np.sqrt(np.mean((model(res.x) - data) ** 2)))
+    return app, rms, tuple(float(c) for c in th[n:]), res
+
+
 def fit_applicator_from_stripe(y_m: npt.ArrayLike, thickness_m: npt.ArrayLike, speed_m_s: float,
                                standoff_m: float, initial: Applicator | None = None,
                                fit_center: bool = True) -> CalibrationResult:
@@ -242,32 +263,11 @@ def fit_applicator_from_stripe(y_m: npt.ArrayLike, thickness_m: npt.ArrayLike, s
     dy = np.gradient(np.sort(y))
     volume_rate = float(np.sum(w[np.argsort(y)] * dy)) * speed_m_s   # ∫ t dy · v = emitted flow
     init = _initial_guess(initial, standoff_m, width, volume_rate)
-    ratio = init.sigma_x_m / init.sigma_y_m
-    theta0, lo, hi = _pack(init, stripe=True)
-    amp_idx = np.array([0, 2, 3])
-    amp_scale = max(float(np.max(theta0[amp_idx])), 1e-30)
-    theta0[amp_idx] /= amp_scale
-    if fit_center:
-        theta0 = np.append(theta0, y0_guess)
-        lo = np.append(lo, -np.inf)
-        hi = np.append(hi, np.inf)
-
-    def model(theta: np.ndarray) -> np.ndarray:
-        th = theta.copy()
-        th[amp_idx] *= amp_scale
-        app = _unpack(th[:8], standoff_m, ratio, init.name)
-        y0 = th[8] if fit_center else 0.0
-        return stripe_profile(app, y - y0, speed_m_s)
-
-    res = least_squares(lambda th: (model(th) - t) / peak, theta0, bounds=(lo, hi),
-                        x_scale="jac", method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12,
-                        max_nfev=2000)
-    th = res.x.copy()
-    th[amp_idx] *= amp_scale
-    app = _unpack(th[:8], standoff_m, ratio, "calibrated")
-    rms = float(np.sqrt(np.mean((model(res.x) - t) ** 2)))
-    return CalibrationResult(app, rms, rms / peak, (float(th[8]),) if fit_center else (0.0,),
-                             bool(res.success), str(res.message))
+    app, rms, center, res = _fit(
+        init, standoff_m, init.sigma_x_m / init.sigma_y_m, (y0_guess,) if fit_center else (),
+        t, peak, lambda app, c: stripe_profile(app, y - (c[0] if len(c) else 0.0), speed_m_s))
+    return CalibrationResult(app, rms, rms / peak, center or (0.0,), bool(res.success),
+                             str(res.message))
 
 
 def fit_applicator_from_grid(x_m: npt.ArrayLike, y_m: npt.ArrayLike, values: npt.ArrayLike,
@@ -305,32 +305,12 @@ def fit_applicator_from_grid(x_m: npt.ArrayLike, y_m: npt.ArrayLike, values: npt
     volume_rate = float(np.sum(w) * area)
     width = float(np.sqrt(np.sum(w * r2) / np.sum(w) / 2.0))
     init = _initial_guess(initial, standoff_m, width, volume_rate)
-    theta0, lo, hi = _pack(init, stripe=False)
-    amp_idx = np.array([0, 3, 4])
-    amp_scale = max(float(np.max(theta0[amp_idx])), 1e-30)
-    theta0[amp_idx] /= amp_scale
-    if fit_center:
-        theta0 = np.append(theta0, c0)
-        lo = np.append(lo, [-np.inf, -np.inf])
-        hi = np.append(hi, [np.inf, np.inf])
-
-    def model(theta: np.ndarray) -> np.ndarray:
-        th = theta.copy()
-        th[amp_idx] *= amp_scale
-        app = _unpack(th[:9], standoff_m, None, init.name)
-        cx, cy = (th[9], th[10]) if fit_center else (0.0, 0.0)
-        return app.flux(x - cx, y - cy)
-
-    res = least_squares(lambda th: (model(th) - rate) / peak, theta0, bounds=(lo, hi),
-                        x_scale="jac", method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12,
-                        max_nfev=2000)
-    th = res.x.copy()
-    th[amp_idx] *= amp_scale
-    app = _unpack(th[:9], standoff_m, None, "calibrated")
-    rms = float(np.sqrt(np.mean((model(res.x) - rate) ** 2))) * scale_t
-    center = (float(th[9]), float(th[10])) if fit_center else (0.0, 0.0)
-    return CalibrationResult(app, rms, rms / (peak * scale_t), center, bool(res.success),
-                             str(res.message))
+    app, rms, center, res = _fit(
+        init, standoff_m, None, c0 if fit_center else (), rate, peak,
+        lambda app, c: app.flux(x - c[0], y - c[1]) if len(c) else app.flux(x, y))
+    rms *= scale_t
+    return CalibrationResult(app, rms, rms / (peak * scale_t), center or (0.0, 0.0),
+                             bool(res.success), str(res.message))
 
 
 def _grid_points(x_m: npt.ArrayLike, y_m: npt.ArrayLike,
