@@ -224,10 +224,8 @@ def run_film_scene(surface: Any, film: FilmData, plan: Any, T_world_part: npt.Ar
 
 def write_film_glb(path: str | os.PathLike[str], scene: FilmScene) -> Path:
     """Write `film.glb` of `scene` atomically; return its path."""
-    from paintcell.output.plots import readable
-
     data = film_glb_bytes(scene)
     path = Path(path)
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
-    return readable(path)
+    return path

@@ -34,22 +34,13 @@ class PlotError(PaintcellError):
     """A plot cannot be drawn from the arrays given (shapes, NaN, empty)."""
 
 
-def readable(path: Path) -> Path:
-    """Give a file written through a temp file (mode 0600) the usual umask permissions (0644 for
-    umask 022), so that a report folder can be shared or served; returns the path."""
-    mask = os.umask(0)
-    os.umask(mask)
-    path.chmod(0o666 & ~mask)
-    return path
-
-
 def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:
     """Write `fig` as a PNG at `path` atomically (DPI dots per inch); the path written."""
     path = Path(path)
     FigureCanvasAgg(fig)
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=DPI, format="png")
-    return readable(path)
+    return path
 
 
 def unfold(surface: Any) -> tuple[np.ndarray, tuple[str, str]]:

@@ -378,19 +378,13 @@ def _check_image(image: npt.ArrayLike) -> np.ndarray:
     return img
 
 
-def _readable(path: Path) -> Path:
-    from paintcell.output.plots import readable
-
-    return readable(path)
-
-
 def write_png(path: str | os.PathLike[str], image: npt.ArrayLike) -> Path:
     """Write an (H, W, 3|4) uint8 image as PNG atomically; returns the path."""
     img = _check_image(image)
     path = Path(path)
     with atomic_path(path) as tmp:
         Image.fromarray(img).save(tmp, format="PNG")
-    return _readable(path)
+    return path
 
 
 def write_video(path: str | os.PathLike[str], frames: Sequence[np.ndarray] | Iterable[np.ndarray],
@@ -415,7 +409,7 @@ def write_video(path: str | os.PathLike[str], frames: Sequence[np.ndarray] | Ite
         with atomic_path(path) as tmp:
             pil[0].save(tmp, format="GIF", save_all=True, append_images=pil[1:],
                         duration=max(int(round(1000.0 / fps)), 20), loop=0, optimize=False)
-        return _readable(path)
+        return path
     if suffix == ".mp4":
         try:
             import imageio.v2 as imageio  # type: ignore[import-not-found]
@@ -424,7 +418,7 @@ def write_video(path: str | os.PathLike[str], frames: Sequence[np.ndarray] | Ite
                               "imageio-ffmpeg); or write a .gif") from e
         with atomic_path(path) as tmp:
             imageio.mimsave(tmp, cast(Any, frames), fps=fps, macro_block_size=1)
-        return _readable(path)
+        return path
     raise RenderError(f"unknown video format {path.suffix!r}: use .gif or .mp4")
 
 

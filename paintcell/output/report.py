@@ -288,6 +288,4 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     out = d / REPORT_NAME
     with atomic_path(out) as tmp:
         tmp.write_text(doc, encoding="utf-8")
-    from paintcell.output.plots import readable
-
-    return readable(out)
+    return out
