@@ -12,9 +12,10 @@ from __future__ import annotations
 import os
 import re
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import IO, Any
 
 import numpy as np
 
@@ -58,32 +59,28 @@ def _commit(tmp: str, path: Path) -> None:
     os.replace(tmp, path)
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
-    """Write text to `path` via a temp file in the same folder and a rename (never half-written)."""
+def _write(path: str | os.PathLike[str], suffix: str, mode: str,
+           write: Callable[[IO[Any]], object]) -> None:
     path = Path(path)
-    fd, tmp = _temp(path, path.name, "")
+    fd, tmp = _temp(path, path.name, suffix)
     try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
+        with os.fdopen(fd, mode) as f:
+            write(f)
         _commit(tmp, path)
     except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
         _name_path(exc, path, tmp)
         raise
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write text to `path` via a temp file in the same folder and a rename (never half-written)."""
+    _write(path, "", "w", lambda f: f.write(text))
 
 
 def atomic_write_npz(path: str | os.PathLike[str], arrays: dict[str, np.ndarray]) -> None:
     """Write an `.npz` atomically (temp file + rename)."""
-    path = Path(path)
-    fd, tmp = _temp(path, path.name, ".npz")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez_compressed(f, **arrays)  # type: ignore[arg-type]
-        _commit(tmp, path)
-    except BaseException as exc:
-        Path(tmp).unlink(missing_ok=True)
-        _name_path(exc, path, tmp)
-        raise
+    _write(path, ".npz", "wb", lambda f: np.savez_compressed(f, **arrays))  # type: ignore[arg-type]
 
 
 @contextmanager
