@@ -77,8 +77,6 @@ class _Help(argparse.ArgumentDefaultsHelpFormatter, argparse.RawDescriptionHelpF
         return super()._get_help_string(action)
 
 
-
-
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of every subcommand (its --help is the reference)."""
     # --debug works before or after the subcommand (SUPPRESS keeps the main parser's value).
@@ -122,9 +120,9 @@ def main(argv: list[str] | None = None) -> int:
         # A signal that a library swallowed (see paintcell.core.interrupts) still ends the
         # command as one.
         return EXIT_INTERRUPTED if interrupts.pending() is not None else code
-    except KeyboardInterrupt as exc:  # a signal while the parser was built, before the command
-        sys.stderr.write(f"paintcell: interrupted ({exc or 'SIGINT'}); nothing half-written was "
-                         "left\n")
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM (paintcell.core.interrupts)
+        sys.stderr.write(f"paintcell: interrupted ({str(exc) or 'SIGINT'}); nothing "
+                         "half-written was left\n")
         return EXIT_INTERRUPTED
     finally:
         for s, handler in previous.items():
@@ -140,45 +138,34 @@ def _main(argv: list[str] | None) -> int:
         raise
     try:
         return int(args.func(args))
-    except KeyboardInterrupt as exc:
-        what = str(exc) or "SIGINT"
-        sys.stderr.write(f"paintcell: interrupted ({what}); nothing half-written was left\n")
-        return EXIT_INTERRUPTED
     except (PaintcellError, OSError, UnicodeDecodeError) as exc:
-        if args.debug:
-            traceback.print_exc()
-        sys.stderr.write(f"paintcell: error: {error_line(exc)}\n")
-        return EXIT_USAGE
+        return _error(args.debug, error_line(exc))
     except RuntimeError as exc:
         loop = symlink_loop_path(exc)
         if loop is None:
             return _internal(exc, args.debug)
-        if args.debug:
-            traceback.print_exc()
-        sys.stderr.write(f"paintcell: error: {loop}: is a symbolic-link loop; fix or remove the "
-                         "link\n")
-        return EXIT_USAGE
+        return _error(args.debug, f"{loop}: is a symbolic-link loop; fix or remove the link")
     except ValueError as exc:
-        if args.debug:
-            traceback.print_exc()
-        sys.stderr.write(f"paintcell: error: {one_line(exc)}\n")
-        return EXIT_USAGE
+        return _error(args.debug, one_line(exc))
     except MemoryError:
-        if args.debug:
-            traceback.print_exc()
-        sys.stderr.write("paintcell: error: out of memory; use a coarser resolution_m or "
-                         "smaller sample settings in the scenario\n")
-        return EXIT_USAGE
+        return _error(args.debug, "out of memory; use a coarser resolution_m or smaller sample "
+                      "settings in the scenario")
     except Exception as exc:  # a bug, not bad input: still one line unless --debug
         return _internal(exc, args.debug)
 
 
-def _internal(exc: BaseException, debug: bool) -> int:
+def _error(debug: bool, line: str, kind: str = "error") -> int:
+    """Print `line` as the command's one error line (the traceback too with --debug) while an
+    exception is being handled; the usage exit code."""
     if debug:
         traceback.print_exc()
-    sys.stderr.write(f"paintcell: internal error: {type(exc).__name__}: {one_line(exc)} "
-                     "(rerun with --debug for the traceback)\n")
+    sys.stderr.write(f"paintcell: {kind}: {line}\n")
     return EXIT_USAGE
+
+
+def _internal(exc: BaseException, debug: bool) -> int:
+    return _error(debug, f"{type(exc).__name__}: {one_line(exc)} (rerun with --debug for the "
+                  "traceback)", "internal error")
 
 
 def error_line(exc: BaseException) -> str:
