@@ -226,23 +226,19 @@ class Disturbances:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("part_offset_m", "part_rotation_rad", "tcp_offset_m", "gain_scale"):
+        for name, signed in (("part_offset_m", False), ("part_rotation_rad", False),
+                             ("tcp_offset_m", False), ("gain_scale", False),
+                             ("standoff_error_m", True), ("trigger_delay_s", True),
+                             ("flow_scale", True), ("flow_drift", True)):
             v = getattr(self, name)
             if (isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating)
-                    or not math.isfinite(v) or v < 0):
-                raise ExecutionError(f"disturbance {name} = {v!r} must be a finite number >= 0 "
-                                     "[m, rad, factor]")
+                    or not math.isfinite(v) or (not signed and v < 0)):
+                raise ExecutionError(f"disturbance {name} = {v!r} must be a finite number "
+                                     + ("[m, s, factor]" if signed else ">= 0 [m, rad, factor]"))
             object.__setattr__(self, name, float(v))  # JSON-safe in to_dict()
         if self.gain_scale <= 0:
             raise ExecutionError(f"disturbance gain_scale = {self.gain_scale!r} must be > 0 "
                                  "(a factor on the servo gains)")
-        for name in ("standoff_error_m", "trigger_delay_s", "flow_scale", "flow_drift"):
-            v = getattr(self, name)
-            if (isinstance(v, bool) or not isinstance(v, int | float | np.integer | np.floating)
-                    or not math.isfinite(v)):
-                raise ExecutionError(f"disturbance {name} = {v!r} must be a finite number "
-                                     "[m, s, factor]")
-            object.__setattr__(self, name, float(v))
         if self.flow_scale <= 0:
             raise ExecutionError(f"disturbance flow_scale = {self.flow_scale!r} must be > 0 "
                                  "(actual ÷ nominal flow)")
