@@ -66,6 +66,7 @@ from paintcell.motion.joint_trajectory import (
     TURNAROUND,
     JointTrajectory,
     TrajectoryError,
+    true_runs,
 )
 from paintcell.motion.moves import JointMove, plan_move
 from paintcell.motion.time_law import (
@@ -394,7 +395,7 @@ def _speed_report(plan: CoveragePlan, segments: list[Segment], starts: np.ndarra
         deficit = 1.0 - v_act / v_plan[idx]
         slow = deficit > settings.slowdown_threshold
         util = _utilization(law, fk_pos, names, v_lim, a_lim, settings.tcp_a_max_m_s2)
-        runs = _runs(slow)
+        runs = true_runs(slow)
         for r0, r1 in runs:
             s0, s1 = float(s[r0]), float(s[r1 - 1])
             g = (law.s_grid >= s0 - 1e-9) & (law.s_grid <= s1 + 1e-9)
@@ -431,15 +432,6 @@ def _speed_report(plan: CoveragePlan, segments: list[Segment], starts: np.ndarra
             "n_slowdowns": len(runs),
         })
     return slowdowns, summary
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Half-open index ranges [a, b) of the True runs of a boolean array."""
-    if not np.any(mask):
-        return []
-    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(),
-                    strict=True))
 
 
 def _utilization(law: PassTimeLaw, fk_pos: Any, names: tuple[str, ...], v_lim: np.ndarray,

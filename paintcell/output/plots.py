@@ -23,6 +23,7 @@ from matplotlib.tri import Triangulation
 
 from paintcell.core.atomic_io import atomic_path
 from paintcell.core.errors import PaintcellError
+from paintcell.motion.joint_trajectory import true_runs
 
 # Screen/report resolution: 110 dpi keeps a 3-panel figure under ~200 kB as PNG.
 DPI = 110
@@ -346,10 +347,6 @@ def plot_robot_timeline(path: str | os.PathLike[str], names: Sequence[str],
     `metrics["one_robot_cycle_s"]` (one robot running every program back to back) [s]. Right:
     per robot its busy share, paint share and paint credit [%] (`metrics["robots"][name]`).
     programs: each robot's `JointTrajectory` on the common clock."""
-    def runs(mask: np.ndarray) -> list[tuple[int, int]]:
-        d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-        return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True))
-
     fig = Figure(figsize=(11, 0.6 * len(names) + 2.4))
     FigureCanvasAgg(fig)                                  # tight_layout needs its renderer
     ax, bx = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.2, 1]})
@@ -358,7 +355,7 @@ def plot_robot_timeline(path: str | os.PathLike[str], names: Sequence[str],
         start = int(round(tr.meta.get("start_delay_s", 0.0) / tr.dt_s))
         active[start:start + own_samples[i]] = True
         for mask, colour in ((active, "#c8d3e0"), (tr.paint_on, "#d9534f")):
-            for a, b in runs(mask):
+            for a, b in true_runs(mask):
                 ax.broken_barh([(t[a], t[b - 1] - t[a])], (i - 0.3, 0.6), color=colour)
     cycle = metrics["executed_cycle_time_s"]
     ax.axvline(cycle, color="k", lw=1)

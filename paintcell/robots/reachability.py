@@ -110,9 +110,7 @@ class ReachabilityReport:
         if not reports:
             raise ValueError("no reports to concatenate")
         cat = {name: np.concatenate([getattr(r, name) for r in reports])
-               for name in ("pose_index", "reachable", "pos_residual_m", "rot_residual_rad",
-                            "limit_margin_rad", "manipulability", "wrist_sin",
-                            "joint_jump_rad")}
+               for name in ("pose_index", "reachable", *_PER_POSE)}
         passes = np.concatenate([np.full(len(r.reachable), k) for k, r in enumerate(reports)])
         return cls(reports[0].robot_name, passes, thresholds=reports[0].thresholds,
                    free_spin=reports[0].free_spin, **cat)
@@ -224,14 +222,14 @@ class ReachabilityReport:
                 "pass_index": self.pass_index.tolist(),
                 "pose_index": self.pose_index.tolist(),
                 "reachable": self.reachable.tolist(),
-                "pos_residual_m": lst(self.pos_residual_m),
-                "rot_residual_rad": lst(self.rot_residual_rad),
-                "limit_margin_rad": lst(self.limit_margin_rad),
-                "manipulability": lst(self.manipulability),
-                "wrist_sin": lst(self.wrist_sin),
-                "joint_jump_rad": lst(self.joint_jump_rad),
+                **{name: lst(getattr(self, name)) for name in _PER_POSE},
             },
         }
+
+
+#: the per-pose float arrays of a report (NaN where the IK found no solution).
+_PER_POSE = ("pos_residual_m", "rot_residual_rad", "limit_margin_rad", "manipulability",
+             "wrist_sin", "joint_jump_rad")
 
 
 def _nanmax(a: np.ndarray) -> float | None:

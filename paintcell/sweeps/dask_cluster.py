@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import closing, contextmanager
 from typing import Any, Generic, TypeVar
 
 from paintcell.core.errors import PaintcellError
@@ -79,23 +79,13 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
     tcp://10.0.0.5:8786), else of a local cluster of `workers` processes started here; closed
     (and the local cluster stopped) at the end."""
     if scheduler is not None:
-        client = connect(scheduler)
-        try:
+        with closing(connect(scheduler)) as client:
             yield client
-        finally:
-            client.close()
         return
     from distributed import Client
 
-    cluster = start_local_cluster(workers)
-    try:
-        client = Client(cluster)
-        try:
-            yield client
-        finally:
-            client.close()
-    finally:
-        cluster.close()
+    with closing(start_local_cluster(workers)) as cluster, closing(Client(cluster)) as client:
+        yield client
 
 
 class DaskTasks:
