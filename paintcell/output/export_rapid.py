@@ -213,16 +213,16 @@ def conveyor_base_frame(conveyor: Any) -> np.ndarray:
     return T
 
 
-def _pose_text(T: np.ndarray) -> str:
-    """RAPID pose [[x,y,z],[q1,q2,q3,q4]] of a (4, 4) transform [m → mm]."""
-    p, q = 1000.0 * T[:3, 3], quat_wxyz_from_matrix(T[:3, :3])
-    return (f"[[{p[0]:.2f},{p[1]:.2f},{p[2]:.2f}],"
+def _pose_text(p_mm: np.ndarray, q: np.ndarray) -> str:
+    """RAPID pose [[x,y,z],[q1,q2,q3,q4]] of a position [mm] and a quaternion (w, x, y, z)."""
+    return (f"[[{p_mm[0]:.2f},{p_mm[1]:.2f},{p_mm[2]:.2f}],"
             f"[{q[0]:.6f},{q[1]:.6f},{q[2]:.6f},{q[3]:.6f}]]")
 
 
 def _multimove_head(mm: MultiMove, name: str, rail: bool, job_first_pass: list[int]) -> list[str]:
     """The declarations and header comments of a MultiMove task (module doc)."""
     u, n = mm.conveyor.unit, len(mm.tasks)
+    T = np.linalg.inv(conveyor_base_frame(mm.conveyor)) @ mm.T_world_body   # wobjcnv1's oframe
     tasks = ",".join(f'["{t}"]' for t in mm.tasks)
     head = [
         f"  ! Booth: task {name} of {n} ({', '.join(mm.tasks)}), synchronised "
@@ -238,7 +238,7 @@ def _multimove_head(mm: MultiMove, name: str, rail: bool, job_first_pass: list[i
         "  VAR syncident sync_start;",
         "  VAR syncident sync_end;",
         '  PERS wobjdata wobjcnv1 := [FALSE,FALSE,"CNV1",[[0,0,0],[1,0,0,0]],'
-        f"{_pose_text(np.linalg.inv(conveyor_base_frame(mm.conveyor)) @ mm.T_world_body)}];",
+        f"{_pose_text(1000.0 * T[:3, 3], quat_wxyz_from_matrix(T[:3, :3]))}];",
     ]
     if rail:
         head.append("  ! Rail: the carriage is external axis eax_a [mm] of every target.")
@@ -310,9 +310,9 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
             n_pass += 1
             proc.append(f"    ! pass {k}")
             for tg in _pass_targets(traj, q, T_base_world, idx, k, max_spacing_m):
-                p, qq, c = tg.pos_mm, tg.quat_wxyz, tg.conf
-                decl.append(f"  CONST robtarget {tg.name} := [[{p[0]:.2f},{p[1]:.2f},{p[2]:.2f}],"
-                            f"[{qq[0]:.6f},{qq[1]:.6f},{qq[2]:.6f},{qq[3]:.6f}],"
+                c = tg.conf
+                decl.append(f"  CONST robtarget {tg.name} := "
+                            f"{_pose_text(tg.pos_mm, tg.quat_wxyz)[:-1]},"
                             f"[{c[0]},{c[1]},{c[2]},{c[3]}],{ext[idx[0]]}];")
                 decl.append(f"  CONST speeddata v_{tg.name} := [{tg.speed_mm_s:.1f},500,5000,"
                             "1000];")
@@ -349,8 +349,7 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
         if last_pass_move >= 0:
             proc.insert(last_pass_move, "    DropWObj wobjcnv1;")
         proc.extend(["    DeactUnit CNV1;", "    WaitSyncTask sync_end, booth_tasks;"])
-    L.append(f"  PERS tooldata tBell := [TRUE,[[{tp[0]:.2f},{tp[1]:.2f},{tp[2]:.2f}],"
-             f"[{tq[0]:.6f},{tq[1]:.6f},{tq[2]:.6f},{tq[3]:.6f}]],"
+    L.append(f"  PERS tooldata tBell := [TRUE,{_pose_text(tp, tq)},"
              f"[{mass:.2f},[{cog[0]:.1f},{cog[1]:.1f},{cog[2]:.1f}],[1,0,0,0],0,0,0]];")
     if style == "trigg":
         L.append("  VAR triggdata tBrushOn;")
