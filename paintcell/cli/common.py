@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, one_line
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130
 
@@ -32,12 +32,6 @@ def add_out_force(p: Any, what: str, required: bool = True, default: Any = None)
     p.add_argument("--out", type=Path, required=required, default=default,
                    help=f"{what}; an existing file is refused unless --force")
     p.add_argument("--force", action="store_true", help="replace an existing --out file")
-
-
-def one_line(exc: BaseException) -> str:
-    """The first line of an exception's message (its type name when empty)."""
-    msg = str(exc).strip().splitlines()
-    return msg[0] if msg else type(exc).__name__
 
 
 def fmt_value(v: Any) -> str:

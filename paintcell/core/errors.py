@@ -5,6 +5,13 @@ class PaintcellError(Exception):
     """Base of every paintcell error that a user can fix by changing input or settings."""
 
 
+def one_line(exc: BaseException, limit: int | None = None) -> str:
+    """The first line of an exception's message, at most `limit` characters (its type name when
+    the message is empty)."""
+    lines = str(exc).strip().splitlines()
+    return lines[0][:limit] if lines else type(exc).__name__
+
+
 class SurfaceError(PaintcellError):
     """A mesh or parametric surface cannot be used (empty, NaN, degenerate, non-manifold, ...)."""
 

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 import ruckig
 
+from paintcell.core.errors import one_line
 from paintcell.motion.joint_trajectory import TrajectoryError
 
 # Agreement required between the vectorized profile evaluation and ruckig's own `at_time`
@@ -86,10 +87,9 @@ def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: np
     try:
         result = otg.calculate(inp, traj)
     except (RuntimeError, ruckig.RuckigError) as exc:  # ruckig raises on invalid input
-        msg = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise TrajectoryError(f"ruckig rejected a move ({msg}); check that the boundary states "
-                              "lie within the move limits ([trajectory] jerk_ramp_s, "
-                              "velocity_margin, acceleration_margin)") from exc
+        raise TrajectoryError(f"ruckig rejected a move ({one_line(exc)}); check that the "
+                              "boundary states lie within the move limits ([trajectory] "
+                              "jerk_ramp_s, velocity_margin, acceleration_margin)") from exc
     if result == ruckig.Result.ErrorPositionalLimits:
         raise TrajectoryError("a move between passes would leave the joint position limits; "
                               "move the part or the robot base")

@@ -24,7 +24,7 @@ import numpy.typing as npt
 from PIL import Image, ImageDraw, ImageFont
 
 from paintcell.core.atomic_io import atomic_path
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, one_line
 from paintcell.execution.cell import Cell
 
 __all__ = [
@@ -101,7 +101,7 @@ def _install_backend(name: str) -> None:
         else:
             raise RenderBackendError(f"unknown MUJOCO_GL={name!r}: use egl or osmesa")
     except (ImportError, OSError, RuntimeError) as e:
-        raise RenderBackendError(f"MUJOCO_GL={name} cannot be loaded ({one_line(e)}): "
+        raise RenderBackendError(f"MUJOCO_GL={name} cannot be loaded ({one_line(e, 200)}): "
                                  f"{_INSTALL_HINT}") from e
     glc.GLContext = GLContext  # type: ignore[attr-defined]
 
@@ -130,13 +130,6 @@ def backend_name() -> str:
     raise RenderBackendError(f"no offscreen OpenGL backend ({'; '.join(errors)}): {_INSTALL_HINT}")
 
 
-def one_line(e: BaseException) -> str:
-    """The first line of an exception's message (at most 200 characters), for one-line
-    errors."""
-    text = str(e).strip().splitlines()
-    return text[0][:200] if text else type(e).__name__
-
-
 def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Renderer:
     """A MuJoCo offscreen renderer of `width` × `height` pixels, or a RenderBackendError naming
     the GL backend and how to install one."""
@@ -144,7 +137,7 @@ def make_renderer(model: mujoco.MjModel, width: int, height: int) -> mujoco.Rend
         return mujoco.Renderer(model, height=height, width=width)
     except Exception as e:  # any GL failure: the backend is unusable
         raise RenderBackendError(f"offscreen renderer with MUJOCO_GL={backend_name()} failed "
-                                 f"({one_line(e)}): {_INSTALL_HINT}") from e
+                                 f"({one_line(e, 200)}): {_INSTALL_HINT}") from e
 
 
 @dataclass(frozen=True)
@@ -697,7 +690,7 @@ def _compile(spec: mujoco.MjSpec) -> mujoco.MjModel:
     try:
         return spec.compile()
     except ValueError as e:
-        raise RenderError(f"scene does not compile for rendering: {one_line(e)}") from e
+        raise RenderError(f"scene does not compile for rendering: {one_line(e, 200)}") from e
 
 
 def _fit_offscreen(model: mujoco.MjModel, width: int, height: int) -> None:

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from contextlib import closing, contextmanager
 from typing import Any, Generic, TypeVar
 
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, one_line
 
 T = TypeVar("T")
 
@@ -67,10 +67,8 @@ def connect(scheduler: str) -> Any:
     try:
         return Client(scheduler, timeout=15)
     except (OSError, TimeoutError, ValueError) as exc:
-        msg = str(exc).strip().splitlines()
-        raise ClusterError(f"cannot reach the Dask scheduler at {scheduler} "
-                           f"({msg[0] if msg else type(exc).__name__}); start one (dask "
-                           "scheduler) or drop --scheduler") from None
+        raise ClusterError(f"cannot reach the Dask scheduler at {scheduler} ({one_line(exc)}); "
+                           "start one (dask scheduler) or drop --scheduler") from None
 
 
 @contextmanager

@@ -30,7 +30,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from paintcell.core.errors import PaintcellError
+from paintcell.core.errors import PaintcellError, one_line
 from paintcell.validation.sweep_names import (
     BOOTH_METRICS,
     BOOTH_ONLY_FACTORS,
@@ -197,8 +197,7 @@ def run_sample(payload: SweepPayload, index: int, values: np.ndarray | None,
         m, rep, t2 = run(ctx, dist, factors)
         t3 = time.perf_counter()
     except PaintcellError as exc:
-        msg = str(exc).strip().splitlines()
-        rec.update({"passed": False, "error": msg[0] if msg else type(exc).__name__,
+        rec.update({"passed": False, "error": one_line(exc),
                     "metrics": {k: None for k in payload.metric_names},
                     "failed_checks": ["error"]})
         rec["timing_s"] = {"context": t_ctx, "total": time.perf_counter() - t0}
