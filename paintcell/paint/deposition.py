@@ -113,8 +113,6 @@ def deposition_rate_reference(app: Applicator, positions: npt.ArrayLike,
     return np.where(valid, rate, 0.0)
 
 
-
-
 #: kernels `thickness` can run: "auto" picks the GPU when present, else numba; numpy is the
 #: reference (and the occlusion path: trimesh's rays are Python calls per chunk).
 BACKENDS = ("auto", "numba", "gpu", "numpy")

@@ -238,19 +238,18 @@ def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
               scheduler: str | None) -> dict[str, Any]:
     """Nominal first, then every sample in `todo`, streamed to `store` as they complete."""
     from concurrent.futures import CancelledError
+    from contextlib import ExitStack
 
-    from distributed import Client, as_completed
+    from distributed import as_completed
 
-    from paintcell.sweeps.dask_cluster import start_local_cluster
+    from paintcell.sweeps.dask_cluster import ClusterError, dask_client
 
-    cluster = None
-    if scheduler is None:
-        cluster = start_local_cluster(workers)
-        client = Client(cluster)
-    else:
-        client = _connect(scheduler)
     run = sample_function(payload)
-    try:
+    with ExitStack() as stack:
+        try:
+            client = stack.enter_context(dask_client(workers, scheduler))
+        except ClusterError as exc:
+            raise SweepError(str(exc)) from None
         [pf] = client.scatter([payload], broadcast=True, hash=False)
         if nominal is None:
             nominal = client.submit(run, pf, -1, None, 0, pure=False,
@@ -283,10 +282,6 @@ def _run_dask(payload: Any, nominal: dict[str, Any] | None, nominal_file: Path,
                 continue
             store(rec)
             fut.release()
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
     return nominal
 
 
