@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from paintcell.coverage.offset_polyline import arc_length
 from paintcell.coverage.plan import CoveragePlan
 
 #: A sample is capped where the robot's TCP speed is below the plan by more than this fraction.
@@ -42,8 +43,7 @@ def pass_speeds(p: Any, traj: Any, index: int) -> np.ndarray:
     of the program's samples, interpolated at the plan samples; the plan's own speeds where the
     program has fewer than 3 samples of the pass.
     """
-    s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
-                                                             axis=1))])
+    s_plan = arc_length(p.positions)
     idx = np.flatnonzero(traj.pass_index == index)
     if len(idx) < 3:
         return np.asarray(p.speeds_m_s, float).copy()
@@ -73,8 +73,7 @@ def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
     does not count it: capping the rest-to-rest ends of hood's passes made its re-plan 28 %
     longer). Caps in the pass's own (execution) sample order.
     """
-    s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
-                                                             axis=1))])
+    s_plan = arc_length(p.positions)
     caps = np.full(len(s_plan), np.inf)
     idx = np.flatnonzero(traj.pass_index == index)
     if len(idx) < 3 or len(s_plan) < 2:
@@ -241,8 +240,7 @@ def tool_axes(plan: CoveragePlan, traj: Any, T_world_part: np.ndarray) -> dict[i
         idx = np.flatnonzero(traj.pass_index == i)
         if len(idx) < 3:
             continue
-        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p.positions, axis=0),
-                                                                 axis=1))])
+        s_plan = arc_length(p.positions)
         s = traj.s_pass_m[idx]
         order = np.argsort(s, kind="stable")
         x_part = traj.tcp_rot_world[idx][:, :, 0] @ R          # world → part frame (Rᵀ x)

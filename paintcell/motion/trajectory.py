@@ -58,6 +58,7 @@ import numpy as np
 import numpy.typing as npt
 import pinocchio as pin
 
+from paintcell.coverage.offset_polyline import arc_length
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import (
     APPROACH,
@@ -730,8 +731,7 @@ def _build(robot: RobotLike, plan: CoveragePlan, settings: TrajectorySettings,
     warnings: list[str] = []
     for Tw, qk in zip(T_world_tcp, q_paths, strict=True):
         p_plan = Tw[:, :3, 3]
-        s_plan = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p_plan, axis=0),
-                                                                 axis=1))])
+        s_plan = arc_length(p_plan)
         path, dev = refined_path(robot, fk_pos, s_plan, p_plan, qk, settings.path_tolerance_m)
         if dev > _IK_WARN_ERROR_M:
             warnings.append(f"pass {len(paths)}: joint path {1e3 * dev:.1f} mm off the planned "

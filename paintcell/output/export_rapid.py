@@ -44,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.transforms import quat_wxyz_from_matrix
+from paintcell.coverage.offset_polyline import arc_length
 from paintcell.motion.joint_trajectory import PAINT, JointTrajectory
 from paintcell.output.rapid_text import IDENT, RESERVED, comment_text, rapid_ident
 
@@ -95,8 +96,7 @@ def _pass_targets(traj: JointTrajectory, q: np.ndarray, T_base_world: np.ndarray
     """
     pos_world = traj.tcp_pos_world[idx]
     on = traj.paint_on[idx]
-    step = np.linalg.norm(np.diff(pos_world, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(step)])
+    s = arc_length(pos_world)
     # Keep: first, last, every brush toggle, and enough points in between to respect the spacing.
     toggles = np.flatnonzero(np.diff(on.astype(np.int8)) != 0) + 1
     n_seg = max(1, int(np.ceil(s[-1] / max_spacing_m)))

@@ -23,6 +23,7 @@ from matplotlib.tri import Triangulation
 
 from paintcell.core.atomic_io import atomic_path
 from paintcell.core.errors import PaintcellError
+from paintcell.coverage.offset_polyline import arc_length
 from paintcell.motion.joint_trajectory import true_runs
 
 # Screen/report resolution: 110 dpi keeps a 3-panel figure under ~200 kB as PNG.
@@ -169,8 +170,7 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
         m = pidx == p
         s = np.asarray(trajectory.s_pass_m, float)[m]
         if not np.all(np.isfinite(s)):
-            s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(
-                np.asarray(trajectory.tcp_pos_world)[m], axis=0), axis=1))])
+            s = arc_length(np.asarray(trajectory.tcp_pos_world)[m])
         st = _stride(len(s), MAX_PLOT_POINTS // 4)
         ax.plot(s[st], v_plan[m][st] * 1e3, "--", color=c, lw=1.2)
         ax.plot(s[st], v_traj[m][st] * 1e3, ":", color=c, lw=1.0)
@@ -186,9 +186,7 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
         if trace is not None:
             me = pidx_exe == p
             if np.count_nonzero(me) > 1:
-                pe = p_exe[me]
-                se = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pe, axis=0),
-                                                                     axis=1))])
+                se = arc_length(p_exe[me])
                 st = _stride(len(se), MAX_PLOT_POINTS // 4)
                 ax.plot(se[st], v_exe[me][st] * 1e3, "-", color=c, lw=1.0, label=f"pass {p}")
     handles = [Line2D([], [], ls="--", color="k", label="planned (coverage plan)"),
