@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from paintcell.coverage.offset_polyline import arc_length
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import PAINT, JointTrajectory
@@ -66,11 +67,7 @@ class HonestReachSettings:
 
 def pose_arc_lengths(plan: CoveragePlan) -> list[np.ndarray]:
     """Per pass, the arc length [m] of every plan pose along the pass's TCP polyline."""
-    out = []
-    for p in plan.passes:
-        seg = np.linalg.norm(np.diff(p.positions, axis=0), axis=1)
-        out.append(np.concatenate([[0.0], np.cumsum(seg)]))
-    return out
+    return [arc_length(p.positions) for p in plan.passes]
 
 
 def nearest_pose(s_poses: np.ndarray, s: np.ndarray) -> np.ndarray:
