@@ -277,8 +277,7 @@ class Robot:
             return inverse(self.opw, T)
         if self.closed_form is None:
             raise RobotError(f"{self.name} has no closed-form IK; use DLS (solve_path does)")
-        Q, reach = self.closed_form(T)
-        return Q, reach
+        return self.closed_form(T)
 
     @property
     def nq(self) -> int:
