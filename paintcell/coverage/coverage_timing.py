@@ -11,7 +11,7 @@ from paintcell.coverage.coverage_planner import PassGeom, Planner
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.offset import arc_length, geodesic_curvature, tangents, unit, walk
 from paintcell.coverage.plan import PassPlan, times_from_speeds
-from paintcell.coverage.smoothing import limit_turn_rate, smooth_along
+from paintcell.coverage.smoothing import FOOTPRINT_FRACTION, limit_turn_rate, smooth_along
 from paintcell.coverage.speed_qp import SubOffsetBand, optimize_pass_speed
 from paintcell.surface.surface import Surface
 
@@ -79,7 +79,13 @@ def time_pass(pl: Planner, p: PassGeom, w_local: float) -> None:
     foot, normals, on_part = _with_overspray(p.foot, p.normals, p.on_part,
                                              (ext[0] + p.extra_m[0], ext[1] + p.extra_m[1]),
                                              st.sample_spacing_m, h)
-    axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * pl.smooth_scale),
+    # an edge pass runs on the virtual extension: its normals are the indexing curves' end
+    # normals, the facets along the part's boundary, as ragged as the boundary is (a scan's rim),
+    # and a standoff magnifies each tilt into a TCP zigzag the time law slows for. It paints only
+    # overspray: its axis is low-passed at least at the spray's own scale.
+    sigma = max(pl.smooth_scale, FOOTPRINT_FRACTION * app.footprint_radius_m) if p.edge \
+        else pl.smooth_scale
+    axes = limit_turn_rate(foot, smooth_along(foot, -normals, 0.5 * sigma),
                            st.max_axis_turn_rad_m, h)
     pos = foot - h * axes
     seg = np.diff(pos, axis=0)
