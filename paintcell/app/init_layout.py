@@ -23,7 +23,9 @@ every program built, swept through the part's collision model, the robots stagge
   part leave a rail robot's reach). Candidates are then checked, at most `LAYOUTS_VERIFIED` per
   plan, with each `TRAJECTORY_TRIES` table, by the booth's own program build (IK, moves, body
   clearance, staggering); the first that builds with no pose after a joint jump (the IK report's
-  threshold) is the cell, else the first that builds. The check runs on the plan without the film
+  threshold; a frame built with one does not count toward `LAYOUTS_VERIFIED`, and its other
+  trajectory tables are not tried: the poses are the frame's) is the cell, else the first that
+  builds. The check runs on the plan without the film
   refinement and the robot-aware speeds that `run` adds (both re-time the same passes; the
   refinement's least squares over the whole part is most of a cowling's plan time).
 """
@@ -300,6 +302,8 @@ def _try_layouts(booth: Any, pp: Any, n: int, lo: np.ndarray, hi: np.ndarray, mo
                 first_why = first_why or (f"gap {gap} m, drop {drop} m: {cell.jumps} poses "
                                           "after a joint jump")
                 jumpy = jumpy or cell
+                verified -= 1       # the poses are the frame's: the next frame, not counted
+                break
     if jumpy is not None:
         tried.append(f"{n_frames} rail frames, every one built with a joint jump")
         return jumpy
