@@ -141,8 +141,8 @@ def _simple_loops(loop: np.ndarray) -> list[np.ndarray]:
 
 
 def find_openings(surface: Surface) -> list[Opening]:
-    """Every boundary loop but the longest of its piece (the piece's outer boundary) as an
-    `Opening`: a piece apart from the others has an outline, not a hole."""
+    """Every boundary loop but the longest of its piece (`file_pieces`: the piece's outer
+    boundary) as an `Opening`: a piece apart from the others has an outline, not a hole."""
     loops = boundary_loops(surface.faces, len(surface.vertices))
     if len(loops) < 2:
         return []
@@ -152,7 +152,7 @@ def find_openings(surface: Surface) -> list[Opening]:
         return float(np.linalg.norm(V[np.roll(lp, -1)] - V[lp], axis=1).sum())
 
     per = np.array([perimeter(lp) for lp in loops])
-    piece = vertex_pieces(surface.faces, len(V))[[int(lp[0]) for lp in loops]]
+    piece = file_pieces(surface)[[int(lp[0]) for lp in loops]]
     outer = {int(np.flatnonzero(piece == c)[np.argmax(per[piece == c])]) for c in set(piece)}
     out = []
     for k, lp in enumerate(loops):
@@ -166,6 +166,20 @@ def find_openings(surface: Surface) -> list[Opening]:
         if len(np.unique(lp)) < 3 or area <= 0.0:
             continue
         out.append(Opening(lp, per[k], area, c))
+    return out
+
+
+def file_pieces(surface: Surface) -> np.ndarray:
+    """(N,) the piece of the part file each vertex belongs to (the import's `face_piece`), or,
+    for a surface without regions, its connected piece. A region's patch cut off from the rest
+    of the same file piece (a strip of skin beyond an edge region) is not a piece of its own."""
+    regs = surface.regions
+    F = np.asarray(surface.faces, np.int64)
+    if regs is None or len(regs.face_piece) != len(F):
+        return vertex_pieces(F, len(surface.vertices))
+    out = np.full(len(surface.vertices), -1, np.int64)
+    for k in range(3):
+        out[F[:, k]] = regs.face_piece
     return out
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from paintcell.coverage.offset_polyline import unit
-from paintcell.coverage.openings import boundary_loops, vertex_pieces
+from paintcell.coverage.openings import boundary_loops, file_pieces, vertex_pieces
 from paintcell.surface.surface import Surface, surface_from_triangles
 
 #: pieces whose boundaries come within this fraction of the spray footprint radius of each other
@@ -66,8 +66,10 @@ def _zip(p: np.ndarray, q: np.ndarray, V: np.ndarray) -> list[tuple[int, int, in
 
 
 def stitched_surface(surface: Surface, gap_m: float) -> Surface:
-    """The surface with strips across the gaps between its connected components (module
-    docstring); the surface itself when it is one piece or no two pieces come that close.
+    """The surface with strips across the gaps between its connected components of different
+    pieces of the part file (`paintcell.coverage.openings.file_pieces`: a patch of one region
+    cut off from the rest of its piece by another region is left as it is) (module docstring);
+    the surface itself when it is one piece or no two pieces come that close.
 
     A boundary vertex is bridged when the nearest point of another piece's boundary (its edges
     sampled at `_EDGE_SAMPLES` points each) lies within `gap_m` [m] and across from it: at
@@ -77,7 +79,8 @@ def stitched_surface(surface: Surface, gap_m: float) -> Surface:
     the part, that the passes' sections follow (a 70° turn)."""
     V, F = surface.vertices, surface.faces
     comp = vertex_pieces(F, len(V))
-    if comp[np.unique(F)].max(initial=0) == comp[np.unique(F)].min(initial=0):
+    piece = file_pieces(surface)
+    if piece[np.unique(F)].max(initial=0) == piece[np.unique(F)].min(initial=0):
         return surface
     loops = boundary_loops(F, len(V))
     if len(loops) < 2:
@@ -95,7 +98,7 @@ def stitched_surface(surface: Surface, gap_m: float) -> Surface:
     cos_across = np.cos(np.radians(ACROSS_DEG))
     new: list[tuple[int, int, int]] = []
     for lp in loops:                               # each loop against the pieces after its own
-        later = comp[a] > comp[lp[0]]
+        later = (comp[a] > comp[lp[0]]) & (piece[a] != piece[lp[0]])
         if not later.any():
             continue
         cand_p, cand_v = pts[later].reshape(-1, 3), end[later].ravel()
