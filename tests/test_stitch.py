@@ -8,7 +8,9 @@ of the whole door and the window, whose area is the window's plus the gap strip 
 (0.64 × 0.015 m²: no strip reaches into it along the panel's edge), and every edge is shared by
 at most two faces; the stitched area is the two pieces' plus at least half and at most all of
 the gap strips under the legs (2 × 0.08 × 0.015 m²; the outer corners, where the panel's edge
-turns away from the leg, are left open). Pieces 0.1 m apart are left apart.
+turns away from the leg, are left open). Pieces 0.1 m apart are left apart; so are the panel
+and frame as patches of one piece of the part file (the import's piece of each face), stitched
+when they are its two pieces.
 """
 
 from __future__ import annotations
@@ -75,6 +77,26 @@ def test_stitched_pieces_are_one_surface_round_their_window() -> None:
     assert np.all(st.normals[:, 2] > 0.999)                    # wound like the pieces
     legs = 2 * 0.08 * GAP
     assert s.area + 0.5 * legs <= st.area <= s.area + legs + 1e-12
+
+
+def _with_pieces(s: Surface, piece_of_face: np.ndarray) -> Surface:
+    import dataclasses
+
+    from paintcell.surface.regions import SKIN, PartRegions
+
+    regs = PartRegions(np.full(len(s.faces), SKIN, np.int8), piece_of_face.astype(np.int32),
+                       np.array([0.0, 0.0, 1.0]))
+    return dataclasses.replace(s, regions=regs)
+
+
+def test_patches_of_one_file_piece_are_not_stitched_and_pieces_of_a_file_are() -> None:
+    """The import's piece of each face decides: the frame and panel as patches of one file
+    piece (a strip of skin cut off by another region) stay apart; as two file pieces they are
+    stitched as before."""
+    s = door(GAP)
+    comp = vertex_pieces(s.faces, len(s.vertices))[s.faces[:, 0]]
+    assert _n_pieces(stitched_surface(_with_pieces(s, np.zeros(len(s.faces))), 0.046)) == 2
+    assert _n_pieces(stitched_surface(_with_pieces(s, comp), 0.046)) == 1
 
 
 def test_pieces_far_apart_are_left_apart() -> None:
