@@ -11,6 +11,8 @@ consecutive plan samples [°] (re-measured from plan.npz), and init + run wall s
 
     PYTHONPATH=$PWD .venv/bin/python benchmarks/generality.py                  # 8 families × 5
     PYTHONPATH=$PWD .venv/bin/python benchmarks/generality.py --seeds 1 --no-shared
+    PYTHONPATH=$PWD .venv/bin/python benchmarks/generality.py --no-shared --seeds 4 \\
+        --only fender_arch_3 bumper_1
     PYTHONPATH=$PWD .venv/bin/python benchmarks/generality.py --families door_frame bumper \\
         --keep /tmp/generality --markdown /tmp/generality.md
 
@@ -179,6 +181,8 @@ def main() -> None:
                     metavar="FAMILY", help=f"part families (default all: {', '.join(FAMILIES)})")
     ap.add_argument("--seeds", type=int, default=5,
                     help="seeds per family, 0…N-1 (default 5: 40 generated parts)")
+    ap.add_argument("--only", nargs="*", default=None, metavar="PART",
+                    help="only these generated parts, FAMILY_SEED (e.g. fender_arch_3 bumper_1)")
     ap.add_argument("--no-shared", action="store_true",
                     help="leave out the meshes in ../shared/meshes")
     ap.add_argument("--keep", type=Path, default=None,
@@ -195,6 +199,8 @@ def main() -> None:
         (work / "parts").mkdir(parents=True, exist_ok=True)
         for fam in args.families:
             for seed in range(args.seeds):
+                if args.only is not None and f"{fam}_{seed}" not in args.only:
+                    continue
                 f = work / "parts" / f"{fam}_{seed}.{_FORMATS[seed % len(_FORMATS)]}"
                 proc, _ = _paintcell(["generate", fam, "--seed", str(seed), "--out", str(f)],
                                      args.timeout)

@@ -62,6 +62,46 @@ def test_missing_samples_are_skipped_and_never_flagged() -> None:
     assert not flagged[10:14].any()
 
 
+def _corner(turn_deg: float, legs: int = 12) -> np.ndarray:
+    """A polyline at 20 mm along x that turns by `turn_deg` at its middle sample."""
+    a = np.radians(turn_deg)
+    back = -np.arange(legs, 0, -1)[:, None] * STEP_M * np.array([1.0, 0.0, 0.0])
+    ahead = np.arange(legs + 1)[:, None] * STEP_M * np.array([np.cos(a), np.sin(a), 0.0])
+    return np.vstack([back, ahead])
+
+
+def _rotation(axis: np.ndarray, angle_rad: float) -> np.ndarray:
+    """Rodrigues' rotation matrix about the unit `axis` (3,)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle_rad) * k + (1 - np.cos(angle_rad)) * (k @ k)
+
+
+@pytest.mark.parametrize("turn_deg", [30.0, 60.0, 80.0, 90.0, 120.0, 170.0])
+def test_flags_do_not_depend_on_how_the_curve_lies(turn_deg: float) -> None:
+    """The same corner, and the same arc with a spike, turned to several orientations against
+    the world axes (in its plane and out of it) get the same flags; a corner's apex is flagged
+    exactly when its apex lies farther than the tolerance from the median of its window, which
+    for straight legs is ⌈h/2⌉ spacings back along each leg: 3 · 20 mm · sin(turn / 2) > 40 mm,
+    a turn above 2·asin(2/3) = 83.6°; a turn-back (170°) takes the samples next to its apex
+    along."""
+    rng = np.random.default_rng(3)
+    spiky = _arc()
+    spiky[25] += np.array([0.0, 0.0, 0.12])
+    axes = [np.array([0.0, 0.0, 1.0])] + [v / np.linalg.norm(v) for v in rng.normal(size=(4, 3))]
+    for curve in (_corner(turn_deg), spiky):
+        ref = spikes(curve, 6, 2 * STEP_M)
+        for axis in axes:
+            for ang in (np.pi / 4, np.pi / 6, 1.0, np.pi / 2):
+                turned = curve @ _rotation(axis, ang).T + np.array([0.3, -1.2, 0.7])
+                np.testing.assert_array_equal(spikes(turned, 6, 2 * STEP_M), ref)
+    flagged = np.flatnonzero(spikes(_corner(turn_deg), 6, 2 * STEP_M))
+    if turn_deg < 150.0:
+        want = [12] if 3 * np.sin(np.radians(turn_deg) / 2) > 2 else []
+        np.testing.assert_array_equal(flagged, want)
+    else:           # a turn-back: its neighbours jump off too, but not past half the window
+        assert 12 in flagged and np.abs(flagged - 12).max() <= 3
+
+
 def _turns_deg(p: np.ndarray) -> np.ndarray:
     d = np.diff(p, axis=0)
     n = np.linalg.norm(d, axis=1)

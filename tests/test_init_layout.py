@@ -24,6 +24,7 @@ from paintcell.app.init_layout import (
     choose_layout,
     crown_up,
     layout_problem,
+    rail_angle,
     rail_robots,
 )
 from paintcell.booth.booth import BodyPart, Booth
@@ -105,6 +106,50 @@ def test_an_arch_turned_off_the_files_axes_lies_with_its_axis_along_x_and_crown_
 def test_an_arch_square_to_the_files_axes_keeps_them(arch):
     R, why = crown_up(arch[1])
     assert np.allclose(R, np.eye(3)) and "kept" in why
+
+
+def test_passes_at_the_rail_angle_run_along_the_rails(tmp_path):
+    """The planner's orientation from `rail_angle`, on an arch turned 40° off the file's axes:
+    every pass's on-part chord, laid by crown_up's rotation, runs along world x within 5°."""
+    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.paint.applicator import Applicator
+
+    path = tmp_path / "turned.stl"
+    _arch(path, yaw_deg=40.0, half_deg=40.0)
+    surf = import_part(MeshPart(file=str(path), units="m"), resolution_m=0.025)[0]
+    R, _ = crown_up(surf)
+    st = PlannerSettings(orientation=rail_angle(surf, R), film_refine=False,
+                         optimize_speed=False)
+    plan = plan_coverage(surf.region_surface(("skin",)), Applicator.default(), st)
+    over = [p.positions[np.asarray(p.on_part, bool)] for p in plan.passes]
+    over = [on for on in over if len(on) >= 2]       # an edge pass runs wholly past the part
+    assert len(over) >= 3
+    for on in over:
+        d = R @ (on[-1] - on[0])
+        assert abs(d[0]) / np.linalg.norm(d) > np.cos(np.radians(5.0)), d
+
+
+def test_a_pass_is_as_long_as_its_run_over_the_part():
+    """A pass 1 m long at 0.1 m steps whose samples 2–7 lie over the part: 0.5 m; the run past
+    the part's ends (the overspray a table asks for) is no run round the part."""
+    from types import SimpleNamespace
+
+    x = np.arange(11) * 0.1
+    on = (np.arange(11) >= 2) & (np.arange(11) <= 7)
+    plan = SimpleNamespace(passes=[SimpleNamespace(positions=np.column_stack(
+        [x, np.zeros(11), np.full(11, 0.25)]), on_part=on)])
+    assert init_layout._pass_length(plan, 0) == pytest.approx(0.5, abs=1e-12)
+
+
+def test_a_programs_joint_jumps_are_the_poses_over_the_ik_reports_threshold():
+    """Poses whose jump exceeds the report's own threshold, a missing pose (None) not counted;
+    a program without a report has none."""
+    from types import SimpleNamespace
+
+    rep = {"thresholds": {"max_joint_jump_rad": 0.2},
+           "poses": {"joint_jump_rad": [0.0, 0.05, 0.2, 0.2015, None, 0.9, 0.199]}}
+    assert init_layout._jumps(SimpleNamespace(meta={"reachability": rep})) == 2
+    assert init_layout._jumps(SimpleNamespace(meta={})) == 0
 
 
 @pytest.mark.parametrize("n", [2, 3, 4])

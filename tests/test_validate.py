@@ -280,6 +280,18 @@ def test_binned_executed_samples_match_every_step() -> None:
     assert np.abs(t_bin - t_full).max() < BINNED_FILM_RTOL * t_full.max()
 
 
+def test_a_trace_with_the_brush_never_on_gives_no_samples() -> None:
+    """A robot of a booth that paints nothing of a part: no sample, binned or not."""
+    import dataclasses
+
+    c = make_case()
+    tr = run("servo")
+    off = dataclasses.replace(tr, paint_on=np.zeros_like(tr.paint_on))
+    T_part_world = np.linalg.inv(c.T_world_part)
+    for step in (None, 0.005):
+        assert len(executed_gun_samples(off, T_part_world, step).dwell_s) == 0
+
+
 @pytest.mark.slow
 def test_door_program_end_to_end() -> None:
     """Door plan → 1 kHz program → servo execution → validation, on the real pipeline."""

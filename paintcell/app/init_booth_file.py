@@ -73,7 +73,9 @@ rpy_rad = {_v([round(v, 6) for v in r.base.rpy_rad])}
         "every pass is reached, an allocation exists, every arm at home keeps "
         f"{HOME_CLEARANCE_M * 1e3:.0f} mm from the part and the booth's bell distance from the "
         "others, and the booth builds every program clear of the part with the arms staggered "
-        f"apart. On the fast plan ({cell.n_passes} passes): {cell.why.get('reach', '')}.",
+        + ("apart and no pose after a joint jump" if cell.jumps == 0 else
+           f"apart (every frame built has a joint jump: this one {cell.jumps} poses)")
+        + f". On the fast plan ({cell.n_passes} passes): {cell.why.get('reach', '')}.",
         f"Allocation is automatic; on the fast plan it gave {cell.why.get('jobs', '')} (start "
         f"delays {cell.why.get('delays', '')}).",
         f"The part: {cell.why.get('pose', '')}; its lowest point {PART_LOW_Z_M} m above the "

@@ -18,13 +18,16 @@ every program built, swept through the part's collision model, the robots stagge
   the middle of its travel) every arm keeps `HOME_CLEARANCE_M` from the part (the booth's
   `BodyProbe`, MuJoCo's distance between the execution's collision geoms) and its bell, wrist,
   elbow, shoulder and base keep the booth's bell distance from every other robot's.
-- The plan: the planner tables of `PLANNER_TRIES` in turn, the first whose longest pass is at
-  most `LONG_PASS_FACTOR` × the part's length along the rails (passes that run round the part
-  leave a rail robot's reach). Candidates are then checked, at most `LAYOUTS_VERIFIED` per plan,
-  with each `TRAJECTORY_TRIES` table, by the booth's own program build (IK, moves, body
-  clearance, staggering); the first that builds is the cell. The check runs on the plan
-  without the film refinement and the robot-aware speeds that `run` adds (both re-time the same
-  passes; the refinement's least squares over the whole part is most of a cowling's plan time).
+- The plan: the planner tables of `PLANNER_TRIES` in turn, the first whose longest pass over the
+  part is at most `LONG_PASS_FACTOR` × the part's length along the rails (passes that run round the
+  part leave a rail robot's reach). Candidates are then checked, at most `LAYOUTS_VERIFIED` per
+  plan, with each `TRAJECTORY_TRIES` table, by the booth's own program build (IK, moves, body
+  clearance, staggering); the first that builds with no pose after a joint jump (the IK report's
+  threshold; a frame built with one does not count toward `LAYOUTS_VERIFIED`, and its other
+  trajectory tables are not tried: the poses are the frame's) is the cell, else the first that
+  builds. The check runs on the plan without the film
+  refinement and the robot-aware speeds that `run` adds (both re-time the same passes; the
+  refinement's least squares over the whole part is most of a cowling's plan time).
 """
 
 from __future__ import annotations
@@ -37,7 +40,8 @@ import numpy as np
 
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["MAX_ROBOTS", "MultiCell", "choose_layout", "crown_up", "layout_problem", "rail_robots"]
+__all__ = ["MAX_ROBOTS", "MultiCell", "choose_layout", "crown_up", "layout_problem", "rail_angle",
+           "rail_robots"]
 
 #: Most robots `init` lays out around one part.
 MAX_ROBOTS = 4
@@ -59,7 +63,8 @@ PART_LOW_Z_M = 1.0
 SNAP_DEG = 15.0
 #: At home every arm keeps at least this from the part [m].
 HOME_CLEARANCE_M = 0.1
-#: A plan whose longest pass exceeds this × the part's length along the rails is not tried.
+#: A plan whose longest pass over the part exceeds this × the part's length along the rails is
+#: not tried.
 LONG_PASS_FACTOR = 2.0
 #: Candidate layouts whose programs are built, per plan.
 LAYOUTS_VERIFIED = 2
@@ -67,12 +72,18 @@ LAYOUTS_VERIFIED = 2
 #: arms' J2/J3 accelerations limit the time law on an arch's wings). The first carries passes
 #: 0.5 m past the part's ends (a tongue beyond a notch gets its film) and starts them mid-part
 #: (a nearly developable arch's curvature divider wanders with scan noise); the second plans in
-#: patches, straight passes per patch, for a part whose one-family passes run round it.
+#: patches, straight passes per patch, for a part whose one-family passes run round it; the
+#: third lays the passes along the rails themselves (`RAIL_AXIS`: the angle of the part's
+#: straight axis about its mean normal), for a part whose zero-curvature direction is not its
+#: straight axis (a bumper fascia: flat across its front, wrapping 120–160° at its corners, its
+#: zero-curvature passes run round the wrap, 1.6 m, over a 0.45 m straight axis).
+RAIL_AXIS = "along the rails"
 PLANNER_TRIES: tuple[dict[str, Any], ...] = (
     {"orientation": "zero-curvature", "v_nominal_m_s": 0.4, "overspray_m": 0.5,
      "start_position": 0.5},
     {"orientation": "zero-curvature", "patches": True, "v_nominal_m_s": 0.3,
-     "v_max_m_s": 0.45})
+     "v_max_m_s": 0.45},
+    {"orientation": RAIL_AXIS, "v_nominal_m_s": 0.3, "v_max_m_s": 0.45})
 #: `[trajectory]` tables tried in turn: a 0.3 m retract, then 0.15 m (backed off 0.3 m from a
 #: pass on a wing's lower edge, the via pose can leave the joint limits).
 TRAJECTORY_TRIES: tuple[dict[str, Any], ...] = (
@@ -87,8 +98,8 @@ SERVO: dict[str, Any] = {"gain_inertia": "effective"}
 class MultiCell:
     """The chosen cell: booth (`paintcell.booth.booth.Booth`, as `init` writes it, the part's
     file as given), planner and trajectory tables, gap and drop of the rails [m], the plan's pass
-    count and whether it is a patch plan, and why each choice was made (one line each: count,
-    model, bases, plan, moves)."""
+    count and whether it is a patch plan, why each choice was made (one line each: count,
+    model, bases, plan, moves), and the poses of its programs after a joint jump."""
 
     booth: Any
     planner: dict[str, Any]
@@ -98,6 +109,7 @@ class MultiCell:
     n_passes: int
     patches: bool
     why: dict[str, str] = field(default_factory=dict)
+    jumps: int = 0
 
 
 def crown_up(surf: Any) -> tuple[np.ndarray, str]:
@@ -122,6 +134,17 @@ def crown_up(surf: Any) -> tuple[np.ndarray, str]:
         return best, (f"painted side up, the skin's straight direction along the rails; "
                       f"{best_deg:.0f}° from the file's own axes, which are kept")
     return R, "painted side up, the skin's straight direction along the rails (world x)"
+
+
+def rail_angle(surf: Any, R: np.ndarray) -> float:
+    """The planner's orientation [rad] (`paintcell.coverage.start_curve`: the pass direction's
+    angle about the skin's mean normal, from the part x axis projected) of passes along world
+    x, the rails, for the part laid by `R` (3, 3) world-from-part; rounded to 1e-4 rad."""
+    from paintcell.coverage.start_curve import average_normal, tangent_basis
+
+    e1, e2 = tangent_basis(average_normal(surf.region_surface(("skin",))))
+    a = float(np.arctan2(R[0] @ e2, R[0] @ e1)) % np.pi
+    return round(a, 4) % round(np.pi, 4)
 
 
 def _axis_rotations() -> list[np.ndarray]:
@@ -186,7 +209,11 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
     plans: dict[int, Any] = {}        # planner try → its part plans (or why it was skipped)
     for n in counts:
         tried_n: list[str] = []
-        for k, planner in enumerate(PLANNER_TRIES):
+        jumpy: MultiCell | None = None
+        for k, table in enumerate(PLANNER_TRIES):
+            planner = dict(table)
+            if planner["orientation"] == RAIL_AXIS:
+                planner["orientation"] = rail_angle(surf, R)
             part = BodyPart(mesh.stem, pl, {**planner, "film_refine": False}, mesh=mesh)
             booth = Booth(name=name, parts=(part,), robots=tuple(rail_robots(n, lo, hi, 1.3,
                                                                              0.45, model)),
@@ -202,7 +229,8 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
                     longest = max(_pass_length(pp.plans[0], i)
                                   for i in range(len(pp.plans[0].passes)))
                     plans[k] = pp if longest <= LONG_PASS_FACTOR * length else (
-                        f"planner table {k + 1}'s longest pass is {longest:.1f} m, over "
+                        f"planner table {k + 1}'s longest pass over the part is {longest:.1f} m, "
+                        f"over "
                         f"{LONG_PASS_FACTOR:.0f}× the part's {length:.2f} m along the rails")
             if isinstance(plans[k], str):
                 tried_n.append(plans[k])
@@ -212,7 +240,11 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
                 cell.planner = dict(planner)
                 cell.why["pose"] = why_pose
                 cell.why["plan"] = "; ".join(t for t in tried_n if t.startswith("planner"))
-                return cell
+                if cell.jumps == 0:
+                    return cell
+                jumpy = jumpy or cell
+        if jumpy is not None:       # every cell built has a joint jump: the first of them
+            return jumpy
         failed.append(f"{n} robots: {'; '.join(tried_n)}")
     more = (f", or try `--robots N` with more robots (at most {MAX_ROBOTS})"
             if counts[-1] < MAX_ROBOTS else "")
@@ -223,8 +255,12 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
 
 
 def _pass_length(plan: Any, i: int) -> float:
+    """Length [m] of pass i's TCP path over the part (steps between two on-part samples): its
+    run past the part's ends, the table's overspray, is no run round the part."""
     p = np.asarray(plan.passes[i].positions)
-    return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
+    on = np.asarray(plan.passes[i].on_part, bool)
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    return float(step[on[1:] & on[:-1]].sum())
 
 
 def _try_layouts(booth: Any, pp: Any, n: int, lo: np.ndarray, hi: np.ndarray, model: str,
@@ -238,6 +274,7 @@ def _try_layouts(booth: Any, pp: Any, n: int, lo: np.ndarray, hi: np.ndarray, mo
     patches = patch_pass_counts(plan) is not None
     jobs = 2 if patches else 1
     n_frames, verified, first_why = 0, 0, None
+    jumpy: MultiCell | None = None
     for gap in RAIL_GAPS_M:
         for drop in RAIL_DROPS_M:
             if verified == LAYOUTS_VERIFIED:
@@ -259,7 +296,17 @@ def _try_layouts(booth: Any, pp: Any, n: int, lo: np.ndarray, hi: np.ndarray, mo
                     first_why = first_why or (f"gap {gap} m, drop {drop} m: "
                                               f"{str(exc).split('; ')[0][:200]}")
                     continue
-                return _cell(cand, traj, gap, drop, len(plan.passes), patches, reach, progs)
+                cell = _cell(cand, traj, gap, drop, len(plan.passes), patches, reach, progs)
+                if cell.jumps == 0:
+                    return cell
+                first_why = first_why or (f"gap {gap} m, drop {drop} m: {cell.jumps} poses "
+                                          "after a joint jump")
+                jumpy = jumpy or cell
+                verified -= 1       # the poses are the frame's: the next frame, not counted
+                break
+    if jumpy is not None:
+        tried.append(f"{n_frames} rail frames, every one built with a joint jump")
+        return jumpy
     tried.append(f"{n_frames} rail frames, {verified} built"
                  + (f" (first: {first_why})" if first_why else ""))
     return None
@@ -330,4 +377,13 @@ def _cell(booth: Any, traj: dict[str, Any], gap: float, drop: float, n_passes: i
         "delays": ", ".join(f"{d:.1f} s" for d in progs.record.get("start_delays_s", [])),
     }
     return MultiCell(replace(booth, robot_aware_speeds=True), {}, dict(traj), gap, drop,
-                     n_passes, patches, why)
+                     n_passes, patches, why, sum(_jumps(t) for t in progs.static))
+
+
+def _jumps(traj: Any) -> int:
+    """Poses of a robot's program whose joints jump from the pose before by more than the IK
+    report's threshold (the run counts them lost to a joint jump)."""
+    rep = (traj.meta or {}).get("reachability") or {}
+    jj = (rep.get("poses") or {}).get("joint_jump_rad") or []
+    th = float(rep.get("thresholds", {}).get("max_joint_jump_rad", 0.2))
+    return int(sum(1 for x in jj if x is not None and x > th))

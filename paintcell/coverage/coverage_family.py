@@ -39,6 +39,7 @@ from paintcell.coverage.openings import (
 from paintcell.coverage.plan import CoveragePlan, PassPlan, times_from_speeds
 from paintcell.coverage.smoothing import smoothed_surface, smoothing_scale_m
 from paintcell.coverage.start_curve import select_start_curve
+from paintcell.coverage.stitch import STITCH_GAP_FRACTION, stitched_surface
 from paintcell.paint.applicator import Applicator
 from paintcell.surface.surface import Surface
 
@@ -140,6 +141,8 @@ def _geometry(surface: Surface, applicator: Applicator, st: PlannerSettings,
     (`_plan_orders`, the passes timed under `caps` / `axes_x` as Algorithm 1 generates them);
     the order kept."""
     real_surface = surface
+    if st.plan_across_openings:     # pieces a gap apart: one surface, the window between an opening
+        surface = stitched_surface(surface, STITCH_GAP_FRACTION * applicator.footprint_radius_m)
     openings = find_openings(surface) if st.plan_across_openings else []
     surface = filled_surface(surface, openings)
     notches = find_notches(surface, NOTCH_DEPTH_FRACTION * applicator.footprint_radius_m) \

@@ -10,7 +10,8 @@ plane:
 
 - `find_notches`: each stretch of the outer boundary between two consecutive corners of its
   convex hull whose farthest vertex lies at least `min_depth_m` in from the hull's edge (the
-  bay's mouth) is a `Notch`: that chain of boundary vertices, its mouth and depth;
+  bay's mouth), and at least `NOTCH_MIN_ASPECT` of the mouth's width, is a `Notch`: that chain
+  of boundary vertices, its mouth and depth;
 - `closed_surface`: the surface with every notch closed by a fan of triangles from the bay's
   centroid over the chain and points spaced along the mouth; the planner plans on it, the film
   is still judged on the real mesh;
@@ -41,6 +42,13 @@ NOTCH_DEPTH_FRACTION = 0.25
 #: (a cowling whose normals turn ±70°) is the projection's, not the surface's (57° there; a
 #: fender's wheel arch: 16°).
 MAX_RIM_TILT_RAD = float(np.radians(30.0))
+#: … and only when it is at least this fraction of its mouth's width deep. A shallower bay is an
+#: edge that curves in (a hood's rear edge: 1.39 m across, 0.18 m deep, its rim turning 71°; a
+#: circular arc this shallow turns at most 2·2·atan(2 · 0.25) = 106°): Algorithm 1's offsets
+#: follow it, while passes flown straight across its mouth with the gun off over the fill leave
+#: the curved edge between them short (σ/μ 6.4 → 10.2 % there). A wheel arch is about half as
+#: deep as its mouth is wide, a slot or a U-cut deeper.
+NOTCH_MIN_ASPECT = 0.25
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,8 +82,9 @@ def _fan(poly: np.ndarray, centre: np.ndarray) -> np.ndarray:
 
 
 def find_notches(surface: Surface, min_depth_m: float) -> list[Notch]:
-    """The bays of the outer boundary (the longest loop) at least `min_depth_m` [m] deep, seen
-    in the surface's best-fit plane (module docstring)."""
+    """The bays of the outer boundary (the longest loop) at least `min_depth_m` [m] deep and
+    `NOTCH_MIN_ASPECT` of their mouth, seen in the surface's best-fit plane (module
+    docstring)."""
     loops = boundary_loops(surface.faces, len(surface.vertices))
     if not loops:
         return []
@@ -108,7 +117,7 @@ def find_notches(surface: Surface, min_depth_m: float) -> list[Notch]:
             continue
         side = np.array([-mouth2[1], mouth2[0]]) / mouth_m
         depth = float(np.abs((p2 - p2[0]) @ side).max())
-        if depth < min_depth_m:
+        if depth < max(min_depth_m, NOTCH_MIN_ASPECT * mouth_m):
             continue
         a, b = V[chain[-1]], V[chain[0]]
         n_m = max(1, int(np.ceil(np.linalg.norm(b - a) / max(spacing, 1e-9))))
@@ -132,20 +141,24 @@ def find_notches(surface: Surface, min_depth_m: float) -> list[Notch]:
 
 
 def _trimmed(chain: np.ndarray, p2: np.ndarray, tol_m: float) -> np.ndarray:
-    """The chain without its end stretches that run along the mouth (within `tol_m` [m] of the
-    line between its ends, in the plane p2 (L, 2)): a hull corner a little outside the bay's own
-    corner (a slightly bulging edge beside it) would otherwise put a piece of that edge into the
-    bay, and the mouth would run back over it."""
+    """The chain without its end stretches that run along the mouth: steps more along the line
+    between the chain's ends (the hull's edge) than across it, to points within `tol_m` [m] of
+    that line, in the plane p2 (L, 2). A hull corner a little outside the bay's own corner (a
+    slightly bulging edge beside it) would otherwise put a piece of that edge into the bay, and
+    the mouth would run back over it. The line stays the hull's edge: judged against a line
+    through the points trimmed so far, a bay side meshed in steps shorter than `tol_m` would be
+    trimmed step by step down to its bottom."""
+    d = p2[-1] - p2[0]
+    u = d / max(float(np.linalg.norm(d)), 1e-12)
+    n = np.array([-u[1], u[0]])
+    near = np.abs((p2 - p2[0]) @ n) < tol_m
+    step = np.diff(p2, axis=0)
+    along = np.abs(step @ u) >= np.abs(step @ n)          # step k: from point k to point k + 1
     lo, hi = 0, len(chain) - 1
-    while hi - lo >= 2:                   # at most the chain's length in steps
-        d = p2[hi] - p2[lo]
-        n = np.array([-d[1], d[0]]) / max(float(np.linalg.norm(d)), 1e-12)
-        if abs(float((p2[lo + 1] - p2[lo]) @ n)) < tol_m:
-            lo += 1
-        elif abs(float((p2[hi - 1] - p2[lo]) @ n)) < tol_m:
-            hi -= 1
-        else:
-            break
+    while hi - lo >= 2 and near[lo + 1] and along[lo]:
+        lo += 1
+    while hi - lo >= 2 and near[hi - 1] and along[hi - 1]:
+        hi -= 1
     return chain[lo:hi + 1]
 
 

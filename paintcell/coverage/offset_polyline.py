@@ -85,10 +85,15 @@ def spikes(points: npt.ArrayLike, half_window: int, tol_m: float) -> np.ndarray:
     `tol_m` [m] from where their neighbours put them: the coordinate-wise median of the finite
     points in a window symmetric about each point (`half_window` samples each way, fewer where
     the curve ends: an end sample is its own median and is never flagged; a missing sample
-    drops its mirror image from the window too). Each coordinate that runs monotonically over a
-    symmetric window has its own value as the median, so a smooth curve sampled finely against
-    the window is not flagged; a sample or a few that jump off the curve and back (a spike)
-    are. NaN rows are never flagged."""
+    drops its mirror image from the window too), taken in a frame of the curve's own there —
+    along the window's chord (the sum of the differences of its mirrored pairs), toward the
+    point across it, and normal to both — so that the flags do not depend on how the curve
+    lies against the world axes. Each coordinate that runs monotonically over a symmetric
+    window has its own value as the median, so a smooth curve sampled finely against the
+    window is not flagged; a sample or a few that jump off the curve and back (a spike) are,
+    and so is the apex of a corner sharper than about 2·asin(tol / (⌈h/2⌉ · spacing)) (84° at
+    h = 6 and a tolerance of two spacings), which is then cut by at most a spacing. NaN rows are
+    never flagged."""
     p = np.asarray(points, float)
     m, h = len(p), int(half_window)
     if m < 3 or h < 1:
@@ -101,6 +106,16 @@ def spikes(points: npt.ArrayLike, half_window: int, tol_m: float) -> np.ndarray:
     win[gone | gone[:, ::-1]] = np.nan                          # kept symmetric about the point
     with warnings.catch_warnings():                              # an all-NaN window: NaN
         warnings.simplefilter("ignore", RuntimeWarning)
-        ref = np.nanmedian(win, axis=1)
-    dev = np.linalg.norm(p - ref, axis=1)
+        chord = np.nansum(win[:, h + 1:] - win[:, :h][:, ::-1], axis=1)
+        across = p - np.nanmean(win, axis=1)
+        e1 = unit(np.nan_to_num(chord))
+        flat = np.linalg.norm(e1, axis=1) < 0.5                  # no chord (a full turn-back)
+        e1[flat] = unit(np.nan_to_num(across[flat]))
+        e2 = unit(np.nan_to_num(across - np.sum(across * e1, axis=1)[:, None] * e1))
+        lost = np.linalg.norm(e2, axis=1) < 0.5                  # the point lies on the chord
+        axis = np.eye(3)[np.argmin(np.abs(e1), axis=1)]
+        e2[lost] = unit(axis[lost] - np.sum(axis[lost] * e1[lost], axis=1)[:, None] * e1[lost])
+        frame = np.stack([e1, e2, np.cross(e1, e2)], axis=1)      # (M, 3, 3): rows are axes
+        rel = np.einsum("mkj,maj->mka", win - p[:, None, :], frame)
+        dev = np.linalg.norm(np.nanmedian(rel, axis=1), axis=1)
     return np.isfinite(dev) & (dev > tol_m)

@@ -4,8 +4,8 @@ A real part has holes: windows, handle holes, round service holes. Offsets walke
 sections break at a hole's rim and passes loop around it. A painter flies straight across a
 hole and switches the gun off only where most of the spray would go through it. So:
 
-- `find_openings`: the mesh's boundary loops other than the outer one (the longest), each with its
-  perimeter and area (its fan from the centroid);
+- `find_openings`: the mesh's boundary loops other than the outer one (the longest) of each
+  connected piece, each with its perimeter and area (its fan from the centroid);
 - `filled_surface`: the surface with every opening closed by a fan of triangles — the planner
   plans on it (passes carry on straight across), the film is still judged on the real mesh;
 - `opening_fraction`: for gun samples, the share of the paint each emits that lands in an
@@ -141,7 +141,8 @@ def _simple_loops(loop: np.ndarray) -> list[np.ndarray]:
 
 
 def find_openings(surface: Surface) -> list[Opening]:
-    """Every boundary loop but the longest (the outer boundary) as an `Opening`."""
+    """Every boundary loop but the longest of its piece (`file_pieces`: the piece's outer
+    boundary) as an `Opening`: a piece apart from the others has an outline, not a hole."""
     loops = boundary_loops(surface.faces, len(surface.vertices))
     if len(loops) < 2:
         return []
@@ -150,11 +151,12 @@ def find_openings(surface: Surface) -> list[Opening]:
     def perimeter(lp: np.ndarray) -> float:
         return float(np.linalg.norm(V[np.roll(lp, -1)] - V[lp], axis=1).sum())
 
-    per = [perimeter(lp) for lp in loops]
-    outer = int(np.argmax(per))
+    per = np.array([perimeter(lp) for lp in loops])
+    piece = file_pieces(surface)[[int(lp[0]) for lp in loops]]
+    outer = {int(np.flatnonzero(piece == c)[np.argmax(per[piece == c])]) for c in set(piece)}
     out = []
     for k, lp in enumerate(loops):
-        if k == outer:
+        if k in outer:
             continue
         c = V[lp].mean(axis=0)
         area = 0.5 * float(np.linalg.norm(np.cross(V[lp] - c, V[np.roll(lp, -1)] - c),
@@ -165,6 +167,29 @@ def find_openings(surface: Surface) -> list[Opening]:
             continue
         out.append(Opening(lp, per[k], area, c))
     return out
+
+
+def file_pieces(surface: Surface) -> np.ndarray:
+    """(N,) the piece of the part file each vertex belongs to (the import's `face_piece`), or,
+    for a surface without regions, its connected piece. A region's patch cut off from the rest
+    of the same file piece (a strip of skin beyond an edge region) is not a piece of its own."""
+    regs = surface.regions
+    F = np.asarray(surface.faces, np.int64)
+    if regs is None or len(regs.face_piece) != len(F):
+        return vertex_pieces(F, len(surface.vertices))
+    out = np.full(len(surface.vertices), -1, np.int64)
+    for k in range(3):
+        out[F[:, k]] = regs.face_piece
+    return out
+
+
+def vertex_pieces(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """(N,) connected piece of each vertex (faces sharing a vertex are one piece)."""
+    F = np.asarray(faces, np.int64)
+    a = np.concatenate([F[:, 0], F[:, 1], F[:, 2]])
+    b = np.concatenate([F[:, 1], F[:, 2], F[:, 0]])
+    g = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(n_vertices, n_vertices))
+    return connected_components(g, directed=False)[1]
 
 
 def fill_triangles(surface: Surface, openings: list[Opening]) -> tuple[np.ndarray, np.ndarray]:

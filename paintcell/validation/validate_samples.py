@@ -40,8 +40,9 @@ def trajectory_gun_samples(traj: JointTrajectory, T_part_world: np.ndarray,
 
 def _binned(full: GunSamples, t_s: np.ndarray, paint_on: np.ndarray,
             sample_s: float | None) -> GunSamples:
-    """`full` (one sample per paint-on step of `t_s`) merged into bins of `sample_s` [s]."""
-    if sample_s is None or len(t_s) < 2:
+    """`full` (one sample per paint-on step of `t_s`) merged into bins of `sample_s` [s]; no
+    paint-on step (a robot that paints nothing of this part): none."""
+    if sample_s is None or len(t_s) < 2 or not np.any(paint_on):
         return full
     dt = float(t_s[1] - t_s[0])
     m = max(1, int(math.ceil(sample_s / dt - 1e-9)))
