@@ -38,6 +38,28 @@ def test_return_home_is_the_rest_to_rest_move_at_the_rail_limits() -> None:
     assert takt.pitch_m == 5.5 and takt.conveyor_speed_m_s * 75.0 == pytest.approx(5.5)
 
 
+def test_max_cycle_is_the_longest_whose_return_fits_the_takt() -> None:
+    """`LineTakt.max_cycle_s` against bisection on the simulated return (the bang-coast-bang
+    move of the test above, in closed form there): C + return(v · C) equals the takt at C, and
+    exceeds it a millisecond later; both branches (a triangular return at a slow line, a
+    trapezoidal one at a fast line) are met."""
+    regimes = set()
+    for takt_s, length, gap in ((75.0, 4.39, 1.0), (90.0, 4.39, 1.0), (30.0, 0.4, 1.0),
+                                (10.0, 0.3, 0.0), (200.0, 9.0, 1.0)):
+        t = LineTakt(takt_s, length, gap)
+        c = t.max_cycle_s()
+        lo, hi = 0.0, takt_s
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if mid + return_home_s(t.conveyor_speed_m_s * mid) <= takt_s \
+                else (lo, mid)
+        assert c == pytest.approx(lo, abs=1e-9)
+        assert t.robot_cycle_s(c) == pytest.approx(takt_s, abs=1e-9)
+        assert t.robot_cycle_s(c + 1e-3) > takt_s
+        regimes.add(t.conveyor_speed_m_s * c * 4.0 >= 1.5 ** 2)    # reaches 1.5 m/s or not
+    assert regimes == {True, False}
+
+
 # -- the allocation ---------------------------------------------------------------------------
 
 def _panel(name: str, side: tuple[float, float, float], x: float, n: int, s: float,

@@ -20,8 +20,8 @@
 - Count: from the first estimate up to `max_robots`, the smallest whose every robot's estimated
   program plus return fits the takt, every robot reaches its passes, and whose programs the
   booth builds (`paintcell.booth.booth_programs.booth_programs`: IK, moves, clearance from the
-  whole body, the robots staggered apart) with every built program plus return within the takt;
-  no count: one line naming why each failed.
+  whole body, the robots staggered apart) with the booth's cycle plus the carriages' return
+  within the takt (`LineTakt.max_cycle_s`); no count: one line naming why each failed.
 - The plans are made once, at the fast resolution, without the film refinement (the written
   line refines each panel's film with every pass's duration held, `film_refine_pace`, so the
   durations estimated here are those it runs).
@@ -42,6 +42,7 @@ from paintcell.booth.line_allocation import (
     LinePanel,
     RobotShare,
     allocate_line,
+    check_body_frame,
     zone_of,
 )
 from paintcell.booth.line_takt import LineTakt, first_count
@@ -141,6 +142,8 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
     from paintcell.booth.booth_programs import booth_programs
     from paintcell.core.placement import Placement
 
+    verts = np.concatenate([s.vertices for s in pp.surfaces])
+    check_body_frame(verts.min(0), verts.max(0))       # the zones read y's sign as the side
     # the body on its skid: its lowest pass MIN_TCP_Z_M above the floor, as `init` lifts a part
     low = min(float(pl.tcp_frames(i)[:, 2, 3].min()) for pl in pp.plans
               for i in range(len(pl.passes)))
@@ -200,13 +203,14 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
             say(f"init: {failed[-1]}")
             continue
         built = [float(tr.duration_s) for tr in progs.static]
-        real = [takt.robot_cycle_s(b) for b in built]
-        if max(real) > takt.takt_s:
-            worst = int(np.argmax(real))
-            failed.append(f"{n}: {robots[worst].name}'s built program + return is "
-                          f"{real[worst]:.1f} s > takt {takt.takt_s:g} s")
-            continue
         cycle = float(max(len(tr.t_s) for tr in progs.trajs) - 1) * progs.trajs[0].dt_s
+        if cycle > takt.max_cycle_s():
+            delays = progs.record.get("start_delays_s", [])
+            failed.append(f"{n}: the booth's cycle {cycle:.1f} s (start delays "
+                          f"{', '.join(f'{d:.1f}' for d in delays)} s) + the carriages' return "
+                          f"{takt.robot_cycle_s(cycle) - cycle:.1f} s > takt {takt.takt_s:g} s")
+            say(f"init: {failed[-1]}")
+            continue
         return Line(cand, takt, shares, built, cycle, n0, n_passes, total, failed, frames,
                     {"start_delays_s": progs.record.get("start_delays_s", []),
                      "body_clearance": progs.record.get("body_clearance", {})})
