@@ -241,27 +241,41 @@ def test_carriage_stretches_keep_neighbours_apart_and_every_pass_reachable() -> 
 
 
 def test_a_body_off_the_lines_frame_is_refused_in_one_line(tmp_path: Path) -> None:
-    """The zones tell the sides apart by the sign of y: a body off the centre line, or turned
-    across the line, is refused naming the offset; a centred one passes; `init --line` refuses
-    such a body before planning, with nothing written."""
+    """The zones tell the sides apart by the sign of y: a whole body off the centre line, a
+    side panel on the other side of y = 0 than it faces (a body shifted past half its width),
+    or a body turned across the line, is refused naming the offset; a centred one and a partial
+    one (one side's panels: no centre line to measure) pass; `init --line` refuses such a body
+    before planning, with nothing written."""
     from types import SimpleNamespace
 
     from paintcell.app.init_line_file import init_line
     from paintcell.booth.line_allocation import CENTRE_TOL_M, check_body_frame
 
-    check_body_frame((-2.2, -0.87, 0.3), (2.2, 0.87, 1.6))
-    check_body_frame((-2.2, -0.87 + 0.9 * CENTRE_TOL_M, 0.3), (2.2, 0.87 + 0.9 * CENTRE_TOL_M, 1.6))
+    sides = [(0.0, 1.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)]
+
+    def body(dy: float) -> tuple[tuple[float, ...], ...]:
+        return ((-2.2, -0.87 + dy, 0.3), (2.2, 0.87 + dy, 1.6),
+                (0.0, 0.85 + dy, 0.8), (0.0, -0.85 + dy, 0.8), (0.0, dy, 1.6))
+
+    for dy in (0.0, 0.9 * CENTRE_TOL_M):
+        lo, hi, *cs = body(dy)
+        check_body_frame(lo, hi, sides, cs)
+    lo, hi, *cs = body(0.3)
     with pytest.raises(PaintcellError, match=r"y = \+0\.300 m.*by -0\.300 m in y") as off:
-        check_body_frame((-2.2, -0.57, 0.3), (2.2, 1.17, 1.6))
+        check_body_frame(lo, hi, sides, cs)
     assert "\n" not in str(off.value)
+    lo, hi, *cs = body(1.0)                       # the right side panel now at y > 0
+    with pytest.raises(PaintcellError, match=r"facing −y lies at y = \+0\.150 m"):
+        check_body_frame(lo, hi, sides, cs)
+    check_body_frame((-2.2, 0.0, 0.3), (2.2, 0.87, 1.6), sides[:1], [(0.0, 0.85, 0.8)])
     with pytest.raises(PaintcellError, match="length along x"):
         check_body_frame((-0.87, -2.2, 0.3), (0.87, 2.2, 1.6))
     side = trimesh.creation.box((4.0, 0.01, 1.0))
     panels = [SimpleNamespace(name=n, mesh=side.copy().apply_translation((0.0, y, 0.8)),
-                              direction=(0.0, float(np.sign(y)), 0.0))
+                              direction=(0.0, float(np.sign(y - 0.4)), 0.0))
               for n, y in (("left", 1.2), ("right", -0.4))]         # centre line at y = 0.4
     out = tmp_path / "line.toml"
-    with pytest.raises(PaintcellError, match=r"centre line lies at y = \+0\.400"):
+    with pytest.raises(PaintcellError, match=r"centre line lies at y = \+0\.400 m"):
         init_line(panels, out, 75.0, 10, False, "shifted.stl", say=lambda s: None)
     assert list(tmp_path.iterdir()) == []
 

@@ -118,19 +118,33 @@ class Line:
     record: dict[str, Any] = field(default_factory=dict)
 
 
-def line_panels(pp: Any) -> list[LinePanel]:
+def line_panels(pp: Any, reverse: Sequence[bool] | None = None) -> list[LinePanel]:
     """The allocation's view of planned panels (`plan_parts`' plans; part frame = body frame):
-    painted side, area-weighted centroid, pass durations and mean y."""
+    painted side, area-weighted centroid, pass durations and mean y, in the order the robots
+    run them (reverse: per panel, its passes run last to first, `BodyPart.reverse`)."""
     out = []
-    for surf, plan in zip(pp.surfaces, pp.plans, strict=True):
+    for i, (surf, plan) in enumerate(zip(pp.surfaces, pp.plans, strict=True)):
         w = surf.vertex_areas / surf.vertex_areas.sum()
         side = np.asarray(surf.regions.painted_direction, float)
+        order = slice(None, None, -1 if reverse is not None and reverse[i] else 1)
         out.append(LinePanel(surf.name, tuple(side / np.linalg.norm(side)),
                              tuple(float(x) for x in w @ surf.vertices),
-                             np.array([p.duration_s for p in plan.passes]),
-                             np.array([float(np.mean(p.positions[:, 1])) for p in plan.passes]),
+                             np.array([p.duration_s for p in plan.passes])[order],
+                             np.array([float(np.mean(p.positions[:, 1]))
+                                       for p in plan.passes])[order],
                              (float(surf.vertices[:, 0].min()), float(surf.vertices[:, 0].max()))))
     return out
+
+
+def top_first(plan: Any) -> bool:
+    """Whether a plan's passes run top to bottom (its first pass's mean height ≥ its last's).
+    A side panel is painted so: the floor robot starts each panel at its top edge, beside the top
+    robots' roof and hood edges, and leaves it low (measured on the generated SUV: the right rear
+    door planned bottom to top put the right rear floor robot's turn-arounds 0.5 m above the
+    window frame at the end of the door, under the top robot's roof edge, at every start delay
+    up to 20 s)."""
+    z = [float(np.mean(p.positions[:, 2])) for p in plan.passes]
+    return z[0] >= z[-1]
 
 
 def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bool = True,
@@ -143,13 +157,20 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
     from paintcell.core.placement import Placement
 
     verts = np.concatenate([s.vertices for s in pp.surfaces])
-    check_body_frame(verts.min(0), verts.max(0))       # the zones read y's sign as the side
+    lps = line_panels(pp)
+    check_body_frame(verts.min(0), verts.max(0), [p.side for p in lps],   # y's sign: the side
+                     [p.centroid_m for p in lps])
     # the body on its skid: its lowest pass MIN_TCP_Z_M above the floor, as `init` lifts a part
     low = min(float(pl.tcp_frames(i)[:, 2, 3].min()) for pl in pp.plans
               for i in range(len(pl.passes)))
     booth = replace(booth, body_placement=Placement((0.0, 0.0, round(max(0.0, MIN_TCP_Z_M - low),
                                                                       3)), (0.0, 0.0, 0.0)))
-    panels = line_panels(pp)
+    # a side panel's passes top to bottom (`top_first`): reversed where the planner began low
+    booth = replace(booth, parts=tuple(
+        replace(bp, reverse=not top_first(pl) and zone_of(lp.side, lp.centroid_m) in ("left",
+                                                                                      "right"))
+        for bp, pl, lp in zip(booth.parts, pp.plans, lps, strict=True)))
+    panels = line_panels(pp, [bp.reverse for bp in booth.parts])
     total = sum(takt.program_s([p.durations_s]) for p in panels)
     n0 = first_count(total, takt.takt_s)
     n_passes = [len(p.durations_s) for p in panels]

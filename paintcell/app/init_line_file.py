@@ -79,7 +79,10 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         "car). Each rail is centred on its robot's stretch of the car (robots of one zone at "
         "least 1.5 m apart) and reaches that stretch plus the body's travel while it paints and "
         "0.3 m at each end; a robot sharing its side parks past its stretch and past the body's "
-        "travel.",
+        "travel. The floor robots of one side share its rail line: each carriage keeps to its "
+        "own stretch of it as planned (`carriage`), at least 1.5 m from its neighbour's, and the "
+        "conveyor tracking moves every carriage alike, so they never pass each other; both run "
+        "their panels front to rear, the top robots theirs rear to front.",
         "Allocation (fixed below, pass ranges of the plan at 0.025 m, which both resolutions "
         "use): by zone, each zone's jobs front to rear cut into contiguous runs of least longest "
         "program (bisection with a greedy fill; a panel cut once at a pass boundary when it "
@@ -99,11 +102,13 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
     parts = ""
     for f, side, bp in zip(files, sides, b.parts, strict=True):
         planner = "".join(f"{k} = {_v(v)}\n" for k, v in bp.planner.items())
+        rev = ("reverse = true   # its passes top to bottom (paintcell.app.init_line.top_first)"
+               "\n" if bp.reverse else "")
         parts += f"""
 [[parts]]
 xyz_m = [0.0, 0.0, 0.0]
 rpy_rad = [0.0, 0.0, 0.0]
-[parts.part]
+{rev}[parts.part]
 file = {_v(f)}   # relative to this file; the body frame, metres
 units = "m"
 pieces = "all"
@@ -214,7 +219,8 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
     stems = [f"{i:02d}_" + "".join(c if c.isalnum() or c in "_-" else "_" for c in str(p.name))
              for i, p in enumerate(panels)]
     verts = np.concatenate([np.asarray(p.mesh.vertices, float) for p in panels])
-    check_body_frame(verts.min(0), verts.max(0))
+    check_body_frame(verts.min(0), verts.max(0), [p.direction for p in panels],
+                     [np.asarray(p.mesh.vertices, float).mean(0) for p in panels])
     takt = LineTakt(float(takt_s), float(np.ptp(verts[:, 0])))
     name = name or "".join(c if c.isalnum() or c in "_-" else "_" for c in out.stem)
     sides = [tuple(float(x) for x in p.direction) for p in panels]
