@@ -99,6 +99,25 @@ def test_two_robots_film_is_one_robot_running_all_passes(roof_booth):
     assert abs(res.report.metrics["loss_pp"]) < 0.1
 
 
+def test_a_rail_carriage_stands_still_through_every_pass(roof_booth):
+    """`export_rapid` writes one carriage position (eax_a) per pass, from the pass's first
+    sample: true only while the carriage stands still during the pass. Re-measured on each rail
+    robot's own program as the booth produced it (the one exported): within every paint run its
+    carriage column spans nothing, and between passes it does move (the column is the
+    carriage, not a constant)."""
+    from paintcell.output.export_rapid import program_runs
+
+    moved = 0.0
+    for st in roof_booth.static_trajectories:
+        assert st.joint_names[0] == "rail"
+        runs = [idx for paint, _, idx in program_runs(st) if paint]
+        assert len(runs) >= 2
+        for idx in runs:
+            assert np.ptp(st.q[idx, 0]) <= 1e-12
+        moved = max(moved, float(np.ptp([st.q[idx[0], 0] for idx in runs])))
+    assert moved > 0.05
+
+
 def test_booth_holds_every_part_to_the_paint_spec(roof_booth):
     """The roof's share of area in the spec window (its planned mean ± 20 %), re-measured by
     brute force on the executed film; held to a target 50 % above its film, the booth FAILS on

@@ -38,6 +38,28 @@ def test_return_home_is_the_rest_to_rest_move_at_the_rail_limits() -> None:
     assert takt.pitch_m == 5.5 and takt.conveyor_speed_m_s * 75.0 == pytest.approx(5.5)
 
 
+def test_max_cycle_is_the_longest_whose_return_fits_the_takt() -> None:
+    """`LineTakt.max_cycle_s` against bisection on the simulated return (the bang-coast-bang
+    move of the test above, in closed form there): C + return(v · C) equals the takt at C, and
+    exceeds it a millisecond later; both branches (a triangular return at a slow line, a
+    trapezoidal one at a fast line) are met."""
+    regimes = set()
+    for takt_s, length, gap in ((75.0, 4.39, 1.0), (90.0, 4.39, 1.0), (30.0, 0.4, 1.0),
+                                (10.0, 0.3, 0.0), (200.0, 9.0, 1.0)):
+        t = LineTakt(takt_s, length, gap)
+        c = t.max_cycle_s()
+        lo, hi = 0.0, takt_s
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if mid + return_home_s(t.conveyor_speed_m_s * mid) <= takt_s \
+                else (lo, mid)
+        assert c == pytest.approx(lo, abs=1e-9)
+        assert t.robot_cycle_s(c) == pytest.approx(takt_s, abs=1e-9)
+        assert t.robot_cycle_s(c + 1e-3) > takt_s
+        regimes.add(t.conveyor_speed_m_s * c * 4.0 >= 1.5 ** 2)    # reaches 1.5 m/s or not
+    assert regimes == {True, False}
+
+
 # -- the allocation ---------------------------------------------------------------------------
 
 def _panel(name: str, side: tuple[float, float, float], x: float, n: int, s: float,
@@ -117,36 +139,46 @@ def test_every_pass_is_allocated_once_and_zones_are_kept() -> None:
 
 @pytest.fixture(scope="module")
 def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
-    """`paintcell init BODY --line --takt 40` on two panels of a generated body (its front left
-    door and roof: a manifest of the generator's panel folder, read by `load_body`), and the
-    plans it made (kept so the other tests do not plan them again)."""
+    """`paintcell init BODY --line --takt 30` on two left panels of a generated body (its front
+    fender and rear door: a manifest of the generator's panel folder, read by `load_body`),
+    which one robot cannot paint in the takt: two floor robots on the left rail line. Kept:
+    the plans it made and the programs its booth build made (so the other tests do not plan or
+    build them again)."""
     import json
 
     import paintcell.booth.booth_plans as booth_plans
+    import paintcell.booth.booth_programs as booth_programs
     from paintcell.cli.main import main
 
     tmp = tmp_path_factory.mktemp("line")
     assert main(["generate", "body", "--out", str(tmp / "car.stl")]) == 0
     manifest = json.loads((tmp / "car_panels" / "body.json").read_text())
     manifest["panels"] = [p for p in manifest["panels"]
-                          if p["name"] in ("front_door_left", "roof")]
+                          if p["name"] in ("front_fender_left", "rear_door_left")]
     assert len(manifest["panels"]) == 2
-    body = tmp / "car_panels" / "door_roof.json"
+    body = tmp / "car_panels" / "two_left.json"
     body.write_text(json.dumps(manifest))
     made: dict[str, Any] = {}
-    real = booth_plans.plan_parts
+    real, real_programs = booth_plans.plan_parts, booth_programs.booth_programs
 
     def keep(booth: Any, fast: bool) -> Any:
         made["pp"] = real(booth, fast)
         made["booth"] = booth
         return made["pp"]
 
+    def keep_programs(booth: Any, fast: bool, pp: Any = None, tasks: Any = None) -> Any:
+        made["progs"] = real_programs(booth, fast, pp, tasks)
+        made["built"] = booth
+        return made["progs"]
+
     booth_plans.plan_parts = keep
+    booth_programs.booth_programs = keep_programs
     try:
         out = tmp / "line.toml"
-        assert main(["init", str(body), "--line", "--takt", "40", "--out", str(out)]) == 0
+        assert main(["init", str(body), "--line", "--takt", "30", "--out", str(out)]) == 0
     finally:
         booth_plans.plan_parts = real
+        booth_programs.booth_programs = real_programs
     return {"out": out, "body": body, **made}
 
 
@@ -163,7 +195,7 @@ def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None
                          for bp in booth.parts])
     pitch = float(xs.max() - xs.min()) + 1.0
     v = booth.conveyor.speed_m_s
-    assert v * 40.0 == pytest.approx(pitch, rel=1e-6)   # STL stores float32 coordinates
+    assert v * 30.0 == pytest.approx(pitch, rel=1e-6)   # STL stores float32 coordinates
     assert booth.allocation is not None and len(booth.robots) == len(booth.allocation)
     plans = plan_parts(booth, fast=True).plans
     passes = [np.zeros(len(pl.passes), int) for pl in plans]
@@ -174,16 +206,51 @@ def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None
             program += _est(np.array([ps.duration_s for ps in plans[p].passes[a:b]]))
         d = v * program                          # the carriage runs back at 1.5 m/s, 4 m/s²
         back = d / 1.5 + 1.5 / 4.0 if d >= 1.5 ** 2 / 4.0 else 2 * math.sqrt(d / 4.0)
-        assert program + back <= 40.0
+        assert program + back <= 30.0
     assert all((c == 1).all() for c in passes)   # every pass of the written file, once
+
+
+def test_the_built_line_meets_the_takt_and_keeps_its_carriages_apart(
+        written: dict[str, Any]) -> None:
+    """Re-measured on the programs the booth built for the written line (tracking the conveyor,
+    staggered, on one clock): its cycle plus every carriage's return over the distance the line
+    carried it (the bang-coast-bang move, written out) fits the takt, and is within the written
+    file's max_cycle_time_s; the two floor robots' carriages, in world x from their rail frames,
+    keep their order and at least `CARRIAGE_GAP_M` apart at every sample; and each planned
+    carriage stays inside its written stretch."""
+    from paintcell.app.init_line_robots import CARRIAGE_GAP_M
+    from paintcell.booth.booth_data import load_toml_booth
+
+    progs, built = written["progs"], written["built"]
+    booth = load_toml_booth(written["out"])
+    assert [r.carriage_m for r in booth.robots] == [r.carriage_m for r in built.robots]
+    assert [r.name for r in booth.robots] == ["left_1", "left_2"]
+    dt = progs.trajs[0].dt_s
+    cycle = (max(len(tr.t_s) for tr in progs.trajs) - 1) * dt
+    d = booth.conveyor.speed_m_s * cycle
+    back = d / 1.5 + 1.5 / 4.0 if d >= 1.5 ** 2 / 4.0 else 2 * math.sqrt(d / 4.0)
+    assert cycle + back <= 30.0
+    assert cycle <= booth.thresholds.max_cycle_time_s
+    x = []
+    for r, tr, st in zip(booth.robots, progs.trajs, progs.static, strict=True):
+        T = r.base.matrix
+        x.append(T[0, 3] + T[0, 1] * tr.q[:, 0])
+        assert r.carriage_m is not None
+        assert st.q[:, 0].min() >= r.carriage_m[0] - 1e-9
+        assert st.q[:, 0].max() <= r.carriage_m[1] + 1e-9
+    n = min(len(a) for a in x)
+    gap = x[0][:n] - x[1][:n]                    # left_1 ahead of left_2 along the line
+    assert gap.min() >= CARRIAGE_GAP_M - 1e-6, gap.min()
+    # the line moved them: every carriage travelled with the body
+    assert all(np.ptp(a) > 0.5 * d for a in x)
 
 
 def test_tighter_takt_never_gives_fewer_robots(written: dict[str, Any]) -> None:
     from paintcell.app.init_line import choose_line
 
     counts = []
-    length = written["booth"].conveyor.speed_m_s * 40.0 - 1.0       # pitch less the gap
-    for takt_s in (60.0, 32.0, 25.0):
+    length = written["booth"].conveyor.speed_m_s * 30.0 - 1.0       # pitch less the gap
+    for takt_s in (60.0, 40.0, 25.0):
         takt = LineTakt(takt_s, length)
         line = choose_line(written["booth"], written["pp"], takt, 10, verify=False,
                            say=lambda s: None)

@@ -180,25 +180,142 @@ def test_a_generated_bodys_panel_files_stay_in_the_booth_folder(tmp_path: Path) 
     assert list(tmp_path.iterdir()) == []
 
 
-def test_neighbouring_floor_robots_of_a_side_work_away_from_each_other(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """Two floor robots a side: re-measured on the jobs' centroids, the first runs its jobs
-    rear to front (x rising), the next front to rear, so the pair starts at its common
-    boundary."""
-    import paintcell.booth.line_allocation as la
-
-    monkeypatch.setattr(la, "FLOOR_ROBOTS_PER_SIDE", 2)
+def test_floor_robots_of_a_side_chase_each_other_down_the_car() -> None:
+    """Two floor robots a side: re-measured on the jobs' extents along the car, each robot
+    runs its jobs front to rear (centroid x falling), holds its side panels whole (a panel's
+    pieces would share one stretch of the car), and every job of the front robot lies ahead of
+    every job of the rear robot, so their carriages can keep to disjoint stretches."""
     panels = _body()
     for n in (6, 8):
         shares = allocate_line(panels, n)
         for zone in ("left", "right"):
             side = [s for s in shares if s.zone == zone]
             assert len(side) == 2
-            for k, s in enumerate(side):
+            for s in side:
                 x = [panels[j.part].centroid_m[0] for j in s.jobs]
-                assert x == sorted(x, reverse=k % 2 == 1), (zone, k, x)
-            # the boundary: the first robot's first job meets the second's first job
-            a, b = side[0].jobs[0], side[1].jobs[0]
-            assert a.part == b.part or abs(panels[a.part].x_span_m[0]
-                                           - panels[b.part].x_span_m[1]) < 1e-9
+                assert x == sorted(x, reverse=True), (zone, x)
+                for j in s.jobs:
+                    if panels[j.part].name.startswith(("fender", "door", "quarter")):
+                        assert (j.first, j.end) == (0, len(panels[j.part].durations_s))
+            front = min(panels[j.part].x_span_m[0] for j in side[0].jobs)
+            rear = max(panels[j.part].x_span_m[1] for j in side[1].jobs)
+            assert rear <= front + 1e-9, (zone, front, rear)
 
+
+def test_carriage_stretches_keep_neighbours_apart_and_every_pass_reachable() -> None:
+    """`carriage_stretches` on random reach intervals (each pass reachable from a carriage
+    anywhere in [lo, hi] along x): re-measured, neighbouring stretches are at least the gap
+    apart, in order front to rear, and each robot reaches every one of its passes from inside
+    its stretch (the pass's interval meets it); where no boundary leaves both robots their
+    passes, it says so."""
+    from paintcell.app.init_line_robots import carriage_stretches
+
+    rng = np.random.default_rng(5)
+    gap = 1.5
+    done = refused = 0
+    for _ in range(200):
+        k = int(rng.integers(2, 4))
+        centres = np.sort(rng.uniform(-2.0, 2.0, k))[::-1] + np.arange(k)[::-1] * 0.5
+        reach = []
+        for c in centres:
+            m = int(rng.integers(1, 6))
+            mid = c + rng.uniform(-0.4, 0.4, m)
+            half = rng.uniform(0.3, 1.2, m)
+            reach.append(np.column_stack([mid - half, mid + half]))
+        got = carriage_stretches(reach, gap)
+        # brute force: a boundary pair exists iff every neighbour pair's room is wide enough
+        feasible = all(np.min(reach[i][:, 1]) - np.max(reach[i + 1][:, 0]) >= gap - 1e-12
+                       for i in range(k - 1))
+        if isinstance(got, str):
+            assert not feasible and "apart" in got
+            refused += 1
+            continue
+        assert feasible
+        done += 1
+        assert got[0][1] == np.inf and got[-1][0] == -np.inf
+        for i in range(k - 1):
+            assert got[i][0] - got[i + 1][1] >= gap - 1e-9
+        for (lo, hi), r in zip(got, reach, strict=True):
+            assert np.all(r[:, 1] >= lo - 1e-9) and np.all(r[:, 0] <= hi + 1e-9)
+    assert done > 20 and refused > 20
+
+
+def test_a_body_off_the_lines_frame_is_refused_in_one_line(tmp_path: Path) -> None:
+    """The zones tell the sides apart by the sign of y: a whole body off the centre line, a
+    side panel on the other side of y = 0 than it faces (a body shifted past half its width),
+    or a body turned across the line, is refused naming the offset; a centred one and a partial
+    one (one side's panels: no centre line to measure) pass; `init --line` refuses such a body
+    before planning, with nothing written."""
+    from types import SimpleNamespace
+
+    from paintcell.app.init_line_file import init_line
+    from paintcell.booth.line_allocation import CENTRE_TOL_M, check_body_frame
+
+    sides = [(0.0, 1.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, 1.0)]
+
+    def body(dy: float) -> tuple[tuple[float, ...], ...]:
+        return ((-2.2, -0.87 + dy, 0.3), (2.2, 0.87 + dy, 1.6),
+                (0.0, 0.85 + dy, 0.8), (0.0, -0.85 + dy, 0.8), (0.0, dy, 1.6))
+
+    for dy in (0.0, 0.9 * CENTRE_TOL_M):
+        lo, hi, *cs = body(dy)
+        check_body_frame(lo, hi, sides, cs)
+    lo, hi, *cs = body(0.3)
+    with pytest.raises(PaintcellError, match=r"y = \+0\.300 m.*by -0\.300 m in y") as off:
+        check_body_frame(lo, hi, sides, cs)
+    assert "\n" not in str(off.value)
+    lo, hi, *cs = body(1.0)                       # the right side panel now at y > 0
+    with pytest.raises(PaintcellError, match=r"facing −y lies at y = \+0\.150 m"):
+        check_body_frame(lo, hi, sides, cs)
+    check_body_frame((-2.2, 0.0, 0.3), (2.2, 0.87, 1.6), sides[:1], [(0.0, 0.85, 0.8)])
+    with pytest.raises(PaintcellError, match="length along x"):
+        check_body_frame((-0.87, -2.2, 0.3), (0.87, 2.2, 1.6))
+    side = trimesh.creation.box((4.0, 0.01, 1.0))
+    panels = [SimpleNamespace(name=n, mesh=side.copy().apply_translation((0.0, y, 0.8)),
+                              direction=(0.0, float(np.sign(y - 0.4)), 0.0))
+              for n, y in (("left", 1.2), ("right", -0.4))]         # centre line at y = 0.4
+    out = tmp_path / "line.toml"
+    with pytest.raises(PaintcellError, match=r"centre line lies at y = \+0\.400 m"):
+        init_line(panels, out, 75.0, 10, False, "shifted.stl", say=lambda s: None)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_carriage_stretch_is_read_checked_and_limits_only_the_planning_rail(
+        tmp_path: Path) -> None:
+    """`carriage = [lower, upper]` in a booth file: read into `BoothRobot.carriage_m`; the
+    planning model's rail is that stretch (within the rail less the tracking's shrink), the
+    executing model's the whole rail; a stretch off the rail, or a home off the stretch, is
+    refused in one line naming the robot."""
+    from paintcell.booth.booth_data import BoothDataError, load_toml_booth
+    from paintcell.booth.booth_job_programs import load_robots
+
+    def booth_file(carriage: str, home0: float) -> Path:
+        f = tmp_path / "b.toml"
+        f.write_text(f"""name = "b"
+[[parts]]
+part = "roof"
+[[robots]]
+name = "a"
+model = "irb5500"
+rail = [-3.0, 3.0]
+carriage = {carriage}
+home = [{home0}, 0.0, -0.6, 0.9, 0.0, 0.6, 0.0]
+[robots.base]
+xyz_m = [0.0, 2.5, 0.3]
+rpy_rad = [0.0, 0.0, -1.5707963267948966]
+""")
+        return f
+
+    booth = load_toml_booth(booth_file("[0.5, 2.0]", 1.0))
+    assert booth.robots[0].carriage_m == (0.5, 2.0)
+    plan = load_robots(booth, 0.0, stretch=True)[0].rail.spec
+    assert (plan.lower_m, plan.upper_m) == (0.5, 2.0)
+    plan = load_robots(booth, 1.5, stretch=True)[0].rail.spec         # tracking: 3 − 1.5
+    assert (plan.lower_m, plan.upper_m) == (0.5, 1.5)
+    run = load_robots(booth)[0].rail.spec
+    assert (run.lower_m, run.upper_m) == (-3.0, 3.0)
+    for carriage, home0, words in (("[0.5, 4.0]", 1.0, "carriage"), ("[0.5, 2.0]", -1.0,
+                                                                       "home")):
+        with pytest.raises(BoothDataError, match=words) as bad:
+            load_toml_booth(booth_file(carriage, home0))
+        assert "\n" not in str(bad.value)

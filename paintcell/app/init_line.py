@@ -20,8 +20,8 @@
 - Count: from the first estimate up to `max_robots`, the smallest whose every robot's estimated
   program plus return fits the takt, every robot reaches its passes, and whose programs the
   booth builds (`paintcell.booth.booth_programs.booth_programs`: IK, moves, clearance from the
-  whole body, the robots staggered apart) with every built program plus return within the takt;
-  no count: one line naming why each failed.
+  whole body, the robots staggered apart) with the booth's cycle plus the carriages' return
+  within the takt (`LineTakt.max_cycle_s`); no count: one line naming why each failed.
 - The plans are made once, at the fast resolution, without the film refinement (the written
   line refines each panel's film with every pass's duration held, `film_refine_pace`, so the
   durations estimated here are those it runs).
@@ -42,6 +42,7 @@ from paintcell.booth.line_allocation import (
     LinePanel,
     RobotShare,
     allocate_line,
+    check_body_frame,
     zone_of,
 )
 from paintcell.booth.line_takt import LineTakt, first_count
@@ -117,19 +118,33 @@ class Line:
     record: dict[str, Any] = field(default_factory=dict)
 
 
-def line_panels(pp: Any) -> list[LinePanel]:
+def line_panels(pp: Any, reverse: Sequence[bool] | None = None) -> list[LinePanel]:
     """The allocation's view of planned panels (`plan_parts`' plans; part frame = body frame):
-    painted side, area-weighted centroid, pass durations and mean y."""
+    painted side, area-weighted centroid, pass durations and mean y, in the order the robots
+    run them (reverse: per panel, its passes run last to first, `BodyPart.reverse`)."""
     out = []
-    for surf, plan in zip(pp.surfaces, pp.plans, strict=True):
+    for i, (surf, plan) in enumerate(zip(pp.surfaces, pp.plans, strict=True)):
         w = surf.vertex_areas / surf.vertex_areas.sum()
         side = np.asarray(surf.regions.painted_direction, float)
+        order = slice(None, None, -1 if reverse is not None and reverse[i] else 1)
         out.append(LinePanel(surf.name, tuple(side / np.linalg.norm(side)),
                              tuple(float(x) for x in w @ surf.vertices),
-                             np.array([p.duration_s for p in plan.passes]),
-                             np.array([float(np.mean(p.positions[:, 1])) for p in plan.passes]),
+                             np.array([p.duration_s for p in plan.passes])[order],
+                             np.array([float(np.mean(p.positions[:, 1]))
+                                       for p in plan.passes])[order],
                              (float(surf.vertices[:, 0].min()), float(surf.vertices[:, 0].max()))))
     return out
+
+
+def top_first(plan: Any) -> bool:
+    """Whether a plan's passes run top to bottom (its first pass's mean height ≥ its last's).
+    A side panel is painted so: the floor robot starts each panel at its top edge, beside the top
+    robots' roof and hood edges, and leaves it low (measured on the generated SUV: the right rear
+    door planned bottom to top put the right rear floor robot's turn-arounds 0.5 m above the
+    window frame at the end of the door, under the top robot's roof edge, at every start delay
+    up to 20 s)."""
+    z = [float(np.mean(p.positions[:, 2])) for p in plan.passes]
+    return z[0] >= z[-1]
 
 
 def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bool = True,
@@ -141,12 +156,21 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
     from paintcell.booth.booth_programs import booth_programs
     from paintcell.core.placement import Placement
 
+    verts = np.concatenate([s.vertices for s in pp.surfaces])
+    lps = line_panels(pp)
+    check_body_frame(verts.min(0), verts.max(0), [p.side for p in lps],   # y's sign: the side
+                     [p.centroid_m for p in lps])
     # the body on its skid: its lowest pass MIN_TCP_Z_M above the floor, as `init` lifts a part
     low = min(float(pl.tcp_frames(i)[:, 2, 3].min()) for pl in pp.plans
               for i in range(len(pl.passes)))
     booth = replace(booth, body_placement=Placement((0.0, 0.0, round(max(0.0, MIN_TCP_Z_M - low),
                                                                       3)), (0.0, 0.0, 0.0)))
-    panels = line_panels(pp)
+    # a side panel's passes top to bottom (`top_first`): reversed where the planner began low
+    booth = replace(booth, parts=tuple(
+        replace(bp, reverse=not top_first(pl) and zone_of(lp.side, lp.centroid_m) in ("left",
+                                                                                      "right"))
+        for bp, pl, lp in zip(booth.parts, pp.plans, lps, strict=True)))
+    panels = line_panels(pp, [bp.reverse for bp in booth.parts])
     total = sum(takt.program_s([p.durations_s]) for p in panels)
     n0 = first_count(total, takt.takt_s)
     n_passes = [len(p.durations_s) for p in panels]
@@ -200,13 +224,14 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
             say(f"init: {failed[-1]}")
             continue
         built = [float(tr.duration_s) for tr in progs.static]
-        real = [takt.robot_cycle_s(b) for b in built]
-        if max(real) > takt.takt_s:
-            worst = int(np.argmax(real))
-            failed.append(f"{n}: {robots[worst].name}'s built program + return is "
-                          f"{real[worst]:.1f} s > takt {takt.takt_s:g} s")
-            continue
         cycle = float(max(len(tr.t_s) for tr in progs.trajs) - 1) * progs.trajs[0].dt_s
+        if cycle > takt.max_cycle_s():
+            delays = progs.record.get("start_delays_s", [])
+            failed.append(f"{n}: the booth's cycle {cycle:.1f} s (start delays "
+                          f"{', '.join(f'{d:.1f}' for d in delays)} s) + the carriages' return "
+                          f"{takt.robot_cycle_s(cycle) - cycle:.1f} s > takt {takt.takt_s:g} s")
+            say(f"init: {failed[-1]}")
+            continue
         return Line(cand, takt, shares, built, cycle, n0, n_passes, total, failed, frames,
                     {"start_delays_s": progs.record.get("start_delays_s", []),
                      "body_clearance": progs.record.get("body_clearance", {})})

@@ -11,6 +11,7 @@ a temporary folder first.
 from __future__ import annotations
 
 import json
+import math
 import tempfile
 import textwrap
 from collections.abc import Callable, Sequence
@@ -25,10 +26,6 @@ from paintcell.booth.line_takt import UTILISATION
 from paintcell.core.errors import PaintcellError
 
 __all__ = ["init_body_line", "init_line", "line_toml"]
-
-#: The booth cycle's threshold over the verified one [-] (room for the run's own moves).
-CYCLE_MARGIN = 1.15
-
 
 def _v(x: Any) -> str:
     return json.dumps(list(x) if isinstance(x, tuple) else x)
@@ -82,7 +79,10 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         "car). Each rail is centred on its robot's stretch of the car (robots of one zone at "
         "least 1.5 m apart) and reaches that stretch plus the body's travel while it paints and "
         "0.3 m at each end; a robot sharing its side parks past its stretch and past the body's "
-        "travel.",
+        "travel. The floor robots of one side share its rail line: each carriage keeps to its "
+        "own stretch of it as planned (`carriage`), at least 1.5 m from its neighbour's, and the "
+        "conveyor tracking moves every carriage alike, so they never pass each other; both run "
+        "their panels front to rear, the top robots theirs rear to front.",
         "Allocation (fixed below, pass ranges of the plan at 0.025 m, which both resolutions "
         "use): by zone, each zone's jobs front to rear cut into contiguous runs of least longest "
         "program (bisection with a greedy fill; a panel cut once at a pass boundary when it "
@@ -90,7 +90,11 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         *rows,
         f"Verified booth cycle (one body, start delays "
         f"{', '.join(f'{d:.1f}' for d in line.record.get('start_delays_s', []))} s): "
-        f"{line.cycle_s:.1f} s; its threshold {CYCLE_MARGIN:g} × that.",
+        f"{line.cycle_s:.1f} s. Every carriage tracks the body to the cycle's end and all run "
+        "back together (the body's travel over the cycle, so carriages of one rail line keep "
+        "their order); the threshold is the longest cycle whose return still fits the takt: "
+        f"{t.max_cycle_s():.2f} s + {t.robot_cycle_s(t.max_cycle_s()) - t.max_cycle_s():.2f} s "
+        f"= {t.takt_s:g} s.",
         "The film: each panel refined with every pass's duration held (film_refine_pace), so "
         "the programs keep the durations estimated; the speeds are not re-planned per robot "
         "(robot_aware_speeds = false) so the programs run are the ones verified."]
@@ -98,11 +102,13 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
     parts = ""
     for f, side, bp in zip(files, sides, b.parts, strict=True):
         planner = "".join(f"{k} = {_v(v)}\n" for k, v in bp.planner.items())
+        rev = ("reverse = true   # its passes top to bottom (paintcell.app.init_line.top_first)"
+               "\n" if bp.reverse else "")
         parts += f"""
 [[parts]]
 xyz_m = [0.0, 0.0, 0.0]
 rpy_rad = [0.0, 0.0, 0.0]
-[parts.part]
+{rev}[parts.part]
 file = {_v(f)}   # relative to this file; the body frame, metres
 units = "m"
 pieces = "all"
@@ -115,12 +121,15 @@ side = {_v([round(float(x), 6) for x in side])}
     # motion across it to the arm's IK (`paintcell.booth.conveyor.track_program`)
     for r in b.robots:
         x, y, z = r.base.xyz_m
+        carriage = "" if r.carriage_m is None else (
+            f"# its own stretch of the side's rail line as planned (the body at its place)\n"
+            f"carriage = {_v([round(v, 4) for v in r.carriage_m])}\n")
         robots += f"""
 [[robots]]
 name = {_v(r.name)}
 model = "irb5500"
 rail = {_v([round(v, 4) for v in r.rail_m])}
-home = {_v(list(r.home))}
+{carriage}home = {_v(list(r.home))}
 # rail frame at x = {x:.2f} m, {abs(y):.2f} m {'left (+y)' if y > 0 else 'right (−y)'}, {z:.2f} m
 # up; the arm faces the body, the carriage runs along the conveyor
 [robots.base]
@@ -140,7 +149,7 @@ rpy_rad = {_v([float(v) for v in r.base.rpy_rad])}
     alloc = "".join(f"{name} = {_v([list(j) for j in jobs])}\n"
                     for name, jobs in b.allocation.items())
     traj = "".join(f"{k} = {_v(v)}\n" for k, v in b.trajectory.items())
-    cycle = round(CYCLE_MARGIN * line.cycle_s, 1)
+    cycle = math.floor(t.max_cycle_s() * 100) / 100
     return f"""{text}
 name = {_v(b.name)}
 resolution_m = {b.fast_resolution_m}
@@ -191,6 +200,7 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
 
     from paintcell.app.init_line import choose_line, panel_booth
     from paintcell.booth.booth_plans import plan_parts
+    from paintcell.booth.line_allocation import check_body_frame
     from paintcell.booth.line_takt import LineTakt
     from paintcell.core.atomic_io import atomic_path, atomic_write_text
     from paintcell.core.safe_paths import check_new_target
@@ -209,6 +219,8 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
     stems = [f"{i:02d}_" + "".join(c if c.isalnum() or c in "_-" else "_" for c in str(p.name))
              for i, p in enumerate(panels)]
     verts = np.concatenate([np.asarray(p.mesh.vertices, float) for p in panels])
+    check_body_frame(verts.min(0), verts.max(0), [p.direction for p in panels],
+                     [np.asarray(p.mesh.vertices, float).mean(0) for p in panels])
     takt = LineTakt(float(takt_s), float(np.ptp(verts[:, 0])))
     name = name or "".join(c if c.isalnum() or c in "_-" else "_" for c in out.stem)
     sides = [tuple(float(x) for x in p.direction) for p in panels]

@@ -33,10 +33,17 @@ SIDE_GAPS_M = (1.9, 1.6, 2.2)
 #: arms, where an elevated rail at the roof's height stands in their way.
 WALL_GAPS_M = (1.3, 1.6, 1.9)
 WALL_Z_M = 3.0
-#: Home of a wall-mounted robot: carriage at 0, the arm folded over the body (roof_r's).
-WALL_HOME = (0.0, 0.0, -0.9, 0.9, 0.0, 0.6, 0.0)
+#: Home of a wall-mounted robot: carriage at 0, the arm raised over the car's centre line (the
+#: bell about 0.6 m above the roof, measured on the generated SUV), clear of the floor robots'
+#: arms below it at the car's sides (folded beside the body at window height, as roof_r's home,
+#: its bell came within 0.1 m of a floor robot's painting a door's window frame).
+WALL_HOME = (0.0, 0.0, -1.4, 0.4, 0.0, 1.0, 0.0)
 #: How far past its stretch of the car a robot parks when it shares its side [m].
 PARK_M = 1.5
+#: How far past its stretch a top robot parks [m]: beyond the floor robots of its side, which
+#: park `PARK_M` past theirs at about the same x (the stretches of both end at the car's ends),
+#: so the two folded arms do not stand over one spot (measured: 0.5 m apart at `PARK_M`).
+TOP_PARK_M = 1.5
 #: Least distance between the rail centres of two robots of one zone [m].
 STATION_SPACING_M = 1.5
 #: Gap beside the top panels' box of an elevated rail frame [m], tried in this order.
@@ -45,6 +52,12 @@ TOP_GAPS_M = (1.0, 0.7, 1.3)
 TOP_DROPS_M = (0.05, 0.35)
 #: Further carriage travel at each end of a rail [m].
 RAIL_MARGIN_M = 0.3
+#: Least distance between the carriages of two floor robots of one side, centre to centre [m]:
+#: an IRB 5500's rail carriage is about 1.2 m long (its riser plate; estimate), + 0.3 m between.
+CARRIAGE_GAP_M = 1.5
+#: Carriage positions a stretch's reach is scanned at, along the rail [m] (the booth's own
+#: `paintcell.booth.booth.RAIL_STEP_M`).
+STRETCH_STEP_M = 0.12
 #: Home of a floor robot: carriage at 0, the arm folded low (the wrist centre ~1.75 m up) so an
 #: elevated robot's carriage passes over it (scenarios/booth.toml's side robots).
 SIDE_HOME = (0.0, 0.0, -0.6, 0.9, 0.0, 0.6, 0.0)
@@ -85,14 +98,17 @@ def _sides_and_parks(shares: list[RobotShare], stations: list[float]
             for s in shares]
     park = [0] * len(shares)
     for side in (True, False):
-        idx = sorted((i for i in range(len(shares)) if left[i] == side),
-                     key=lambda i: -stations[i])
-        for k, i in enumerate(idx):
-            # the middle one (and a lone one) toward the front on the left, the rear on the right
-            park[i] = 1 if 2 * k + 1 < len(idx) else -1 if 2 * k + 1 > len(idx) \
-                else (1 if side else -1)
-        if len(idx) == 1 and not (len(tops) > 1 and shares[idx[0]].zone.startswith("top")):
-            park[idx[0]] = 0         # alone on its side, no top partner across: at its station
+        for top in (False, True):       # the floor rail line and the wall or elevated one
+            idx = sorted((i for i in range(len(shares)) if left[i] == side
+                          and shares[i].zone.startswith("top") == top),
+                         key=lambda i: -stations[i])
+            for k, i in enumerate(idx):
+                # the middle one (and a lone one) toward the front on the left, the rear on the
+                # right
+                park[i] = 1 if 2 * k + 1 < len(idx) else -1 if 2 * k + 1 > len(idx) \
+                    else (1 if side else -1)
+            if len(idx) == 1 and not (top and len(tops) > 1):
+                park[idx[0]] = 0     # alone on its rail line, no top partner across: at station
     return left, park
 
 
@@ -105,9 +121,10 @@ def _robot_frames(share: RobotShare, k: int, pts: np.ndarray, x_m: float, left: 
     from paintcell.core.placement import Placement
 
     reach = float(np.abs(pts[:, 0] - x_m).max())
-    half = round(reach + (PARK_M if park else 0.0) + track_m + RAIL_MARGIN_M, 3)
+    park_m = PARK_M if share.zone in ("left", "right") else TOP_PARK_M
+    half = round(reach + (park_m if park else 0.0) + track_m + RAIL_MARGIN_M, 3)
     # the carriage runs along world +x on the left, −x on the right (the arm faces the car)
-    home0 = round(park * (reach + PARK_M) * (1.0 if left else -1.0), 3)
+    home0 = round(park * (reach + park_m) * (1.0 if left else -1.0), 3)
     name = f"{share.zone}_{k}" if share.zone in ("left", "right") \
         else f"top_{'left' if left else 'right'}_{k}"
     out = []
@@ -139,6 +156,62 @@ def _robot_frames(share: RobotShare, k: int, pts: np.ndarray, x_m: float, left: 
     return out
 
 
+def _carriage_x(robot: Any, tcp: list[np.ndarray]) -> np.ndarray:
+    """(P, 2) the least and the most world x [m] of the carriage from which the rail robot
+    (its rail the planner's) reaches each of the passes `tcp` (P × (M, 4, 4)) in closed form
+    (`paintcell.robots.rail.rail_cost`, every `STRETCH_STEP_M`); NaN where none does."""
+    from paintcell.robots.ik import IKSettings
+    from paintcell.robots.rail import rail_cost
+
+    spec, T = robot.rail.spec, robot.rail.T_world_rail
+    n = max(2, int(np.ceil((spec.upper_m - spec.lower_m) / STRETCH_STEP_M)) + 1)
+    grid = np.linspace(spec.lower_m, spec.upper_m, n)
+    x = T[0, 3] + grid * T[0, 1]
+    out = np.full((len(tcp), 2), np.nan)
+    for i, Tp in enumerate(tcp):
+        keep = np.unique(np.linspace(0, len(Tp) - 1, 40).astype(int))
+        js = max(1.0, (len(Tp) - 1) / max(len(keep) - 1, 1))
+        ok = np.array([rail_cost(robot, Tp[keep], s, robot.rail.arm.q_home, IKSettings(), js)[1]
+                       for s in grid])
+        if ok.any():
+            out[i] = x[ok].min(), x[ok].max()
+    return out
+
+
+def carriage_stretches(reach_x: list[np.ndarray], gap_m: float = CARRIAGE_GAP_M
+                       ) -> list[tuple[float, float]] | str:
+    """World x stretches [m] (lower, upper) for the carriages of the robots of one rail line,
+    front (largest x) to rear, that keep neighbours `gap_m` apart: robot k's stretch ends where
+    robot k + 1's begins + gap, the boundary midway in the room both leave. reach_x: per robot,
+    (P, 2) the least and most carriage x from which it reaches each of its passes
+    (`_carriage_x`). Returns the stretches (outer ends ±inf), or why two neighbours cannot be
+    kept apart."""
+    bounds = [np.inf]
+    for k in range(len(reach_x) - 1):
+        upper = float(np.nanmin(reach_x[k][:, 1])) - gap_m / 2     # robot k: every pass above
+        lower = float(np.nanmax(reach_x[k + 1][:, 0])) + gap_m / 2  # robot k+1: every one below
+        if not lower <= upper:
+            return (f"robots {k + 1} and {k + 2} of one rail line need their carriages within "
+                    f"{lower - upper + gap_m:.2f} m of each other (< {gap_m} m apart) to reach "
+                    "their passes")
+        bounds.append(0.5 * (lower + upper))
+    bounds.append(-np.inf)
+    return [(bounds[k + 1] + gap_m / 2 if k + 1 < len(reach_x) else -np.inf,
+             bounds[k] - gap_m / 2 if k > 0 else np.inf) for k in range(len(reach_x))]
+
+
+def _on_stretch(cand: Any, x_lo: float, x_hi: float) -> Any:
+    """The `BoothRobot` cand with `carriage_m`: the world x stretch [x_lo, x_hi] [m] in its rail
+    coordinate, within its rail (None: the whole rail)."""
+    T = cand.base.matrix
+    d = float(T[0, 1])                              # world x per metre of carriage travel
+    s = sorted(((x_lo - T[0, 3]) / d, (x_hi - T[0, 3]) / d))
+    lo, hi = max(s[0], cand.rail_m[0]), min(s[1], cand.rail_m[1])
+    if lo <= cand.rail_m[0] and hi >= cand.rail_m[1]:
+        return cand
+    return replace(cand, carriage_m=(round(float(lo), 4), round(float(hi), 4)))
+
+
 class ProgramBuilder:
     """Each robot's program alone, as the booth builds it (`paintcell.booth.booth_job_programs`:
     IK, moves, clearance from the whole body), on the plans as the booth finishes them."""
@@ -168,8 +241,9 @@ class ProgramBuilder:
         robot = load_robots(booth)[0]
         T_wb = booth.body_placement.matrix
         probe = BodyProbe(robot, self.fin.body, T_wb, self.part_of)
+        planner = load_robots(booth, stretch=True)[0]
         try:
-            robot_programs(booth, [robot], self.fin.plans, {0: jobs}, T_wb,
+            robot_programs(booth, [planner], self.fin.plans, {0: jobs}, T_wb,
                            self.pp.T_body_parts, {}, [probe])
         except PaintcellError as exc:
             return str(exc).split("; ")[0][:160]
@@ -194,15 +268,41 @@ def place_robots(booth: Any, pp: Any, shares: list[RobotShare], track_m: float,
            + T_wb[:3, 3] for s in shares]
     stations = _stations(shares, pts)
     sides, parks = _sides_and_parks(shares, stations)
+    tcps = [[T_wb @ pp.plans[j.part].tcp_frames(i) for j in share.jobs
+             for i in range(j.first, j.end)] for share in shares]
+    cands, nth = [], []
     for share, p, x, left, park in zip(shares, pts, stations, sides, parks, strict=True):
         counts[share.zone] = counts.get(share.zone, 0) + 1
-        tcp = [T_wb @ pp.plans[j.part].tcp_frames(i) for j in share.jobs
-               for i in range(j.first, j.end)]
+        nth.append(counts[share.zone])
+        cands.append(_robot_frames(share, counts[share.zone], p, x, left, park, body_lo,
+                                   body_hi, track_m))
+    # floor robots of one side share its rail line: each carriage to its own stretch of it
+    for zone in ("left", "right"):
+        idx = sorted((i for i, s in enumerate(shares) if s.zone == zone),
+                     key=lambda i: -stations[i])
+        if len(idx) < 2:
+            continue
+        reach = []
+        for i in idx:
+            for _, cand in cands[i]:
+                robot = load_robots(replace(booth, robots=(cand,), allocation=None),
+                                    track_m)[0]
+                got = _carriage_x(robot, tcps[i])
+                if not np.isnan(got).any():
+                    break
+            reach.append(got)
+        stretch = carriage_stretches(reach)
+        if isinstance(stretch, str):
+            return f"the {zone} side: {stretch}"
+        for i, (x_lo, x_hi) in zip(idx, stretch, strict=True):
+            cands[i] = [(text + f", its carriage kept to x {x_lo:+.2f}..{x_hi:+.2f} m"
+                         .replace("inf", "∞"), _on_stretch(c, x_lo, x_hi))
+                        for text, c in cands[i]]
+    for share, tcp, cand_list, k in zip(shares, tcps, cands, nth, strict=True):
         reach, missed = [], None
         owner = [j.part for j in share.jobs for _ in range(j.first, j.end)]
-        for text, cand in _robot_frames(share, counts[share.zone], p, x, left, park, body_lo,
-                                        body_hi, track_m):
-            robot = load_robots(replace(booth, robots=(cand,), allocation=None))[0]
+        for text, cand in cand_list:
+            robot = load_robots(replace(booth, robots=(cand,), allocation=None), stretch=True)[0]
             ok = [pass_feasible(robot, T) for T in tcp]
             if all(ok):
                 reach.append((text, cand))
@@ -210,7 +310,7 @@ def place_robots(booth: Any, pp: Any, shares: list[RobotShare], track_m: float,
                 missed = [o for o, k in zip(owner, ok, strict=True) if not k]
         if not reach:
             names = ", ".join(booth.parts[i].part for i in dict.fromkeys(missed or []))
-            return (f"the {share.zone} robot {counts[share.zone]} misses {len(missed or [])} "
+            return (f"the {share.zone} robot {k} misses {len(missed or [])} "
                     f"pass(es) of {names} from every rail frame tried")
         frames.append(reach)
     if builder is None:

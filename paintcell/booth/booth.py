@@ -72,7 +72,11 @@ class BoothRobot:
     "<arm>_rail"). base: base placement in the world (a rail robot: its rail frame; the carriage
     slides along the frame's +y). home: joint values [rad] (rail: [m] first) where its program
     starts and ends (None: the model's home). rail_m: (lower, upper) carriage travel of a rail
-    robot [m] (None: `paintcell.robots.rail.RailSpec`'s ±2 m).
+    robot [m] (None: `paintcell.robots.rail.RailSpec`'s ±2 m). carriage_m: (lower, upper) the
+    stretch of its rail [m] the carriage keeps to while the body stands at its nominal place
+    (the program as planned; None: the whole rail less the conveyor's travel). The conveyor
+    tracking then moves every carriage by the same distance at each instant, so robots on one
+    rail line whose stretches are disjoint keep their order and their distance.
     """
 
     name: str
@@ -80,6 +84,7 @@ class BoothRobot:
     base: Placement = Placement()
     home: tuple[float, ...] | None = None
     rail_m: tuple[float, float] | None = None
+    carriage_m: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if not self.name or not all(c.isalnum() or c in "_-" for c in self.name):
@@ -95,6 +100,16 @@ class BoothRobot:
                                           and np.isfinite(x) for x in r) and r[0] < r[1]):
             raise BoothError(f"robot {self.name!r}: rail_m = {r!r} must be (lower, upper) "
                              "carriage travel [m] with lower < upper")
+        c = self.carriage_m
+        if c is not None:
+            travel = r if r is not None else (-2.0, 2.0)
+            if not (len(c) == 2 and all(np.isfinite(x) for x in c)
+                    and travel[0] <= c[0] < c[1] <= travel[1]):
+                raise BoothError(f"robot {self.name!r}: carriage_m = {c!r} must be (lower, upper) "
+                                 f"[m] with lower < upper inside its rail {tuple(travel)!r}")
+            if self.home is not None and not c[0] <= self.home[0] <= c[1]:
+                raise BoothError(f"robot {self.name!r}: home[0] = {self.home[0]:g} m lies off "
+                                 f"its carriage stretch {tuple(c)!r} m; move it into the stretch")
 
 
 @dataclass(frozen=True)

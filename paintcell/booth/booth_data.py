@@ -14,7 +14,9 @@
     [planner] [trajectory] [servo] [disturbances] [thresholds]
 
 A `[[robots]]` table with `rail` puts the arm on a linear rail with that carriage travel [m]
-(the base is then the rail frame, `paintcell.robots.rail`). `allocation` (optional table: robot name
+(the base is then the rail frame, `paintcell.robots.rail`); `carriage = [lower, upper]` keeps the
+carriage of the program as planned to that stretch of it (`BoothRobot.carriage_m`: robots
+sharing a rail line, kept in order). `allocation` (optional table: robot name
 →
 [part index, first pass, end pass], or a list of them) fixes the jobs; `max_jobs_per_robot`
 (default 1) lets the automatic allocation give a robot up to that many jobs, run one after the
@@ -64,7 +66,7 @@ _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor
         "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds",
         "spec", "generated_body")
 _PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse", "robots")
-_ROBOT = ("name", "model", "base", "home", "rail")
+_ROBOT = ("name", "model", "base", "home", "rail", "carriage")
 _PLACEMENT = ("xyz_m", "rpy_rad")
 
 
@@ -149,8 +151,20 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
     for i, r in enumerate(d["robots"]):
         r = _check_keys(r, _ROBOT, f"{where} [[robots]] #{i}")
         name, model, rail, home = check_robot(r, i, where, seen)
-        robots.append(BoothRobot(name, model, _placement(r.get("base", {}), f"{where} "
-                                                         f"[[robots]] {name} base"), home, rail))
+        carriage = None
+        if "carriage" in r:
+            if rail is None:
+                raise BoothDataError(f"{where} [[robots]] {name}: carriage needs rail = [lower, "
+                                     "upper] (a stretch of the robot's rail)")
+            lo, hi = numbers(r["carriage"], 2, f"{where} [[robots]] {name} carriage", rail[0],
+                             rail[1], "m", example=f"[{rail[0]:g}, {rail[1]:g}]")
+            carriage = (lo, hi)
+        try:
+            robots.append(BoothRobot(name, model, _placement(r.get("base", {}), f"{where} "
+                                                             f"[[robots]] {name} base"), home,
+                                     rail, carriage))
+        except PaintcellError as exc:
+            raise BoothDataError(f"{where}: {exc}") from exc
     conv = _check_keys(d.get("conveyor", {}), tuple(f.name for f in fields(Conveyor)),
                        f"{where} [conveyor]")
     for k, v in conv.items():

@@ -171,30 +171,43 @@ def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
                         if failed else ""))
 
 
-def load_robots(booth: Booth, rail_shrink_m: float = 0.0) -> list[Any]:
+def load_robots(booth: Booth, rail_shrink_m: float = 0.0, stretch: bool = False) -> list[Any]:
     """The booth's robots; rail robots with their travel shrunk by rail_shrink_m at both ends
-    (for planning the passes' carriage positions, leaving room for conveyor tracking)."""
+    (for planning the passes' carriage positions, leaving room for conveyor tracking) and, with
+    `stretch`, limited to their `BoothRobot.carriage_m` (the planning models; without it, the
+    models that execute, on their whole rail)."""
     from paintcell.robots import load_robot
     from paintcell.robots.rail import RailSpec, load_rail_robot
 
     out = []
     for r in booth.robots:
-        if r.rail_m is not None or (rail_shrink_m > 0 and r.model.endswith("_rail")):
+        keep = stretch and r.carriage_m is not None
+        if r.rail_m is not None or keep or (rail_shrink_m > 0 and r.model.endswith("_rail")):
             if not r.model.endswith("_rail"):
                 raise BoothError(f"robot {r.name!r} has rail_m but model {r.model!r} has no "
                                  "rail; use '<arm>_rail'")
             rng = r.rail_m if r.rail_m is not None else (-2.0, 2.0)
             lo, hi = rng[0] + rail_shrink_m, rng[1] - rail_shrink_m
+            if keep:
+                assert r.carriage_m is not None
+                lo, hi = max(lo, r.carriage_m[0]), min(hi, r.carriage_m[1])
             if lo >= hi:
                 raise BoothError(f"robot {r.name!r}: the conveyor tracking needs "
-                                 f"{2 * rail_shrink_m:.2f} m of its rail; lengthen rail_m or "
-                                 "slow the line")
+                                 f"{2 * rail_shrink_m:.2f} m of its rail"
+                                 + (f" beyond its carriage stretch {list(r.carriage_m)} m"
+                                    if keep else "")
+                                 + "; lengthen rail_m or slow the line")
             out.append(load_rail_robot(r.model[:-5], T_world_rail=r.base.matrix,
                                        rail=RailSpec(lower_m=lo, upper_m=hi,
                                                      home_m=min(max(0.0, lo), hi))))
         else:
             out.append(load_robot(r.model, T_world_base=r.base.matrix))
     return out
+
+
+def _stretched(booth: Booth) -> bool:
+    """Whether a robot keeps its carriage to a stretch of its rail (`BoothRobot.carriage_m`)."""
+    return any(r.carriage_m is not None for r in booth.robots)
 
 
 def body_probe(booth: Booth, robot: Any, body: Surface, part_counts: tuple[int, ...]) -> Any:
@@ -220,8 +233,8 @@ def _worker_state(run_key: str, booth: Booth, body: Surface, part_counts: tuple[
         st = _LOCAL.state = {"key": run_key, "robots": load_robots(booth), "planners": {},
                              "probes": {}}
     if shrink_m not in st["planners"]:
-        st["planners"][shrink_m] = load_robots(booth, shrink_m) if shrink_m > 0 \
-            else st["robots"]
+        st["planners"][shrink_m] = load_robots(booth, shrink_m, stretch=True) \
+            if shrink_m > 0 or _stretched(booth) else st["robots"]
     if probes and r not in st["probes"]:
         st["probes"][r] = body_probe(booth, st["robots"][r], body, part_counts)
     return st["planners"][shrink_m][r], st["probes"][r] if probes else None

@@ -178,7 +178,8 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
     per robot, its `paintcell.booth.booth_clearance.BodyProbe` (None: no body clearance).
     remote_of(plans, shrink_m): the `paintcell.booth.booth_tasks.JobPrograms` that builds the
     programs of each allocation tried on a pool, all its robots' jobs at once (None: here)."""
-    planners = load_robots(booth, shrink_m) if shrink_m > 0 else robots
+    planners = load_robots(booth, shrink_m, stretch=True) \
+        if shrink_m > 0 or any(r.carriage_m is not None for r in booth.robots) else robots
     remote = None if remote_of is None else remote_of(plans, shrink_m)
     cache: dict[tuple[int, Job], JointTrajectory | PaintcellError] = {}
     chained: dict[tuple[int, tuple[Job, ...]], int] = {}   # a robot's jobs as built [samples]

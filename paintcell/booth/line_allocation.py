@@ -21,12 +21,20 @@ does not fit whole is cut once at a pass boundary, its first piece to the robot 
 the rest to the next (a booth job of two pieces, as `paintcell.booth.booth.job_options`).
 Robots are given to the zone whose longest program is longest, one at a time.
 
-Order: neighbouring floor robots of one side work away from each other — the first (front) one
-runs its jobs rear to front, the second front to rear, and so on — so they start at their
-common boundary, one of them held back by the booth's staggering
-(`paintcell.booth.booth_stagger`), and part; run in the same direction their arms meet
-wherever the two paces differ (two robots on a side, 2.2 m apart: no start delay up to 20 s
-kept them 0.6 m apart).
+Order: the floor robots of one side share its rail line, each carriage kept to its own stretch
+of it (`paintcell.app.init_line_robots.carriage_stretches`), so a side's jobs go to its robots
+whole (a side panel's passes run along the car: its pieces, cut at a pass boundary, would lie
+at one stretch of the car and put two carriages on it). Every robot runs its jobs front to rear,
+so neighbours chase each other down the car and the front one comes to the panel beside the
+rear one's first after its own first jobs; the booth's staggering
+(`paintcell.booth.booth_stagger`) holds one back where their paces differ. (Run away from each
+other, both start at their common boundary and one waits for the other's whole first panel.)
+The top robots run theirs rear to front, against the floor robots: a top robot's outer passes
+(the roof's, the hood's and the tailgate's edges) lie beside the floor robots' top passes (the
+window frames, the fender's and the bumpers' tops); measured on the generated SUV, run front to
+rear too the left top robot ended on the tailgate as the rear floor robot ended on the rear
+bumper below it, at every start delay up to 20 s; rear to front it kept 0.6 m from both left
+floor robots at zero delay.
 
 Why not the booth's enumeration (`paintcell.booth.booth.rank_allocations`): it tries every cut
 of every part against every assignment of jobs to robots — a product over the parts of their cut
@@ -46,19 +54,18 @@ import numpy as np
 from paintcell.booth.booth import Job, estimate_s
 
 __all__ = ["FLOOR_ROBOTS_PER_SIDE", "TOP_MIN_Z", "LinePanel", "RobotShare", "allocate_line",
-           "floor_robots_max", "zone_of"]
+           "check_body_frame", "floor_robots_max", "zone_of"]
 
 #: A panel whose unit painted-side vector has at least this z is a top panel [-].
 TOP_MIN_Z = 0.6
 #: A fascia whose centroid lies within this of the car's centre line straddles it [m].
 FASCIA_MID_M = 0.1
-#: Most floor robots on one side of the car [robots]. Robots of one side share its rail line,
-#: whose carriages cannot pass each other, but the booth plans each carriage on a rail of its
-#: own: two robots on a side, 2.2 m apart, drove their carriages through each other (the bases
-#: met while each arm reached 1.9 m from its carriage toward the other robot's stretch, at every
-#: start delay up to 20 s, in either order of their jobs). Until carriages of one rail line are
-#: kept in order, a side takes one floor robot; the line's takt follows from it.
-FLOOR_ROBOTS_PER_SIDE = 1
+#: Most floor robots on one side of the car [robots]: two carriages on one floor rail line, each
+#: on its own stretch of it (module doc); a third would stand on a stretch of about a panel.
+FLOOR_ROBOTS_PER_SIDE = 2
+#: Largest offset of the body's centre line from y = 0 the zones accept [m] (a body is
+#: symmetric about it; sides, fascia halves and top pieces are told apart by the sign of y).
+CENTRE_TOL_M = 0.05
 #: Bisection steps on the longest program (the bound's bracket shrinks 2⁻⁴⁰).
 _BISECT_STEPS = 40
 
@@ -85,13 +92,45 @@ class LinePanel:
 @dataclass(frozen=True)
 class RobotShare:
     """One robot of the line: zone ("left", "right": floor rails; "top_left", "top_right":
-    elevated rails), its jobs (part index, passes [first, end)) in the order it runs them (front
-    to rear, a side's first, third, … floor robot rear to front: module doc), and its estimated
-    program [s]."""
+    elevated rails), its jobs (part index, passes [first, end)) in the order it runs them (a floor
+    robot front to rear, a top robot rear to front: module doc), and its estimated program
+    [s]."""
 
     zone: str
     jobs: tuple[Job, ...]
     program_s: float
+
+
+def check_body_frame(lo_m: Sequence[float], hi_m: Sequence[float],
+                     sides: Sequence[Sequence[float]] = (),
+                     centroids_m: Sequence[Sequence[float]] = ()) -> None:
+    """Refuse (PaintcellError, one line) a body not laid out as the zones read it: its box
+    [lo_m, hi_m] (body frame) [m] longer along x than along y; each side panel (`zone_of`; its
+    painted side and centroid [m] given) on the side its painted side faces; and, when side
+    panels face both ways (a whole body), the box's centre line on y = 0 within `CENTRE_TOL_M`.
+    Otherwise panels go to the wrong side, and the top panels and fascias are cut off the centre
+    line, silently."""
+    from paintcell.core.errors import PaintcellError
+
+    lo, hi = np.asarray(lo_m, float), np.asarray(hi_m, float)
+    size = hi - lo
+    mid = 0.5 * (lo[1] + hi[1])
+    fix = (f"move the body file by {-mid:+.3f} m in y" if abs(mid) > CENTRE_TOL_M
+           else "check its axes")
+    if size[0] <= size[1]:
+        raise PaintcellError(f"the body is {size[0]:.2f} m along x and {size[1]:.2f} m along y: "
+                             "a paint line needs the car's length along x (its front toward "
+                             "+x, z up); rotate the body file")
+    zones = [zone_of(sd, c) for sd, c in zip(sides, centroids_m, strict=True)]
+    for z, c in zip(zones, centroids_m, strict=True):
+        if z in ("left", "right") and (c[1] > 0) != (z == "left"):
+            raise PaintcellError(f"a panel facing {'+' if z == 'left' else '−'}y lies at y = "
+                                 f"{c[1]:+.3f} m: a paint line needs the car's centre line on "
+                                 f"y = 0 (its y from {lo[1]:+.3f} to {hi[1]:+.3f} m); {fix}")
+    if {"left", "right"} <= set(zones) and abs(mid) > CENTRE_TOL_M:
+        raise PaintcellError(f"the body's centre line lies at y = {mid:+.3f} m (its y from "
+                             f"{lo[1]:+.3f} to {hi[1]:+.3f} m): a paint line needs it on y = 0 "
+                             f"(±{CENTRE_TOL_M} m) to tell its sides apart; {fix}")
 
 
 def zone_of(side: Sequence[float], centroid_m: Sequence[float]) -> str:
@@ -174,9 +213,10 @@ def _job_s(panels: Sequence[LinePanel], j: Job) -> float:
 
 
 def _fill(panels: Sequence[LinePanel], jobs: list[Job], k: int, bound_s: float,
-          cost: Callable[[float], float]) -> list[list[Job]] | None:
+          cost: Callable[[float], float], cut_ok: bool = True) -> list[list[Job]] | None:
     """Greedy fill of `jobs` (in order) into at most k robots, each robot's cost(program) ≤
-    bound_s; a job that does not fit whole is cut once (module doc). None: more than k needed."""
+    bound_s; a job that does not fit whole is cut once (module doc; cut_ok False: never).
+    None: more than k needed."""
     groups: list[list[Job]] = [[]]
     queue = list(jobs)
     while queue:
@@ -186,7 +226,7 @@ def _fill(panels: Sequence[LinePanel], jobs: list[Job], k: int, bound_s: float,
             groups[-1].append(j)
             continue
         cut = j.first
-        if j.first == 0 and j.end == len(panels[j.part].durations_s):  # a whole job: cut once
+        if cut_ok and j.first == 0 and j.end == len(panels[j.part].durations_s):  # cut once
             for c in range(j.end - 1, j.first, -1):
                 if cost(used + _job_s(panels, Job(j.part, j.first, c))) <= bound_s:
                     cut = c
@@ -204,16 +244,16 @@ def _fill(panels: Sequence[LinePanel], jobs: list[Job], k: int, bound_s: float,
 
 
 def partition(panels: Sequence[LinePanel], jobs: list[Job], k: int,
-              cost: Callable[[float], float]) -> list[list[Job]]:
+              cost: Callable[[float], float], cut_ok: bool = True) -> list[list[Job]]:
     """The zone's jobs in at most k contiguous runs of least longest cost(program) (module
-    doc)."""
+    doc; cut_ok False: whole jobs only)."""
     hi = cost(sum(_job_s(panels, j) for j in jobs))
     lo = 0.0
-    best = _fill(panels, jobs, k, hi, cost)
+    best = _fill(panels, jobs, k, hi, cost, cut_ok)
     assert best is not None                          # one robot takes it all
     for _ in range(_BISECT_STEPS):
         mid = 0.5 * (lo + hi)
-        got = _fill(panels, jobs, k, mid, cost)
+        got = _fill(panels, jobs, k, mid, cost, cut_ok)
         if got is None:
             lo = mid
         else:
@@ -258,13 +298,12 @@ def allocate_line(panels: Sequence[LinePanel], n_robots: int,
         if count[z] >= most[z]:
             full.add(z)
             continue
-        got = partition(panels, zones[z], count[z] + 1, cost)
+        got = partition(panels, zones[z], count[z] + 1, cost, z not in ("left", "right"))
         if len(got) <= len(parts[z]):
             full.add(z)
             continue
         count[z] += 1
         parts[z] = got
-    return [RobotShare(z, tuple(g[::-1] if z in ("left", "right") and len(parts[z]) > 1
-                                and k % 2 == 0 else g),
+    return [RobotShare(z, tuple(g[::-1] if z.startswith("top") else g),
                        float(sum(_job_s(panels, j) for j in g)))
-            for z in zones for k, g in enumerate(parts[z])]
+            for z in zones for g in parts[z]]

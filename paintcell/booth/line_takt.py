@@ -11,6 +11,10 @@ each robot (`paintcell init BODY --line --takt T`, `paintcell.app.init_line`).
   program of P seconds (`paintcell.booth.conveyor`); before the next body it runs back that far
   at the rail's limits (a trapezoidal move at `RailSpec.v_max_m_s`, `a_max_m_s2`; a triangle
   when the run is too short to reach full speed). The program plus that return must fit T.
+- The line's cycle: every carriage tracks the body until the last robot's program ends (the
+  booth's cycle C: start delays + programs, on one clock), then all run back together, v · C
+  metres each — the same distance at the same instant, so carriages of one rail line keep their
+  order. The line meets its takt when C plus that return fits T (`max_cycle_s`).
 - Robot count: a first estimate n₀ = ⌈Σ programs / (T · UTILISATION)⌉ (no line balances its
   robots perfectly; `UTILISATION` is the share of the takt a balanced robot is busy), then the
   smallest count from there whose every robot fits, up to the line's limit.
@@ -72,6 +76,17 @@ class LineTakt:
         distance the body carried it (module doc)."""
         return program_s + return_home_s(self.conveyor_speed_m_s * program_s, v_max_m_s,
                                          a_max_m_s2)
+
+    def max_cycle_s(self, v_max_m_s: float = 1.5, a_max_m_s2: float = 4.0) -> float:
+        """The longest booth cycle C [s] whose carriages' return home (v · C metres, module
+        doc) still fits the takt: C + `return_home_s`(v · C) = T, in closed form (the
+        trapezoidal move, else the triangular one)."""
+        v, T = self.conveyor_speed_m_s, self.takt_s
+        c = (T - v_max_m_s / a_max_m_s2) / (1.0 + v / v_max_m_s)
+        if v * c * a_max_m_s2 >= v_max_m_s ** 2:
+            return max(c, 0.0)
+        r = math.sqrt(v / a_max_m_s2)                 # C + 2 r √C = T, a quadratic in √C
+        return (math.sqrt(r * r + T) - r) ** 2
 
 
 def return_home_s(distance_m: float, v_max_m_s: float = 1.5, a_max_m_s2: float = 4.0) -> float:
