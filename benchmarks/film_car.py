@@ -21,7 +21,8 @@ import time
 
 import numpy as np
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
 from paintcell.paint.deposition_samples import GunSamples

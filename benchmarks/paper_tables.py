@@ -3,7 +3,7 @@
 Run: `.venv/bin/python benchmarks/paper_tables.py [--fig5 results/fig5.png] [--resolution 0.01]
 [--json rows.json]` (`--json`: the rows as data too; `benchmarks/results.py` tables them)
 
-Every row plans a library part with `paintcell.coverage.coverage.plan_coverage`, simulates
+Every row plans a library part with `paintcell.coverage.algorithm.plan_coverage`, simulates
 the film of the
 whole plan with `paintcell.paint.deposition.thickness` on the part's vertices and reports
 σ/μ (the
@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from paintcell.core.atomic_io import atomic_path
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.index_width import nsd_vs_index_width, planar_index_width
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness

@@ -13,7 +13,8 @@ import time
 
 import numpy as np
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.paint.applicator import Applicator
 from paintcell.robots import load_robot
 from paintcell.robots.placement import facing_grid, find_base_pose

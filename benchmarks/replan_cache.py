@@ -54,7 +54,7 @@ def check(path: Path, fast: bool, n: list[int]) -> dict[str, object]:
     )
     from paintcell.app.scenario_files import load_scenario
     from paintcell.coverage import family_geometry
-    from paintcell.coverage.coverage import plan_coverage
+    from paintcell.coverage.algorithm import plan_coverage
     from paintcell.motion.speed_caps import achieved_speeds, speed_caps, tool_axes
 
     scn = load_scenario(path)
@@ -94,7 +94,7 @@ def check_booth(path: Path, fast: bool, n: list[int]) -> list[dict[str, object]]
     from paintcell.app.scenario_files import load_scenario
     from paintcell.booth.booth_plans import plan_parts
     from paintcell.coverage import family_geometry
-    from paintcell.coverage.coverage import plan_coverage
+    from paintcell.coverage.algorithm import plan_coverage
 
     booth = load_scenario(path)
     pp = plan_parts(booth, fast)

@@ -11,7 +11,7 @@ import numpy as np
 
 from paintcell.surface.curvature import discrete_curvature
 from paintcell.surface.parts import PART_NAMES, get_part
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 
 def best_of(fn, repeats: int = 3) -> float:

@@ -2,7 +2,7 @@
 arm).
 
 The door plan comes from
-`paintcell.coverage.coverage.plan_coverage(paintcell.surface.parts.door(), default
+`paintcell.coverage.algorithm.plan_coverage(paintcell.surface.parts.door(), default
 bell, default PlannerSettings())` (its planning time is printed but is not part of the trajectory
 build). The door stands upright 1.55 m in front of the arm's base, centre 1.1 m high, painted
 side toward the robot, passes horizontal (the placement of benchmarks/execution.py). Prints the
@@ -19,7 +19,8 @@ import time
 
 import numpy as np
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.motion.trajectory import TrajectorySettings, build_program
 from paintcell.paint.applicator import Applicator
 from paintcell.robots import load_robot

@@ -11,12 +11,13 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.index_width import planar_index_width
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import uniformity
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 APP = Applicator.default()
 H = 0.025                 # mesh step and pass sample spacing [m]

@@ -13,7 +13,8 @@ import pytest
 
 from paintcell.booth.booth import BoothError
 from paintcell.booth.booth_build import common_film_build
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
 from paintcell.surface import parts

@@ -10,7 +10,8 @@ import pytest
 
 from paintcell.booth.booth_build import reversed_plan
 from paintcell.booth.booth_clearance import BodyProbe, wrist_flipped_home
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
 from paintcell.robots import load_robot

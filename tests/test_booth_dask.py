@@ -135,12 +135,12 @@ def test_a_local_cluster_of_two_workers_gives_the_same_run(
     # The client may not plan a part nor build a program itself: the workers (spawned
     # processes, their own imports) must.
     from paintcell.booth import booth_job_programs
-    from paintcell.coverage import coverage
+    from paintcell.coverage import algorithm
 
     def not_here(*args: Any, **kw: Any) -> Any:
         raise AssertionError("planned or built in the client")
 
-    monkeypatch.setattr(coverage, "plan_coverage", not_here)
+    monkeypatch.setattr(algorithm, "plan_coverage", not_here)
     monkeypatch.setattr(booth_job_programs, "_clear_program", not_here)
     sent: list[str] = []
 

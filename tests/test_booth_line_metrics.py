@@ -28,7 +28,7 @@ from paintcell.booth.booth_seams import seam_band
 from paintcell.booth.booth_usage import paint_sent_m3, time_shares
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 from paintcell.validation.paint_spec import PaintSpec
 
 ROOT = Path(__file__).resolve().parents[1]

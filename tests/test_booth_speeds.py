@@ -9,7 +9,8 @@ import numpy as np
 
 from paintcell.booth.booth import Job
 from paintcell.booth.booth_build import reversed_plan
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.motion.speed_caps import (
     caps_from_speeds,
     part_speeds,

@@ -13,7 +13,7 @@ import pytest
 
 from paintcell.execution.cell import CameraSpec, Cell, build_cell
 from paintcell.execution.cell_robots import CellError
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 from tests.test_execute import make_case, make_cell
 
 

@@ -8,14 +8,15 @@ import numpy as np
 import pytest
 
 from paintcell.core.errors import PlanError
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.index_width import nsd_vs_index_width, planar_index_width
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import deposition_rate_reference, thickness
 from paintcell.paint.metrics import boundary_band_mask, boundary_vertices, uniformity
 from paintcell.surface import parts
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, KERNEL_CULL_RTOL, MESH_ARC_RTOL
 
 RES = 0.025
@@ -65,7 +66,7 @@ def test_settings_reject_bools_for_numbers(field: str) -> None:
 
 def test_plan_coverage_checks_its_inputs() -> None:
     s = parts.panel(0.1)
-    with pytest.raises(PlanError, match="needs a paintcell.surface.surface.Surface, "
+    with pytest.raises(PlanError, match="needs a paintcell.surface.analytic.Surface, "
                                          "got NoneType"):
         plan_coverage(None, APP)  # type: ignore[arg-type]
     with pytest.raises(PlanError,
@@ -358,7 +359,7 @@ def test_sphere_cap_offsets_are_small_circles_with_closed_form_geodesic_curvatur
     # lies R sin(w/R) from the centre and κ_g = tan(w/R)/R (closed forms)
     import trimesh
 
-    from paintcell.surface.surface import Surface
+    from paintcell.surface.surface_data import Surface
 
     radius = 0.6
     ico = trimesh.creation.icosphere(subdivisions=5, radius=radius)     # edges ≈ 24 mm
@@ -402,7 +403,7 @@ def test_offset_past_a_focal_point_is_refused() -> None:
     # its offsets toward the small circle's pole shrink and then pass through it (a cusp)
     import trimesh
 
-    from paintcell.surface.surface import Surface
+    from paintcell.surface.surface_data import Surface
 
     ico = trimesh.creation.icosphere(subdivisions=4, radius=0.5)
     keep = ico.triangles_center[:, 2] > 0.02

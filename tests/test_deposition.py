@@ -242,7 +242,7 @@ def test_bad_gun_samples_raise() -> None:
 
 def test_self_occlusion_of_a_convex_side_is_none(app: Applicator) -> None:
     # a Surface as its own occluder: points on its painted side are never hidden by themselves
-    from paintcell.surface.surface import plane
+    from paintcell.surface.analytic import plane
     surf = plane(0.6, 0.6, resolution_m=0.03)
     gun = GunSamples.straight_pass([-0.2, 0, 0.25], [0.2, 0, 0.25], [0, 0, -1], 0.5, 0.02)
     free = thickness(app, gun, surf.vertices, surf.normals)

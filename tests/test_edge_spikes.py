@@ -111,7 +111,7 @@ def _turns_deg(p: np.ndarray) -> np.ndarray:
 
 @pytest.mark.slow
 def test_edge_passes_of_a_framed_closed_door_do_not_turn_back(tmp_path) -> None:
-    from paintcell.coverage.coverage import plan_coverage
+    from paintcell.coverage.algorithm import plan_coverage
     from paintcell.coverage.coverage_settings import PlannerSettings
     from paintcell.paint.applicator import Applicator
     from paintcell.paint.deposition import thickness

@@ -29,7 +29,8 @@ from paintcell.execution.trace import ExecutedTrace, TraceError
 from paintcell.motion.joint_trajectory import APPROACH, PAINT, JointTrajectory
 from paintcell.paint.applicator import Applicator
 from paintcell.robots.catalog import load_robot
-from paintcell.surface.surface import Surface, plane
+from paintcell.surface.analytic import plane
+from paintcell.surface.surface_data import Surface
 from tests.helpers import REPLAY_TCP_ATOL_MM, SERVO_TRACKING_MAX_MM
 
 DT_S = 1e-3

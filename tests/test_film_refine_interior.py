@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.film_refine import refine_speeds
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import deposition_rate

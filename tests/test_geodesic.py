@@ -17,12 +17,14 @@ import pytest
 from scipy.spatial import cKDTree
 
 from paintcell.core.errors import PlanError
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.geodesic import HeatGeodesics, _dense, despike
-from paintcell.coverage.offset import SurfaceGeometry
+from paintcell.coverage.offset_sections import SurfaceGeometry
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
-from paintcell.surface.surface import Surface, cylinder, plane
+from paintcell.surface.analytic import cylinder, plane
+from paintcell.surface.surface_data import Surface
 
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 RES_M = 0.01

@@ -25,7 +25,7 @@ from paintcell.robots.catalog import load_robot
 from paintcell.robots.ik import IKPathResult
 from paintcell.robots.paths import solve_paths
 from paintcell.robots.reachability import ReachabilityReport
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 from paintcell.validation.honest_reach import honest_reachability
 from paintcell.validation.validate import validate
 from paintcell.validation.validate_report import Thresholds

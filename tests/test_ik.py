@@ -264,7 +264,8 @@ def test_seed_selects_the_nearest_comfortable_branch(abb):
 
 @pytest.fixture(scope="module")
 def door_plan():
-    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.coverage.algorithm import plan_coverage
+    from paintcell.coverage.coverage_settings import PlannerSettings
     from paintcell.paint.applicator import Applicator
     from paintcell.surface.parts import get_part
 

@@ -111,7 +111,8 @@ def test_an_arch_square_to_the_files_axes_keeps_them(arch):
 def test_passes_at_the_rail_angle_run_along_the_rails(tmp_path):
     """The planner's orientation from `rail_angle`, on an arch turned 40° off the file's axes:
     every pass's on-part chord, laid by crown_up's rotation, runs along world x within 5°."""
-    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.coverage.algorithm import plan_coverage
+    from paintcell.coverage.coverage_settings import PlannerSettings
     from paintcell.paint.applicator import Applicator
 
     path = tmp_path / "turned.stl"

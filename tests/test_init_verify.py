@@ -26,7 +26,7 @@ from paintcell.app.pipeline import (
 from paintcell.app.scenario_files import load_scenario
 from paintcell.execution.cell import build_cell
 from paintcell.motion.joint_trajectory import PAINT, JointTrajectory
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 from paintcell.surface.surface_data import surface_from_triangles
 
 PANEL = Path(__file__).resolve().parents[1] / "scenarios" / "panel.toml"

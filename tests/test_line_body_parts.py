@@ -96,7 +96,7 @@ def test_pass_orientation_runs_the_planners_passes_along_the_axis() -> None:
     from paintcell.app.init_line import pass_orientation
     from paintcell.coverage.start_curve import average_normal, select_start_curve
     from paintcell.surface import parts
-    from paintcell.surface.surface import plane
+    from paintcell.surface.analytic import plane
 
     cyl = parts.cylinder_section(0.025)            # axis x, R = 1 m
     nbar = average_normal(cyl)

@@ -16,7 +16,7 @@ from paintcell.booth.booth_checks import ARM_JOINTS, RAIL_ARMS, BoothDataError
 from paintcell.core import memory
 from paintcell.core.budget import check_planner_budget, planner_bytes
 from paintcell.core.memory import BudgetError, memory_cap_bytes
-from paintcell.coverage.coverage import PlannerSettings
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.index_width import search_range, search_size, search_widths
 from paintcell.surface.mesh_thinning import cluster_vertices
 

@@ -17,12 +17,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.notches import closed_surface, find_notches, notch_samples
 from paintcell.coverage.openings import boundary_loops
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
-from paintcell.surface.surface import Surface, grid_faces, surface_from_triangles
+from paintcell.surface.analytic import grid_faces
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 STEP = 0.02
 

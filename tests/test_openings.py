@@ -18,12 +18,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.openings import boundary_loops, filled_surface, find_openings
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import deposition_rate
-from paintcell.surface.surface import Surface, plane, surface_from_triangles
+from paintcell.surface.analytic import plane
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 WINDOW = (-0.3, 0.1, -0.12, 0.12)      # x0, x1, y0, y1 [m]
 HOLE_C, HOLE_R = (0.3, 0.15), 0.06     # service hole centre (x, y), radius [m]

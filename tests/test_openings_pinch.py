@@ -18,11 +18,13 @@ import functools
 
 import numpy as np
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.openings import boundary_loops, find_openings
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
-from paintcell.surface.surface import Surface, cylinder, plane, surface_from_triangles
+from paintcell.surface.analytic import cylinder, plane
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 R_M = 1.0                       # cylinder radius
 HOLE_C, HOLE_R = (0.05, 0.0), 0.11    # hole centre (x, y) and radius [m]

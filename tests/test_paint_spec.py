@@ -13,7 +13,7 @@ import pytest
 from paintcell.app.scenario_data import scenario_from_dict
 from paintcell.core.errors import ScenarioDataError
 from paintcell.paint.metrics import uniformity
-from paintcell.surface.surface import surface_from_triangles
+from paintcell.surface.surface_data import surface_from_triangles
 from paintcell.validation.paint_spec import (
     PaintSpec,
     SpecError,

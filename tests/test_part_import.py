@@ -15,7 +15,7 @@ from paintcell.surface.mesh_repair import repair
 from paintcell.surface.part_import import import_part
 from paintcell.surface.part_spec import MeshPart, PartSpecError
 from paintcell.surface.regions import HEM, SKIN, face_areas
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "meshes"
 needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared/meshes/ is absent")

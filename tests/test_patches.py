@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.patches import (
     extrusion_residual,
     face_normals_areas,
@@ -28,7 +29,8 @@ from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import uniformity
-from paintcell.surface.surface import Surface, grid_faces, surface_from_triangles
+from paintcell.surface.analytic import grid_faces
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 # The bracket's 0.5 m faces are sized for the narrow bell (scenarios/bells/narrow_bell.toml,
 # 160 mm widths: 4 passes a face). With the default bell (330 mm) a face holds one pass and its

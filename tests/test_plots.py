@@ -9,7 +9,7 @@ import pytest
 from PIL import Image
 
 from paintcell.output import plots
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 from tests.helpers import RENDER_MIN_PIXEL_STD
 
 

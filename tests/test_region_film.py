@@ -9,8 +9,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from paintcell.surface.analytic import plane
 from paintcell.surface.regions import REGION_NAMES, PartRegions
-from paintcell.surface.surface import plane
 from paintcell.validation.region_film import region_film
 
 

@@ -12,7 +12,7 @@ import pytest
 from PIL import Image
 
 from paintcell.output import render
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 from tests.helpers import RENDER_MIN_PIXEL_STD, RENDER_RAMP_MIN_LEVEL_GAP
 
 VMIN_UM, VMAX_UM = 10.0, 50.0

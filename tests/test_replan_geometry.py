@@ -9,7 +9,8 @@ import pytest
 
 import paintcell.coverage.coverage_planner as cp
 from paintcell.coverage import family_geometry
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.paint.applicator import Applicator
 from paintcell.surface import parts
 

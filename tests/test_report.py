@@ -18,7 +18,7 @@ from paintcell.output import report
 from paintcell.output.render import write_png, write_video
 from paintcell.output.report_figures import make_figures
 from paintcell.output.report_sections import format_value
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 
 METRICS = {
     "planned_nsd_pct": 3.21,

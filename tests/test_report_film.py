@@ -20,7 +20,7 @@ from paintcell.output.report_film import FilmFileError, histogram_png, load_film
 from paintcell.output.report_names import check_reason, headline_rows, number, with_unit
 from paintcell.output.report_sections import pass_rows
 from paintcell.paint.metrics import uniformity
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 from tests.helpers import lattice_share
 
 

@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.patches import extrusion_residual, face_normals_areas, segment
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
-from paintcell.surface.surface import Surface, grid_faces, surface_from_triangles
+from paintcell.surface.analytic import grid_faces
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 #: the plate's tongues: one every PERIOD_M along x, tips at TIP_M, notches down to NOTCH_M [m]
 PERIOD_M, TIP_M, NOTCH_M = 0.25, 0.9, 0.6

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from paintcell.core.errors import AxisTurnError, PlanError
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.smoothing import (
     limit_turn_rate,
     smooth_along,
@@ -25,7 +26,8 @@ from paintcell.motion.joint_trajectory import PAINT
 from paintcell.motion.trajectory import build_program
 from paintcell.paint.applicator import Applicator
 from paintcell.robots.catalog import load_robot
-from paintcell.surface.surface import Surface, grid_faces, plane, surface_from_triangles
+from paintcell.surface.analytic import grid_faces, plane
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 BOUND_RAD_M = 4.0
 
@@ -122,7 +124,7 @@ def test_auto_smoothing_plans_again_at_a_larger_scale_when_the_axis_cannot_follo
     4.04; the planner plans again at 2× then 4× and says so. Re-measured here on the plan's own
     samples (angle between consecutive spray axes over the path length between them), every pass
     turns under the bound; the same scale given as a number is not retried."""
-    from paintcell.coverage.coverage import AUTO_SMOOTHING_RETRIES
+    from paintcell.coverage.algorithm import AUTO_SMOOTHING_RETRIES
     from paintcell.coverage.smoothing import FOOTPRINT_FRACTION
 
     app = Applicator.default()

@@ -8,7 +8,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.motion.speed_caps import SLOW_REL, achieved_speeds, speed_caps, tool_axes
 from paintcell.motion.speed_feedback import with_targets
 from paintcell.paint.applicator import Applicator

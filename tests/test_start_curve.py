@@ -9,16 +9,13 @@ import pytest
 from paintcell.core.errors import PlanError
 from paintcell.coverage.offset import (
     IndexingCurve,
-    SurfaceGeometry,
-    arc_length,
     check_offset_order,
     curve_through,
-    geodesic_curvature,
     indexing_curves,
-    plane_sections,
-    resample,
     walk,
 )
+from paintcell.coverage.offset_polyline import arc_length, geodesic_curvature, resample
+from paintcell.coverage.offset_sections import SurfaceGeometry, plane_sections
 from paintcell.coverage.start_curve import (
     altitude_sweep,
     average_normal,
@@ -26,7 +23,7 @@ from paintcell.coverage.start_curve import (
     select_start_curve,
 )
 from paintcell.surface import parts
-from paintcell.surface.surface import plane
+from paintcell.surface.analytic import plane
 from tests.helpers import FLAT_GEOMETRY_ATOL_M, MESH_ARC_RTOL
 
 RES = 0.025
@@ -226,7 +223,7 @@ def test_sphere_cap_start_curve_is_a_great_circle_through_the_axis() -> None:
     icosphere edges, 1.2e-4 m) in a plane through the centre."""
     import trimesh
 
-    from paintcell.surface.surface import Surface
+    from paintcell.surface.surface_data import Surface
 
     radius = 0.6
     ico = trimesh.creation.icosphere(subdivisions=5, radius=radius)

@@ -20,7 +20,8 @@ import pytest
 
 from paintcell.coverage.openings import boundary_loops, find_openings, vertex_pieces
 from paintcell.coverage.stitch import stitched_surface
-from paintcell.surface.surface import Surface, grid_faces, surface_from_triangles
+from paintcell.surface.analytic import grid_faces
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 STEP = 0.02
 WIN_W, WIN_H, GAP = 0.64, 0.32, 0.015

@@ -8,15 +8,8 @@ import pytest
 import trimesh
 
 from paintcell.core.errors import SurfaceError
-from paintcell.coverage.offset import SurfaceGeometry
-from paintcell.surface.curvature import (
-    boundary_vertex_mask,
-    discrete_curvature,
-    mixed_voronoi_areas,
-    vertex_normals,
-)
-from paintcell.surface.surface import (
-    Surface,
+from paintcell.coverage.offset_sections import SurfaceGeometry
+from paintcell.surface.analytic import (
     bspline_patch,
     cylinder,
     extruded,
@@ -24,6 +17,13 @@ from paintcell.surface.surface import (
     grid_faces,
     plane,
 )
+from paintcell.surface.curvature import (
+    boundary_vertex_mask,
+    discrete_curvature,
+    mixed_voronoi_areas,
+    vertex_normals,
+)
+from paintcell.surface.surface_data import Surface
 from tests.helpers import (
     ANALYTIC_CURVATURE_ATOL,
     DISCRETE_CURVATURE_RTOL,

@@ -295,7 +295,8 @@ def test_a_trace_with_the_brush_never_on_gives_no_samples() -> None:
 @pytest.mark.slow
 def test_door_program_end_to_end() -> None:
     """Door plan → 1 kHz program → servo execution → validation, on the real pipeline."""
-    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.coverage.algorithm import plan_coverage
+    from paintcell.coverage.coverage_settings import PlannerSettings
     from paintcell.execution.cell import build_cell
     from paintcell.execution.execute import execute
     from paintcell.motion.trajectory import TrajectorySettings, build_program

@@ -27,7 +27,7 @@ from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
 from paintcell.surface.part_spec import MeshPart
 from paintcell.surface.part_surface import part_surface
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 STAGES = ("surface", "plan", "trajectory", "execute", "validate", "report")
 
@@ -78,7 +78,7 @@ def load_applicator(scn: Scenario) -> Applicator:
 
 def planner_settings(scn: Scenario, fast: bool = False) -> Any:
     """`PlannerSettings` of the scenario (with the fast overrides when `fast`)."""
-    from paintcell.coverage.coverage import PlannerSettings
+    from paintcell.coverage.coverage_settings import PlannerSettings
 
     kw = dict(scn.planner)
     if fast:
@@ -89,7 +89,7 @@ def planner_settings(scn: Scenario, fast: bool = False) -> Any:
 def make_plan(scn: Scenario, surface: Surface, fast: bool = False) -> CoveragePlan:
     """Run the coverage planner for the scenario."""
     from paintcell.core.budget import check_profile_budget
-    from paintcell.coverage.coverage import plan_coverage
+    from paintcell.coverage.algorithm import plan_coverage
     from paintcell.coverage.index_width import profile_size
 
     app = load_applicator(scn)

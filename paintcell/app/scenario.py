@@ -56,7 +56,7 @@ class Scenario:
     resolution_m: mesh resolution of a full run [m].
     fast_resolution_m: mesh resolution of a `--fast` run [m].
     applicator: path to an applicator TOML file, or None for the default bell.
-    planner: keyword arguments for `paintcell.coverage.coverage.PlannerSettings` (only what
+    planner: keyword arguments for `paintcell.coverage.algorithm.PlannerSettings` (only what
         differs from the defaults).
     fast_planner: planner settings applied over `planner` in `--fast` runs.
     trajectory: keyword arguments for `paintcell.motion.trajectory.TrajectorySettings`.

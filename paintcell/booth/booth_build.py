@@ -32,7 +32,7 @@ from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import uniformity
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: flow factors outside this range are refused (a bell's flow range is about 1:5 either way of
 #: its nominal; outside it the atomization and so the spray pattern change).

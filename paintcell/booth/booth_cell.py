@@ -41,7 +41,7 @@ from paintcell.execution.cell_robots import (
     attach_robots,
     stand_robots,
 )
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: the static body that holds every robot (its subtree is "the robots" for the contact sensors).
 ROBOTS_BODY = "robots"
@@ -117,7 +117,7 @@ def build_booth_cell(robots: Sequence[RobotLike], surface: Surface, T_world_part
     if not robots:
         raise CellError("a booth needs at least one robot")
     if not isinstance(surface, Surface):
-        raise CellError("surface must be a Surface (paintcell.surface.surface) in its "
+        raise CellError("surface must be a Surface (paintcell.surface.analytic) in its "
                         "part frame")
     T_wp = check_pose(T_world_part, "T_world_part", error=CellError)
     spec = new_cell_spec(f"paintcell_booth_{surface.name}")

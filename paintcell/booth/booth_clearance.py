@@ -29,7 +29,7 @@ from typing import Any
 import mujoco
 import numpy as np
 
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: sampling of the sweep [s] (the bell moves ≤ 1.5 m/s: ≤ 15 mm between checks).
 SWEEP_DT_S = 0.01

@@ -22,7 +22,7 @@ from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.paint.deposition import thickness
 from paintcell.paint.deposition_samples import GunSamples
 from paintcell.paint.metrics import uniformity
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 from paintcell.validation.validate_samples import executed_gun_samples
 
 #: a point is in an overlap band when at least two robots each lay this share of its film.

@@ -17,7 +17,7 @@ from paintcell.booth.booth import Booth, BoothError, Job
 from paintcell.core.errors import PaintcellError
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 
 def robot_settings(booth: Booth, i: int) -> Any:

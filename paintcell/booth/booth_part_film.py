@@ -28,7 +28,7 @@ import numpy as np
 from paintcell.booth.booth_film import body_uniformity
 from paintcell.booth.booth_seams import SEAM_BAND_M, seam_band
 from paintcell.paint.metrics import MetricsError
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 from paintcell.validation.paint_spec import PaintSpec, SpecError, spec_metrics
 
 __all__ = ["part_film_figures"]

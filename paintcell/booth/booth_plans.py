@@ -20,7 +20,7 @@ from paintcell.booth.booth_build import reversed_plan
 from paintcell.booth.booth_film import judged_body_mask, merge_surfaces
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.paint.applicator import Applicator
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 
 @dataclass
@@ -96,7 +96,8 @@ def plan_part(booth: Booth, i: int, res: float, app: Applicator,
     """Part i planned at edge length res [m] with the bell `app`: its surface (`surface`, else
     `part_surface_of`), the skin the planner covers, its `PlannerSettings` and its plan."""
     from paintcell.core.settings import settings_from
-    from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+    from paintcell.coverage.algorithm import plan_coverage
+    from paintcell.coverage.coverage_settings import PlannerSettings
 
     s = part_surface_of(booth, i, res) if surface is None else surface
     kw = part_settings(booth)[i]
@@ -120,7 +121,7 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
     refine: dict[str, Any] = {"rule": "off"}
     if booth.film_refine_pace:
         from paintcell.core.settings import settings_from
-        from paintcell.coverage.coverage import PlannerSettings
+        from paintcell.coverage.coverage_settings import PlannerSettings
         from paintcell.coverage.film_refine import refine_parts
 
         # a part whose planner says film_refine = false (booth or part table) is not refined

@@ -35,7 +35,7 @@ from paintcell.core.errors import PaintcellError
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.motion.speed_feedback import CellPrograms, robot_aware_parts
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: allocations tried, best first, before giving up (their programs are cached per robot and job).
 MAX_ALLOCATIONS_TRIED = 8

@@ -36,7 +36,7 @@ from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.output.gltf_film import FilmScene
 from paintcell.output.report_film import FilmData
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 from paintcell.validation.paint_spec import spec_checks
 from paintcell.validation.validate_motion import robots_motion
 from paintcell.validation.validate_report import Check, ValidationReport

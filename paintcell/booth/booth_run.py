@@ -33,7 +33,7 @@ from paintcell.booth.booth_programs import booth_programs
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 from paintcell.validation.painted_side import parts_painted_side
 from paintcell.validation.validate_motion import collision_events
 from paintcell.validation.validate_report import ValidationReport

@@ -31,7 +31,7 @@ from paintcell.coverage.patches import SEAM_SHARES, ownership_brush_off, seam_vo
 from paintcell.coverage.plan import CoveragePlan, PassPlan
 from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import uniformity
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: a vertex is in a seam band when another part's nearest vertex lies within this [m]: about a
 #: bell footprint's half-width, the reach of the neighbour's edge passes and overspray.

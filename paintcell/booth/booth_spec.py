@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.booth.booth import Booth
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 from paintcell.validation.paint_spec import spec_metrics
 
 __all__ = ["booth_spec_metrics"]

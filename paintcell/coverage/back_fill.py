@@ -18,14 +18,8 @@ import numpy as np
 
 from paintcell.coverage.coverage_planner import PassGeom, Planner, mirrored_curve
 from paintcell.coverage.coverage_timing import time_pass
-from paintcell.coverage.offset import (
-    arc_length,
-    indexing_curves,
-    resample,
-    tangents,
-    unit,
-    walk,
-)
+from paintcell.coverage.offset import indexing_curves, walk
+from paintcell.coverage.offset_polyline import arc_length, resample, tangents, unit
 
 
 def back_fill(pl: Planner, prev: PassGeom, new: PassGeom, sign: int, width_m: float,

@@ -29,7 +29,8 @@ from paintcell.coverage.notches import (
     find_notches,
     notch_samples,
 )
-from paintcell.coverage.offset import arc_length, check_offset_order, walk
+from paintcell.coverage.offset import check_offset_order, walk
+from paintcell.coverage.offset_polyline import arc_length
 from paintcell.coverage.openings import (
     brush_off_openings,
     fill_samples,
@@ -41,7 +42,7 @@ from paintcell.coverage.smoothing import smoothed_surface, smoothing_scale_m
 from paintcell.coverage.start_curve import select_start_curve
 from paintcell.coverage.stitch import STITCH_GAP_FRACTION, stitched_surface
 from paintcell.paint.applicator import Applicator
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: A surface whose principal curvatures stay below this everywhere is planar [1/m] (a 1 km
 #: radius; the discrete curvature of a flat grid is ~1e-12).
@@ -58,7 +59,7 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
                 tool_x: dict[int, np.ndarray] | None = None,
                 axis_turn_fails_fast: bool = False) -> CoveragePlan:
     """Algorithm 1 on one pass family over the whole of `surface` (`st.patches` is not looked
-    at): the body of `paintcell.coverage.coverage.plan_coverage` after its input checks,
+    at): the body of `paintcell.coverage.algorithm.plan_coverage` after its input checks,
     with the same
     arguments and result (see there); `paintcell.coverage.patches` calls it on each
     patch. With `first_side = "best"` the two start orders are planned a pass at a time in turn

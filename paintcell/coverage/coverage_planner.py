@@ -20,17 +20,9 @@ from paintcell.coverage.index_width import (
     search_range,
     search_widths,
 )
-from paintcell.coverage.offset import (
-    IndexingCurve,
-    SurfaceGeometry,
-    arc_length,
-    curve_through,
-    indexing_curves,
-    resample,
-    tangents,
-    unit,
-)
-from paintcell.coverage.offset_polyline import spikes
+from paintcell.coverage.offset import IndexingCurve, curve_through, indexing_curves
+from paintcell.coverage.offset_polyline import arc_length, resample, spikes, tangents, unit
+from paintcell.coverage.offset_sections import SurfaceGeometry
 from paintcell.paint.applicator import Applicator
 
 #: An edge pass's samples are checked against the median of their neighbours within this

@@ -9,11 +9,12 @@ import numpy as np
 from paintcell.core.errors import PlanError
 from paintcell.coverage.coverage_planner import PassGeom, Planner
 from paintcell.coverage.coverage_settings import PlannerSettings
-from paintcell.coverage.offset import arc_length, geodesic_curvature, tangents, unit, walk
+from paintcell.coverage.offset import walk
+from paintcell.coverage.offset_polyline import arc_length, geodesic_curvature, tangents, unit
 from paintcell.coverage.plan import PassPlan, times_from_speeds
 from paintcell.coverage.smoothing import FOOTPRINT_FRACTION, limit_turn_rate, smooth_along
 from paintcell.coverage.speed_qp import SubOffsetBand, optimize_pass_speed
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 
 def _band(pl: Planner, p: PassGeom, half_width_m: float) -> SubOffsetBand | None:

@@ -32,7 +32,7 @@ from paintcell.core.errors import PlanError
 from paintcell.coverage.coverage_planner import PassGeom, Planner
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.paint.applicator import Applicator
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: geometries kept (least recently used dropped first): a booth re-plans its parts in turn and a
 #: patch plan its patches, so one entry would be replaced before its re-plan came.

@@ -48,7 +48,7 @@ from paintcell.coverage.plan import CoveragePlan, PassPlan, times_from_speeds
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import deposition_rate, thickness
 from paintcell.paint.deposition_samples import GunSamples
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 if TYPE_CHECKING:
     from paintcell.coverage.coverage_settings import PlannerSettings

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from paintcell.coverage.openings import boundary_loops, lattice_samples
-from paintcell.surface.surface import Surface, surface_from_triangles
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 #: a bay is closed when it reaches this fraction of the spray footprint radius in from its mouth
 #: (the default bell: 0.115 m; a scalloped or wavy edge, tens of millimetres, stays as it is).

@@ -17,8 +17,7 @@ contains that boundary, and whether the section hugs it or leaves at once is dec
 round-off) says nothing about the surface there; `walk` gives no offset beyond such an end.
 
 Plane sections of the mesh are in `paintcell.coverage.offset_sections`, polyline arc
-length, resampling
-and geodesic curvature in `paintcell.coverage.offset_polyline`; both are re-exported here.
+length, resampling and geodesic curvature in `paintcell.coverage.offset_polyline`.
 """
 
 from __future__ import annotations
@@ -31,34 +30,21 @@ import numpy.typing as npt
 from paintcell.core.errors import PlanError
 from paintcell.coverage.offset_polyline import (
     arc_length,
-    geodesic_curvature,
-    resample,
-    tangents,
     unit,
 )
 from paintcell.coverage.offset_sections import (
-    Section,
     SurfaceGeometry,
     dedupe_points,
     order_components,
-    plane_sections,
     section_crossings,
     signed_distances,
 )
 
 __all__ = [
     "IndexingCurve",
-    "Section",
-    "SurfaceGeometry",
-    "arc_length",
     "check_offset_order",
     "curve_through",
-    "geodesic_curvature",
     "indexing_curves",
-    "plane_sections",
-    "resample",
-    "tangents",
-    "unit",
     "walk",
 ]
 

@@ -47,7 +47,7 @@ class SurfaceGeometry:
 
     @classmethod
     def from_surface(cls, surface: Any) -> SurfaceGeometry:
-        """Build from a `paintcell.surface.surface.Surface` (uses its vertices, normals,
+        """Build from a `paintcell.surface.analytic.Surface` (uses its vertices, normals,
         faces, mesh)."""
         mesh = surface.mesh
         edges = np.asarray(mesh.edges_unique, dtype=np.int64)

@@ -30,7 +30,7 @@ from scipy.sparse.csgraph import connected_components, depth_first_order
 from paintcell.coverage.plan import PassPlan
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import deposition_rate
-from paintcell.surface.surface import Surface, surface_from_triangles
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 #: barycentric lattice levels per fill triangle for the opening fraction (k(k+1)/2 points each).
 _LATTICE = 8

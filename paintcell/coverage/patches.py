@@ -36,7 +36,7 @@ from paintcell.core.errors import PlanError
 from paintcell.coverage.plan import CoveragePlan, PassPlan
 from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import deposition_rate
-from paintcell.surface.surface import Surface, surface_from_triangles
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 if TYPE_CHECKING:
     from paintcell.coverage.coverage_settings import PlannerSettings

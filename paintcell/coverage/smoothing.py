@@ -30,7 +30,7 @@ import scipy.sparse.linalg as spla
 
 from paintcell.core.errors import AxisTurnError, PlanError
 from paintcell.surface.curvature import boundary_vertex_mask, corner_geometry
-from paintcell.surface.surface import Surface, surface_from_triangles
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 #: the smoothing scale is this fraction of the spray footprint radius (a 0.33 m bell: 82 mm).
 FOOTPRINT_FRACTION = 0.25

@@ -38,7 +38,7 @@ class StartCurve:
     points: (M, 3) foot points on the surface, ordered along `pass_dir` [m].
     normals: (M, 3) unit surface normals (painted side).
     plane_normal: (3,) unit section-plane normal = the indexing direction ("right" of the pass is
-        ±plane_normal; see `paintcell.coverage.coverage`).
+        ±plane_normal; see `paintcell.coverage.algorithm`).
     plane_offset_m: the plane is {x : x · plane_normal = plane_offset_m} [m].
     pass_dir: (3,) unit direction of travel along the start curve (n̄ × plane_normal).
     average_normal: (3,) area-weighted mean unit normal n̄.
@@ -145,7 +145,7 @@ def select_start_curve(surface: Any, orientation: float | str = "auto",
                        geom: SurfaceGeometry | None = None) -> StartCurve:
     """Choose and build the start curve of `surface` (paper §2.3).
 
-    surface: a `paintcell.surface.surface.Surface` (part frame).
+    surface: a `paintcell.surface.analytic.Surface` (part frame).
     orientation: "auto" (minimal altitude), "zero-curvature" / "max-curvature" (passes along the
         area-weighted principal direction), or an angle [rad] of the pass direction about n̄
         measured from the part x axis projected onto the plane ⟂ n̄.

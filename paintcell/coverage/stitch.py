@@ -21,7 +21,7 @@ from scipy.spatial import cKDTree
 
 from paintcell.coverage.offset_polyline import unit
 from paintcell.coverage.openings import boundary_loops, file_pieces, vertex_pieces
-from paintcell.surface.surface import Surface, surface_from_triangles
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 #: pieces whose boundaries come within this fraction of the spray footprint radius of each other
 #: are planned as one surface (the default bell: 46 mm, beyond the part import's 40 mm for

@@ -40,7 +40,7 @@ from paintcell.execution.cell_robots import (
     attach_robots,
     stand_robots,
 )
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 __all__ = ["ROBOT_PREFIX", "TIMESTEP_S", "CameraSpec", "Cell", "build_cell", "index_cell",
            "new_cell_spec"]
@@ -176,7 +176,7 @@ def build_cell(robot: RobotLike, surface: Surface, T_world_part: npt.ArrayLike, 
     Raises CellError when the robot MJCF lacks a named joint, site or body, or the poses are bad.
     """
     if not isinstance(surface, Surface):
-        raise CellError(f"surface must be a Surface (paintcell.surface.surface; the part "
+        raise CellError(f"surface must be a Surface (paintcell.surface.analytic; the part "
                         f"in its part "
                         f"frame), got {type(surface).__name__}; load one with "
                         "paintcell.surface.parts.get_part or Surface.from_mesh")

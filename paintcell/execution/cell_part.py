@@ -17,7 +17,7 @@ import mujoco
 import numpy as np
 
 from paintcell.core.transforms import quat_wxyz_from_matrix
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 
 def add_part_geoms(spec: mujoco.MjSpec, part: mujoco.MjsBody, surface: Surface,

@@ -1,7 +1,7 @@
 """Robot-aware speeds: feed the time law's joint-limit slowdowns back into the speed QP, for one
 robot (`robot_aware_plan`) or the N robots of a cell (`robot_aware_parts`).
 
-The planner (`paintcell.coverage.coverage`) optimizes each pass's TCP speeds for the film,
+The planner (`paintcell.coverage.algorithm`) optimizes each pass's TCP speeds for the film,
 knowing nothing of the robot. Along the IK path, joint velocity and acceleration limits can make
 TOPP-RA slower than planned; the film then differs from the plan (the "time-law share" of the
 loss). The loop the paper leaves open:
@@ -29,12 +29,13 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
-from paintcell.coverage.coverage import PlannerSettings, plan_coverage
+from paintcell.coverage.algorithm import plan_coverage
+from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.motion.speed_caps import parts_caps, speed_caps, stored_caps, tool_axes
 from paintcell.paint.applicator import Applicator
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: The bell's x axis counts as followed when the program holds it within this of the plan [deg].
 SPIN_TOL_DEG = 1.0

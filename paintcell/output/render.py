@@ -225,7 +225,7 @@ def camera_presets(vertices_world: npt.ArrayLike, normal_world: npt.ArrayLike,
 def part_cameras(surface: Any, T_world_part: npt.ArrayLike | None = None,
                  travel_dir_part: npt.ArrayLike | None = None,
                  fovy_deg: float = 45.0) -> dict[str, CameraView]:
-    """`camera_presets` for a `paintcell.surface.surface.Surface` placed at `T_world_part`
+    """`camera_presets` for a `paintcell.surface.analytic.Surface` placed at `T_world_part`
     (4, 4).
 
     travel_dir_part: (3,) pass travel direction in the part frame (e.g. the mean of a plan

@@ -9,7 +9,7 @@
   boundary vertex, whose faces all lie on one side, that mean lags by about κ·h/2, so boundary
   normals are re-extrapolated from the interior with the shape operator
   (`extrapolate_boundary_normals`).
-Sign convention as in `paintcell.surface.surface`: k > 0 where the surface bends away from
+Sign convention as in `paintcell.surface.analytic`: k > 0 where the surface bends away from
 the normal. Interior principal curvatures are k1,2 = H ± sqrt(max(H² - K, 0)).
 Everything is vectorized over faces; per-vertex sums use np.bincount.
 """

@@ -34,7 +34,7 @@ from paintcell.surface.regions import (
     face_areas,
     find_openings,
 )
-from paintcell.surface.surface import Surface, surface_from_triangles
+from paintcell.surface.surface_data import Surface, surface_from_triangles
 
 __all__ = ["ImportReport", "PieceInfo", "import_part", "split_pieces"]
 

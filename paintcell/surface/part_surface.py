@@ -9,7 +9,7 @@ from pathlib import Path
 
 from paintcell.core.errors import PaintcellError
 from paintcell.surface.part_spec import CAD_SUFFIXES, MESH_SUFFIXES, MeshPart
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 __all__ = ["part_surface"]
 

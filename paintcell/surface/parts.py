@@ -12,14 +12,8 @@ from collections.abc import Callable
 import numpy as np
 
 from paintcell.core.errors import SurfaceError
-from paintcell.surface.surface import (
-    Surface,
-    bspline_patch,
-    cylinder,
-    extruded,
-    greville_abscissae,
-    plane,
-)
+from paintcell.surface.analytic import bspline_patch, cylinder, extruded, greville_abscissae, plane
+from paintcell.surface.surface_data import Surface
 
 DEFAULT_RESOLUTION_M = 0.005
 

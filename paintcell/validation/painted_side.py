@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 from paintcell.validation.validate_report import Check
 
 __all__ = ["painted_side_checks", "painted_side_metrics", "parts_painted_side"]

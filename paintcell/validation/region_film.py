@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.paint.metrics import uniformity
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
 #: regions reported apart (paintcell.surface.regions.REGION_NAMES minus the skin and
 #: the dropped back side).

@@ -23,7 +23,7 @@ SETTINGS_TABLES = ("planner", "fast_planner", "trajectory", "servo", "disturbanc
 
 def settings_classes() -> dict[str, type]:
     """The settings dataclass each table builds."""
-    from paintcell.coverage.coverage import PlannerSettings
+    from paintcell.coverage.coverage_settings import PlannerSettings
     from paintcell.execution.execute import Disturbances, ServoSettings
     from paintcell.motion.trajectory import TrajectorySettings
 

@@ -45,7 +45,7 @@ from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
 from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import transfer_efficiency, uniformity
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 from paintcell.validation.honest_reach import honest_reachability
 from paintcell.validation.paint_spec import PaintSpec, spec_checks, spec_metrics
 from paintcell.validation.painted_side import painted_side_checks, painted_side_metrics

@@ -28,7 +28,7 @@ the passes gets the neighbour pass an edge pass gives a parallel one.
 The code lives in `coverage_settings` (`PlannerSettings`), `coverage_planner` (pass geometry and
 the width choice), `coverage_timing` (overspray, band, speed QP, execution order) and
 `coverage_family` (Algorithm 1 on one pass family); this module is the entry point `plan_coverage`
-(input checks, then patches or one family) and re-exports their public names.
+(input checks, then patches or one family).
 """
 
 from __future__ import annotations
@@ -39,15 +39,15 @@ import numpy as np
 from tqdm import tqdm
 
 from paintcell.core.errors import AxisTurnError, PlanError
-from paintcell.coverage.coverage_family import PLANAR_CURVATURE_1_M, plan_family
+from paintcell.coverage.coverage_family import plan_family
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.patches import plan_patches
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.coverage.smoothing import FOOTPRINT_FRACTION
 from paintcell.paint.applicator import Applicator
-from paintcell.surface.surface import Surface
+from paintcell.surface.surface_data import Surface
 
-__all__ = ["PLANAR_CURVATURE_1_M", "PlannerSettings", "plan_coverage", "plan_family"]
+__all__ = ["AUTO_SMOOTHING_RETRIES", "plan_coverage"]
 
 
 def plan_coverage(surface: Surface, applicator: Applicator,
@@ -56,7 +56,7 @@ def plan_coverage(surface: Surface, applicator: Applicator,
                   tool_x: dict[int, np.ndarray] | None = None) -> CoveragePlan:
     """Plan uniform coverage of `surface` with `applicator` (paper Algorithm 1).
 
-    surface: a `paintcell.surface.surface.Surface` in its part frame; applicator: the
+    surface: a `paintcell.surface.analytic.Surface` in its part frame; applicator: the
     deposition model; settings: `PlannerSettings` (defaults when None);
     speed_caps_m_s: optional per-pass speed upper bounds {side: (M,) [m/s]}, one per TCP sample of
         that pass in its generation direction (`plan.passes[i]` reversed when i is odd): the speed
@@ -88,7 +88,7 @@ def plan_coverage(surface: Surface, applicator: Applicator,
     subclass AxisTurnError when the bell axis cannot follow the surface (at every scale tried).
     """
     if not isinstance(surface, Surface):
-        raise PlanError(f"plan_coverage needs a paintcell.surface.surface.Surface, got "
+        raise PlanError(f"plan_coverage needs a paintcell.surface.analytic.Surface, got "
                         f"{type(surface).__name__}; build one with Surface.from_mesh or "
                         "paintcell.surface.parts.get_part")
     if not isinstance(applicator, Applicator):

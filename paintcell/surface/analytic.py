@@ -1,14 +1,11 @@
-"""Surfaces to paint from parametric patches, and the entry point to the `Surface` type (a
-triangle mesh in the part frame [m] with normals and curvature per vertex).
+"""Surfaces to paint from parametric patches: `Surface`s (a triangle mesh in the part frame [m]
+with normals and curvature per vertex) sampled from analytic shapes.
 
 Parametric constructors (`plane`, `cylinder`, `extruded`, `bspline_patch`) sample a regular
 (u, v) grid and compute normals and curvature analytically from the first and second fundamental
-forms. `Surface.from_mesh` reads STL/OBJ/PLY through trimesh, repairs what can be repaired, and
-estimates normals and curvature discretely (`paintcell.surface.curvature`, boundary normals
-extrapolated from the interior).
-
-The `Surface` type (with `surface_from_triangles`) is in `paintcell.surface.surface_data`,
-mesh reading in `paintcell.surface.surface_mesh_input`; both are re-exported here.
+forms. The `Surface` type (with `surface_from_triangles` and `Surface.from_mesh`, which reads
+STL/OBJ/PLY through trimesh and estimates normals and curvature discretely) is in
+`paintcell.surface.surface_data`, mesh reading in `paintcell.surface.surface_mesh_input`.
 
 Curvature sign (docs/interfaces.md): with the unit normal n pointing to the painted side, a
 principal curvature k is positive when the surface bends away from n — dn = k dr along a principal
@@ -24,23 +21,17 @@ from scipy.interpolate import BSpline, CubicSpline
 from paintcell.core.errors import SurfaceError
 from paintcell.surface.surface_data import (
     Surface,
-    surface_from_triangles,
     vertex_areas_barycentric,
 )
-from paintcell.surface.surface_mesh_input import load_clean_mesh
 
 __all__ = [
-    "Surface",
     "bspline_patch",
     "cylinder",
     "extruded",
     "greville_abscissae",
     "grid_faces",
-    "load_clean_mesh",
     "plane",
     "surface_from_grid",
-    "surface_from_triangles",
-    "vertex_areas_barycentric",
 ]
 
 # Parameter-space sampling used to measure arc length of a curve before resampling it [-].
