@@ -185,13 +185,14 @@ def test_the_manifest_folder_reads_to_the_same_panels(body: dict) -> None:
 
 
 def test_same_seed_same_bytes(body: dict, tmp_path: Path) -> None:
-    out = tmp_path / "again.stl"
+    new = tmp_path / "not" / "yet"  # --out in a folder that does not exist: it is made
+    out = new / "again.stl"
     assert main(["generate", "body", "--seed", str(body["seed"]), "--out", str(out)]) == 0
     d = body["dir"]
     assert out.read_bytes() == (d / "body.stl").read_bytes()
-    assert (tmp_path / "again.truth.json").read_bytes() == (d / "body.truth.json").read_bytes()
+    assert (new / "again.truth.json").read_bytes() == (d / "body.truth.json").read_bytes()
     for f in sorted((d / "body_panels").iterdir()):
-        assert (tmp_path / "again_panels" / f.name).read_bytes() == f.read_bytes(), f.name
+        assert (new / "again_panels" / f.name).read_bytes() == f.read_bytes(), f.name
     other = tmp_path / "other.stl"
     assert main(["generate", "body", "--seed", str(body["seed"] + 2), "--out", str(other)]) == 0
     assert other.read_bytes() != out.read_bytes()

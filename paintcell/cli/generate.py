@@ -103,7 +103,7 @@ def _write_body(args: argparse.Namespace, suffix: str) -> int:
         check_new_target(f, "panel file", args.force)
     check_new_target(folder / MANIFEST_NAME, "the manifest", args.force)
     check_new_target(truth_path, "the truth file", args.force)
-    folder.mkdir(exist_ok=True)
+    folder.mkdir(parents=True, exist_ok=True)
     for f, m in files.items():
         with atomic_path(f) as tmp:
             m.export(tmp, file_type=suffix)
