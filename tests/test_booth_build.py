@@ -187,3 +187,118 @@ def test_booth_refinement_evens_the_film_and_keeps_every_pass_duration():
                                st.v_max_m_s, interior)
     assert info["applied"]
     assert np.abs(durations(free) / durations(plan.passes) - 1.0).max() > 2 * np.abs(held).max()
+
+
+def _three_panels():
+    """Three library panels in a row along x, 2 cm then 15 cm apart: two seams that want
+    different shares."""
+    from paintcell.booth.booth_film import merge_surfaces
+
+    s = parts.get_part("panel", resolution_m=RES_M)
+    plan = plan_coverage(s, Applicator.default(), PlannerSettings())
+    Ts = []
+    for x in (-1.02, 0.0, 1.15):
+        T = np.eye(4)
+        T[0, 3] = x
+        Ts.append(T)
+    return merge_surfaces([s] * 3, Ts, "three"), [plan] * 3, Ts, [len(s.vertices)] * 3
+
+
+def test_per_seam_shares_bounded_by_brute_force_and_never_worse_than_one():
+    """Per-seam shares on three panels (two seams): re-measured here by brute force over every
+    pair of shares (nine shares or no blending each; each sample's volumes on every part from
+    the literal deposition formula, its seam the part it paints most after its own, films
+    summed part by part): the brute-force minimum ≤ the coordinate descent's σ/μ ≤ the single
+    share's, the descent's shares are a coordinate-wise minimum of the brute-force table, its
+    figure is the table's at its shares, and here it is strictly lower than one share. Only
+    paint switches off; the body film is the sum of the parts' films."""
+    from paintcell.booth.booth_film import plan_gun_in_body
+    from paintcell.booth.booth_seams import blend_part_seams, pass_in_body
+    from paintcell.coverage.patches import SEAM_SHARES
+    from paintcell.paint.deposition import deposition_rate_reference
+    from paintcell.paint.deposition_samples import GunSamples
+
+    body, plans, Ts, counts = _three_panels()
+    a, names = body.vertex_areas, ["a", "b", "c"]
+    one, rec1 = blend_part_seams(body, plans, Ts, counts, names)
+    new, rec = blend_part_seams(body, plans, Ts, counts, names, per_seam=True)
+    assert rec1["seam_shares"] == "one" and "seams" not in rec1
+    assert rec["seam_shares"] == "per seam" and set(rec["seams"]) == {"a|b", "b|c"}
+    part_of = np.repeat(np.arange(3), counts)
+    vol = []                                    # per part, per pass: (S, 3) volume on each part
+    for p, T in zip(plans, Ts, strict=True):
+        vol.append([deposition_rate_reference(p.applicator, q.positions, q.spray_axes,
+                                              q.travel_dirs, body.vertices, body.normals)
+                    @ (a[:, None] * (part_of[:, None] == np.arange(3)))
+                    for q in (pass_in_body(q, T) for q in p.passes)])
+    options = [*SEAM_SHARES, None]
+    seam_of = {(0, 1): 0, (1, 0): 0, (1, 2): 1, (2, 1): 1}
+    cache = {}
+
+    def part_plan(k, pick):
+        passes = []
+        for q, v in zip(plans[k].passes, vol[k], strict=True):
+            own, other = v[:, k], v.sum(axis=1) - v[:, k]
+            o = v.copy()
+            o[:, k] = -1.0
+            nb = o.argmax(axis=1)
+            sh = np.array([np.inf if options[pick[seam_of[(k, j)]]] is None
+                           else options[pick[seam_of[(k, j)]]] if (k, j) in seam_of
+                           else np.inf for j in nb])
+            off = q.paint_on & (other > 0) & (other > np.where(np.isfinite(sh), sh, 0) * own) \
+                & np.isfinite(sh)
+            passes.append(dataclasses.replace(q, paint_on=q.paint_on & ~off))
+        return dataclasses.replace(plans[k], passes=tuple(passes))
+
+    def part_film(k, pick):
+        key = (k, tuple(pick[i] for i in {0: (0,), 1: (0, 1), 2: (1,)}[k]))
+        if key not in cache:
+            p = part_plan(k, pick)
+            cache[key] = thickness(p.applicator, plan_gun_in_body(p, Ts[k]), body.vertices,
+                                   body.normals)
+        return cache[key]
+
+    table = np.array([[_nsd(sum(part_film(k, (i, j)) for k in range(3)), a) * 100
+                       for j in range(len(options))] for i in range(len(options))])
+    i, j = (options.index(rec["seams"][s]) for s in ("a|b", "b|c"))
+    assert rec["body_planned_nsd_pct"] == pytest.approx(table[i, j], rel=1e-9)
+    s0 = options.index(rec1["share"])
+    assert rec1["body_planned_nsd_pct"] == pytest.approx(table[s0, s0], rel=1e-9)
+    assert table.min() <= rec["body_planned_nsd_pct"] + 1e-9
+    assert rec["body_planned_nsd_pct"] <= table[i, :].min() + 1e-9
+    assert rec["body_planned_nsd_pct"] <= table[:, j].min() + 1e-9
+    assert rec["body_planned_nsd_pct"] < rec1["body_planned_nsd_pct"] - 0.05
+    assert rec["single_share_planned_nsd_pct"] == rec1["body_planned_nsd_pct"]
+    nsd_steps = [s["body_planned_nsd_pct"] for s in rec["steps"]]
+    assert nsd_steps[0] == rec1["body_planned_nsd_pct"] and np.all(np.diff(nsd_steps) < 0)
+    assert nsd_steps[-1] == pytest.approx(rec["body_planned_nsd_pct"], rel=1e-9)
+    for p0, p1 in zip(plans, new, strict=True):
+        for q0, q1 in zip(p0.passes, p1.passes, strict=True):
+            assert np.array_equal(q0.positions, q1.positions)
+            assert np.array_equal(q0.times_s, q1.times_s)
+            assert not np.any(q1.paint_on & ~q0.paint_on)          # only switched off
+    # Superposition: one deposition call over every part's samples = the sum of the parts'.
+    guns = [plan_gun_in_body(p, T) for p, T in zip(new, Ts, strict=True)]
+    whole = thickness(new[0].applicator, GunSamples(
+        *(np.concatenate([getattr(g, f) for g in guns])
+          for f in ("positions", "spray_axes", "travel_dirs", "dwell_s"))),
+        body.vertices, body.normals)
+    parts_sum = sum(thickness(new[0].applicator, g, body.vertices, body.normals) for g in guns)
+    assert np.allclose(whole, parts_sum, rtol=1e-9, atol=1e-15)
+    assert _nsd(whole, a) * 100 == pytest.approx(rec["body_planned_nsd_pct"], rel=1e-9)
+
+
+def test_booth_toml_seam_shares_key(tmp_path):
+    """`seam_shares` reads "one" (the default, scenarios/booth.toml's) or "per seam"; anything
+    else is refused in one line."""
+    from paintcell.app.scenario_files import load_scenario
+    from paintcell.booth.booth_data import BoothDataError
+
+    assert load_scenario("scenarios/booth.toml").seam_shares == "one"
+    head = 'name = "b"\n{}\n[[parts]]\npart = "door"\n[[robots]]\nname = "r"\n'
+    f = tmp_path / "b.toml"
+    f.write_text(head.format('seam_shares = "per seam"'))
+    assert load_scenario(f).seam_shares == "per seam"
+    f.write_text(head.format('seam_shares = "each"'))
+    with pytest.raises(BoothDataError, match="seam_shares = 'each' must be 'one' or 'per seam'"):
+        load_scenario(f)

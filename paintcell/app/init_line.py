@@ -24,7 +24,9 @@
   within the takt (`LineTakt.max_cycle_s`); no count: one line naming why each failed.
 - The plans are made once, at the fast resolution, without the film refinement (the written
   line refines each panel's film with every pass's duration held, `film_refine_pace`, so the
-  durations estimated here are those it runs).
+  durations estimated here are those it runs). The written line blends each seam between two
+  panels at its own share (`seam_shares = "per seam"`, `paintcell.booth.booth_seams`): only
+  paint switches, so the programs verified here are the ones it runs.
 """
 
 from __future__ import annotations

@@ -97,7 +97,10 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         f"= {t.takt_s:g} s.",
         "The film: each panel refined with every pass's duration held (film_refine_pace), so "
         "the programs keep the durations estimated; the speeds are not re-planned per robot "
-        "(robot_aware_speeds = false) so the programs run are the ones verified."]
+        "(robot_aware_speeds = false) so the programs run are the ones verified. Each seam "
+        "between two panels is blended at its own share (seam_shares = \"per seam\": a door "
+        "next to the roof and a fender next to a door want different ones); only paint "
+        "switches, the motion is the one verified."]
     text = "\n".join(_fill(h) for h in head)
     parts = ""
     for f, side, bp in zip(files, sides, b.parts, strict=True):
@@ -156,6 +159,7 @@ resolution_m = {b.fast_resolution_m}
 fast_resolution_m = {b.fast_resolution_m}
 film_refine_pace = true
 robot_aware_speeds = false
+seam_shares = "per seam"
 
 # the body frame at conveyor position 0: lifted on its skid so its lowest pass is 0.6 m up
 [body_placement]

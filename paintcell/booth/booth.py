@@ -57,6 +57,8 @@ TURN_S = 1.2
 APPROACH_RETRACT_S = 4.0
 #: largest step between the carriage positions `pass_feasible` tries on a rail [m].
 RAIL_STEP_M = 0.12
+#: `Booth.seam_shares` values: one seam share for the whole body, or one per seam.
+SEAM_SHARE_MODES = ("one", "per seam")
 
 
 class BoothError(PaintcellError):
@@ -217,6 +219,12 @@ class Booth:
     blend_seams: bool = True
     """Switch off the samples that paint other parts more than their own
     (`paintcell.booth.booth_seams`)."""
+    seam_shares: str = "one"
+    """How the seams are blended (`blend_seams`): "one" share for the whole body, the one of
+    `paintcell.coverage.patches.SEAM_SHARES` with the smallest whole-body planned σ/μ; "per
+    seam": each seam between two parts its own share, by coordinate descent from that one
+    (`paintcell.booth.booth_seams.per_seam_shares`; only paint switches, the motion is the
+    same)."""
     source: str | None = None
     applicator: str | None = None
     """Path to the bell's applicator TOML shared by all robots (None: the default bell)."""
@@ -234,6 +242,9 @@ class Booth:
         for p in self.parts:
             if p.robots is not None and (bad := sorted(set(p.robots) - set(names))):
                 raise BoothError(f"part {p.part!r} names robot(s) {bad}; robots are {names}")
+        if self.seam_shares not in SEAM_SHARE_MODES:
+            raise BoothError(f"seam_shares = {self.seam_shares!r} must be one of "
+                             f"{', '.join(repr(m) for m in SEAM_SHARE_MODES)}")
         if not isinstance(self.conveyor, Conveyor):
             raise BoothError("Booth.conveyor must be a paintcell.booth.conveyor.Conveyor")
 

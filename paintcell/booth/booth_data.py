@@ -24,7 +24,9 @@ other (`paintcell.booth.booth_chain`). Every key is checked: unknown names are r
 with one line naming the file, the table and the valid keys. A TOML file is a booth when it has
 `[[robots]]` tables. `common_film_build` (default true) and `film_target_um` (default: the body's
 area-weighted planned mean) set one film build over the parts (`paintcell.booth.booth_build`);
-`blend_seams` (default true) blends the seams between parts (`paintcell.booth.booth_seams`).
+`blend_seams` (default true) blends the seams between parts (`paintcell.booth.booth_seams`);
+`seam_shares` ("one", the default, or "per seam") gives the whole body one seam share or each
+seam its own (`Booth.seam_shares`).
 `film_refine_pace` (default false) refines each part's film with every pass's duration held
 (`paintcell.coverage.film_refine`). `robot_aware_speeds` (default true) re-plans the parts'
 speeds under what the robots' programs reach (`paintcell.motion.speed_feedback`).
@@ -40,7 +42,13 @@ from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
-from paintcell.booth.booth import BodyPart, Booth, BoothRobot, BoothThresholds
+from paintcell.booth.booth import (
+    SEAM_SHARE_MODES,
+    BodyPart,
+    Booth,
+    BoothRobot,
+    BoothThresholds,
+)
 from paintcell.booth.booth_checks import (
     BoothDataError,
     check_allocation,
@@ -62,7 +70,8 @@ from paintcell.validation.validate_report import check_thresholds
 
 _TOP = ("name", "resolution_m", "fast_resolution_m", "body_placement", "conveyor", "parts",
         "robots", "planner", "trajectory", "servo", "disturbances", "thresholds", "allocation",
-        "common_film_build", "film_target_um", "blend_seams", "body_clearance_m", "sweep",
+        "common_film_build", "film_target_um", "blend_seams", "seam_shares", "body_clearance_m",
+        "sweep",
         "applicator", "film_refine_pace", "max_jobs_per_robot", "robot_aware_speeds",
         "spec", "generated_body")
 _PART = ("part", "xyz_m", "rpy_rad", "planner", "reverse", "robots")
@@ -75,6 +84,13 @@ def _jobs_per_robot(v: Any, where: str) -> int:
         raise BoothDataError(f"{where} = {v!r} must be 1, 2 or 3 (jobs one robot runs one after "
                              "the other)")
     return v
+
+
+def _seam_shares(v: Any, where: str) -> str:
+    if v not in SEAM_SHARE_MODES:
+        raise BoothDataError(f"{where} = {v!r} must be "
+                             f"{' or '.join(repr(m) for m in SEAM_SHARE_MODES)}")
+    return str(v)
 
 
 def _check_keys(d: Any, valid: tuple[str, ...], where: str) -> dict[str, Any]:
@@ -211,6 +227,7 @@ def booth_from_dict(d: dict[str, Any], where: str, source: str | None = None) ->
             common_film_build=_bool(d.get("common_film_build", True),
                                     f"{where} common_film_build"),
             blend_seams=_bool(d.get("blend_seams", True), f"{where} blend_seams"),
+            seam_shares=_seam_shares(d.get("seam_shares", "one"), f"{where} seam_shares"),
             robot_aware_speeds=_bool(d.get("robot_aware_speeds", True),
                                      f"{where} robot_aware_speeds"),
             film_refine_pace=_bool(d.get("film_refine_pace", False),

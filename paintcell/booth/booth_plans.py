@@ -147,6 +147,7 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
 
         plans, seams = blend_part_seams(body, plans, pp.T_body_parts,
                                         [len(x.vertices) for x in pp.surfaces], names,
-                                        judged_body_mask(pp.surfaces))
+                                        judged_body_mask(pp.surfaces),
+                                        per_seam=booth.seam_shares == "per seam")
     return FinishedPlans(plans, body, refine, build, seams)
 

@@ -300,13 +300,24 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
                  "also paint its neighbours; a brush-on sample that paints other parts more "
                  "than <i>share</i> × its own part is switched off (the motion is unchanged). "
                  + (f"Share {share:g}: planned whole-body σ/μ <b id='seam-nsd'>"
-                    f"{sm['body_planned_nsd_pct']:.2f} %</b> against "
-                    f"{sm['unblended_planned_nsd_pct']:.2f} % unblended."
+                    f"{sm.get('single_share_planned_nsd_pct', sm['body_planned_nsd_pct']):.2f} "
+                    f"%</b> against {sm['unblended_planned_nsd_pct']:.2f} % unblended."
                     if share is not None else
                     f"No share improves the planned whole-body σ/μ "
-                    f"({sm['unblended_planned_nsd_pct']:.2f} %): nothing is switched off.")
+                    f"({sm['unblended_planned_nsd_pct']:.2f} %): "
+                    + ("one share for the whole body switches nothing off." if "seams" in sm
+                       else "nothing is switched off."))
                  + "</p>" + _table(["part", "samples switched off"],
                                    [[k, v] for k, v in sm["samples_switched_off"].items()]))
+    if "seams" in sm:
+        s.append(f"<p>Per seam: each seam (two parts; a sample's seam is the part it paints most "
+                 f"after its own) its own share, by coordinate descent from the single share "
+                 f"({sm['single_share_planned_nsd_pct']:.2f} %): planned whole-body σ/μ "
+                 f"<b id='seam-nsd-per-seam'>{sm['body_planned_nsd_pct']:.2f} %</b>, "
+                 f"{len(sm['steps']) - 1} change(s) kept, {sm['film_evaluations']} film "
+                 "evaluations.</p>" + _table(
+                     ["seam", "share"],
+                     [[k, "none" if v is None else f"{v:g}"] for k, v in sm["seams"].items()]))
     s.append("<h2>Film over the whole body</h2>" + _table(
         ["figure", "planned", "trajectory", "servo", "executed"],
         [["σ/μ whole body [%]", m["planned_nsd_pct"], m["trajectory_nsd_pct"],
