@@ -185,12 +185,14 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None:
     """Conveyor × takt = pitch of the written panel files (read back by trimesh); every robot's
     program, estimated from a fresh plan of the written file and its [allocation], plus the
-    carriage's return over the distance the line carried it, is within the takt."""
+    carriage's return over the distance the line carried it, is within the takt. The line
+    blends each seam at its own share (`seam_shares = "per seam"`)."""
     from paintcell.booth.booth_data import load_toml_booth
     from paintcell.booth.booth_plans import plan_parts
 
     out: Path = written["out"]
     booth = load_toml_booth(out)
+    assert booth.seam_shares == "per seam"
     xs = np.concatenate([trimesh.load(bp.mesh.file, force="mesh").vertices[:, 0]
                          for bp in booth.parts])
     pitch = float(xs.max() - xs.min()) + 1.0
