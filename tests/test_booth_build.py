@@ -213,7 +213,7 @@ def test_per_seam_shares_bounded_by_brute_force_and_never_worse_than_one():
     figure is the table's at its shares, and here it is strictly lower than one share. Only
     paint switches off; the body film is the sum of the parts' films."""
     from paintcell.booth.booth_film import plan_gun_in_body
-    from paintcell.booth.booth_seams import blend_part_seams, pass_in_body
+    from paintcell.booth.booth_seams import MAX_SEAM_SWEEPS, blend_part_seams, pass_in_body
     from paintcell.coverage.patches import SEAM_SHARES
     from paintcell.paint.deposition import deposition_rate_reference
     from paintcell.paint.deposition_samples import GunSamples
@@ -265,6 +265,7 @@ def test_per_seam_shares_bounded_by_brute_force_and_never_worse_than_one():
     s0 = options.index(rec1["share"])
     assert rec1["body_planned_nsd_pct"] == pytest.approx(table[s0, s0], rel=1e-9)
     assert table.min() <= rec["body_planned_nsd_pct"] + 1e-9
+    assert rec["converged"] and 1 <= rec["sweeps"] <= MAX_SEAM_SWEEPS   # a coordinate-wise min:
     assert rec["body_planned_nsd_pct"] <= table[i, :].min() + 1e-9
     assert rec["body_planned_nsd_pct"] <= table[:, j].min() + 1e-9
     assert rec["body_planned_nsd_pct"] < rec1["body_planned_nsd_pct"] - 0.05

@@ -307,15 +307,17 @@ def booth_report_html(metrics: dict[str, Any], scenario: dict[str, Any],
                     f"({sm['unblended_planned_nsd_pct']:.2f} %): "
                     + ("one share for the whole body switches nothing off." if "seams" in sm
                        else "nothing is switched off."))
-                 + "</p>" + _table(["part", "samples switched off"],
+                 + "</p>" + _table(["part", "samples switched off"
+                                   + (" (per seam)" if "seams" in sm else "")],
                                    [[k, v] for k, v in sm["samples_switched_off"].items()]))
     if "seams" in sm:
         s.append(f"<p>Per seam: each seam (two parts; a sample's seam is the part it paints most "
                  f"after its own) its own share, by coordinate descent from the single share "
                  f"({sm['single_share_planned_nsd_pct']:.2f} %): planned whole-body σ/μ "
                  f"<b id='seam-nsd-per-seam'>{sm['body_planned_nsd_pct']:.2f} %</b>, "
-                 f"{len(sm['steps']) - 1} change(s) kept, {sm['film_evaluations']} film "
-                 "evaluations.</p>" + _table(
+                 f"{len(sm['steps']) - 1} change(s) kept in {sm['sweeps']} sweep(s)"
+                 f"{'' if sm['converged'] else ' (the last still changed a share)'}, "
+                 f"{sm['film_evaluations']} film evaluations.</p>" + _table(
                      ["seam", "share"],
                      [[k, "none" if v is None else f"{v:g}"] for k, v in sm["seams"].items()]))
     s.append("<h2>Film over the whole body</h2>" + _table(

@@ -174,7 +174,7 @@ def per_seam_shares(body: Surface, plans: list[CoveragePlan], T_body_parts: list
     blending) (module doc). vols, nbrs: per part, per pass, `part_volumes`' (own, other) and
     neighbour; rec: the single share's record, returned with {seams: share per seam, steps:
     σ/μ by accepted change, film_evaluations, single_share_planned_nsd_pct} added and its
-    figures those of the shares chosen."""
+    figures those of the shares chosen; converged: the last sweep changed nothing."""
     n = len(plans)
     own_v = [np.concatenate([v[0] for v in vk]) for vk in vols]
     oth_v = [np.concatenate([v[1] for v in vk]) for vk in vols]
@@ -224,8 +224,9 @@ def per_seam_shares(body: Surface, plans: list[CoveragePlan], T_body_parts: list
     steps: list[dict[str, Any]] = [{"sweep": 0, "seam": None, "share": start,
                                     "body_planned_nsd_pct": cur}]
     label = {e: f"{names[e[0]]}|{names[e[1]]}" for e in seams}
+    changed, sweeps = True, 0
     for sweep in range(1, MAX_SEAM_SWEEPS + 1):
-        changed = False
+        changed, sweeps = False, sweep
         for e in seams:                               # tens of seams
             best: tuple[float, Any] | None = None
             for x in options:                         # ten options
@@ -276,6 +277,6 @@ def per_seam_shares(body: Surface, plans: list[CoveragePlan], T_body_parts: list
                  "seam_shares": "per seam", "single_share_planned_nsd_pct":
                      rec["body_planned_nsd_pct"], "body_planned_nsd_pct": final,
                  "seams": {label[e]: shares[e] for e in seams}, "steps": steps,
-                 "film_evaluations": n_eval,
+                 "film_evaluations": n_eval, "sweeps": sweeps, "converged": not changed,
                  "samples_switched_off": {nm: int(m.sum()) for nm, m in
                                           zip(names, offs, strict=True)}}
