@@ -243,3 +243,14 @@ def test_a_joint_jump_between_skipped_poses_is_not_feasible(rail_robot):
     assert not best_rail_position(rail_robot, spun, pref, s)[1]
     assert not pass_feasible(rail_robot, spun)
     assert not pass_feasible(arm, spun)
+
+
+def test_rail_scan_of_no_positions_is_empty(rail_robot):
+    """A scan over no carriage positions (e.g. none of a grid passed a screen) gives no results,
+    not an error."""
+    from paintcell.robots.rail import feasible_positions, rail_branches
+
+    T = _pass_with_spin(0.0)
+    pref = rail_robot.rail.arm.q_home
+    assert rail_branches(rail_robot, T, np.array([]), pref, IKSettings()) == []
+    assert feasible_positions(rail_robot, T, np.array([]), pref, IKSettings()).shape == (0,)

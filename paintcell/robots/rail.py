@@ -238,7 +238,7 @@ def rail_branches(robot: Robot, T_world_tcp: np.ndarray, s_grid: np.ndarray,
 
     ax = placed_rail(robot)
     arm = ax.arm
-    if arm.opw is None:                     # rail_branch says what is missing
+    if arm.opw is None or not len(s_grid):  # rail_branch says what is missing
         return [rail_branch(robot, T_world_tcp, float(s), q_pref, settings, jump_scale)
                 for s in s_grid]
     T = np.asarray(T_world_tcp, float)
