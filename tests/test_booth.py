@@ -487,22 +487,24 @@ def test_booth_figure_is_written(roof_booth, tmp_path):
 
 
 def test_booth_report_in_a_browser(roof_booth, tmp_path):
-    """The booth's results folder holds report.html (from metrics.json) and the whole-body film
-    map; a real browser (headless Chromium) shows the figures, both images load, and the zone map
-    has each robot's colour (both robots lay most of the film somewhere: coverage credit > 0)."""
+    """The booth's results folder holds report.html (the one report every cell has) and the
+    whole-body film map; a real browser (headless Chromium) shows the figures, the images load,
+    and the zone map has each robot's colour (both robots lay most of the film somewhere:
+    coverage credit > 0)."""
     import json
 
+    from matplotlib import colormaps
     from PIL import Image
 
-    from paintcell.booth.booth_report import _ZONE_COLOURS
     from paintcell.booth.booth_results import write_booth_results
+    from paintcell.output.plots import ROBOT_CMAP
 
     write_booth_results(roof_booth, tmp_path, load_robots(ROOF_BOOTH))
     m = json.loads((tmp_path / "metrics.json").read_text())
     with Image.open(tmp_path / "body_film.png") as im:
         rgb = np.asarray(im.convert("RGB")).reshape(-1, 3)
     for k in range(2):
-        c = np.array([int(_ZONE_COLOURS[k][i:i + 2], 16) for i in (1, 3, 5)])
+        c = np.round(255 * np.asarray(colormaps[ROBOT_CMAP].colors[k]))
         assert (np.abs(rgb.astype(int) - c).max(axis=1) <= 2).sum() > 500, f"robot {k} zone"
     import importlib.util
 
@@ -527,9 +529,10 @@ def test_booth_report_in_a_browser(roof_booth, tmp_path):
             text = page.inner_text("body")
         finally:
             b.close()
-    assert len(widths) == 2 and min(widths) > 500
+    # the film map (body_film.png), the histogram and booth.png, every one loaded
+    assert len(widths) == 3 and min(widths) > 400
     for n in ("roof_l", "roof_r"):
-        assert text.count(n) >= 2      # robots table and allocation
+        assert text.count(n) >= 3      # time-and-paint table, allocation, its own section
     assert "assignments enumerated" in text and "Film build" in text
 
 
