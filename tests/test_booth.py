@@ -750,6 +750,23 @@ def test_validate_recomputes_a_booth_folder_from_its_files(roof_booth, roof_boot
                                                       rel=1e-12)
 
 
+def test_report_of_a_booth_folder_is_rebuilt_and_refuses_video(roof_booth_dir, capsys):
+    """`paintcell report` rebuilds a booth folder's report.html from its files (the same writer
+    as a one-robot folder: a section a robot); `--video` stops in one line naming why (no video is
+    rendered for a cell of several robots) and what to do, not a traceback."""
+    from paintcell.cli.common import EXIT_OK, EXIT_USAGE
+    from paintcell.cli.main import main
+
+    (roof_booth_dir / "report.html").unlink()
+    assert main(["report", str(roof_booth_dir)]) == EXIT_OK
+    text = (roof_booth_dir / "report.html").read_text(encoding="utf-8")
+    assert all(f"<section id='robot-{r.name}'>" in text for r in ROOF_BOOTH.robots)
+    capsys.readouterr()
+    assert main(["report", str(roof_booth_dir), "--video"]) == EXIT_USAGE
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "2 robots" in err and "without --video" in err, err
+
+
 def test_export_writes_one_synchronised_module_per_booth_robot(roof_booth, roof_booth_dir,
                                                                tmp_path):
     """`paintcell export --rapid` on a booth folder: one module per robot with the validation
