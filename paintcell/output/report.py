@@ -81,6 +81,8 @@ th { background: #f0f0f0; }
          align-items: start; }
 .first figure { margin: 0; } .first img { width: 100%; }
 .first #passes table { font-size: 0.82em; margin-top: 0; } .first #passes p { margin: 0 0 0.3em; }
+#cell { min-width: 0; overflow-x: auto; } #cell table { font-size: 0.78em; margin-top: 0; }
+#cell p { margin: 0 0 0.3em; }
 .slow { color: #b35c00; }
 figure { display: inline-block; margin: 0.5em; max-width: 100%; vertical-align: top; }
 figure img { max-width: 100%; border: 1px solid #ddd; }
