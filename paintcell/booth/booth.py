@@ -48,13 +48,10 @@ from paintcell.booth.booth_chain import job_record
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
 from paintcell.core.placement import Placement
+from paintcell.motion.moves import APPROACH_RETRACT_S, TURN_S
 from paintcell.surface.part_spec import MeshPart
 from paintcell.validation.paint_spec import PaintSpec
 
-#: cycle estimate of the allocation: time per turn-around and for approach + retract [s]
-#: (measured on the library parts' programs: turn-arounds 0.8–1.8 s, approach + retract 3–5 s).
-TURN_S = 1.2
-APPROACH_RETRACT_S = 4.0
 #: largest step between the carriage positions `pass_feasible` tries on a rail [m].
 RAIL_STEP_M = 0.12
 
