@@ -60,16 +60,17 @@ def robot_runs(d: Path, metrics: dict[str, Any], scenario: dict[str, Any] | None
 
 
 def _span(passes: Sequence[Any]) -> str:
-    """'pass 3' / 'passes 0–5' from [first, end] (a list of them: joined with '+')."""
+    """'pass 3' / 'passes 1–6' from [first, end) counted from 0 (a list of them: joined with
+    '+'), numbered from 1 as the report's pass tables are."""
     if passes and isinstance(passes[0], list | tuple):
         return " + ".join(_span(list(x)) for x in passes)
     a, b = passes
-    return f"pass {a}" if b - a == 1 else f"passes {a}–{b - 1}"
+    return f"pass {a + 1}" if b - a == 1 else f"passes {a + 1}–{b}"
 
 
 def _jobs_text(jobs: dict[str, Any], names: list[str], parts: list[str],
                est: dict[str, float] | None = None) -> str:
-    """'side_a: fender passes 0–5 (24.8 s); ...' from {robot (index or name): [part, first,
+    """'side_a: fender passes 1–6 (24.8 s); ...' from {robot (index or name): [part, first,
     end] or a list of them} and optionally each robot's estimated program time [s]."""
     out = []
     for r, v in jobs.items():
