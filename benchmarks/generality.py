@@ -127,8 +127,9 @@ def run_part(name: str, mesh: Path, work: Path, generated: bool, timeout_s: floa
     row.reach_pct = float(honest) if honest is not None else float("nan")
     row.jumps = int(m.get("reach_n_joint_jumps") or 0)
     row.collisions = int(m.get("n_collisions") or 0)
-    if (out / "plan.npz").exists():
-        row.worst_turn_deg = worst_turn_deg(out / "plan.npz")
+    plans = sorted(out.glob("plan*.npz"))      # a cell of several robots: plan_<part>.npz
+    if plans:
+        row.worst_turn_deg = max(worst_turn_deg(p) for p in plans)
     return row
 
 

@@ -487,22 +487,24 @@ def test_booth_figure_is_written(roof_booth, tmp_path):
 
 
 def test_booth_report_in_a_browser(roof_booth, tmp_path):
-    """The booth's results folder holds report.html (from metrics.json) and the whole-body film
-    map; a real browser (headless Chromium) shows the figures, both images load, and the zone map
-    has each robot's colour (both robots lay most of the film somewhere: coverage credit > 0)."""
+    """The booth's results folder holds report.html (the one report every cell has) and the
+    whole-body film map; a real browser (headless Chromium) shows the figures, the images load,
+    and the zone map has each robot's colour (both robots lay most of the film somewhere:
+    coverage credit > 0)."""
     import json
 
+    from matplotlib import colormaps
     from PIL import Image
 
-    from paintcell.booth.booth_report import _ZONE_COLOURS
     from paintcell.booth.booth_results import write_booth_results
+    from paintcell.output.plots import ROBOT_CMAP
 
     write_booth_results(roof_booth, tmp_path, load_robots(ROOF_BOOTH))
     m = json.loads((tmp_path / "metrics.json").read_text())
     with Image.open(tmp_path / "body_film.png") as im:
         rgb = np.asarray(im.convert("RGB")).reshape(-1, 3)
     for k in range(2):
-        c = np.array([int(_ZONE_COLOURS[k][i:i + 2], 16) for i in (1, 3, 5)])
+        c = np.round(255 * np.asarray(colormaps[ROBOT_CMAP].colors[k]))
         assert (np.abs(rgb.astype(int) - c).max(axis=1) <= 2).sum() > 500, f"robot {k} zone"
     import importlib.util
 
@@ -527,9 +529,10 @@ def test_booth_report_in_a_browser(roof_booth, tmp_path):
             text = page.inner_text("body")
         finally:
             b.close()
-    assert len(widths) == 2 and min(widths) > 500
+    # the film map (body_film.png), the histogram and booth.png, every one loaded
+    assert len(widths) == 3 and min(widths) > 400
     for n in ("roof_l", "roof_r"):
-        assert text.count(n) >= 2      # robots table and allocation
+        assert text.count(n) >= 3      # time-and-paint table, allocation, its own section
     assert "assignments enumerated" in text and "Film build" in text
 
 
@@ -745,6 +748,23 @@ def test_validate_recomputes_a_booth_folder_from_its_files(roof_booth, roof_boot
     assert after == before
     assert after["executed_nsd_pct"] == pytest.approx(roof_booth.report.metrics["executed_nsd_pct"],
                                                       rel=1e-12)
+
+
+def test_report_of_a_booth_folder_is_rebuilt_and_refuses_video(roof_booth_dir, capsys):
+    """`paintcell report` rebuilds a booth folder's report.html from its files (the same writer
+    as a one-robot folder: a section a robot); `--video` stops in one line naming why (no video is
+    rendered for a cell of several robots) and what to do, not a traceback."""
+    from paintcell.cli.common import EXIT_OK, EXIT_USAGE
+    from paintcell.cli.main import main
+
+    (roof_booth_dir / "report.html").unlink()
+    assert main(["report", str(roof_booth_dir)]) == EXIT_OK
+    text = (roof_booth_dir / "report.html").read_text(encoding="utf-8")
+    assert all(f"<section id='robot-{r.name}'>" in text for r in ROOF_BOOTH.robots)
+    capsys.readouterr()
+    assert main(["report", str(roof_booth_dir), "--video"]) == EXIT_USAGE
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "2 robots" in err and "without --video" in err, err
 
 
 def test_export_writes_one_synchronised_module_per_booth_robot(roof_booth, roof_booth_dir,

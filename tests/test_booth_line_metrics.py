@@ -12,6 +12,7 @@ plates.
 
 from __future__ import annotations
 
+import html
 import json
 import math
 import re
@@ -256,7 +257,8 @@ def test_booth_loss_split_and_part_figures_re_measured(booth_dir):
 
 
 class _Tables(HTMLParser):
-    """Every table of a page as rows of cell texts, keyed by the h2 id before it."""
+    """Every table of a page as rows of cell texts, keyed by its own id, else the h2 id before
+    it."""
 
     def __init__(self) -> None:
         super().__init__()
@@ -266,6 +268,8 @@ class _Tables(HTMLParser):
     def handle_starttag(self, tag, attrs):
         if tag == "h2":
             self._id = dict(attrs).get("id", "")
+        elif tag == "table" and dict(attrs).get("id"):
+            self._id = dict(attrs)["id"]
         elif tag == "tr":
             self._row = []
         elif tag in ("td", "th"):
@@ -307,6 +311,51 @@ def test_booth_report_shows_the_robot_and_part_tables(booth_dir):
         assert float(r[4]) == pytest.approx(f["executed_inside_spec_pct"], abs=0.005)
         assert float(r[5]) == pytest.approx(f["loss_pp"], abs=5e-4)
     assert (booth_dir / "body_film.png").stat().st_size > 0
+
+
+def _npz(path: Path) -> tuple[dict, dict]:
+    """(arrays, the `_json` header) of a trajectory or trace file, read with numpy alone."""
+    with np.load(path) as z:
+        return {k: z[k] for k in z.files if k != "_json"}, json.loads(str(z["_json"]))
+
+
+def test_booth_report_has_a_section_per_robot_re_measured(booth_dir):
+    """The one report writer gives every robot of the booth its own section, and its figures are
+    the ones re-measured from the folder's arrays (read with numpy, not paintcell's loaders): the
+    own program's length and brush-on time (static_<robot>.npz), the busy share (own program ÷
+    the booth cycle of metrics.json), the brush-on share of the booth clock
+    (trajectory_<robot>.npz), the peak torque ÷ limit over its own joints of the booth's
+    trace.npz, no collision event among its bodies (trace.npz contacts); its reach verdict and
+    its RAPID module are named. Each to the digits the report prints."""
+    m = _metrics(booth_dir)
+    text = (booth_dir / "report.html").read_text(encoding="utf-8")
+    trace, head = _npz(booth_dir / "trace.npz")
+    names, tau_max = head["meta"]["joint_names"], np.asarray(head["meta"]["tau_max"], float)
+    sections = re.findall(r"<section id='robot-([^']+)'>(.*?)</section>", text, re.S)
+    assert [s[0] for s in sections] == list(NAMES)
+    for i, (name, sec) in enumerate(sections):
+        shown = {k: float(v.split()[0]) for v, k in re.findall(
+            r"<td>([-\d.]+(?: \S+)?)</td>\s*<td><code>(\w+)</code></td>", sec)}
+        static, _ = _npz(booth_dir / f"static_{name}.npz")
+        program = float(static["t_s"][-1] - static["t_s"][0])
+        dt = float(static["t_s"][1] - static["t_s"][0])
+        assert shown["program_s"] == pytest.approx(program, abs=0.005)
+        assert shown["busy_share_pct"] == pytest.approx(
+            100 * program / m["executed_cycle_time_s"], abs=0.005)
+        tracked, _ = _npz(booth_dir / f"trajectory_{name}.npz")
+        assert shown["paint_share_pct"] == pytest.approx(100 * tracked["paint_on"].mean(),
+                                                         abs=0.005)
+        own = [k for k, j in enumerate(names) if j.startswith(f"r{i}/")]
+        assert own and shown["max_torque_utilization"] == pytest.approx(
+            np.abs(trace["tau_demand"][:, own] / tau_max[own]).max(), abs=0.005)
+        brush = re.search(r"Program: ([\d.]+) s cycle time, ([\d.]+) s with the brush on", sec)
+        assert float(brush[1]) == pytest.approx(program, abs=0.005)
+        assert float(brush[2]) == pytest.approx(static["paint_on"].sum() * dt, abs=0.005)
+        hits = [c for c in head["contacts"]
+                if any(str(c.get(b, "")).startswith(f"r{i}/") for b in ("body1", "body2"))]
+        assert ("No robot contact" in sec) == (not hits)
+        assert html.escape(m["robots"][name]["honest_reachability"]["verdict"]) in sec
+        assert f"T_{name.upper()}.mod" in sec and (booth_dir / f"T_{name.upper()}.mod").is_file()
 
 
 def _pose(text: str) -> np.ndarray:

@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S, Job
+from paintcell.booth.booth import Job
 from paintcell.booth.line_allocation import LinePanel, allocate_line, partition
 from paintcell.booth.line_takt import LineTakt, return_home_s
+from paintcell.motion.moves import APPROACH_RETRACT_S, TURN_S
 
 # -- the takt arithmetic ---------------------------------------------------------------------
 

@@ -207,3 +207,50 @@ def test_rail_scan_in_one_call_is_the_cost_at_each_position(rail_robot):
         short = max(0.0, COMFORT_MARGIN_RAD - float(st.margin[b[0]])) / COMFORT_MARGIN_RAD
         assert c == pytest.approx(dev + short ** 2, rel=1e-9, abs=1e-12)
     assert 0 < feasible < len(grid)
+
+
+def _pass_with_spin(spin_rad: float) -> np.ndarray:
+    """A horizontal pass of 400 poses 1.1 m in front of the rail (spray axis +x), the tool
+    spun by spin_rad about its spray axis in one step between poses 199 and 200."""
+    y = np.linspace(-0.6, 0.6, 400)
+    T = np.tile(np.eye(4), (len(y), 1, 1))
+    T[:, :3, :3] = [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]
+    c, s = np.cos(spin_rad), np.sin(spin_rad)
+    T[200:, :3, :3] = T[200:, :3, :3] @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    T[:, :3, 3] = np.column_stack([np.full_like(y, 1.1), y + 0.2, np.full_like(y, 1.2)])
+    return T
+
+
+def test_a_joint_jump_between_skipped_poses_is_not_feasible(rail_robot):
+    """A 1.5 rad spin of the tool in one step needs some joint to turn by at least 1.5 / 6 =
+    0.25 rad in that step (a rotation's angle is at most the sum of its joints' turns), above
+    the 0.2 rad jump threshold, however the arm stands; the step lies between two of the 40
+    poses the carriage search scores. Neither the rail search nor the booth's pass check calls
+    it feasible; the same pass without the spin is, and the position the search returns is
+    re-checked on every pose with the plain arm standing there (its own closed-form branches)."""
+    from paintcell.booth.booth import pass_feasible
+    from paintcell.robots.ik import branch_feasibility, opw_branches
+
+    s = IKSettings()
+    pref = rail_robot.rail.arm.q_home
+    smooth, spun = _pass_with_spin(0.0), _pass_with_spin(1.5)
+    s_m, ok = best_rail_position(rail_robot, smooth, pref, s)
+    assert ok and pass_feasible(rail_robot, smooth)
+    arm = _fixed_at(s_m)
+    Q, _, within = opw_branches(arm, smooth, pref)
+    assert branch_feasibility(arm, Q, within, s).feasible.any()
+    assert pass_feasible(arm, smooth)
+    assert not best_rail_position(rail_robot, spun, pref, s)[1]
+    assert not pass_feasible(rail_robot, spun)
+    assert not pass_feasible(arm, spun)
+
+
+def test_rail_scan_of_no_positions_is_empty(rail_robot):
+    """A scan over no carriage positions (e.g. none of a grid passed a screen) gives no results,
+    not an error."""
+    from paintcell.robots.rail import feasible_positions, rail_branches
+
+    T = _pass_with_spin(0.0)
+    pref = rail_robot.rail.arm.q_home
+    assert rail_branches(rail_robot, T, np.array([]), pref, IKSettings()) == []
+    assert feasible_positions(rail_robot, T, np.array([]), pref, IKSettings()).shape == (0,)

@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.output import report
+from paintcell.output import report, report_sections
 from paintcell.output.render import write_png, write_video
 from paintcell.output.report_figures import make_figures
 from paintcell.output.report_sections import format_value
@@ -136,7 +136,7 @@ def test_report_is_self_contained_html_with_every_metric(results):
     # every metric, nested ones included: its key and its value
     for key, value in _leaves(METRICS):
         assert key in body, f"metric {key} missing"
-        if isinstance(value, list) and len(value) > report.MAX_LIST_ITEMS:
+        if isinstance(value, list) and len(value) > report_sections.MAX_LIST_ITEMS:
             assert f"{len(value)} values" in body
         elif isinstance(value, list):
             assert ", ".join(format_value(x) for x in value) in body
@@ -173,12 +173,13 @@ def test_missing_metrics_is_a_clear_error(tmp_path):
 
 
 def test_flatten_and_units():
-    rows = dict(report.flatten({"a": {"b_m_s": 1.5, "c": [1, 2]}, "d": [{"e_pct": 3}]}))
+    rows = dict(report_sections.flatten({"a": {"b_m_s": 1.5, "c": [1, 2]}, "d": [{"e_pct": 3}]}))
     assert rows == {"a.b_m_s": 1.5, "a.c": "1, 2", "d[0].e_pct": 3}
-    assert report.unit_of("v_max_m_s") == "m/s" and report.unit_of("nsd_pct") == "%"
-    assert report.unit_of("thickness_um") == "µm" and report.unit_of("count") == ""
-    assert report._path_unit("stage_times_s.plan") == "s"
-    assert report._path_unit("settings.u_max") == ""
+    unit_of = report_sections.unit_of
+    assert unit_of("v_max_m_s") == "m/s" and unit_of("nsd_pct") == "%"
+    assert unit_of("thickness_um") == "µm" and unit_of("count") == ""
+    assert report_sections._path_unit("stage_times_s.plan") == "s"
+    assert report_sections._path_unit("settings.u_max") == ""
 
 
 def test_make_figures_without_cell(tmp_path):

@@ -21,9 +21,9 @@ from typing import Any
 import numpy as np
 
 from paintcell.app.init_line import Line
-from paintcell.booth.booth import APPROACH_RETRACT_S, TURN_S
 from paintcell.booth.line_takt import UTILISATION
 from paintcell.core.errors import PaintcellError
+from paintcell.motion.moves import APPROACH_RETRACT_S, TURN_S
 
 __all__ = ["init_body_line", "init_line", "line_toml"]
 

@@ -159,9 +159,9 @@ def _robot_frames(share: RobotShare, k: int, pts: np.ndarray, x_m: float, left: 
 def _carriage_x(robot: Any, tcp: list[np.ndarray]) -> np.ndarray:
     """(P, 2) the least and the most world x [m] of the carriage from which the rail robot
     (its rail the planner's) reaches each of the passes `tcp` (P × (M, 4, 4)) in closed form
-    (`paintcell.robots.rail.rail_cost`, every `STRETCH_STEP_M`); NaN where none does."""
+    (`paintcell.robots.rail.feasible_positions`, every `STRETCH_STEP_M`); NaN where none does."""
     from paintcell.robots.ik import IKSettings
-    from paintcell.robots.rail import rail_cost
+    from paintcell.robots.rail import feasible_positions
 
     spec, T = robot.rail.spec, robot.rail.T_world_rail
     n = max(2, int(np.ceil((spec.upper_m - spec.lower_m) / STRETCH_STEP_M)) + 1)
@@ -169,10 +169,7 @@ def _carriage_x(robot: Any, tcp: list[np.ndarray]) -> np.ndarray:
     x = T[0, 3] + grid * T[0, 1]
     out = np.full((len(tcp), 2), np.nan)
     for i, Tp in enumerate(tcp):
-        keep = np.unique(np.linspace(0, len(Tp) - 1, 40).astype(int))
-        js = max(1.0, (len(Tp) - 1) / max(len(keep) - 1, 1))
-        ok = np.array([rail_cost(robot, Tp[keep], s, robot.rail.arm.q_home, IKSettings(), js)[1]
-                       for s in grid])
+        ok = feasible_positions(robot, Tp, grid, robot.rail.arm.q_home, IKSettings())
         if ok.any():
             out[i] = x[ok].min(), x[ok].max()
     return out

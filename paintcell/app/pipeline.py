@@ -124,15 +124,20 @@ def run_scenario(scn: Any, out_dir: str | Path | None = None, *, fast: bool = Fa
     report: also write plots, renders and `report.html`.
     video: with `report`, also render the execution GIF and embed it in `report.html` (MBs).
     A `paintcell.booth.booth.Booth` (several robots) runs through
-    `paintcell.booth.booth_run.run_booth` (its report is always written; video is not made)
-    and returns its `BoothResult`; `tasks` (a `paintcell.booth.booth_tasks.TaskPool`, e.g. Dask
-    workers) plans its parts and builds its robots' programs at once (the same results).
+    `paintcell.booth.booth_run.run_booth` (its report is always written; it renders no video:
+    `video` is refused) and returns its `BoothResult`; `tasks` (a
+    `paintcell.booth.booth_tasks.TaskPool`, e.g. Dask workers) plans its parts and builds its
+    robots' programs at once (the same results).
     """
     from paintcell.booth.booth import Booth
 
     if isinstance(scn, Booth):   # several robots: one cell of N robots on a conveyor
         from paintcell.booth.booth_run import run_booth
 
+        if video:
+            raise ScenarioError(f"{scn.name} is a cell of {len(scn.robots)} robots: its run "
+                                "renders no execution video (one is made for a one-robot cell "
+                                "only); run it without --video")
         return run_booth(scn, out_dir, fast=fast, mode=mode, progress=progress,  # type: ignore
                          tasks=tasks)
     if not isinstance(scn, Scenario):

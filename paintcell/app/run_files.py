@@ -1,6 +1,7 @@
 """Reading a results folder back — of a one-robot scenario or of a booth of several robots —
 and what `validate`, `export` and `report` make of it: its files, each checked, the scenario
-from its snapshot, the validation recomputed, the robot programs, the report.
+from its snapshot, the validation recomputed, the robot programs (the report of either kind:
+`paintcell.output.report.write_report`).
 
 Nothing here imports or runs a file named in the folder: the scenario comes from the data in
 `scenario.json` (`paintcell.app.scenario_data.scenario_from_snapshot`, a booth's
@@ -19,7 +20,7 @@ from paintcell.core.errors import PaintcellError
 from paintcell.core.safe_paths import read_regular_bytes
 
 __all__ = ["check_folder_files", "load_run_dir", "plans_digest", "program_modules",
-           "read_json", "rederive", "revalidate_run_dir", "write_run_report"]
+           "read_json", "rederive", "revalidate_run_dir"]
 
 _ZIP_MAGIC = b"PK\x03\x04"
 
@@ -192,20 +193,6 @@ def program_modules(files: dict[str, Any], metrics: dict[str, Any], header: list
 
     return {scn.name: rapid_module(files["trajectory"], load_robot_for(scn),
                                    module_name=scn.name, **options)}
-
-
-def write_run_report(d: Path, video: bool = False) -> Path:
-    """Rebuild `report.html` of results folder `d` from its files (a booth's: its booth report);
-    returns its path. video: embed the folder's execution.gif (one-robot runs)."""
-    d = Path(d)
-    snapshot = d / "scenario.json"   # the report itself needs only metrics.json
-    if snapshot.exists() and read_json(snapshot).get("kind") == "booth":
-        from paintcell.booth.booth_report import write_booth_report
-
-        return write_booth_report(d)
-    from paintcell.output.report import write_report
-
-    return write_report(d, video=video)
 
 
 def check_folder_files(d: Path) -> None:

@@ -48,13 +48,10 @@ from paintcell.booth.booth_chain import job_record
 from paintcell.booth.conveyor import Conveyor
 from paintcell.core.errors import PaintcellError
 from paintcell.core.placement import Placement
+from paintcell.motion.moves import APPROACH_RETRACT_S, TURN_S
 from paintcell.surface.part_spec import MeshPart
 from paintcell.validation.paint_spec import PaintSpec
 
-#: cycle estimate of the allocation: time per turn-around and for approach + retract [s]
-#: (measured on the library parts' programs: turn-arounds 0.8–1.8 s, approach + retract 3–5 s).
-TURN_S = 1.2
-APPROACH_RETRACT_S = 4.0
 #: largest step between the carriage positions `pass_feasible` tries on a rail [m].
 RAIL_STEP_M = 0.12
 #: `Booth.seam_shares` values: one seam share for the whole body, or one per seam.
@@ -384,27 +381,30 @@ def estimate_s(pass_durations: np.ndarray) -> float:
 
 
 def pass_feasible(robot: Any, T_world_tcp: np.ndarray) -> bool:
-    """Whether one pass is feasible for the robot in closed form (subsampled to 40 poses): some
-    branch inside the limits, off the wrist singularity (a rail robot: at some rail position)."""
+    """Whether one pass is feasible for the robot in closed form on every pose: some branch
+    inside the limits, off the wrist singularity, without a joint jump (a rail robot: at some
+    carriage position at most RAIL_STEP_M from the next tried). A subsample of the pass screens
+    (`paintcell.robots.rail.search_poses`); what it passes is confirmed on the whole pass."""
     from paintcell.robots.ik import IKSettings, branch_feasibility, opw_branches
+    from paintcell.robots.rail import feasible_positions, search_poses
 
-    keep = np.unique(np.linspace(0, len(T_world_tcp) - 1, 40).astype(int))
-    sub = T_world_tcp[keep]
-    js = max(1.0, (len(T_world_tcp) - 1) / max(len(keep) - 1, 1))   # subsampling widens jumps
     settings = IKSettings()
     if getattr(robot, "rail", None) is not None:
-        from paintcell.robots.rail import rail_cost
-
         spec = robot.rail.spec
         # carriage positions at most RAIL_STEP_M apart (21 on a rail up to 2.4 m long)
         n = max(21, int(np.ceil((spec.upper_m - spec.lower_m) / RAIL_STEP_M - 1e-9)) + 1)
-        return any(rail_cost(robot, sub, s, robot.rail.arm.q_home, settings, js)[1]
-                   for s in np.linspace(spec.lower_m, spec.upper_m, n))
+        return bool(feasible_positions(robot, T_world_tcp, np.linspace(spec.lower_m,
+                                                                       spec.upper_m, n),
+                                       robot.rail.arm.q_home, settings).any())
     if robot.opw is None:
         raise BoothError(f"{robot.name}: booth allocation needs closed-form IK (abb_paint, "
                          "irb5500 or their _rail variants)")
-    Q, _, within = opw_branches(robot, sub, robot.q_home)
-    return bool(branch_feasibility(robot, Q, within, settings, js).feasible.any())
+    sub, js = search_poses(T_world_tcp)
+    for T, scale in ((sub, js), (T_world_tcp, 1.0)):
+        Q, _, within = opw_branches(robot, T, robot.q_home)
+        if not branch_feasibility(robot, Q, within, settings, scale).feasible.any():
+            return False
+    return True
 
 
 def arm_points(robot: Any, q: np.ndarray) -> np.ndarray:

@@ -39,6 +39,7 @@ from paintcell.execution.cell_robots import (
     RobotLike,
     add_contact_sensors,
     attach_robots,
+    robot_prefix,
     stand_robots,
 )
 from paintcell.surface.surface_data import Surface
@@ -46,11 +47,6 @@ from paintcell.surface.surface_data import Surface
 #: the static body that holds every robot (its subtree is "the robots" for the contact sensors).
 ROBOTS_BODY = "robots"
 CONVEYOR_JOINT = "conveyor"
-
-
-def robot_prefix(i: int) -> str:
-    """Name prefix of robot i's MJCF inside the booth."""
-    return f"r{i}/"
 
 
 @dataclass(frozen=True)

@@ -252,11 +252,14 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     its tracked program `trajectory_<robot>.npz` and its trace `trace_<robot>.npz`, the booth's
     one trace `trace.npz` (with the carrier), one RAPID module per robot, the body's film
     (`film.npz`, `film.glb`: `booth_film`), `booth.png` (`plot_robot_timeline`), `body_film.png`
-    and `report.html` (`paintcell.booth.booth_report`). `read_booth_results` reads them back."""
+    (`plot_body_film`) and `report.html` (`paintcell.output.report`, as every cell's).
+    `read_booth_results` reads them back."""
     from paintcell.booth.booth_data import booth_snapshot
+    from paintcell.booth.booth_film import overlap_mask
     from paintcell.core.atomic_io import atomic_write_npz
     from paintcell.output.export_rapid import cell_modules
-    from paintcell.output.plots import plot_robot_timeline
+    from paintcell.output.plots import plot_body_film, plot_robot_timeline
+    from paintcell.output.report import write_report
 
     booth = result.scenario
     d = result.report.to_dict()
@@ -288,22 +291,14 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
     plot_robot_timeline(out / "booth.png", [r.name for r in booth.robots], result.trajectories,
                         [len(s.t_s) for s in result.static_trajectories], m,
                         f"{booth.name}: conveyor {m['conveyor_speed_m_s']:.3f} m/s")
-    from paintcell.booth.booth_film import overlap_mask
-    from paintcell.booth.booth_report import body_film_figure, write_booth_report
-
     ex = result.films_m["executed"]
-    body_film_figure(result.surface, result.part_vertex_counts, ex,
-                     [r.name for r in booth.robots], out / "body_film.png",
-                     band=overlap_mask(ex),
-                     title=f"{booth.name}: executed film over the whole body "
-                           f"(σ/μ {m['executed_nsd_pct']:.2f} %)")
-    from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
-    from paintcell.output.report_film import FILM_NAME, save_film_data
-
-    film, scene = booth_film(booth, result.surface, result.judged, result.films_m, result.plans)
-    save_film_data(out / FILM_NAME, film)
-    write_film_glb(out / FILM_GLB_NAME, scene)
-    write_booth_report(out)
+    plot_body_film(out / "body_film.png", result.surface, result.part_vertex_counts, ex,
+                   [r.name for r in booth.robots], band=overlap_mask(ex),
+                   title=f"{booth.name}: executed film over the whole body "
+                         f"(σ/μ {m['executed_nsd_pct']:.2f} %)")
+    write_booth_film_files(out, booth, {"body": result.surface, "judged": result.judged,
+                                        "plans": result.plans}, result.films_m)
+    write_report(out)
 
 
 def read_booth_results(out: Path, booth: Booth, read: Any) -> dict[str, Any]:
@@ -382,13 +377,16 @@ def booth_film(booth: Booth, body: Surface, judged: np.ndarray | None,
     w = areas * judged
     own = (1e-6 * booth.film_target_um if booth.film_target_um is not None
            else float(planned @ w / w.sum()))
+    faces = np.asarray(body.faces, np.int64)
+    # with the mesh and judged faces (corners all judged), the share in the window metrics gives
     film = FilmData(planned, films_m["executed"].sum(axis=0), areas, judged,
-                    booth.spec.target_m(own), 0.01 * booth.spec.window_pct)
+                    booth.spec.target_m(own), 0.01 * booth.spec.window_pct,
+                    np.asarray(body.vertices, float), faces, judged[faces].all(axis=1))
     passes = []
     for bp, plan in zip(booth.parts, plans, strict=True):
         T = bp.placement.matrix
         passes += [np.asarray(p.positions, float) @ T[:3, :3].T + T[:3, 3] for p in plan.passes]
-    scene = FilmScene(np.asarray(body.vertices, float), np.asarray(body.faces, np.int64),
+    scene = FilmScene(np.asarray(body.vertices, float), faces,
                       np.asarray(body.normals, float), film, passes,
                       booth.body_placement.matrix, {r.name: r.base.matrix for r in booth.robots},
                       frame="body")

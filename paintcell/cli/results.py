@@ -149,8 +149,9 @@ def add_report(add_parser: Any) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from paintcell.app.run_files import check_folder_files, write_run_report
+    from paintcell.app.run_files import check_folder_files
     from paintcell.core.results_dir import lock_results, note_files, require_results
+    from paintcell.output.report import write_report
 
     if not (args.dir / "metrics.json").exists():
         raise PaintcellError(f"{args.dir / 'metrics.json'} is missing; run `paintcell run` first")
@@ -158,7 +159,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
     with lock_results(args.dir, "report"):
         check_folder_files(args.dir)
         try:
-            path = write_run_report(args.dir, video=args.video)
+            path = write_report(args.dir, video=args.video)
         except (PaintcellError, OSError):
             raise
         except Exception as exc:  # a file whose content is valid JSON but not what it should be

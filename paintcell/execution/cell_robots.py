@@ -18,6 +18,11 @@ from paintcell.core.errors import PaintcellError
 from paintcell.core.transforms import quat_wxyz_from_matrix
 
 
+def robot_prefix(i: int) -> str:
+    """Name prefix of robot i's MJCF in a cell of several robots (its bodies' names)."""
+    return f"r{i}/"
+
+
 class CellError(PaintcellError):
     """The MuJoCo cell cannot be assembled from the robot, part and placement given."""
 

@@ -23,6 +23,11 @@ from paintcell.motion.joint_trajectory import TrajectoryError
 # Agreement required between the vectorized profile evaluation and ruckig's own `at_time`
 # (both evaluate the same cubics in float64; differences are round-off of ~1e-12).
 _CROSSCHECK_ATOL = 1e-8
+#: estimated duration of a turn-around between two passes and of a program's approach + retract
+#: [s], for ranking programs before they are built (measured on the library parts' programs:
+#: turn-arounds 0.8–1.8 s, approach + retract 3–5 s).
+TURN_S = 1.2
+APPROACH_RETRACT_S = 4.0
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,5 +1,5 @@
 """Matplotlib figures of a run: thickness maps, TCP speed and tracking, joints, σ/μ vs index width,
-and the robots of a cell on one clock.
+the robots of a cell on one clock and the film over a body of several parts.
 
 Every function draws with the object-oriented API on the Agg canvas (no pyplot, no global
 backend switch), writes one PNG atomically and returns its path. Film thickness is shown in µm,
@@ -16,9 +16,12 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.ticker import MaxNLocator
 from matplotlib.tri import Triangulation
 
 from paintcell.core.atomic_io import atomic_path
@@ -30,6 +33,9 @@ from paintcell.motion.joint_trajectory import true_runs
 DPI = 110
 THICKNESS_CMAP = "viridis"
 DIFF_CMAP = "RdBu_r"
+#: one colour per robot in the map of which robot laid most film.
+ROBOT_CMAP = "tab10"
+_AXES = "xyz"
 
 
 class PlotError(PaintcellError):
@@ -372,4 +378,72 @@ def plot_robot_timeline(path: str | os.PathLike[str], names: Sequence[str],
     bx.set_xlabel("% of the cycle / of the film")
     bx.legend(fontsize=8)
     fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_body_film(path: str | os.PathLike[str], body: Any, part_counts: Sequence[int],
+                   films_m: npt.ArrayLike, robot_names: Sequence[str],
+                   band: npt.ArrayLike | None = None, title: str = "") -> Path:
+    """The film over a body of several parts (PNG, atomically): the executed film on one colour
+    scale [µm] (top row) and which robot laid most of it, the overlap band outlined (bottom
+    row); one column per view, each part seen along the body axis nearest its area-weighted mean
+    normal (the side from −y, the roof from +z).
+
+    body: the merged body `Surface` (parts stacked in order, `part_counts` vertices each);
+    films_m: (R, N) each robot's executed film [m]; band: (N,) bool overlap-band mask.
+    """
+    films_m = np.asarray(films_m, float)
+    band = None if band is None else np.asarray(band, bool)
+    v, f = np.asarray(body.vertices), np.asarray(body.faces)
+    total_um = 1e6 * films_m.sum(axis=0)
+    lead = np.argmax(films_m, axis=0)
+    offs = np.cumsum([0, *part_counts])
+    views: dict[str, tuple[tuple[int, int], list[int]]] = {}
+    for i in range(len(part_counts)):   # seen along the axis (with its sign) nearest its normal
+        sl = slice(offs[i], offs[i + 1])
+        n = (np.asarray(body.normals)[sl] * np.asarray(body.vertex_areas)[sl, None]).sum(axis=0)
+        k = int(np.argmax(np.abs(n)))
+        ax2 = tuple(j for j in range(3) if j != k)
+        views.setdefault(f"seen from {'+' if n[k] >= 0 else '−'}{_AXES[k]}", (ax2, []))[1].append(i)
+    vmin, vmax = thickness_range_um(total_um * 1e-6)
+    ncol = len(views)
+    width = [float(np.ptp(v[np.concatenate([np.arange(offs[i], offs[i + 1]) for i in mem]),
+                             ax2[0]])) + 0.1 for ax2, mem in views.values()]
+    fig = Figure(figsize=(4.5 * ncol + 1.5, 6.8), layout="constrained")
+    axs = fig.subplots(2, ncol, squeeze=False, gridspec_kw={"width_ratios": width})
+    colours = colormaps[ROBOT_CMAP].colors
+    cmap_zone = ListedColormap(list(colours[:max(1, len(robot_names))]))
+    pc = None
+    for c, (label, (ax2, members)) in enumerate(views.items()):
+        for i in members:
+            fsel = f[(f >= offs[i]).all(axis=1) & (f < offs[i + 1]).all(axis=1)]
+            tri = Triangulation(v[:, ax2[0]], v[:, ax2[1]], fsel)
+            pc = axs[0, c].tripcolor(tri, total_um, shading="gouraud", cmap=THICKNESS_CMAP,
+                                     vmin=vmin, vmax=vmax)
+            axs[1, c].tripcolor(tri, facecolors=lead[fsel[:, 0]].astype(float),
+                                cmap=cmap_zone, vmin=-0.5, vmax=len(robot_names) - 0.5)
+            if band is not None and band[offs[i]:offs[i + 1]].any():
+                axs[1, c].tricontour(tri, band.astype(float), levels=[0.5], colors="k",
+                                     linewidths=0.8)
+        sel = np.concatenate([np.arange(offs[i], offs[i + 1]) for i in members])
+        for r in range(2):
+            axs[r, c].set_xlim(v[sel, ax2[0]].min() - 0.05, v[sel, ax2[0]].max() + 0.05)
+            axs[r, c].set_ylim(v[sel, ax2[1]].min() - 0.05, v[sel, ax2[1]].max() + 0.05)
+            axs[r, c].set_aspect("equal")
+            axs[r, c].xaxis.set_major_locator(MaxNLocator(5))
+            axs[r, c].set_xlabel(f"body {_AXES[ax2[0]]} [m]")
+            axs[r, c].set_ylabel(f"body {_AXES[ax2[1]]} [m]")
+        axs[0, c].set_title(f"executed film [µm], {label}")
+        axs[1, c].set_title(f"robot laying most film, {label}")
+    if pc is not None:
+        fig.colorbar(pc, ax=axs[0, :].tolist(), label="executed film thickness [µm]",
+                     shrink=0.85)
+    handles = [axs[1, 0].scatter([], [], color=colours[k], marker="s", label=n)
+               for k, n in enumerate(robot_names)]
+    fig.legend(handles=handles, fontsize=8, loc="outside lower center",
+               ncols=max(1, len(robot_names)),
+               title="black outline: overlap band (two robots each ≥ 10 % of the film)",
+               title_fontsize=8)
+    if title:
+        fig.suptitle(title)
     return save_figure(fig, path)

@@ -8,8 +8,18 @@ A key missing from a results folder's metrics (an older run, a disabled check) i
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
+#: a robot's motion: (metric key, label, unit, decimals), of each robot in its section, over the
+#: robots in the key figures.
+ROBOT_MOTION: tuple[tuple[str, str, str, int], ...] = (
+    ("executed_paint_time_s", "Time with the bell painting", "s", 1),
+    ("tracking_error_max_mm", "Largest TCP path error while painting", "mm", 2),
+    ("speed_error_rms_pct", "RMS TCP speed error while painting", "%", 1),
+    ("max_joint_range_utilization", "Closest approach to a joint limit (1 = at it)", "", 2),
+    ("max_torque_utilization", "Highest joint torque / rated torque", "", 2),
+)
 #: (section, [(metric key, label, unit, decimals)]) in reading order.
 HEADLINE: tuple[tuple[str, tuple[tuple[str, str, str, int], ...]], ...] = (
     ("Film", (
@@ -29,22 +39,29 @@ HEADLINE: tuple[tuple[str, tuple[tuple[str, str, str, int], ...]], ...] = (
         ("max_thickness_diff_um", "Largest film difference executed − planned", "µm", 1),
         ("rms_thickness_diff_um", "RMS film difference executed − planned", "µm", 2),
         ("executed_transfer_efficiency_pct", "Transfer efficiency, executed", "%", 1),
+        ("planned_transfer_efficiency_pct", "Transfer efficiency, planned", "%", 1),
+        ("paint_used_l", "Paint sent (film volume), executed", "L", 4),
+        ("planned_paint_used_l", "Paint sent (film volume), planned", "L", 4),
+        ("film_on_body_l", "Film on the body, executed", "L", 4),
     )),
     ("Uniformity (σ/μ, the paper's measure)", (
         ("planned_nsd_pct", "Film uniformity σ/μ, planned", "%", 2),
+        ("trajectory_nsd_pct", "Film uniformity σ/μ, time law (commanded program)", "%", 2),
+        ("servo_nsd_pct", "Film uniformity σ/μ, servo (before conveyor tracking)", "%", 2),
         ("executed_nsd_pct", "Film uniformity σ/μ, executed", "%", 2),
         ("loss_pp", "Loss of uniformity plan → execution", "pp", 2),
         ("loss_time_law_pp", "  of which time law and IK", "pp", 2),
         ("loss_servo_pp", "  of which servo tracking and disturbances", "pp", 2),
+        ("loss_conveyor_pp", "  of which conveyor tracking", "pp", 4),
+        ("overlap_band_area_pct", "Overlap bands (two robots ≥ 10 % of the film each)", "%", 1),
+        ("overlap_planned_nsd_pct", "Film uniformity σ/μ in overlap bands, planned", "%", 2),
+        ("overlap_executed_nsd_pct", "Film uniformity σ/μ in overlap bands, executed", "%", 2),
     )),
     ("Motion", (
         ("executed_cycle_time_s", "Cycle time, executed", "s", 1),
         ("planned_cycle_time_s", "Cycle time, programmed", "s", 1),
-        ("executed_paint_time_s", "Time with the bell painting", "s", 1),
-        ("tracking_error_max_mm", "Largest TCP path error while painting", "mm", 2),
-        ("speed_error_rms_pct", "RMS TCP speed error while painting", "%", 1),
-        ("max_joint_range_utilization", "Closest approach to a joint limit (1 = at it)", "", 2),
-        ("max_torque_utilization", "Highest joint torque / rated torque", "", 2),
+        ("carrier_tracking_error_max_mm", "Largest conveyor carrier servo error", "mm", 3),
+        *ROBOT_MOTION,
     )),
     ("Hems, flanges and turned edges (reported apart, not judged)", tuple(
         entry for region, name in (("hem", "Hem"), ("edge", "Turned edge"), ("inner", "Inner"))
@@ -56,9 +73,24 @@ HEADLINE: tuple[tuple[str, tuple[tuple[str, str, str, int], ...]], ...] = (
     ("Reach and safety", (
         ("reachability_pct", "Plan poses reached", "%", 1),
         ("n_collisions", "Collision events", "", 0),
+        ("n_robot_robot_collisions", "Robot–robot collision events", "", 0),
+        ("min_bell_distance_m", "Closest two bells while both paint", "m", 2),
         ("max_contact_depth_mm", "Deepest contact", "mm", 1),
         ("part_placement_error_mm", "Part placement error (disturbance)", "mm", 1),
     )),
+)
+
+#: a robot's section (`paintcell.output.report_robots`): its share of a cell's work
+#: (metrics.json `robots`) and its motion.
+ROBOT_FIGURES = (
+    ("Its share of the cell's work", (
+        ("program_s", "Own program", "s", 2),
+        ("start_delay_s", "Start delay (held at home)", "s", 2),
+        ("busy_share_pct", "Busy (own program ÷ cell cycle)", "%", 2),
+        ("paint_share_pct", "Brush on (÷ cell cycle)", "%", 2),
+        ("paint_credit_pct", "Paint credit (its share of the film volume)", "%", 2),
+        ("coverage_credit_pct", "Coverage credit (area where it lays most film)", "%", 2))),
+    ("Motion", ROBOT_MOTION),
 )
 
 #: check units as stored in metrics.json → as printed.
@@ -93,10 +125,12 @@ def with_unit(v: Any, unit: str, decimals: int | None = None) -> str:
     return f"{text} {unit}" if unit and text != "—" else text
 
 
-def headline_rows(metrics: dict[str, Any]) -> list[tuple[str, list[tuple[str, str, str]]]]:
-    """[(section, [(label, value with unit, machine key)])] for the keys `metrics` has."""
+def headline_rows(metrics: dict[str, Any], sections: Sequence[Any] = HEADLINE
+                  ) -> list[tuple[str, list[tuple[str, str, str]]]]:
+    """[(section, [(label, value with unit, machine key)])] for the keys `metrics` has, of
+    `sections` (`HEADLINE` or `ROBOT_FIGURES`)."""
     out = []
-    for section, entries in HEADLINE:
+    for section, entries in sections:
         rows = [(label.strip(), with_unit(metrics[key], unit, dec), key)
                 for key, label, unit, dec in entries if key in metrics]
         if rows:

@@ -16,7 +16,7 @@ import html
 import io
 import os
 import stat
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +26,7 @@ from paintcell.core.results_dir import marker_files, read_marker
 from paintcell.core.safe_paths import read_regular_bytes
 from paintcell.output.report_film import FilmData, histogram_png
 from paintcell.output.report_names import (
+    HEADLINE,
     check_cells,
     check_reason,
     headline_rows,
@@ -36,9 +37,22 @@ from paintcell.output.report_names import (
 _MIME = {".png": "image/png", ".gif": "image/gif", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
 #: PNGs at least this large are embedded with a 256-colour palette [bytes].
 PALETTE_MIN_BYTES = 20_000
-#: the images shown as the film map, best first (names `report_figures.make_figures` writes).
+#: the images shown as the film map, best first (names `report_figures.make_figures` writes; a
+#: cell of several parts: the body's film, `plots.plot_body_film`).
 FILM_MAP_FILES = ("render_executed_spec.png", "render_executed_front.png", "thickness_maps.png",
-                  "render_planned_front.png")
+                  "render_planned_front.png", "body_film.png")
+
+
+# Lists longer than this are summarized (count, min, mean, max) instead of printed in full.
+MAX_LIST_ITEMS = 16
+
+# Key-name suffix → unit shown in the tables (longest suffix first).
+_UNITS = (
+    ("_m_s2", "m/s²"), ("_m_s", "m/s"), ("_rad_s2", "rad/s²"), ("_rad_s", "rad/s"),
+    ("_1_m", "1/m"), ("_m2", "m²"), ("_m3_s", "m³/s"), ("_um", "µm"), ("_mm", "mm"),
+    ("_pct", "%"), ("_pp", "percentage points"), ("_rad", "rad"), ("_deg", "deg"),
+    ("_hz", "Hz"), ("_nm", "N·m"), ("_ms", "ms"), ("_s", "s"), ("_m", "m"),
+)
 
 
 def format_value(v: Any) -> str:
@@ -62,6 +76,97 @@ def table(headers: Iterable[str], rows: Iterable[Iterable[str]], cls: str = "",
     c = f' class="{cls}"' if cls else ""
     i = f' id="{ident}"' if ident else ""
     return f"<table{i}{c}>\n<thead><tr>{head}</tr></thead>\n<tbody>\n{body}\n</tbody>\n</table>"
+
+
+def values_table(headers: Sequence[str], rows: Iterable[Iterable[Any]], ident: str = "",
+                 digits: int | Sequence[int] = 2) -> str:
+    """An HTML table of plain values: a float at `digits` decimals (one for every column, or a
+    column's own), an int as it is, None "—", anything else as escaped text."""
+    dig = [digits] * len(headers) if isinstance(digits, int) else list(digits)
+
+    def cell(v: Any, k: int) -> str:
+        if isinstance(v, float):
+            return html.escape(number(v, dig[k]))
+        return "—" if v is None else html.escape(format_value(v))
+
+    return table(headers, ([cell(v, k) for k, v in enumerate(r)] for r in rows), ident=ident)
+
+
+def unit_of(key: str) -> str:
+    """Unit of a metric from its key name's suffix ("" when the name carries none)."""
+    k = key.lower()
+    for suffix, unit in _UNITS:
+        if k.endswith(suffix):
+            return unit
+    return ""
+
+
+def flatten(obj: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    """(key path, scalar or summary string) rows of a nested JSON value.
+
+    Dicts recurse with "a.b"; lists of dicts with "a[0].b"; lists of scalars of at most
+    `MAX_LIST_ITEMS` items are joined; longer numeric lists are summarized.
+    """
+    rows: list[tuple[str, Any]] = []
+    if isinstance(obj, dict):
+        if not obj and prefix:
+            rows.append((prefix, "{}"))
+        for k, v in obj.items():
+            rows.extend(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    elif isinstance(obj, list | tuple):
+        if not obj:
+            rows.append((prefix, "[]"))
+        elif all(not isinstance(x, dict | list | tuple) for x in obj):
+            if len(obj) <= MAX_LIST_ITEMS:
+                rows.append((prefix, ", ".join(format_value(x) for x in obj)))
+            else:
+                nums = np.array([x for x in obj if isinstance(x, int | float)
+                                 and not isinstance(x, bool)], float)
+                if nums.size:
+                    rows.append((prefix, f"{len(obj)} values: min {format_value(nums.min())}, "
+                                         f"mean {format_value(nums.mean())}, "
+                                         f"max {format_value(nums.max())}"))
+                else:
+                    rows.append((prefix, f"{len(obj)} values: "
+                                 + ", ".join(format_value(x) for x in obj[:MAX_LIST_ITEMS])
+                                 + ", …"))
+        else:
+            for i, v in enumerate(obj):
+                rows.extend(flatten(v, f"{prefix}[{i}]"))
+    else:
+        rows.append((prefix, obj))
+    return rows
+
+
+def _leaf(key: str) -> str:
+    return key.rsplit(".", 1)[-1].split("[", 1)[0]
+
+
+def _value_cell(key: str, v: Any) -> str:
+    text = html.escape(format_value(v))
+    leaf = _leaf(key)
+    if ("thickness" in leaf and leaf.endswith("_m") and isinstance(v, int | float)
+            and not isinstance(v, bool)):
+        text += f" ({float(v) * 1e6:.4g} µm)"
+    return text
+
+
+def _path_unit(key: str) -> str:
+    """Unit of a flattened key: its leaf's suffix, else the nearest parent's ("stage_times_s.plan"
+    is in s)."""
+    for part in reversed(key.split(".")):
+        u = unit_of(part.split("[", 1)[0])
+        if u:
+            return u
+    return ""
+
+
+def kv_table(d: Any, empty: str = "none") -> str:
+    rows = [(html.escape(k), _value_cell(k, v), html.escape(_path_unit(k) or "—"))
+            for k, v in flatten(d)]
+    if not rows:
+        return f"<p>{html.escape(empty)}</p>"
+    return table(["quantity", "value", "unit"], rows)
 
 
 def embeddable(path: Path) -> bool:
@@ -269,17 +374,19 @@ def pass_table_html(d: Path) -> str:
 
 
 def first_screen(d: Path, metrics: dict[str, Any], film: FilmData | None,
-                 captions: dict[str, str]) -> str:
-    """Verdict, film map, histogram and pass table: what fits a 1280×800 window."""
+                 captions: dict[str, str], third: str) -> str:
+    """Verdict, film map, histogram and `third` (HTML: the pass table of one robot, the robots
+    of a cell of several): what fits a 1280×800 window."""
     return (verdict_html(metrics) + '<section class="first">' + film_map_html(d, captions)
-            + histogram_html(film) + pass_table_html(d) + "</section>")
+            + histogram_html(film) + third + "</section>")
 
 
 # --- detail -----------------------------------------------------------------------------------
-def headline_html(metrics: dict[str, Any]) -> str:
-    """The headline metrics under human names (machine key in a tooltip and the last column)."""
+def headline_html(metrics: dict[str, Any], sections: Sequence[Any] = HEADLINE) -> str:
+    """The headline metrics (`sections` of `report_names`) under human names (machine key in
+    the last column)."""
     out = []
-    for section, rows in headline_rows(metrics):
+    for section, rows in headline_rows(metrics, sections):
         cells = [(html.escape(label), html.escape(value),
                   f"<code>{html.escape(key)}</code>") for label, value, key in rows]
         out.append(f"<h3>{html.escape(section)}</h3>"
@@ -302,8 +409,9 @@ def checks_table(checks: list[Any]) -> str:
     return table(["check", "value", "limit", "result"], rows, "checks")
 
 
-def collisions_html(metrics: dict[str, Any], d: Path) -> str:
-    """Collision events (from metrics.json, else trace.npz contacts)."""
+def collisions_html(metrics: dict[str, Any], d: Path, prefix: str = "") -> str:
+    """Collision events (from metrics.json, else trace.npz contacts); prefix: only the events of
+    the bodies whose names start with it (one robot of several)."""
     events = metrics.get("collisions")
     if events is None and (d / "trace.npz").exists():
         from paintcell.execution.trace import ExecutedTrace
@@ -312,23 +420,22 @@ def collisions_html(metrics: dict[str, Any], d: Path) -> str:
         events = [{"body1": c.body1, "body2": c.body2, "t_start_s": c.time_s,
                    "t_end_s": c.time_s, "max_depth_m": c.depth_m, "samples": 1}
                   for c in trace.contacts]
+    events = [e for e in events or [] if str(e.get("body1", "")).startswith(prefix)
+              or str(e.get("body2", "")).startswith(prefix)]
     if not events:
         return "<p>No robot contact with the part, the booth or itself during execution.</p>"
-    rows = [(html.escape(str(e.get("body1", ""))), html.escape(str(e.get("body2", ""))),
-             html.escape(number(e.get("t_start_s"), 3)), html.escape(number(e.get("t_end_s"), 3)),
-             html.escape(number(1e3 * float(e["max_depth_m"]), 1)
-                         if e.get("max_depth_m") is not None else "—"),
-             html.escape(format_value(e.get("samples")))) for e in events]
-    return (f"<p>{len(events)} collision event(s).</p>"
-            + table(["body 1", "body 2", "start [s]", "end [s]", "max depth [mm]",
-                     "samples [-]"], rows))
+    rows = [(e.get("body1", ""), e.get("body2", ""), e.get("t_start_s"), e.get("t_end_s"),
+             None if e.get("max_depth_m") is None else 1e3 * float(e["max_depth_m"]),
+             e.get("samples")) for e in events]
+    return (f"<p>{len(events)} collision event(s).</p>" + values_table(
+        ["body 1", "body 2", "start [s]", "end [s]", "max depth [mm]", "samples [-]"], rows,
+        digits=(0, 0, 3, 3, 1, 0)))
 
 
-def slowdowns_html(d: Path) -> str:
-    """Cycle time and every slowdown run of the trajectory."""
-    path = d / "trajectory.npz"
+def slowdowns_html(path: Path) -> str:
+    """Cycle time and every slowdown run of a robot's program (`path`: its trajectory npz)."""
     if not path.exists():
-        return "<p>trajectory.npz not found: slowdowns unknown.</p>"
+        return f"<p>{html.escape(path.name)} not found: slowdowns unknown.</p>"
     from paintcell.motion.joint_trajectory import JointTrajectory
 
     traj = JointTrajectory.load_npz(path)
@@ -336,32 +443,108 @@ def slowdowns_html(d: Path) -> str:
             f"brush on, robot {html.escape(traj.robot_name)}.</p>")
     if not traj.slowdowns:
         return head + "<p>No slowdown: the time law followed the planned TCP speed.</p>"
-    rows = [(html.escape(str(int(s["pass"]) + 1) if s.get("pass") is not None else "—"),
-             html.escape(number(s.get("s_start_m"), 3)), html.escape(number(s.get("s_end_m"), 3)),
-             html.escape(number(s.get("t_start_s"), 2)),
-             html.escape(number(s.get("duration_s"), 2)),
-             html.escape(number(s.get("max_speed_deficit_pct"), 1)),
-             html.escape(", ".join(map(str, s.get("limiting", []))) if isinstance(
-                 s.get("limiting"), list) else str(s.get("limiting", ""))))
+    rows = [(None if s.get("pass") is None else int(s["pass"]) + 1, s.get("s_start_m"),
+             s.get("s_end_m"), s.get("t_start_s"), s.get("duration_s"),
+             s.get("max_speed_deficit_pct"), ", ".join(map(str, s["limiting"]))
+             if isinstance(s.get("limiting"), list) else s.get("limiting", ""))
             for s in traj.slowdowns]
-    return head + table(["pass", "from [m]", "to [m]", "start [s]", "duration [s]",
-                         "max speed deficit [%]", "limited by"], rows)
+    return head + values_table(["pass", "from [m]", "to [m]", "start [s]", "duration [s]",
+                                "max speed deficit [%]", "limited by"], rows,
+                               digits=(0, 3, 3, 2, 2, 1, 0))
 
 
 def plan_html(d: Path, meta: dict[str, Any] | None) -> str:
     """The coverage plan's passes as plan.json states them."""
     if meta is None:
         return "<p>plan.json not found.</p>"
-    rows = [(html.escape(str(i + 1)), html.escape(format_value(p.get("side"))),
-             html.escape(number(None if p.get("index_width_m") is None
-                                else 1e3 * p["index_width_m"], 0)),
-             html.escape(number(p.get("length_m"), 3)),
-             html.escape(number(p.get("duration_s"), 2)),
-             html.escape(number(p.get("nsd_constant_pct"), 2)),
-             html.escape(number(p.get("nsd_optimized_pct"), 2)))
+    keys = ("length_m", "duration_s", "nsd_constant_pct", "nsd_optimized_pct")
+    rows = [(i + 1, p.get("side"), None if p.get("index_width_m") is None
+             else 1e3 * float(p["index_width_m"]), *map(p.get, keys))
             for i, p in enumerate(meta.get("passes", []))]
     head = (f"<p>Part {html.escape(str(meta.get('surface_name', '')))}: "
             f"{len(rows)} passes, paint time {number(meta.get('paint_time_s'), 1)} s; start "
             f"curve: {html.escape(str(meta.get('start_rule', '')))}.</p>")
-    return head + table(["pass", "side", "index width [mm]", "length [m]", "duration [s]",
-                         "σ/μ constant speed [%]", "σ/μ optimized [%]"], rows)
+    return head + values_table(["pass", "side", "index width [mm]", "length [m]", "duration [s]",
+                                "σ/μ constant speed [%]", "σ/μ optimized [%]"], rows,
+                               digits=(0, 0, 0, 3, 2, 2, 2))
+
+
+# --- the parts of a body painted by several robots --------------------------------------------
+def parts_html(metrics: dict[str, Any]) -> str:
+    """Each part's film, loss split and paint, the seams between parts, the film build and the
+    paint spec (metrics.json `part_film`, `seam_film`, `film_build`, `seams`); "" for a run
+    of one part."""
+    m = metrics
+    if "part_film" not in m:
+        return ""
+    cols = {"planned_nsd_pct": "planned σ/μ [%]", "executed_nsd_pct": "executed σ/μ [%]",
+            "planned_inside_spec_pct": "planned in spec window [%]",
+            "executed_inside_spec_pct": "executed in spec window [%]", "loss_pp": "loss [pp]",
+            "loss_time_law_pp": "time law [pp]", "loss_servo_pp": "servo [pp]",
+            "loss_conveyor_pp": "conveyor [pp]", "seam_executed_mean_um": "seam mean [µm]",
+            "seam_executed_nsd_pct": "seam σ/μ [%]",
+            "interior_executed_mean_um": "interior mean [µm]",
+            "interior_executed_nsd_pct": "interior σ/μ [%]", "paint_used_l": "paint sent [L]",
+            "film_on_part_l": "film on the part [L]"}
+    rows = [[k, *({**f, **m.get("part_paint", {}).get(k, {})}.get(c) for c in cols)]
+            for k, f in m["part_film"].items()]
+    sf = m["seam_film"]
+    out = ["<h2 id='part-film'>Parts</h2>"
+           f"<p>Seams: each part's points within {100 * m['seam_band_m']:.0f} cm of another part "
+           f"({sf['seam_area_pct']:.1f} % of the body): executed mean "
+           f"{number(sf['seam_executed_mean_um'], 2)} µm, σ/μ "
+           f"{number(sf['seam_executed_nsd_pct'], 2)} % against the interiors' "
+           f"{number(sf['interior_executed_mean_um'], 2)} µm, "
+           f"{number(sf['interior_executed_nsd_pct'], 2)} %. Whole body in the spec window: "
+           f"{number(m.get('planned_inside_spec_pct'), 1)} % planned, "
+           f"{number(m.get('executed_inside_spec_pct'), 1)} % executed.</p>"
+           + values_table(["part", *cols.values()], rows, digits=4)]
+    fb = m.get("film_build", {})
+    out.append("<h2>Film build</h2>"
+               f"<p>{html.escape(str(fb.get('rule', '')))}"
+               + (f": target {fb['target_um']:.2f} µm" if "target_um" in fb else "") + ".</p>")
+    if "parts" in fb:
+        inside = m.get("part_executed_inside_spec_pct", {})
+        out.append(values_table(
+            ["part", "planned mean at default flow [µm]", "bell flow factor",
+             "executed mean [µm]", "executed σ/μ [%]", "in the spec window [% of area]"],
+            [[k, v["planned_mean_um"], v["flow_factor"],
+              m["part_executed_mean_um"].get(k), m["part_executed_nsd_pct"].get(k),
+              inside.get(k)] for k, v in fb["parts"].items()]))
+    if "spec_low_um" in m:
+        out.append(f"<p>Paint spec: {m['spec_low_um']:.1f}–{m['spec_high_um']:.1f} µm (target "
+                   f"{m['spec_target_um']:.1f} µm ± {m['spec_window_pct']:g} %: the scenario's "
+                   "target, else the body's planned mean film) on at least "
+                   f"{m['spec_min_inside_pct']:g} % of each part's judged area, σ/μ at most "
+                   f"{m['spec_max_nsd_pct']:g} %.</p>")
+    sm = m.get("seams", {})
+    if "unblended_planned_nsd_pct" in sm:
+        share = sm.get("share")
+        out.append(
+            "<h2>Seams between parts</h2><p>Each part is planned alone, so its edge passes also "
+            "paint its neighbours; a brush-on sample that paints other parts more than "
+            "<i>share</i> × its own part is switched off (the motion is unchanged). "
+            + (f"Share {share:g}: planned whole-body σ/μ <b id='seam-nsd'>"
+               f"{sm.get('single_share_planned_nsd_pct', sm['body_planned_nsd_pct']):.2f} "
+               f"%</b> against {sm['unblended_planned_nsd_pct']:.2f} % unblended."
+               if share is not None else
+               "No share improves the planned whole-body σ/μ "
+               f"({sm['unblended_planned_nsd_pct']:.2f} %): "
+               + ("one share for the whole body switches nothing off." if "seams" in sm
+                  else "nothing is switched off."))
+            + "</p>" + values_table(["part", "samples switched off"
+                                     + (" (per seam)" if "seams" in sm else "")],
+                                    sm["samples_switched_off"].items()))
+    if "seams" in sm:
+        out.append(
+            "<p>Per seam: each seam (two parts; a sample's seam is the part it paints most after "
+            "its own) its own share, by coordinate descent from the single share "
+            f"({sm['single_share_planned_nsd_pct']:.2f} %): planned whole-body σ/μ "
+            f"<b id='seam-nsd-per-seam'>{sm['body_planned_nsd_pct']:.2f} %</b>, "
+            f"{len(sm['steps']) - 1} change(s) kept"
+            + (f" in {sm['sweeps']} sweep(s)" if "sweeps" in sm else "")
+            + ("" if sm.get("converged", True) else " (the last sweep still changed a share)")
+            + f", {sm['film_evaluations']} film evaluations.</p>"
+            + values_table(["seam", "share"], [(k, "none" if v is None else f"{v:g}")
+                                               for k, v in sm["seams"].items()]))
+    return "\n".join(out)

@@ -43,6 +43,8 @@ RailPenalty = Callable[[float, np.ndarray], float]
 #: names in the generated MJCF.
 RAIL_JOINT = "rail"
 RAIL_BASE_BODY = "rail_base"
+#: poses of a pass a carriage search scores (`search_poses`); its picks are confirmed on all.
+SEARCH_POSES = 40
 
 
 @dataclass(frozen=True)
@@ -236,7 +238,7 @@ def rail_branches(robot: Robot, T_world_tcp: np.ndarray, s_grid: np.ndarray,
 
     ax = placed_rail(robot)
     arm = ax.arm
-    if arm.opw is None:                     # rail_branch says what is missing
+    if arm.opw is None or not len(s_grid):  # rail_branch says what is missing
         return [rail_branch(robot, T_world_tcp, float(s), q_pref, settings, jump_scale)
                 for s in s_grid]
     T = np.asarray(T_world_tcp, float)
@@ -277,17 +279,55 @@ def _branch_cost(arm: Robot, Q: np.ndarray, within: np.ndarray, q_pref: np.ndarr
     return 1e3 + float(m - st.n_ok.max()), False, None
 
 
+def search_poses(T_world_tcp: np.ndarray, n_sub: int = SEARCH_POSES
+                 ) -> tuple[np.ndarray, float]:
+    """The poses (K, 4, 4) of a pass (M, 4, 4) that a search scores, at most n_sub of them
+    evenly along it, and the factor by which they are farther apart than the pass's own (the
+    joint-jump threshold of `rail_branch`'s jump_scale)."""
+    keep = np.unique(np.linspace(0, len(T_world_tcp) - 1, n_sub).astype(int))
+    return T_world_tcp[keep], max(1.0, (len(T_world_tcp) - 1) / max(len(keep) - 1, 1))
+
+
+def feasible_positions(robot: Robot, T_world_tcp: np.ndarray, s_grid: np.ndarray,
+                       q_pref: np.ndarray, settings: Any) -> np.ndarray:
+    """(S,) bool: whether the pass T_world_tcp (M, 4, 4) is feasible (`rail_branch`) with the
+    carriage at each of s_grid [m], judged on every pose. `search_poses` screens the grid; the
+    positions it passes are confirmed on the whole pass (a subsample can hide a step larger
+    than the joint-jump threshold between two poses it skipped)."""
+    s_grid = np.asarray(s_grid, float)
+    sub, js = search_poses(T_world_tcp)
+    ok = np.array([f for _, f, _ in rail_branches(robot, sub, s_grid, q_pref, settings, js)],
+                  bool)
+    if ok.any():
+        ok[ok] = [f for _, f, _ in rail_branches(robot, T_world_tcp, s_grid[ok], q_pref,
+                                                 settings)]
+    return ok
+
+
+def _lazy_min(costs: Sequence[float], total: Callable[[int], float]) -> np.ndarray:
+    """Totals (inf where not evaluated) of items with plain costs `costs`, total(i) ≥ costs[i]
+    evaluated in order of the plain cost until no unevaluated item can win: the same minimum
+    as evaluating every total, usually in one or two calls."""
+    totals = np.full(len(costs), np.inf)
+    for i in np.argsort(costs, kind="stable"):
+        if costs[i] >= totals.min():
+            break
+        totals[i] = total(int(i))
+    return totals
+
+
 def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray,
-                       settings: Any, n_scan: int = 41, n_sub: int = 40,
+                       settings: Any, n_scan: int = 41, n_sub: int = SEARCH_POSES,
                        penalty: RailPenalty | None = None) -> tuple[float, bool]:
     """Rail position [m] for one pass (see the module doc) and whether the pass is feasible
-    there. The pass is subsampled to `n_sub` poses for the search. penalty(s_m, Q): an extra
-    cost of the feasible branch Q (M, 6) [rad] at carriage position s_m [m] (e.g. how close the
-    arm comes to things around it: `paintcell.booth.booth_clearance`)."""
+    there on every pose. The search scores the pass subsampled to `n_sub` poses; its result is
+    confirmed on the whole pass, and where a step between two skipped poses is a joint jump,
+    the scan's positions are confirmed the same way and the best confirmed one is taken.
+    penalty(s_m, Q): an extra cost of the feasible branch Q (M, 6) [rad] at carriage position
+    s_m [m] (e.g. how close the arm comes to things around it:
+    `paintcell.booth.booth_clearance`)."""
     spec = placed_rail(robot).spec
-    keep = np.unique(np.linspace(0, len(T_world_tcp) - 1, n_sub).astype(int))
-    sub = T_world_tcp[keep]
-    js = max(1.0, (len(T_world_tcp) - 1) / max(len(keep) - 1, 1))
+    sub, js = search_poses(T_world_tcp, n_sub)
 
     def base(s: float) -> tuple[float, bool, np.ndarray | None]:
         return rail_branch(robot, sub, s, q_pref, settings, jump_scale=js)
@@ -298,14 +338,7 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
 
     grid = np.linspace(spec.lower_m, spec.upper_m, n_scan)
     scan = rail_branches(robot, sub, grid, q_pref, settings, jump_scale=js)
-    costs = np.array([c for c, _, _ in scan])
-    # The penalty (≥ 0) is evaluated in order of the plain cost until no unevaluated grid point
-    # can win: the same grid minimum as evaluating it everywhere, usually in one or two calls.
-    totals = np.full(n_scan, np.inf)
-    for i in np.argsort(costs, kind="stable"):
-        if costs[i] >= totals.min():
-            break
-        totals[i] = total(float(grid[i]), *scan[i])
+    totals = _lazy_min([c for c, _, _ in scan], lambda i: total(float(grid[i]), *scan[i]))
     k = int(np.argmin(totals))
     h = grid[1] - grid[0]
     lo, hi = max(spec.lower_m, grid[k] - h), min(spec.upper_m, grid[k] + h)
@@ -315,7 +348,19 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
     s = float(res.x)
     if not total(s, *base(s)) <= totals[k]:
         s = float(grid[k])
-    return s, base(s)[1]
+    feasible = base(s)[1]
+    if not feasible or rail_branch(robot, T_world_tcp, s, q_pref, settings)[1]:
+        return s, feasible
+    # A joint jump between poses the search skipped: the scan's feasible positions on every pose.
+    idx = np.flatnonzero([f for _, f, _ in scan])
+    full = [(int(i), r) for i, r in zip(idx, rail_branches(robot, T_world_tcp, grid[idx],
+                                                           q_pref, settings), strict=True)
+            if r[1]]
+    if not full:
+        return s, False
+    totals = _lazy_min([r[0] for _, r in full], lambda j: total(float(grid[full[j][0]]),
+                                                                *full[j][1]))
+    return float(grid[full[int(np.argmin(totals))][0]]), True
 
 
 def solve_rail_paths(robot: Robot, paths: Sequence[npt.ArrayLike],
