@@ -254,3 +254,23 @@ def test_rail_scan_of_no_positions_is_empty(rail_robot):
     pref = rail_robot.rail.arm.q_home
     assert rail_branches(rail_robot, T, np.array([]), pref, IKSettings()) == []
     assert feasible_positions(rail_robot, T, np.array([]), pref, IKSettings()).shape == (0,)
+
+
+def test_feasible_positions_any_and_ends_agree_with_every_position(rail_robot):
+    """need="any" finds a position exactly when some position is feasible on every pose, and
+    need="ends" the least and the most of them, as confirming every position does."""
+    from paintcell.robots.rail import feasible_positions
+
+    pref = rail_robot.rail.arm.q_home
+    grid = np.linspace(-2.0, 2.0, 35)
+    for T in (_pass_with_spin(0.0), _pass_with_spin(1.5)):
+        every = feasible_positions(rail_robot, T, grid, pref, IKSettings())
+        anyone = feasible_positions(rail_robot, T, grid, pref, IKSettings(), need="any")
+        ends = feasible_positions(rail_robot, T, grid, pref, IKSettings(), need="ends")
+        assert anyone.any() == every.any() and not (anyone & ~every).any()
+        assert anyone.sum() <= 1 and not (ends & ~every).any()
+        if every.any():
+            assert grid[ends].min() == grid[every].min()
+            assert grid[ends].max() == grid[every].max()
+    assert every.sum() == 0 and feasible_positions(rail_robot, _pass_with_spin(0.0), grid, pref,
+                                                   IKSettings()).sum() > 2

@@ -169,7 +169,8 @@ def _carriage_x(robot: Any, tcp: list[np.ndarray]) -> np.ndarray:
     x = T[0, 3] + grid * T[0, 1]
     out = np.full((len(tcp), 2), np.nan)
     for i, Tp in enumerate(tcp):
-        ok = feasible_positions(robot, Tp, grid, robot.rail.arm.q_home, IKSettings())
+        ok = feasible_positions(robot, Tp, grid, robot.rail.arm.q_home, IKSettings(),
+                                need="ends")
         if ok.any():
             out[i] = x[ok].min(), x[ok].max()
     return out

@@ -395,7 +395,7 @@ def pass_feasible(robot: Any, T_world_tcp: np.ndarray) -> bool:
         n = max(21, int(np.ceil((spec.upper_m - spec.lower_m) / RAIL_STEP_M - 1e-9)) + 1)
         return bool(feasible_positions(robot, T_world_tcp, np.linspace(spec.lower_m,
                                                                        spec.upper_m, n),
-                                       robot.rail.arm.q_home, settings).any())
+                                       robot.rail.arm.q_home, settings, need="any").any())
     if robot.opw is None:
         raise BoothError(f"{robot.name}: booth allocation needs closed-form IK (abb_paint, "
                          "irb5500 or their _rail variants)")

@@ -289,18 +289,32 @@ def search_poses(T_world_tcp: np.ndarray, n_sub: int = SEARCH_POSES
 
 
 def feasible_positions(robot: Robot, T_world_tcp: np.ndarray, s_grid: np.ndarray,
-                       q_pref: np.ndarray, settings: Any) -> np.ndarray:
+                       q_pref: np.ndarray, settings: Any, need: str = "all") -> np.ndarray:
     """(S,) bool: whether the pass T_world_tcp (M, 4, 4) is feasible (`rail_branch`) with the
-    carriage at each of s_grid [m], judged on every pose. `search_poses` screens the grid; the
-    positions it passes are confirmed on the whole pass (a subsample can hide a step larger
-    than the joint-jump threshold between two poses it skipped)."""
+    carriage at each of s_grid [m], confirmed on every pose. `search_poses` screens the grid (its
+    jump threshold scaled by the subsample's mean spacing, so a pass whose steps are all just
+    under the threshold can be turned away); the positions it passes are confirmed on the whole
+    pass (a subsample can hide a step larger than the threshold between two poses it skipped).
+
+    need: "all" confirms every screened position; "any" stops at the first confirmed one (True
+    there only); "ends" confirms from each end of the grid inward and stops at the first on each
+    side (True at the least and the most feasible position only)."""
     s_grid = np.asarray(s_grid, float)
     sub, js = search_poses(T_world_tcp)
-    ok = np.array([f for _, f, _ in rail_branches(robot, sub, s_grid, q_pref, settings, js)],
-                  bool)
-    if ok.any():
-        ok[ok] = [f for _, f, _ in rail_branches(robot, T_world_tcp, s_grid[ok], q_pref,
-                                                 settings)]
+    screened = np.flatnonzero([f for _, f, _ in rail_branches(robot, sub, s_grid, q_pref,
+                                                              settings, js)])
+    ok = np.zeros(len(s_grid), bool)
+    if need == "all":
+        if len(screened):
+            ok[screened] = [f for _, f, _ in rail_branches(robot, T_world_tcp, s_grid[screened],
+                                                           q_pref, settings)]
+        return ok
+    orders = [screened] if need == "any" else [screened, screened[::-1]]
+    for order in orders:                    # a few positions each, usually the first
+        for i in order:
+            if ok[i] or rail_branch(robot, T_world_tcp, float(s_grid[i]), q_pref, settings)[1]:
+                ok[i] = True
+                break
     return ok
 
 
