@@ -764,7 +764,29 @@ def test_report_of_a_booth_folder_is_rebuilt_and_refuses_video(roof_booth_dir, c
     capsys.readouterr()
     assert main(["report", str(roof_booth_dir), "--video"]) == EXIT_USAGE
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "2 robots" in err and "without --video" in err, err
+    assert len(err.splitlines()) == 1 and "2 robot" in err and "without --video" in err, err
+
+
+def test_report_of_a_one_robot_booth_is_a_booth_report(roof_booth_dir, tmp_path):
+    """A booth of one robot (its metrics.json lists one robot) gets a booth's report — the
+    cell's table on the first screen, its parts' plan_<i>.json, the robot's section — not a
+    one-robot run's (whose plan.json and execution video a booth does not write)."""
+    import json
+    import shutil
+
+    from paintcell.output.report import ReportError, write_report
+
+    d = tmp_path / "one"
+    shutil.copytree(roof_booth_dir, d)
+    m = json.loads((d / "metrics.json").read_text())
+    first = next(iter(m["robots"]))
+    m["robots"] = {first: m["robots"][first]}
+    (d / "metrics.json").write_text(json.dumps(m))
+    text = write_report(d).read_text(encoding="utf-8")
+    assert "<div id='cell'>" in text and "plan.json not found" not in text
+    assert f"<section id='robot-{first}'>" in text and text.count("<section id='robot-") == 1
+    with pytest.raises(ReportError, match="booth of 1 robot"):
+        write_report(d, video=True)
 
 
 def test_export_writes_one_synchronised_module_per_booth_robot(roof_booth, roof_booth_dir,

@@ -149,6 +149,19 @@ def test_report_is_self_contained_html_with_every_metric(results):
     assert "robot limits unavailable" in body
 
 
+def test_one_robot_motion_figures_are_shown_once(results):
+    """A one-robot run's motion figures appear once, under Key figures, and not again in its
+    robot's section (whose figures are the run's)."""
+    from paintcell.output.report_names import ROBOT_MOTION
+
+    m = json.loads((results / "metrics.json").read_text())
+    m.update({key: 0.25 + 0.1 * i for i, (key, _, _, _) in enumerate(ROBOT_MOTION)})
+    (results / "metrics.json").write_text(json.dumps(m))
+    body = html.unescape(report.write_report(results).read_text(encoding="utf-8"))
+    for _, label, _, _ in ROBOT_MOTION:
+        assert body.count(label) == 1, label
+
+
 def test_report_reads_trajectory_slowdowns(results):
     k, n = 50, 6
     t = np.arange(k) * 0.01

@@ -135,7 +135,7 @@ def run_scenario(scn: Any, out_dir: str | Path | None = None, *, fast: bool = Fa
         from paintcell.booth.booth_run import run_booth
 
         if video:
-            raise ScenarioError(f"{scn.name} is a cell of {len(scn.robots)} robots: its run "
+            raise ScenarioError(f"{scn.name} is a booth of {len(scn.robots)} robot(s): its run "
                                 "renders no execution video (one is made for a one-robot cell "
                                 "only); run it without --video")
         return run_booth(scn, out_dir, fast=fast, mode=mode, progress=progress,  # type: ignore

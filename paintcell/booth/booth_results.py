@@ -378,7 +378,8 @@ def booth_film(booth: Booth, body: Surface, judged: np.ndarray | None,
     own = (1e-6 * booth.film_target_um if booth.film_target_um is not None
            else float(planned @ w / w.sum()))
     faces = np.asarray(body.faces, np.int64)
-    # with the mesh and judged faces (corners all judged), the share in the window metrics gives
+    # with the mesh and judged faces (corners all judged), film.npz's share of the judged area
+    # inside the spec window is the one metrics.json gives
     film = FilmData(planned, films_m["executed"].sum(axis=0), areas, judged,
                     booth.spec.target_m(own), 0.01 * booth.spec.window_pct,
                     np.asarray(body.vertices, float), faces, judged[faces].all(axis=1))

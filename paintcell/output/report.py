@@ -119,10 +119,12 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
         raise ReportError(f"{mpath} must hold a JSON object (the validation report)")
     scenario = _read_json(d / "scenario.json") if (d / "scenario.json").exists() else None
     robots = robot_runs(d, metrics, scenario)
-    if video and len(robots) > 1:
-        raise ReportError(f"{d} is a cell of {len(robots)} robots: its run renders no execution "
-                          "video (one is made for a one-robot cell only); run `paintcell "
-                          "report` without --video")
+    # a booth (metrics.json lists its robots, one or more) or a one-robot run
+    booth = isinstance(metrics.get("robots"), dict) and bool(metrics["robots"])
+    if video and booth:
+        raise ReportError(f"{d} is a booth of {len(robots)} robot(s): its run renders no "
+                          "execution video (one is made for a one-robot cell only); run "
+                          "`paintcell report` without --video")
     if video and not embeddable(d / VIDEO_NAME):
         raise ReportError(f"{d / VIDEO_NAME} is missing; make it with `paintcell run --video`")
     name = (metrics.get("scenario") or {}).get("name") if isinstance(metrics.get("scenario"),
@@ -133,7 +135,7 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     captions = {f["file"]: f.get("caption", "") for f in figures.get("figures", [])}
     film = load_film(d)
 
-    third = pass_table_html(d) if len(robots) == 1 else cell_html(metrics, scenario)
+    third = cell_html(metrics, scenario) if booth else pass_table_html(d)
     parts = [f"<h1>{html.escape(title)}</h1>", first_screen(d, metrics, film, captions, third)]
     if embeddable(d / FILM_GLB_NAME):
         parts.append("<h2>The film in 3-D</h2>")
@@ -146,7 +148,7 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
         parts.append(pieces)
     parts.append("<h2>Key figures</h2>")
     parts.append(headline_html(metrics))
-    if len(robots) > 1:
+    if booth:
         parts.append(sharing_html(metrics, scenario))
     parts.append(parts_html(metrics))
     parts.extend(robot_section(d, r, metrics) for r in robots)
@@ -165,7 +167,7 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     parts.append("<h2>Renders (film thickness in µm)</h2>")
     parts.append("\n".join(figure(p, captions.get(p.name, p.stem.replace("_", " ")))
                            for p in renders) or "<p>no renders in this folder</p>")
-    if not video and len(robots) == 1:
+    if not video and not booth:
         where = (f"<code>{VIDEO_NAME}</code> is in the folder;" if (d / VIDEO_NAME).is_file()
                  else "made on request with <code>paintcell run --video</code>;")
         parts.append(f"<p>Execution video: {where} <code>paintcell report DIR --video</code> "
@@ -178,8 +180,9 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
                      f"{html.escape(str(s.get('reason')))}</p>")
 
     parts.append("<h2>Coverage plan</h2>")
-    # one robot's plan.json; several parts: each part's plan_<i>.json, in the parts' order
-    plans = sorted(d.glob("plan*.json"), key=lambda p: (len(p.name), p.name))
+    # one robot's plan.json; a booth: each part's plan_<i>.json, in the parts' order
+    plans = [d / "plan.json"] if (d / "plan.json").exists() else sorted(
+        (p for p in d.glob("plan_*.json") if p.stem[5:].isdigit()), key=lambda p: int(p.stem[5:]))
     parts.extend(plan_html(d, None if p is None else _read_json(p)) for p in plans or [None])
     if metrics.get("plan_summary") is not None:
         parts.append("<details><summary>plan summary (metrics.json)</summary>"

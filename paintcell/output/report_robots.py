@@ -88,8 +88,10 @@ def robot_section(d: Path, run: RobotRun, metrics: dict[str, Any]) -> str:
     ident = html.escape(run.name)
     what = ", ".join(html.escape(str(x)) for x in (
         f.get("model"), f.get("part") and f"{f['part']} {_span(f['passes'])}") if x)
+    # a one-robot run's figures are the run's, shown under Key figures already
+    figures = "" if f is metrics else headline_html(f, ROBOT_FIGURES)
     out = [f"<section id='robot-{ident}'><h2>Robot {ident}</h2>"
-           + (f"<p>{what}.</p>" if what else "") + headline_html(f, ROBOT_FIGURES)]
+           + (f"<p>{what}.</p>" if what else "") + figures]
     reach = f.get("honest_reachability", metrics.get("reachability"))
     out.append("<h3>Reachability</h3>" + (
         f"<p>{html.escape(str(reach.get('verdict', '')))}</p><details><summary>reachability "
