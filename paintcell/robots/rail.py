@@ -301,16 +301,22 @@ def feasible_positions(robot: Robot, T_world_tcp: np.ndarray, s_grid: np.ndarray
     side (True at the least and the most feasible position only)."""
     s_grid = np.asarray(s_grid, float)
     sub, js = search_poses(T_world_tcp)
+    ok = np.zeros(len(s_grid), bool)
+    if need == "any":                       # one position at a time, the first confirmed
+        for i, s_m in enumerate(s_grid):
+            if rail_branch(robot, sub, float(s_m), q_pref, settings, js)[1] \
+                    and rail_branch(robot, T_world_tcp, float(s_m), q_pref, settings)[1]:
+                ok[i] = True
+                break
+        return ok
     screened = np.flatnonzero([f for _, f, _ in rail_branches(robot, sub, s_grid, q_pref,
                                                               settings, js)])
-    ok = np.zeros(len(s_grid), bool)
     if need == "all":
         if len(screened):
             ok[screened] = [f for _, f, _ in rail_branches(robot, T_world_tcp, s_grid[screened],
                                                            q_pref, settings)]
         return ok
-    orders = [screened] if need == "any" else [screened, screened[::-1]]
-    for order in orders:                    # a few positions each, usually the first
+    for order in (screened, screened[::-1]):    # a few positions each, usually the first
         for i in order:
             if ok[i] or rail_branch(robot, T_world_tcp, float(s_grid[i]), q_pref, settings)[1]:
                 ok[i] = True
