@@ -767,6 +767,27 @@ def test_report_of_a_booth_folder_is_rebuilt_and_refuses_video(roof_booth_dir, c
     assert len(err.splitlines()) == 1 and "2 robot" in err and "without --video" in err, err
 
 
+def test_report_of_a_booth_names_its_corrupt_file(roof_booth_dir, tmp_path, capsys):
+    """A booth folder whose robot's program or part's plan is corrupt: `paintcell report` names
+    that file in one line and writes no report."""
+    import shutil
+
+    from paintcell.cli.common import EXIT_USAGE
+    from paintcell.cli.main import main
+
+    for victim, text in (("static_*.npz", b"not a zip"), ("plan_0.json", b"{broken")):
+        d = tmp_path / victim.split("_")[0]
+        shutil.copytree(roof_booth_dir, d)
+        (d / "report.html").unlink()
+        path = sorted(d.glob(victim))[0]
+        path.write_bytes(text)
+        capsys.readouterr()
+        assert main(["report", str(d)]) == EXIT_USAGE
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and path.name in err, err
+        assert not (d / "report.html").exists()
+
+
 def test_report_of_a_one_robot_booth_is_a_booth_report(roof_booth_dir, tmp_path):
     """A booth of one robot (its metrics.json lists one robot) gets a booth's report — the
     cell's table on the first screen, its parts' plan_<i>.json, the robot's section — not a

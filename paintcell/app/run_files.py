@@ -199,10 +199,16 @@ def check_folder_files(d: Path) -> None:
     """Check every data file a report reads (JSON objects, npz archives) before it reads them,
     so a corrupt one is named in one line instead of failing deep inside the report."""
     d = Path(d)
-    for name in ("metrics.json", "scenario.json", "figures.json", "plan.json"):
+    # a booth's: each part's plan_<i>.json / .npz, each robot's static_ / trace_ / trajectory_
+    booth = sorted(p.name for p in d.glob("plan_*.*") if p.name.split(".")[0][5:].isdigit())
+    booth += sorted(p.name for pat in ("static_*.npz", "trace_*.npz", "trajectory_*.npz")
+                    for p in d.glob(pat))
+    for name in ("metrics.json", "scenario.json", "figures.json", "plan.json",
+                 *(n for n in booth if n.endswith(".json"))):
         if (d / name).exists() or name == "metrics.json":
             read_json(d / name)
-    for name in ("plan.npz", "trajectory.npz", "trace.npz"):
+    for name in ("plan.npz", "trajectory.npz", "trace.npz", *(n for n in booth
+                                                               if n.endswith(".npz"))):
         path = d / name
         if path.exists() or path.is_symlink():
             if read_regular_bytes(path, head_bytes=4) != _ZIP_MAGIC:
