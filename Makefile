@@ -42,7 +42,8 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 # results.py writes docs/results.md (every scenario and the paper tables): `make results`;
-# after `make test`, `benchmarks/results.py --from results/check` reads the check's runs instead.
+# after `make test`, `benchmarks/results.py --from results/check` reads the check's runs instead;
+# `--generality F.md ...` adds the tables of `benchmarks/generality.py --markdown F.md` (~25 min).
 bench: $(STAMP)
 	for b in benchmarks/*.py; do [ $$b = benchmarks/results.py ] && continue; \
 		echo "== $$b"; $(BIN)/python $$b || exit 1; done

@@ -147,8 +147,9 @@ def table(rows: list[tuple[str, dict[str, Any]]], cols: tuple, first: str,
 
 
 def markdown(runs: dict[str, dict[str, Any]], paper: dict[str, Any] | None,
-             stamp: dict[str, Any]) -> str:
-    """docs/results.md from the runs and the paper rows."""
+             stamp: dict[str, Any], generality: list[str] | None = None) -> str:
+    """docs/results.md from the runs, the paper rows and the tables of
+    `benchmarks/generality.py --markdown` (shown as they were written)."""
     lines = ["# Results", "",
              "Figures from runs, written by `benchmarks/results.py` (do not edit by hand; run the "
              "command below to bring them up to date). `docs/results.json` holds the same figures "
@@ -201,6 +202,16 @@ def markdown(runs: dict[str, dict[str, Any]], paper: dict[str, Any] | None,
                   f"Fig. 5: the planar sweet spot is {paper['fig5_sweet_spot_mm']:.0f} mm at "
                   f"σ/μ {paper['fig5_sweet_spot_nsd_pct']:.2f} %; the planner's planar index "
                   f"width is {paper['planar_index_width_mm']:.0f} mm.", ""]
+    if generality:
+        lines += ["## Any part a paint shop sends", "",
+                  "Seeded part families of `paintcell generate` and the shared meshes, each "
+                  "through `paintcell init` and `paintcell run --fast` with nothing edited "
+                  "(`benchmarks/generality.py`): the verdict against the default paint spec, "
+                  "the executed σ/μ, the judged area inside the spec window, honest "
+                  "reachability, joint jumps, collisions, the sharpest turn of a pass between "
+                  "two samples and the wall time of init + run on this machine.", ""]
+        for text in generality:
+            lines += [text.strip(), ""]
     return "\n".join(lines)
 
 
@@ -218,6 +229,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="read the paper rows of an earlier `paper_tables.py --json FILE` run")
     ap.add_argument("--paper-resolution", type=float, default=0.01,
                     help="mesh resolution of the paper tables' parts [m]")
+    ap.add_argument("--generality", type=Path, nargs="+", default=[],
+                    help="tables written by `benchmarks/generality.py --markdown FILE`, shown "
+                         "under their own heading as written")
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "results.md",
                     help="markdown file to write; its .json sibling gets the figures as data")
     args = ap.parse_args(argv)
@@ -252,9 +266,11 @@ def main(argv: list[str] | None = None) -> int:
         elif not args.no_paper:
             paper, cmd = run_paper(args.paper_resolution, Path(td))
             stamp["paper"] = " ".join(cmd)
-    atomic_write_text(args.out, markdown(runs, paper, stamp))
+    generality = [p.read_text() for p in args.generality]
+    atomic_write_text(args.out, markdown(runs, paper, stamp, generality))
     atomic_write_text(args.out.with_suffix(".json"),
-                      json.dumps({"stamp": stamp, "scenarios": runs, "paper": paper}, indent=1,
+                      json.dumps({"stamp": stamp, "scenarios": runs, "paper": paper,
+                                  "generality": generality}, indent=1,
                                  ensure_ascii=False) + "\n")
     print(f"written: {args.out} and {args.out.with_suffix('.json').name} ({len(runs)} scenarios"
           f"{', paper tables' if paper else ''})")

@@ -214,3 +214,22 @@ def test_committed_page_matches_its_figures() -> None:
     assert data["stamp"]["date"] in text and data["stamp"]["command"] in text
     if data.get("paper"):
         check_paper_tables(tables, data["paper"])
+
+
+def test_generality_tables_are_shown_as_written(tmp_path: Path) -> None:
+    """`--generality FILE` puts the table `benchmarks/generality.py --markdown` wrote on the
+    page under its own heading, unchanged, and into the JSON beside it."""
+    for name, (m, part) in RUNS.items():
+        _write_run(tmp_path / "runs", name, m, part)
+    table = ("`benchmarks/generality.py --seeds 1` on 2026-01-01\n\n| part | verdict |\n"
+             "|---|---|\n| door_frame_0 | PASS |\n\n- generated parts passing the spec: 1 of 1")
+    (tmp_path / "gen.md").write_text(table + "\n")
+    out = tmp_path / "results.md"
+    proc = subprocess.run([sys.executable, str(SCRIPT), "--from", str(tmp_path / "runs"),
+                           "--no-paper", "--generality", str(tmp_path / "gen.md"),
+                           "--out", str(out)], capture_output=True, text=True, cwd=ROOT,
+                          env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+    assert proc.returncode == 0, proc.stderr
+    text = out.read_text()
+    assert "## Any part a paint shop sends" in text and table in text
+    assert json.loads(out.with_suffix(".json").read_text())["generality"] == [table + "\n"]
