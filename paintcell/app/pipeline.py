@@ -324,7 +324,9 @@ def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = 
                                                            result.mode))
     atomic_write_text(out / "metrics.json", json.dumps(metrics_dict(result), indent=2,
                                                        default=json_default))
-    write_film_files(out, result.scenario, result.surface, result.plan, result.report)
+    from paintcell.output.gltf_film import write_film_files
+
+    write_film_files(out, *run_film(result.scenario, result.surface, result.plan, result.report))
     if cell is not None:
         from paintcell.output.report import write_report
         from paintcell.output.report_figures import make_figures
@@ -334,17 +336,15 @@ def write_results(result: RunResult, out: Path, cell: Any = None, video: bool = 
         write_report(out, video=video)
 
 
-def write_film_files(out: Path, scn: Scenario, surface: Surface, plan: CoveragePlan,
-                     report: Any) -> list[str]:
-    """Write the run's film into results folder `out`: `film.npz` (the arrays and the spec
-    window) and `film.glb` (the part with the film, the passes and the robot base in 3-D);
-    return the names written."""
-    from paintcell.output.gltf_film import FILM_GLB_NAME, run_film_scene, write_film_glb
-    from paintcell.output.report_film import FILM_NAME, film_data, save_film_data
+def run_film(scn: Scenario, surface: Surface, plan: CoveragePlan, report: Any
+             ) -> tuple[Any, Any]:
+    """A one-robot run's film (`paintcell.output.report_film.FilmData`: the arrays and the spec
+    window) and its 3-D scene (`paintcell.output.gltf_film.FilmScene`: the part with the film,
+    the passes and the robot base), for `paintcell.output.gltf_film.write_film_files`."""
+    from paintcell.output.gltf_film import run_film_scene
+    from paintcell.output.report_film import film_data
 
     film = film_data(surface, report)
-    save_film_data(out / FILM_NAME, film)
-    write_film_glb(out / FILM_GLB_NAME, run_film_scene(
-        surface, film, plan, scn.part_placement.matrix, scn.robot, scn.base.matrix))
-    return [FILM_NAME, FILM_GLB_NAME]
+    return film, run_film_scene(surface, film, plan, scn.part_placement.matrix, scn.robot,
+                                scn.base.matrix)
 

@@ -120,13 +120,16 @@ def rederive(files: dict[str, Any], metrics: dict[str, Any]) -> tuple[Any, Any]:
     the thresholds of its snapshot, never the verdict its metrics.json states: (the
     `ValidationReport`, write_films(folder) -> the film files it writes there). `metrics`: the
     folder's metrics.json (a booth's allocation, film build and seam records)."""
+    from paintcell.output.gltf_film import write_film_files
+
     scn = files["scenario"]
     if files["kind"] == "booth":   # the film on the whole body on its conveyor, per robot
-        from paintcell.booth.booth_results import revalidate_booth, write_booth_film_files
+        from paintcell.booth.booth_results import booth_film, revalidate_booth
 
         rep, films = revalidate_booth(scn, files, metrics)
-        return rep, lambda out: write_booth_film_files(out, scn, files, films)
-    from paintcell.app.pipeline import load_surface, write_film_files
+        return rep, lambda out: write_film_files(out, *booth_film(
+            scn, files["body"], files["judged"], films, files["plans"]))
+    from paintcell.app.pipeline import load_surface, run_film
     from paintcell.validation.validate import validate
 
     surface = load_surface(scn, bool(files["run"]["fast"]))
@@ -134,7 +137,7 @@ def rederive(files: dict[str, Any], metrics: dict[str, Any]) -> tuple[Any, Any]:
     rep = validate(plan, surface, traj, trace, scn.part_placement.matrix, scn.thresholds,
                    reachability=traj.meta.get("reachability"), spec=scn.spec)
     files["surface"] = surface
-    return rep, lambda out: write_film_files(out, scn, surface, plan, rep)
+    return rep, lambda out: write_film_files(out, *run_film(scn, surface, plan, rep))
 
 
 def revalidate_run_dir(d: Path) -> tuple[str, Any, list[str]]:

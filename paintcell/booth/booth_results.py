@@ -34,7 +34,7 @@ from paintcell.core.json_values import json_default
 from paintcell.coverage.plan import CoveragePlan
 from paintcell.execution.trace import ExecutedTrace
 from paintcell.motion.joint_trajectory import JointTrajectory
-from paintcell.output.gltf_film import FilmScene
+from paintcell.output.gltf_film import FilmScene, write_film_files
 from paintcell.output.report_film import FilmData
 from paintcell.surface.surface_data import Surface
 from paintcell.validation.paint_spec import spec_checks
@@ -296,8 +296,8 @@ def write_booth_results(result: Any, out: Path, robots: list[Any]) -> None:
                    [r.name for r in booth.robots], band=overlap_mask(ex),
                    title=f"{booth.name}: executed film over the whole body "
                          f"(σ/μ {m['executed_nsd_pct']:.2f} %)")
-    write_booth_film_files(out, booth, {"body": result.surface, "judged": result.judged,
-                                        "plans": result.plans}, result.films_m)
+    write_film_files(out, *booth_film(booth, result.surface, result.judged, result.films_m,
+                                      result.plans))
     write_report(out)
 
 
@@ -348,19 +348,6 @@ def revalidate_booth(booth: Booth, files: dict[str, Any], metrics: dict[str, Any
         if key in metrics:
             report.metrics[key] = metrics[key]
     return report, films
-
-
-def write_booth_film_files(out: Path, booth: Booth, files: dict[str, Any],
-                           films: dict[str, np.ndarray]) -> list[str]:
-    """Write a booth's film files (`film.npz`, `film.glb`: `booth_film`) into results folder
-    `out` from its files (`read_booth_results`) and the robots' films; return the names."""
-    from paintcell.output.gltf_film import FILM_GLB_NAME, write_film_glb
-    from paintcell.output.report_film import FILM_NAME, save_film_data
-
-    film, scene = booth_film(booth, files["body"], files["judged"], films, files["plans"])
-    save_film_data(out / FILM_NAME, film)
-    write_film_glb(out / FILM_GLB_NAME, scene)
-    return [FILM_NAME, FILM_GLB_NAME]
 
 
 def booth_film(booth: Booth, body: Surface, judged: np.ndarray | None,

@@ -40,7 +40,7 @@ from paintcell.core.errors import PaintcellError
 from paintcell.output.report_film import FilmData, spec_range_um, spec_rgb
 
 __all__ = ["FILM_GLB_NAME", "FilmGlbError", "FilmScene", "film_glb_bytes", "run_film_scene",
-           "srgb_to_linear", "write_film_glb"]
+           "srgb_to_linear", "write_film_files", "write_film_glb"]
 
 FILM_GLB_NAME = "film.glb"
 #: glTF is y-up (§3.4); paintcell's world is z-up: −90° about x, as an (x, y, z, w) quaternion.
@@ -229,3 +229,15 @@ def write_film_glb(path: str | os.PathLike[str], scene: FilmScene) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_bytes(data)
     return path
+
+
+def write_film_files(out: str | os.PathLike[str], film: FilmData, scene: FilmScene
+                     ) -> list[str]:
+    """Write a run's film into results folder `out` — `film.npz` (the arrays and the spec window,
+    `paintcell.output.report_film`) and `film.glb` (`scene` in 3-D) — for a cell of one robot
+    or several; return the names written."""
+    from paintcell.output.report_film import FILM_NAME, save_film_data
+
+    save_film_data(Path(out) / FILM_NAME, film)
+    write_film_glb(Path(out) / FILM_GLB_NAME, scene)
+    return [FILM_NAME, FILM_GLB_NAME]
