@@ -274,3 +274,28 @@ def test_feasible_positions_any_and_ends_agree_with_every_position(rail_robot):
             assert grid[ends].max() == grid[every].max()
     assert every.sum() == 0 and feasible_positions(rail_robot, _pass_with_spin(0.0), grid, pref,
                                                    IKSettings()).sum() > 2
+
+
+def test_a_pass_of_steps_under_the_jump_threshold_is_not_screened_out(rail_robot):
+    """A 57-pose pass drawn by FK from the home pose with joint 1 swinging 0.15 rad a step (a
+    triangle wave, 0 → 0.3 → 0 rad): every step is under the 0.2 rad jump threshold, so it is
+    feasible on every pose. The 40 poses the search scores leave gaps of one and two steps (mean
+    56/39 = 1.44): joint 1 turns 0.3 rad across the gap from pose 2 to pose 4, above a threshold
+    scaled by the mean gap (0.287 rad) and under one scaled by the widest (0.4 rad). The booth's
+    pass check and the carriage search call it feasible, on the fixed arm and on the rail."""
+    from paintcell.booth.booth import pass_feasible
+    from paintcell.robots.ik import branch_feasibility, opw_branches
+    from paintcell.robots.rail import feasible_positions
+
+    arm = _fixed_at(0.0)
+    wave = 0.15 * np.abs((np.arange(57) + 2) % 4 - 2)       # 0, .15, .3, .15, 0, ...
+    Q = np.tile(arm.q_home, (57, 1))
+    Q[:, 0] += wave - wave[0]
+    assert np.abs(np.diff(Q, axis=0)).max() == pytest.approx(0.15)
+    T = arm.fk_many(Q)
+    Qb, _, within = opw_branches(arm, T, arm.q_home)
+    stats = branch_feasibility(arm, Qb, within, IKSettings())
+    assert stats.feasible.any() and stats.jump[stats.feasible].min() < 0.2
+    assert pass_feasible(arm, T)
+    assert feasible_positions(rail_robot, T, np.array([0.0]), rail_robot.rail.arm.q_home,
+                              IKSettings()).all()

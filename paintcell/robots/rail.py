@@ -283,18 +283,20 @@ def search_poses(T_world_tcp: np.ndarray, n_sub: int = SEARCH_POSES
                  ) -> tuple[np.ndarray, float]:
     """The poses (K, 4, 4) of a pass (M, 4, 4) that a search scores, at most n_sub of them
     evenly along it, and the factor by which they are farther apart than the pass's own (the
-    joint-jump threshold of `rail_branch`'s jump_scale)."""
+    joint-jump threshold of `rail_branch`'s jump_scale): the widest gap between two kept poses,
+    in the pass's steps, so a pass whose every step is under the threshold is never screened
+    out."""
     keep = np.unique(np.linspace(0, len(T_world_tcp) - 1, n_sub).astype(int))
-    return T_world_tcp[keep], max(1.0, (len(T_world_tcp) - 1) / max(len(keep) - 1, 1))
+    return T_world_tcp[keep], float(max(1, np.diff(keep).max(initial=1)))
 
 
 def feasible_positions(robot: Robot, T_world_tcp: np.ndarray, s_grid: np.ndarray,
                        q_pref: np.ndarray, settings: Any, need: str = "all") -> np.ndarray:
     """(S,) bool: whether the pass T_world_tcp (M, 4, 4) is feasible (`rail_branch`) with the
     carriage at each of s_grid [m], confirmed on every pose. `search_poses` screens the grid (its
-    jump threshold scaled by the subsample's mean spacing, so a pass whose steps are all just
-    under the threshold can be turned away); the positions it passes are confirmed on the whole
-    pass (a subsample can hide a step larger than the threshold between two poses it skipped).
+    jump threshold scaled by the subsample's widest gap); the positions it passes are confirmed
+    on the whole pass (a subsample can hide a step larger than the threshold between two poses
+    it skipped).
 
     need: "all" confirms every screened position; "any" stops at the first confirmed one (True
     there only); "ends" confirms from each end of the grid inward and stops at the first on each
