@@ -299,3 +299,36 @@ def test_a_pass_of_steps_under_the_jump_threshold_is_not_screened_out(rail_robot
     assert pass_feasible(arm, T)
     assert feasible_positions(rail_robot, T, np.array([0.0]), rail_robot.rail.arm.q_home,
                               IKSettings()).all()
+
+
+def test_the_search_falls_back_to_the_best_position_confirmed_on_every_pose(rail_robot,
+                                                                            monkeypatch):
+    """Where the position the search picks on its 40 poses fails on the whole pass (a joint jump
+    between skipped poses; here that position is declared infeasible on the whole pass), the
+    search returns the scan position of least cost among those feasible on every pose: the
+    same as a brute force over the 41 positions of the scan, each judged on all 400 poses."""
+    from paintcell.robots import rail
+
+    s = IKSettings()
+    pref = rail_robot.rail.arm.q_home
+    T = _pass_with_spin(0.0)
+    s0, ok = best_rail_position(rail_robot, T, pref, s)
+    assert ok
+    spec = rail.placed_rail(rail_robot).spec
+    grid = np.linspace(spec.lower_m, spec.upper_m, 41)
+    whole = rail.rail_branches(rail_robot, T, grid, pref, s)
+    want = min(((c, g) for g, (c, f, _) in zip(grid, whole, strict=True)
+                if f and abs(g - s0) > 1e-9), key=lambda cg: cg[0])[1]
+    real = rail.rail_branches
+
+    def jump_at_s0(robot, T_world_tcp, s_grid, *args, **kwargs):
+        out = real(robot, T_world_tcp, s_grid, *args, **kwargs)
+        if len(T_world_tcp) == len(T):
+            out = [(1e3, False, None) if abs(g - s0) < 1e-9 else r
+                   for g, r in zip(s_grid, out, strict=True)]
+        return out
+
+    monkeypatch.setattr(rail, "rail_branches", jump_at_s0)
+    s1, ok1 = best_rail_position(rail_robot, T, pref, s)
+    assert ok1 and s1 == pytest.approx(want, abs=1e-12) and abs(s1 - s0) > 1e-6
+    assert real(rail_robot, T, np.array([s1]), pref, s)[0][1]
