@@ -108,3 +108,43 @@ def test_robots_that_meet_nobody_do_not_multiply_the_search(monkeypatch):
     # the far robots start at once; the feasible pair alone gets its own delays
     nodes.clear()
     assert stagger_starts([*far, p0, p1], 0.25, 0.5) == [0, 0, 0, 8, 0]
+
+
+def _spoke(rng: np.random.Generator, angle_rad: float) -> np.ndarray:
+    """(K, 2, 3) a robot's points running in along a spoke at angle_rad to 0.2 m from the
+    centre, staying there 1-4 samples, and out again; 0.6 m further out a sample."""
+    k, w = int(rng.integers(5, 30)), int(rng.integers(1, 5))
+    c = int(rng.integers(1, max(2, k - w - 1)))
+    i = np.arange(k)
+    r = 0.2 + 0.6 * np.maximum(0, np.maximum(c - i, i - (c + w - 1)))
+    p = np.column_stack([r * np.cos(angle_rad), r * np.sin(angle_rad), 0.0 * r])
+    return np.stack([p, 1.1 * p], axis=1)
+
+
+def test_stagger_of_one_crowded_group_is_the_brute_force_optimum(monkeypatch):
+    """Four and five robots on spokes that each visit the centre once, for 1-4 samples, at a
+    time of their own (so the robots form one group of those that may meet), programs of
+    different lengths: the search's delays, with its cuts (the best cycle so far bounds every
+    later robot's delay, the later robots' delays are kept arc consistent, a branch that only
+    ties the best is left), equal the brute force's over every combination on every random
+    case, and the refused cases are refused by both."""
+    monkeypatch.setattr(booth_stagger, "STAGGER_MAX_S", 1.5)     # 7 delays of 0.25 s
+    dt, d_m, dmax = 0.25, 0.5, 6
+    rng = np.random.default_rng(5)
+    solved = refused = crowded = 0
+    for case in range(40):
+        n = 4 + case % 2
+        paths = [_spoke(rng, 2 * np.pi * j / n + rng.normal(0, 0.1)) for j in range(n)]
+        ok = {(i, j): booth_stagger.pair_offsets_ok(paths[i], paths[j],
+                                                    np.arange(-dmax, dmax + 1), d_m)
+              for i in range(n) for j in range(i)}
+        crowded += booth_stagger._groups(ok, n) == [list(range(n))]
+        want = _brute_force(paths, dmax, d_m)
+        if want is None:
+            with pytest.raises(BoothError, match="arm comes closer"):
+                stagger_starts(paths, dt, d_m)
+            refused += 1
+            continue
+        assert stagger_starts(paths, dt, d_m) == want
+        solved += 1
+    assert solved >= 20 and refused >= 3 and crowded >= 20

@@ -2,12 +2,19 @@
 the booth soonest (`stagger_starts`), from each pair's clearance per delay difference
 (`pair_offsets_ok`).
 
-The search is depth-first over the robots' delays with two cuts that only drop subtrees holding
-no complete solution, so it returns the same delays as the plain search: a pair of robots that
-can be kept apart at no delay difference is refused before the search, and after a robot's delay
-is fixed the free delays of every later robot are narrowed at once (forward checking) and the
-branch is left as soon as one has none. Without them a robot that cannot be placed made the
-search try every combination of the earlier robots' delays (81^3 for the fourth robot).
+The search is depth-first over the robots' delays, in lexicographic order of the delays, with
+cuts that only drop subtrees holding no complete solution better than the best found, so it
+returns the same delays as the plain search. A pair of robots that can be kept apart at no delay
+difference is refused before the search. After a robot's delay is fixed, the free delays of
+every later robot are narrowed at once (forward checking) to those that keep it apart from the
+fixed ones and, once a solution is known, end no later than its cycle; then to arc consistency
+among themselves (every delay left of a robot keeps it apart from some delay left of every other
+later robot); the branch is left as soon as one has none. A branch is also left when every later
+robot at its least delay left gives a longer cycle than the best so far, or the same cycle and
+no smaller sum of delays (a tie comes later in lexicographic order, so it loses). Forward
+checking keeps a robot that cannot be placed from making the search try every combination of
+the earlier robots' delays (81^3 for the fourth robot); the bounds and the arc consistency keep
+a cycle set by one robot's long program from making it try every way of delaying the others.
 
 Robots that can never meet (every delay difference keeps them apart) constrain nothing, so the
 robots are split into independent groups (the connected components of "may meet") and each
@@ -113,8 +120,8 @@ def _search_group(g: list[int], ok: dict[tuple[int, int], np.ndarray], lens: lis
     if search.best is None:
         i, k = (g[x] for x in search.dead)
         raise BoothError(f"robot {k}'s arm comes closer than {min_distance_m} m to robot {i}'s "
-                         f"or an earlier one's for every start delay up to {STAGGER_MAX_S} s "
-                         "that keeps those apart; change the allocation or the robots' places")
+                         f"or another's for every start delay up to {STAGGER_MAX_S} s that "
+                         "keeps those apart; change the allocation or the robots' places")
     return search.best
 
 
@@ -123,7 +130,8 @@ class _Search:
     may start (offset − dmax) steps after robot j; lens: program lengths [samples]; floor: the
     cycle [samples] a shorter one counts as (0: none); best: (key, delays [steps]) of the best
     complete solution; dead: (fixed robot, later robot) of the deepest dead end (the error
-    message)."""
+    message). apart[(k, l)] (dmax + 1, dmax + 1): whether robot k at delay v and robot l at
+    delay w [steps] keep apart (ok as a table of both delays, for the arc consistency)."""
 
     def __init__(self, ok: dict[tuple[int, int], np.ndarray], lens: list[int], step: int,
                  dmax: int, floor: int = 0) -> None:
@@ -132,11 +140,37 @@ class _Search:
         self.best: tuple[tuple[int, int, tuple[int, ...]], list[int]] | None = None
         self.dead = (0, 1)
         self.dead_depth = -1
+        diff = self.grid[:, None] - self.grid[None, :] + dmax
+        self.apart: dict[tuple[int, int], np.ndarray] = {}
+        for (k, j), row in ok.items():
+            self.apart[(k, j)] = row[diff]
+            self.apart[(j, k)] = self.apart[(k, j)].T
+
+
+def _consistent(s: _Search, first: int, free: list[np.ndarray]) -> int | None:
+    """Narrows free (the delays of robots first, first + 1, ...) in place to arc consistency:
+    every delay left of a robot keeps it apart from some delay left of every other. Returns the
+    robot left with none (None: every one has some)."""
+    changed = True
+    while changed:
+        changed = False
+        for a, fa in enumerate(free):
+            for b, fb in enumerate(free):
+                if a == b:
+                    continue
+                kept = fa & (s.apart[(first + a, first + b)] & fb).any(axis=1)
+                if kept.sum() < fa.sum():
+                    if not kept.any():
+                        return first + a
+                    free[a] = fa = kept
+                    changed = True
+    return None
 
 
 def _place(s: _Search, d: list[int], free: list[np.ndarray]) -> None:
     """Places robot len(d) given the earlier robots' delays d [steps]; free[k]: the delays of
-    every robot k ≥ len(d) that keep it apart from all of d (forward-checked)."""
+    every robot k ≥ len(d) that keep it apart from all of d (forward-checked) and leave every
+    other later robot some delay (arc consistent)."""
     i, n = len(d), len(s.lens)
     if i == n:
         key = (max([s.floor] + [s.lens[k] + d[k] * s.step for k in range(n)]), sum(d), tuple(d))
@@ -144,17 +178,34 @@ def _place(s: _Search, d: list[int], free: list[np.ndarray]) -> None:
             s.best = (key, list(d))
         return
     done = max([s.floor] + [s.lens[k] + d[k] * s.step for k in range(i)])
+    summed = sum(d)
     for di in np.flatnonzero(free[i]):
         if s.best is not None and \
-                (max(done, s.lens[i] + di * s.step), sum(d) + di) > s.best[0][:2]:
+                (max(done, s.lens[i] + di * s.step), summed + di) > s.best[0][:2]:
             break                         # larger delays only lengthen it
         later = []
         for k in range(i + 1, n):
             fk = free[k] & s.ok[(k, i)][s.grid - di + s.dmax]
+            if s.best is not None:        # a longer cycle than the best's cannot beat it
+                fk &= s.lens[k] + s.grid * s.step <= s.best[0][0]
             if not fk.any():              # robot k has no delay left: a dead branch
-                if i > s.dead_depth:
+                if i > s.dead_depth and s.best is None:
                     s.dead, s.dead_depth = (i, k), i
                 break
             later.append(fk)
         else:
+            k = _consistent(s, i + 1, later)
+            if k is not None:             # the later robots cannot all be placed
+                if i > s.dead_depth and s.best is None:
+                    s.dead, s.dead_depth = (i, k), i
+                continue
+            # every completion's (cycle, sum) is at least the one with each later robot at its
+            # least delay left; the search meets the delays in lexicographic order, so one that
+            # only ties the best so far comes later in that order and loses the tie
+            least = [int(f.argmax()) for f in later]
+            if s.best is not None and (
+                    max([done, s.lens[i] + di * s.step]
+                        + [s.lens[k] + m * s.step for k, m in enumerate(least, i + 1)]),
+                    summed + di + sum(least)) >= s.best[0][:2]:
+                continue
             _place(s, d + [int(di)], free[:i + 1] + later)
