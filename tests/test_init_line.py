@@ -187,13 +187,15 @@ def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None
     """Conveyor × takt = pitch of the written panel files (read back by trimesh); every robot's
     program, estimated from a fresh plan of the written file and its [allocation], plus the
     carriage's return over the distance the line carried it, is within the takt. The line
-    blends each seam at its own share (`seam_shares = "per seam"`)."""
+    blends each seam at its own share (`seam_shares = "per seam"`) and re-plans the passes a
+    robot ran slower than asked (`robot_aware_speeds`), as its verification did."""
     from paintcell.booth.booth_data import load_toml_booth
     from paintcell.booth.booth_plans import plan_parts
 
     out: Path = written["out"]
     booth = load_toml_booth(out)
     assert booth.seam_shares == "per seam"
+    assert booth.robot_aware_speeds and written["built"].robot_aware_speeds
     xs = np.concatenate([trimesh.load(bp.mesh.file, force="mesh").vertices[:, 0]
                          for bp in booth.parts])
     pitch = float(xs.max() - xs.min()) + 1.0

@@ -261,5 +261,5 @@ def panel_booth(name: str, files: Sequence[Any], takt: LineTakt) -> Any:
                  conveyor=Conveyor(takt.conveyor_speed_m_s, (1.0, 0.0, 0.0)),
                  servo={"gain_inertia": "effective"},
                  trajectory=dict(TRAJECTORY_TRIES[0]),
-                 film_refine_pace=True, robot_aware_speeds=False,
+                 film_refine_pace=True, robot_aware_speeds=True,
                  thresholds=BoothThresholds(min_bell_distance_m=0.6))

@@ -96,8 +96,10 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         f"{t.max_cycle_s():.2f} s + {t.robot_cycle_s(t.max_cycle_s()) - t.max_cycle_s():.2f} s "
         f"= {t.takt_s:g} s.",
         "The film: each panel refined with every pass's duration held (film_refine_pace), so "
-        "the programs keep the durations estimated; the speeds are not re-planned per robot "
-        "(robot_aware_speeds = false) so the programs run are the ones verified. Each seam "
+        "the programs keep the durations estimated; then the passes a robot ran slower than "
+        "asked re-planned under the speeds it reached (robot_aware_speeds = true; kept only "
+        "while the cycle grows at most 5 %): the programs verified above are the re-planned "
+        "ones, as the run builds them. Each seam "
         "between two panels is blended at its own share (seam_shares = \"per seam\": a door "
         "next to the roof and a fender next to a door want different ones); only paint "
         "switches, the motion is the one verified."]
@@ -158,7 +160,7 @@ name = {_v(b.name)}
 resolution_m = {b.fast_resolution_m}
 fast_resolution_m = {b.fast_resolution_m}
 film_refine_pace = true
-robot_aware_speeds = false
+robot_aware_speeds = true
 seam_shares = "per seam"
 
 # the body frame at conveyor position 0: lifted on its skid so its lowest pass is 0.6 m up
