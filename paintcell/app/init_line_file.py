@@ -97,9 +97,9 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         f"= {t.takt_s:g} s.",
         "The film: each panel refined with every pass's duration held (film_refine_pace), so "
         "the programs keep the durations estimated; then the passes a robot ran slower than "
-        "asked re-planned under the speeds it reached (robot_aware_speeds = true; kept only "
-        "while the cycle grows at most 5 %): the programs verified above are the re-planned "
-        "ones, as the run builds them. Each seam "
+        "asked are planned again under the speeds it reached (robot_aware_speeds = true; kept "
+        "only while the cycle grows at most 5 %), in the verification above as in the run. "
+        "Each seam "
         "between two panels is blended at its own share (seam_shares = \"per seam\": a door "
         "next to the roof and a fender next to a door want different ones); only paint "
         "switches, the motion is the one verified."]
