@@ -6,6 +6,7 @@ trying the delays of robots that meet nobody."""
 from __future__ import annotations
 
 import itertools
+import re
 
 import numpy as np
 import pytest
@@ -108,6 +109,15 @@ def test_robots_that_meet_nobody_do_not_multiply_the_search(monkeypatch):
     # the far robots start at once; the feasible pair alone gets its own delays
     nodes.clear()
     assert stagger_starts([*far, p0, p1], 0.25, 0.5) == [0, 0, 0, 8, 0]
+    # in every order of the three, the refusal names two robots that do meet at some delay
+    # difference (p1 and p4 never come within 5 m of each other)
+    for order in itertools.permutations(range(3)):
+        paths = [(p0, p1, p4)[k] for k in order]
+        with pytest.raises(BoothError, match="arm comes closer") as err:
+            stagger_starts(paths, 0.25, 0.5)
+        k, i = (int(x) for x in re.findall(r"robot (\d+)'s", str(err.value))[:2])
+        offsets = np.arange(-80, 81)
+        assert not booth_stagger.pair_offsets_ok(paths[k], paths[i], offsets, 0.5).all()
 
 
 def _spoke(rng: np.random.Generator, angle_rad: float) -> np.ndarray:

@@ -129,9 +129,10 @@ class _Search:
     """State of `stagger_starts`'s depth-first search: ok[(i, j)] (2 dmax + 1,) whether robot i
     may start (offset − dmax) steps after robot j; lens: program lengths [samples]; floor: the
     cycle [samples] a shorter one counts as (0: none); best: (key, delays [steps]) of the best
-    complete solution; dead: (fixed robot, later robot) of the deepest dead end (the error
-    message). apart[(k, l)] (dmax + 1, dmax + 1): whether robot k at delay v and robot l at
-    delay w [steps] keep apart (ok as a table of both delays, for the arc consistency)."""
+    complete solution; dead: (robot, later robot) of the deepest dead end, two that meet at
+    some delay difference (the error message). apart[(k, l)] (dmax + 1, dmax + 1): whether
+    robot k at delay v and robot l at delay w [steps] keep apart (ok as a table of both delays,
+    for the arc consistency)."""
 
     def __init__(self, ok: dict[tuple[int, int], np.ndarray], lens: list[int], step: int,
                  dmax: int, floor: int = 0) -> None:
@@ -147,10 +148,11 @@ class _Search:
             self.apart[(j, k)] = self.apart[(k, j)].T
 
 
-def _consistent(s: _Search, first: int, free: list[np.ndarray]) -> int | None:
+def _consistent(s: _Search, first: int, free: list[np.ndarray]) -> tuple[int, int] | None:
     """Narrows free (the delays of robots first, first + 1, ...) in place to arc consistency:
-    every delay left of a robot keeps it apart from some delay left of every other. Returns the
-    robot left with none (None: every one has some)."""
+    every delay left of a robot keeps it apart from some delay left of every other. Returns
+    (l, k) when robot k is left with none, robot l the one its last delays met (None: every one
+    has some)."""
     changed = True
     while changed:
         changed = False
@@ -161,7 +163,7 @@ def _consistent(s: _Search, first: int, free: list[np.ndarray]) -> int | None:
                 kept = fa & (s.apart[(first + a, first + b)] & fb).any(axis=1)
                 if kept.sum() < fa.sum():
                     if not kept.any():
-                        return first + a
+                        return first + b, first + a
                     free[a] = fa = kept
                     changed = True
     return None
@@ -194,18 +196,17 @@ def _place(s: _Search, d: list[int], free: list[np.ndarray]) -> None:
                 break
             later.append(fk)
         else:
-            k = _consistent(s, i + 1, later)
-            if k is not None:             # the later robots cannot all be placed
+            met = _consistent(s, i + 1, later)
+            if met is not None:           # the later robots cannot all be placed
                 if i > s.dead_depth and s.best is None:
-                    s.dead, s.dead_depth = (i, k), i
+                    s.dead, s.dead_depth = met, i
                 continue
             # every completion's (cycle, sum) is at least the one with each later robot at its
             # least delay left; the search meets the delays in lexicographic order, so one that
             # only ties the best so far comes later in that order and loses the tie
             least = [int(f.argmax()) for f in later]
-            if s.best is not None and (
-                    max([done, s.lens[i] + di * s.step]
-                        + [s.lens[k] + m * s.step for k, m in enumerate(least, i + 1)]),
-                    summed + di + sum(least)) >= s.best[0][:2]:
+            ends = [done, s.lens[i] + int(di) * s.step] + \
+                [s.lens[k] + m * s.step for k, m in enumerate(least, i + 1)]
+            if s.best is not None and (max(ends), summed + int(di) + sum(least)) >= s.best[0][:2]:
                 continue
             _place(s, d + [int(di)], free[:i + 1] + later)
