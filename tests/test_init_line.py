@@ -196,6 +196,7 @@ def test_written_line_meets_the_takt_remeasured(written: dict[str, Any]) -> None
     booth = load_toml_booth(out)
     assert booth.seam_shares == "per seam"
     assert booth.robot_aware_speeds and written["built"].robot_aware_speeds
+    assert "\nrobot_aware_speeds = true\n" in out.read_text()
     xs = np.concatenate([trimesh.load(bp.mesh.file, force="mesh").vertices[:, 0]
                          for bp in booth.parts])
     pitch = float(xs.max() - xs.min()) + 1.0

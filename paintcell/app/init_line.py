@@ -24,9 +24,13 @@
   within the takt (`LineTakt.max_cycle_s`); no count: one line naming why each failed.
 - The plans are made once, at the fast resolution, without the film refinement (the written
   line refines each panel's film with every pass's duration held, `film_refine_pace`, so the
-  durations estimated here are those it runs). The written line blends each seam between two
-  panels at its own share (`seam_shares = "per seam"`, `paintcell.booth.booth_seams`): only
-  paint switches, so the programs verified here are the ones it runs.
+  durations estimated here are those it plans). The verification, like the written line,
+  plans again the passes a robot runs slower than asked under the speeds it reaches
+  (`robot_aware_speeds`, at most 5 % longer cycle), so its cycle is that of re-planned
+  programs; the run's, from refined plans, can differ a little and is checked against the
+  written `max_cycle_time_s`. The written line blends each seam between two panels at its own
+  share (`seam_shares = "per seam"`, `paintcell.booth.booth_seams`): only paint switches, not
+  the motion.
 """
 
 from __future__ import annotations

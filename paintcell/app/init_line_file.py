@@ -98,11 +98,12 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         "The film: each panel refined with every pass's duration held (film_refine_pace), so "
         "the programs keep the durations estimated; then the passes a robot ran slower than "
         "asked are planned again under the speeds it reached (robot_aware_speeds = true; kept "
-        "only while the cycle grows at most 5 %), in the verification above as in the run. "
-        "Each seam "
-        "between two panels is blended at its own share (seam_shares = \"per seam\": a door "
-        "next to the roof and a fender next to a door want different ones); only paint "
-        "switches, the motion is the one verified."]
+        "only while the cycle grows at most 5 %). The verification above did the same from "
+        "the unrefined plans, so the run's programs and cycle can differ a little from the "
+        "verified ones; the run checks its cycle against max_cycle_time_s. Each seam between "
+        "two panels is blended at its own share (seam_shares = \"per seam\": a door next to "
+        "the roof and a fender next to a door want different ones); only paint switches, not "
+        "the motion."]
     text = "\n".join(_fill(h) for h in head)
     parts = ""
     for f, side, bp in zip(files, sides, b.parts, strict=True):
