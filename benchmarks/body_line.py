@@ -93,8 +93,7 @@ def body_line(tmp: Path, takt_s: float, seed: int) -> Path | None:
     init = _paintcell("init", "--help")
     if "body" not in gen.stdout or "--line" not in init.stdout:
         print("\n== body line: skipped — this paintcell has no `paintcell generate body` and/or "
-              "`paintcell init BODY --line --takt T` (being built on the body-gen and line-init "
-              "branches); rerun once they are on main")
+              "`paintcell init BODY --line --takt T`")
         return None
     body = tmp / "body.stl"
     line = tmp / "line.toml"
@@ -123,7 +122,7 @@ def main() -> None:
                     help="local Dask worker counts to time, in order (0: in this process)")
     ap.add_argument("--takt", type=float, default=100.0,
                     help="the generated body line's takt [s] (a body every TAKT seconds; 100: "
-                         "the seed-1 SUV's six-robot line has a 90.9 s cycle, which a 75 s or "
+                         "the seed-1 SUV's six-robot line has an 89.7 s cycle, which a 75 s or "
                          "90 s takt does not leave room for)")
     ap.add_argument("--seed", type=int, default=1,
                     help="the generated body's seed (odd: an SUV; candidates/body_line.toml's: 1)")
