@@ -158,6 +158,41 @@ def test_a_local_cluster_of_two_workers_gives_the_same_run(
     _assert_same_results(ref, tmp_path / "dask")
 
 
+def test_robot_aware_replans_on_workers_are_the_ones_made_here() -> None:
+    """The robot-aware round's re-plans (`speed_feedback.replan_capped`, sent by `map_tasks`)
+    on two worker processes: each part's plan under its speed caps equals, bit for bit, the
+    one made in this process, and every capped sample's planned speed is within its cap."""
+    from paintcell.core.tasks import map_tasks
+    from paintcell.coverage.algorithm import plan_coverage
+    from paintcell.coverage.coverage_settings import PlannerSettings
+    from paintcell.motion.speed_feedback import replan_capped
+    from paintcell.paint.applicator import Applicator
+    from paintcell.surface import parts
+
+    app = Applicator.default()
+    st = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=8, film_guard=False)
+    args = []
+    for skin in (parts.panel(0.04), parts.panel(0.05)):
+        plan = plan_coverage(skin, app, st)
+        caps = {}
+        for k in (0, len(plan.passes) // 2):            # two passes capped at 70 % mid-pass
+            v = plan.passes[k].speeds_m_s
+            cap = np.full(len(v), st.v_max_m_s)
+            cap[len(v) // 3: 2 * len(v) // 3] = 0.7 * v[len(v) // 3: 2 * len(v) // 3]
+            caps[plan.passes[k].side] = cap             # caps go by the pass's side
+        args.append((skin, app, st, caps))
+    here = map_tasks(replan_capped, args)
+    with dask_client(2, None) as client:
+        there = map_tasks(replan_capped, args, DaskTasks(client, "a local cluster"))
+    for a, b, (_, _, _, caps) in zip(here, there, args, strict=True):
+        for pa, pb in zip(a.passes, b.passes, strict=True):
+            assert np.array_equal(pa.speeds_m_s, pb.speeds_m_s)
+            assert np.array_equal(pa.positions, pb.positions)
+        for side, cap in caps.items():
+            (v,) = [p.speeds_m_s for p in a.passes if p.side == side]
+            assert (v <= cap * (1 + 1e-6)).all()
+
+
 def _kill_when_planning(address: str, pids: dict[str, int], killed: list[int]) -> threading.Thread:
     """A thread that SIGKILLs the first worker the scheduler has running a part's plan (a task
     of seconds on a fresh worker: the kill comes within 0.1 s of its start)."""

@@ -123,7 +123,8 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
             tried0 = built.tried          # the candidates of the allocation, as chosen
             fin, built, speeds = robot_aware_parts(
                 [bp.part for bp in booth.parts], [bp.reverse for bp in booth.parts], pp, fin,
-                built, lambda pls, caps: finish_plans(booth, pp, pls, caps), rebuild)
+                built, lambda pls, caps: finish_plans(booth, pp, pls, caps), rebuild,
+                pool=tasks)
             built.tried = tried0
         jobs, static, trajs0, tried = built.jobs, built.static, built.trajs, built.tried
         K = max(len(tr.t_s) for tr in trajs0)

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.core.errors import PaintcellError
+from paintcell.core.tasks import map_tasks
 from paintcell.coverage.algorithm import plan_coverage
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.plan import CoveragePlan
@@ -161,11 +162,22 @@ class CellPrograms:
         return (max(len(tr.t_s) for tr in self.trajs) - 1) * self.trajs[0].dt_s
 
 
+def replan_capped(skin: Surface, app: Applicator, st: PlannerSettings,
+                  caps_m_s: dict[int, np.ndarray]) -> CoveragePlan | PaintcellError:
+    """A part's plan again with per-sample speed caps {pass side: (M,) [m/s]} (`plan_coverage`),
+    or the error that refused it (returned: a task of `robot_aware_parts`'s pool)."""
+    try:
+        return plan_coverage(skin, app, st, speed_caps_m_s=caps_m_s)
+    except PaintcellError as exc:
+        return exc
+
+
 def robot_aware_parts(names: Sequence[str], reverse: Sequence[bool], planned: Any,
                       finished: Any, built: CellPrograms,
                       finish: Callable[[list[CoveragePlan], list[Any]], Any],
                       rebuild: Callable[[list[CoveragePlan]], CellPrograms],
-                      rounds: int = CELL_ROUNDS) -> tuple[Any, CellPrograms, dict[str, Any]]:
+                      rounds: int = CELL_ROUNDS, pool: Any = None
+                      ) -> tuple[Any, CellPrograms, dict[str, Any]]:
     """The plans and programs of a cell of N robots after the robot-aware rounds (module doc) and
     a record {rule, rounds: [{capped_samples, max_deficit_pct, cycle_s, replanned}], cycle_s (the
     cell cycle of the programs returned [s]), capped_passes}.
@@ -174,7 +186,8 @@ def robot_aware_parts(names: Sequence[str], reverse: Sequence[bool], planned: An
     the planner planned them (`.plans`, `.skins`, `.settings`, `.applicator`); finished: the
     plans the robots run (`.plans`), made by finish(planner plans, each part's caps per pass of
     its finished plan); built: the programs of the chosen allocation, built again by
-    rebuild(finished plans)."""
+    rebuild(finished plans). pool: a `paintcell.booth.booth_tasks.TaskPool` that plans a round's
+    capped parts side by side (None: one after the other here; the same plans)."""
     plans0 = list(planned.plans)
     caps: list[dict[int, np.ndarray]] = [{} for _ in plans0]
     cycle0 = built.cycle_s
@@ -192,16 +205,16 @@ def robot_aware_parts(names: Sequence[str], reverse: Sequence[bool], planned: An
             break
         trial = list(plans0)
         rnd["replanned"] = []
-        for i, n in enumerate(counts):
-            if not n:
-                continue
+        capped = [i for i, n in enumerate(counts) if n]
+        args = []
+        for i in capped:
             st = planned.settings[i]
-            finite = {k: np.where(np.isfinite(v), v, st.v_max_m_s) for k, v in new_caps[i].items()}
-            try:
-                got = plan_coverage(planned.skins[i], planned.applicator, st,
-                                    speed_caps_m_s=finite)
-            except PaintcellError as exc:       # the caps do not fit this part's plan: keep it
-                rnd.setdefault("failed", {})[names[i]] = str(exc)
+            args.append((planned.skins[i], planned.applicator, st,
+                         {k: np.where(np.isfinite(v), v, st.v_max_m_s)
+                          for k, v in new_caps[i].items()}))
+        for i, got in zip(capped, map_tasks(replan_capped, args, pool), strict=True):
+            if isinstance(got, PaintcellError):  # the caps do not fit this part's plan: keep it
+                rnd.setdefault("failed", {})[names[i]] = str(got)
                 continue
             if [len(p.positions) for p in got.passes] != \
                     [len(p.positions) for p in plans0[i].passes]:
