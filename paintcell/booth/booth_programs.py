@@ -85,8 +85,9 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
     """Plans, allocation, each robot's program, staggering and conveyor tracking (module doc).
     part_plans: the parts as `plan_parts(booth, fast)` plans them, when already made (`paintcell
     init` checks several robot layouts of one plan). tasks: a
-    `paintcell.booth.booth_tasks.TaskPool` that plans the parts and builds each allocation's
-    robot programs at once (None: in this process; the same plans and programs)."""
+    `paintcell.booth.booth_tasks.TaskPool` that plans the parts, builds each allocation's
+    robot programs and re-plans the robot-aware capped parts at once (None: in this process;
+    the same plans and programs, `paintcell.core.tasks` says when bit for bit)."""
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     if part_plans is not None:

@@ -1,8 +1,8 @@
 """A booth's independent work as tasks on a pool of worker processes (`paintcell run
---workers/--scheduler`): each part's plan (`paintcell.booth.booth_plans.plan_part`) and, for
-every allocation `paintcell.booth.booth_programs` builds, each robot's program for each of its
-jobs (IK, moves, time law and body clearance:
-`paintcell.booth.booth_job_programs.job_program`).
+--workers/--scheduler`): each part's plan (`paintcell.booth.booth_plans.plan_part`), for every
+allocation `paintcell.booth.booth_programs` builds, each robot's program for each of its jobs
+(IK, moves, time law and body clearance: `paintcell.booth.booth_job_programs.job_program`),
+and each robot-aware round's re-plans (`paintcell.motion.speed_feedback.replan_capped`).
 
 A pool (`TaskPool`) sends an object to its workers once (`share`, a handle a task takes in its
 place) and runs a function there (`submit`, a future whose `result()` is the function's value

@@ -50,10 +50,12 @@ def add_run(add_parser: Any) -> None:
     r.add_argument("--workers", default=0,
                    type=number_option("--workers", int, low=0, high=1024, example="2",
                                       note="0: run in this process"),
-                   help="a booth: worker processes of a local Dask cluster that plan its parts "
-                   "and build its robots' programs at the same time (a count of processes, one "
-                   "thread each; 0, the default: everything in this process). The plans, "
-                   "programs and metrics are the same with any number")
+                   help="a booth: worker processes of a local Dask cluster that plan its parts, "
+                   "build its robots' programs and re-plan its parts robot-aware at the same "
+                   "time (a count of processes, one thread each; 0, the default: everything in "
+                   "this process). The plans, programs and metrics are the same with any number "
+                   "of workers (to rounding, ~1e-13, where a part's planner refines its film "
+                   "itself)")
     r.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="a booth: plan its parts and build its programs on an existing Dask "
                    "cluster, e.g. tcp://10.0.0.5:8786 (then --workers is ignored; the workers "

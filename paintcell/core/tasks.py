@@ -1,13 +1,16 @@
 """Independent calls of one function, in this process or on a pool of worker processes.
 
 `map_tasks(fn, args, pool)` is `[fn(*a) for a in args]`; given a pool (a
-`paintcell.booth.booth_tasks.TaskPool`, e.g. `paintcell run --workers N`'s Dask workers) it sends
-every call before it waits for the first, so the calls run side by side, and returns their
+`paintcell.booth.booth_tasks.TaskPool`, e.g. `paintcell run --workers N`'s Dask workers) it
+sends every call before it waits for the first, so the calls run side by side, and returns their
 values in the order of `args` — the same values, bit for bit, when fn is a function of its
-arguments alone. Not of the number of BLAS threads, which a Dask worker sets to one: a large
+arguments alone, and not of the number of BLAS threads, which a Dask worker sets to one: a large
 least-squares solve or matrix product can round differently (the film refinement's does, by
-~1e-13), so such work stays in the client. A call that may be refused should return its error
-rather than raise it, so one refusal does not hide the other calls' values.
+~1e-13 m/s on a car panel). A booth with `film_refine_pace` plans without that refinement and
+refines in the client, so its runs are equal bit for bit; a planner that refines each part
+itself (`film_refine`, the default without `film_refine_pace`) can differ by that rounding. A
+call that may be refused should return its error rather than raise it, so one refusal does not
+hide the other calls' values.
 """
 
 from __future__ import annotations
