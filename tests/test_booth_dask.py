@@ -193,6 +193,40 @@ def test_robot_aware_replans_on_workers_are_the_ones_made_here() -> None:
             assert (v <= cap * (1 + 1e-6)).all()
 
 
+def test_a_booth_sends_its_robot_aware_replans_to_the_pool() -> None:
+    """scenarios/booth.toml re-plans parts under robot-aware caps (its fender and roof): given a
+    pool (here one that runs each call in this process when its value is asked for), the booth
+    sends those re-plans to it, as it does the parts' plans and the robots' programs, and the
+    plans and programs equal the run without a pool."""
+    from paintcell.booth.booth_data import load_toml_booth
+    from paintcell.booth.booth_programs import booth_programs
+
+    sent: list[str] = []
+
+    class Here:
+        def share(self, obj: Any) -> Any:
+            return obj
+
+        def submit(self, fn: Any, *args: Any) -> Any:
+            sent.append(fn.__name__)
+
+            class Later:
+                def result(self) -> Any:
+                    return fn(*args)
+
+            return Later()
+
+    booth = load_toml_booth(Path(__file__).resolve().parent.parent / "scenarios" / "booth.toml")
+    pooled = booth_programs(booth, True, tasks=Here())
+    plain = booth_programs(booth, True)
+    replanned = [r.get("replanned", []) for r in pooled.record["speed_feedback"]["rounds"]]
+    assert sum(map(len, replanned)) == sent.count("replan_capped") > 0
+    assert sent.count("plan_part") == len(booth.parts) and "remote_job_program" in sent
+    assert pooled.record["speed_feedback"] == plain.record["speed_feedback"]
+    for a, b in zip(pooled.trajs, plain.trajs, strict=True):
+        assert np.array_equal(a.q, b.q)
+
+
 def _kill_when_planning(address: str, pids: dict[str, int], killed: list[int]) -> threading.Thread:
     """A thread that SIGKILLs the first worker the scheduler has running a part's plan (a task
     of seconds on a fresh worker: the kill comes within 0.1 s of its start)."""
