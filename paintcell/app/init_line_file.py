@@ -102,8 +102,9 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         "the unrefined plans, so the run's programs and cycle can differ a little from the "
         "verified ones; the run checks its cycle against max_cycle_time_s. Each seam between "
         "two panels is blended at its own share (seam_shares = \"per seam\": a door next to "
-        "the roof and a fender next to a door want different ones); only paint switches, not "
-        "the motion."]
+        "the roof and a fender next to a door want different ones; only paint switches), then "
+        "every panel's passes are re-timed together against the body's film, each pass's "
+        "duration held again (speeds move along a pass, its start and end stay)."]
     text = "\n".join(_fill(h) for h in head)
     parts = ""
     for f, side, bp in zip(files, sides, b.parts, strict=True):

@@ -206,8 +206,10 @@ class Booth:
     film_refine_pace: bool = False
     """Plan the parts without the planner's film refinement and refine each afterwards with
     every pass's duration held, so robots sweeping in step keep their pace
-    (`paintcell.coverage.film_refine.refine_parts`); a part whose planner sets
-    `film_refine = false` (the booth's `[planner]` or its own) is not refined at all."""
+    (`paintcell.coverage.film_refine.refine_parts`), then every part together against the
+    body's film once the seams are blended (`paintcell.booth.booth_plans.refine_body`); a part
+    whose planner sets `film_refine = false` (the booth's `[planner]` or its own) is not
+    refined at all, nor then the body."""
     robot_aware_speeds: bool = True
     """Measure each robot's program on its passes and re-plan the parts' speeds under what the
     robots reached where they ran slower than planned

@@ -27,9 +27,11 @@ area-weighted planned mean) set one film build over the parts (`paintcell.booth.
 `blend_seams` (default true) blends the seams between parts (`paintcell.booth.booth_seams`);
 `seam_shares` ("one", the default, or "per seam") gives the whole body one seam share or each
 seam its own (`Booth.seam_shares`).
-`film_refine_pace` (default false) refines each part's film with every pass's duration held
-(`paintcell.coverage.film_refine`). `robot_aware_speeds` (default true) re-plans the parts'
-speeds under what the robots' programs reach (`paintcell.motion.speed_feedback`).
+`film_refine_pace` (default false) refines each part's film with every pass's duration held,
+then every part together against the body's film once the seams are blended
+(`paintcell.coverage.film_refine`, `paintcell.booth.booth_plans.refine_body`).
+`robot_aware_speeds` (default true) re-plans the parts' speeds under what the robots' programs
+reach (`paintcell.motion.speed_feedback`).
 `body_clearance_m` (default 0.01 m; false: no check) keeps every robot's program that far from
 the whole body (`paintcell.booth.booth_clearance`). `[generated_body]` (seed, read, areas_m2;
 written by `paintcell init BODY --line` for a generated body) writes the parts' panel files

@@ -2,7 +2,8 @@
 surface and its plan as the planner makes it (`plan_parts`), then what the booth does to the
 plans together (`finish_plans`): passes run backwards where a part says `reverse`, the film
 refined with the robots' pace held (`paintcell.coverage.film_refine.refine_parts`), one film build
-(`paintcell.booth.booth_build`) and blended seams (`paintcell.booth.booth_seams`).
+(`paintcell.booth.booth_build`), blended seams (`paintcell.booth.booth_seams`) and, with the pace
+held again, every part re-timed together against the body's film (`refine_body`: the seams).
 
 The two steps are apart so the robot-aware speeds (`paintcell.motion.speed_feedback`) can plan
 a part again under its robots' speed caps and finish the plans the same way.
@@ -10,7 +11,7 @@ a part again under its robots' speed caps and finish the plans the same way.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -149,5 +150,38 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
                                         [len(x.vertices) for x in pp.surfaces], names,
                                         judged_body_mask(pp.surfaces),
                                         per_seam=booth.seam_shares == "per seam")
+    if booth.film_refine_pace and len(plans) > 1:
+        plans, refine["body"] = refine_body(booth, pp, plans, body, caps)
     return FinishedPlans(plans, body, refine, build, seams)
+
+
+def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Surface,
+                caps: list[list[np.ndarray | None] | None] | None
+                ) -> tuple[list[CoveragePlan], dict[str, Any]]:
+    """The parts' plans (part frames, execution order, seams blended) re-timed together against
+    the film they lay on the body (`paintcell.coverage.film_refine.refine_together`): each part
+    refined alone sees only its own film, and the seams get both parts' edges. The film is
+    judged on the body's judged vertices, its interior those away from the seams
+    (`paintcell.booth.booth_seams.seam_band`); every pass's duration is held, so the programs'
+    pace and the start delays stay. Returns the plans and the record."""
+    from paintcell.booth.booth_seams import pass_in_body, seam_band
+    from paintcell.core.settings import settings_from
+    from paintcell.coverage.coverage_settings import PlannerSettings
+    from paintcell.coverage.film_refine import refine_together
+
+    kws = part_settings(booth)
+    if any(kw.get("film_refine") is False for kw in kws):
+        return plans, {"applied": False,
+                       "reason": "a part's planner says film_refine = false: its film is held"}
+    judged = judged_body_mask(pp.surfaces)
+    band = seam_band(body.vertices, [len(x.vertices) for x in pp.surfaces])
+    seen = replace(body, vertex_areas=np.where(judged, body.vertex_areas, 0.0))
+    moved = [replace(pl, passes=tuple(pass_in_body(p, T) for p in pl.passes))
+             for pl, T in zip(plans, pp.T_body_parts, strict=True)]
+    out, rec = refine_together(seen, moved, [settings_from(PlannerSettings, kw, "planner")
+                                             for kw in kws], judged & ~band, caps)
+    # only the timing changed: the part-frame passes take the new speeds and times
+    return [replace(pl, passes=tuple(replace(p, speeds_m_s=q.speeds_m_s, times_s=q.times_s)
+                                     for p, q in zip(pl.passes, o.passes, strict=True)))
+            for pl, o in zip(plans, out, strict=True)], rec
 

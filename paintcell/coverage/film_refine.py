@@ -36,6 +36,7 @@ and the fifth left a robot idle.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -121,6 +122,55 @@ def refine_parts(surfaces: list[Surface], plans: list[CoveragePlan],
                          "its interior", "parts": rec}
 
 
+def refine_together(surface: Surface, plans: list[CoveragePlan],
+                    settings: list[PlannerSettings], interior: np.ndarray,
+                    caps: list[list[np.ndarray | None] | None] | None = None
+                    ) -> tuple[list[CoveragePlan], dict[str, Any]]:
+    """Several parts' plans re-timed as one against the film they lay together on `surface`,
+    every pass's duration held (`PASS_TIME_WEIGHT`): where two parts meet, both parts' edge
+    passes and overspray paint the seam, and each part refined alone (`refine_parts`) sees only
+    its own. One least-squares fit over every pass's knots (`refine_speeds`, each pass at its
+    part's flow and speed bounds).
+
+    surface: the parts together, in the plans' frame (a vertex of zero area is not judged);
+    plans: per part, at its own deposition model; settings: per part, its `PlannerSettings`
+    (speed bounds); interior: (N,) bool, the vertices away from the seams and edges (the result
+    must not be worse there either); caps: per part, per pass its robot's speed caps [m/s] (or
+    None). Returns the plans (unchanged unless σ/μ drops on the whole and on the interior) and
+    a record {rule, applied, σ/μ before/after [%], knots, largest pass duration change [s]}.
+    """
+    caps = caps if caps is not None else [None] * len(plans)
+    passes: list[PassPlan] = []
+    apps: list[Applicator] = []
+    lo: list[float] = []
+    hi: list[float] = []
+    cap_all: list[np.ndarray | None] = []
+    owner: list[int] = []
+    for k, (plan, st, cap) in enumerate(zip(plans, settings, caps, strict=True)):
+        passes += list(plan.passes)
+        apps += [plan.applicator] * len(plan.passes)
+        lo += [st.v_min_m_s] * len(plan.passes)
+        hi += [st.v_max_m_s] * len(plan.passes)
+        cap_all += list(cap) if cap is not None else [None] * len(plan.passes)
+        owner += [k] * len(plan.passes)
+    out, info = refine_speeds(apps, surface, passes, lo, hi, interior, cap_all,
+                              pass_time_weight=PASS_TIME_WEIGHT)
+    change = [float((q.times_s[-1] - q.times_s[0]) - (p.times_s[-1] - p.times_s[0]))
+              for p, q in zip(passes, out, strict=True)]
+    own = np.asarray(owner)
+    refined = [replace(plan, passes=tuple(q for q, o in zip(out, own, strict=True) if o == k))
+               for k, plan in enumerate(plans)]
+    rec = {"rule": "every part's passes re-timed together against the film they lay on the "
+                   f"body, every pass's duration held (weight {PASS_TIME_WEIGHT:g}); kept where "
+                   "σ/μ drops on the body and on its interior away from the seams",
+           "applied": bool(info["applied"]),
+           "nsd_before_pct": info.get("nsd_capped_pct", info["nsd_before_pct"]),
+           "nsd_after_pct": info.get("nsd_after_pct"), "knots": info.get("knots"),
+           "max_pass_duration_change_s": float(max(np.abs(change), default=0.0)),
+           **({"reason": info["reason"]} if "reason" in info else {})}
+    return refined, rec
+
+
 def _knot_basis(arc_m: np.ndarray, spacing_m: float) -> tuple[sp.csr_matrix, int]:
     """Hat-function basis (M, K) of knots spread evenly over the arc length [m]."""
     length = float(arc_m[-1]) if len(arc_m) else 0.0
@@ -134,13 +184,14 @@ def _knot_basis(arc_m: np.ndarray, spacing_m: float) -> tuple[sp.csr_matrix, int
     return sp.csr_matrix((vals, (rows, cols)), shape=(len(arc_m), k)), k
 
 
-def _film_matrix(app: Applicator, passes: list[PassPlan], basis: list[sp.csr_matrix],
+def _film_matrix(apps: list[Applicator], passes: list[PassPlan], basis: list[sp.csr_matrix],
                  points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """(N, K) film [m] at each point per unit slowness of each knot (planned dwell)."""
+    """(N, K) film [m] at each point per unit slowness of each knot (planned dwell); apps: the
+    deposition model of each pass."""
     k_total = sum(b.shape[1] for b in basis)
     out = np.zeros((len(points), k_total))
     col = 0
-    for p, b in zip(passes, basis, strict=True):
+    for app, p, b in zip(apps, passes, basis, strict=True):
         on = np.flatnonzero(p.paint_on)
         dB = sp.diags(p.dwell_s()) @ b                     # (M, K_p) dwell per knot [s]
         for i in range(0, len(on), _BLOCK):
@@ -158,17 +209,20 @@ def _second_diff(k: int) -> sp.csr_matrix:
     return sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(k - 2, k), format="csr")
 
 
-def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
-                  v_min_m_s: float, v_max_m_s: float, interior: np.ndarray,
+def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
+                  passes: list[PassPlan], v_min_m_s: float | Sequence[float],
+                  v_max_m_s: float | Sequence[float], interior: np.ndarray,
                   caps_m_s: list[np.ndarray | None] | None = None,
                   pass_time_weight: float = 0.0
                   ) -> tuple[list[PassPlan], dict[str, Any]]:
     """Passes re-timed so the simulated film on `surface` is as even as the bounds allow.
 
-    app: the deposition model; surface: the real part (film judged on every vertex, area
-    weighted); passes: the plan's passes in execution order; v_min_m_s / v_max_m_s: speed
-    bounds [m/s]; interior: (N,) bool, the vertices away from the boundary (the result must not
-    be worse there either); caps_m_s: per pass (M,) robot speed caps [m/s] or None;
+    app: the deposition model, or one per pass (passes of several parts at their own flows,
+    `refine_together`); surface: the real part (film judged on every vertex, area weighted: a
+    vertex of zero area is not judged); passes: the plan's passes in execution order;
+    v_min_m_s / v_max_m_s: speed bounds [m/s], or one per pass; interior: (N,) bool, the
+    vertices away from the boundary (the result must not be worse there either); caps_m_s: per
+    pass (M,) robot speed caps [m/s] or None;
     pass_time_weight: weight of each pass's duration staying as planned (relative squared
     change, added to the fit; 0: free) — robots that sweep in step keep their pace
     (`refine_parts`).
@@ -177,22 +231,25 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
     """
     V, N, a = surface.vertices, surface.normals, surface.vertex_areas
     caps = caps_m_s or [None] * len(passes)
+    apps = _per_pass(app, len(passes), "applicators")
+    v_lo = _per_pass(v_min_m_s, len(passes), "v_min_m_s")
+    v_hi = _per_pass(v_max_m_s, len(passes), "v_max_m_s")
 
     def nsd(f: np.ndarray, m: np.ndarray | None = None) -> float:
         w = a if m is None else a * m
         mean = np.dot(w, f) / w.sum()
         return 100.0 * float(np.sqrt(np.dot(w, (f - mean) ** 2) / w.sum()) / mean)
 
-    film0 = _plan_film(app, passes, V, N)
+    film0 = _plan_film(apps, passes, V, N)
     info: dict[str, Any] = {"nsd_before_pct": nsd(film0),
                             "interior_before_pct": nsd(film0, interior), "applied": False}
     # Where the planned speeds exceed the robot's caps the robot paints the capped speeds: the
     # refinement starts from that timing and must beat its film (the plan's own is out of reach).
-    tops = [_top(p, c, v_max_m_s) for p, c in zip(passes, caps, strict=True)]
+    tops = [_top(p, c, hi) for p, c, hi in zip(passes, caps, v_hi, strict=True)]
     if any(np.any(p.speeds_m_s > t) for p, t in zip(passes, tops, strict=True)):
         passes = [_retimed(p, np.minimum(p.speeds_m_s, t))
                   for p, t in zip(passes, tops, strict=True)]
-        film0 = _plan_film(app, passes, V, N)
+        film0 = _plan_film(apps, passes, V, N)
         info.update(nsd_capped_pct=nsd(film0), interior_capped_pct=nsd(film0, interior))
     before = (nsd(film0), nsd(film0, interior))
     mu = float(np.dot(a, film0) / a.sum())
@@ -200,11 +257,11 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
         info["reason"] = "no film on the part"
         return passes, info
     basis, lo, hi = [], [], []
-    for p, top in zip(passes, tops, strict=True):
+    for p, top, lo_v in zip(passes, tops, v_lo, strict=True):
         b, k = _knot_basis(arc_length(p.positions), KNOT_SPACING_M)
         basis.append(b)
         # s ≥ v/top and s ≤ v/v_min at every sample a knot carries (s = 1 is inside: v ≤ top)
-        s_lo, s_hi = p.speeds_m_s / top, p.speeds_m_s / min(v_min_m_s, float(top.min()))
+        s_lo, s_hi = p.speeds_m_s / top, p.speeds_m_s / min(lo_v, float(top.min()))
         bc = b.tocsc()
         for j in range(k):
             rows = bc.indices[bc.indptr[j]:bc.indptr[j + 1]]
@@ -218,11 +275,11 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
     n_k = sum(b.shape[1] for b in basis)
     stride = max(1, int(np.ceil(len(V) * n_k / MAX_FIT_ENTRIES)))
     fit = np.arange(0, len(V), stride)
-    M = _film_matrix(app, passes, basis, V[fit], N[fit])
+    M = _film_matrix(apps, passes, basis, V[fit], N[fit])
     info.update(knots=int(n_k), fit_vertices=int(len(fit)))
-    problem = _FitProblem(app=app, passes=passes, basis=basis, tops=tops, areas=a, fit=fit,
+    problem = _FitProblem(apps=apps, passes=passes, basis=basis, tops=tops, areas=a, fit=fit,
                           interior=interior, mu=mu, M=M, lo=lo_a, hi=hi_a,
-                          v_min_m_s=v_min_m_s, pass_time_weight=pass_time_weight,
+                          v_min_m_s=v_lo, pass_time_weight=pass_time_weight,
                           vertices=V, normals=N)
     # Fitted with the interior weighted 1×; if the result lowers σ/μ on the whole part but not
     # on its interior, fitted again with the interior weighted more (INTERIOR_WEIGHTS): the fit
@@ -251,13 +308,14 @@ def refine_speeds(app: Applicator, surface: Surface, passes: list[PassPlan],
 
 @dataclass(frozen=True)
 class _FitProblem:
-    """What every fit of `refine_speeds` shares: the passes (execution order) and their knot
-    bases, each sample's top speed [m/s], the vertices' areas [m²], the fitted vertices' indices
-    `fit` and film matrix `M` (film [m] per unit knot slowness), the interior mask, the mean
-    film mu [m], the knots' slowness bounds lo / hi, v_min_m_s [m/s], the pass-time weight and
-    the part's vertices and normals (the film judged on all of them)."""
+    """What every fit of `refine_speeds` shares: each pass's deposition model, the passes
+    (execution order) and their knot bases, each sample's top speed [m/s], the vertices' areas
+    [m²], the fitted vertices' indices `fit` and film matrix `M` (film [m] per unit knot
+    slowness), the interior mask, the mean film mu [m], the knots' slowness bounds lo / hi, each
+    pass's v_min_m_s [m/s], the pass-time weight and the part's vertices and normals (the film
+    judged on all of them)."""
 
-    app: Applicator
+    apps: list[Applicator]
     passes: list[PassPlan]
     basis: list[sp.csr_matrix]
     tops: list[np.ndarray]
@@ -268,7 +326,7 @@ class _FitProblem:
     M: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
-    v_min_m_s: float
+    v_min_m_s: list[float]
     pass_time_weight: float
     vertices: np.ndarray
     normals: np.ndarray
@@ -314,15 +372,15 @@ def _fit(pb: _FitProblem, w_int: float
     s = np.clip(res.x, pb.lo, pb.hi)
     out, dt = [], 0.0
     col = 0
-    for p, b, top in zip(passes, basis, pb.tops, strict=True):
+    for p, b, top, lo_v in zip(passes, basis, pb.tops, pb.v_min_m_s, strict=True):
         k = b.shape[1]
-        q = _retimed(p, np.clip(p.speeds_m_s / (b @ s[col:col + k]),
-                                np.minimum(pb.v_min_m_s, top), top))
+        q = _retimed(p, np.clip(p.speeds_m_s / (b @ s[col:col + k]), np.minimum(lo_v, top),
+                                top))
         col += k
         dt += float(q.times_s[-1] - p.times_s[-1])
         out.append(q)
     # the rebuilt timing (trapezoid dwell, clipped speeds) judged by the film itself
-    return out, _plan_film(pb.app, out, pb.vertices, pb.normals), s, res, dt
+    return out, _plan_film(pb.apps, out, pb.vertices, pb.normals), s, res, dt
 
 
 def _top(p: PassPlan, cap: np.ndarray | None, v_max_m_s: float) -> np.ndarray:
@@ -334,12 +392,27 @@ def _retimed(p: PassPlan, speeds_m_s: np.ndarray) -> PassPlan:
     return replace(p, speeds_m_s=speeds_m_s, times_s=times_from_speeds(p.positions, speeds_m_s))
 
 
-def _plan_film(app: Applicator, passes: list[PassPlan], points: np.ndarray,
+def _per_pass(x: Any, n: int, what: str) -> list[Any]:
+    """x as a list of one per pass: a single value repeated n times, else the n given."""
+    if isinstance(x, (Applicator, float, int)):
+        return [x] * n
+    out = list(x)
+    if len(out) != n:
+        raise ValueError(f"{what}: {len(out)} given for {n} passes")
+    return out
+
+
+def _plan_film(apps: list[Applicator], passes: list[PassPlan], points: np.ndarray,
                normals: np.ndarray) -> np.ndarray:
-    """(N,) film [m] of the passes' brush-on samples at their planned timing."""
-    gun = GunSamples(
-        positions=np.concatenate([p.positions[p.paint_on] for p in passes]),
-        spray_axes=np.concatenate([p.spray_axes[p.paint_on] for p in passes]),
-        travel_dirs=np.concatenate([p.travel_dirs[p.paint_on] for p in passes]),
-        dwell_s=np.concatenate([p.dwell_s()[p.paint_on] for p in passes]))
-    return thickness(app, gun, points, normals)
+    """(N,) film [m] of the passes' brush-on samples at their planned timing, each pass at its
+    own deposition model (passes of one model summed in one call)."""
+    out = np.zeros(len(points))
+    for app in {id(a): a for a in apps}.values():     # a model per part: a few
+        mine = [p for a, p in zip(apps, passes, strict=True) if a is app]
+        gun = GunSamples(
+            positions=np.concatenate([p.positions[p.paint_on] for p in mine]),
+            spray_axes=np.concatenate([p.spray_axes[p.paint_on] for p in mine]),
+            travel_dirs=np.concatenate([p.travel_dirs[p.paint_on] for p in mine]),
+            dwell_s=np.concatenate([p.dwell_s()[p.paint_on] for p in mine]))
+        out += thickness(app, gun, points, normals)
+    return out
