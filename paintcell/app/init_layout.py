@@ -195,15 +195,14 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
     from paintcell.booth.booth import BodyPart, Booth
     from paintcell.booth.booth_plans import plan_parts
     from paintcell.booth.conveyor import Conveyor
-    from paintcell.core.placement import Placement
+    from paintcell.core.placement import Placement, triple
 
     R, why_pose = crown_up(surf)
     world = surf.vertices @ R.T
     lo0, hi0 = world.min(0), world.max(0)
     t = np.array([-(lo0[0] + hi0[0]) / 2, -(lo0[1] + hi0[1]) / 2, PART_LOW_Z_M - lo0[2]])
     lo, hi = lo0 + t, hi0 + t
-    pl = Placement(tuple(round(float(x), 4) for x in t),  # type: ignore[arg-type]
-                   tuple(float(x) for x in Rotation.from_matrix(R).as_euler("xyz")))
+    pl = Placement(triple(t, 4), triple(Rotation.from_matrix(R).as_euler("xyz")))
     length = float(hi[0] - lo[0])
     failed: list[str] = []
     plans: dict[int, Any] = {}        # planner try → its part plans (or why it was skipped)
@@ -368,8 +367,9 @@ def _cell(booth: Any, traj: dict[str, Any], gap: float, drop: float, n_passes: i
              for r, js in sorted(progs.jobs.items())}
     clear = progs.record.get("body_clearance", {})
     gaps = [c.get("min_distance_m") for c in clear.values() if isinstance(c, dict)]
-    gap_txt = (f"; every program keeps ≥ {min(gaps) * 1e3:.0f} mm from the part"
-               if gaps and all(g is not None for g in gaps) else "")
+    known = [float(g) for g in gaps if g is not None]
+    gap_txt = (f"; every program keeps ≥ {min(known) * 1e3:.0f} mm from the part"
+               if known and len(known) == len(gaps) else "")
     why = {
         "reach": ", ".join(f"{nm} reaches {k} of {n_passes} passes" for nm, k in
                            zip(names, reach, strict=True)),

@@ -53,6 +53,7 @@ from paintcell.booth.line_allocation import (
 )
 from paintcell.booth.line_takt import LineTakt, first_count
 from paintcell.core.errors import PaintcellError
+from paintcell.core.placement import triple
 
 __all__ = ["Line", "choose_line", "line_panels"]
 
@@ -133,8 +134,8 @@ def line_panels(pp: Any, reverse: Sequence[bool] | None = None) -> list[LinePane
         w = surf.vertex_areas / surf.vertex_areas.sum()
         side = np.asarray(surf.regions.painted_direction, float)
         order = slice(None, None, -1 if reverse is not None and reverse[i] else 1)
-        out.append(LinePanel(surf.name, tuple(side / np.linalg.norm(side)),
-                             tuple(float(x) for x in w @ surf.vertices),
+        out.append(LinePanel(surf.name, triple(side / np.linalg.norm(side)),
+                             triple(w @ surf.vertices),
                              np.array([p.duration_s for p in plan.passes])[order],
                              np.array([float(np.mean(p.positions[:, 1]))
                                        for p in plan.passes])[order],

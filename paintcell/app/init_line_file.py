@@ -23,6 +23,7 @@ import numpy as np
 from paintcell.app.init_line import Line
 from paintcell.booth.line_takt import UTILISATION
 from paintcell.core.errors import PaintcellError
+from paintcell.core.placement import triple
 from paintcell.motion.moves import APPROACH_RETRACT_S, TURN_S
 
 __all__ = ["init_body_line", "init_line", "line_toml"]
@@ -231,7 +232,7 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
                      [np.asarray(p.mesh.vertices, float).mean(0) for p in panels])
     takt = LineTakt(float(takt_s), float(np.ptp(verts[:, 0])))
     name = name or "".join(c if c.isalnum() or c in "_-" else "_" for c in out.stem)
-    sides = [tuple(float(x) for x in p.direction) for p in panels]
+    sides = [triple(p.direction) for p in panels]
     with tempfile.TemporaryDirectory(prefix="paintcell-line-") as tmp:
         specs = []
         for stem, p, side in zip(stems, panels, sides, strict=True):

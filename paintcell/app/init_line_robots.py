@@ -297,27 +297,28 @@ def place_robots(booth: Any, pp: Any, shares: list[RobotShare], track_m: float,
                          .replace("inf", "∞"), _on_stretch(c, x_lo, x_hi))
                         for text, c in cands[i]]
     for share, tcp, cand_list, k in zip(shares, tcps, cands, nth, strict=True):
-        reach, missed = [], None
+        fits: list[tuple[str, Any]] = []         # the rail frames that reach every pass
+        missed = None
         owner = [j.part for j in share.jobs for _ in range(j.first, j.end)]
         for text, cand in cand_list:
             robot = load_robots(replace(booth, robots=(cand,), allocation=None), stretch=True)[0]
             ok = [pass_feasible(robot, T) for T in tcp]
             if all(ok):
-                reach.append((text, cand))
+                fits.append((text, cand))
             elif missed is None or sum(not o for o in ok) < len(missed):
                 missed = [o for o, k in zip(owner, ok, strict=True) if not k]
-        if not reach:
+        if not fits:
             names = ", ".join(booth.parts[i].part for i in dict.fromkeys(missed or []))
             return (f"the {share.zone} robot {k} misses {len(missed or [])} "
                     f"pass(es) of {names} from every rail frame tried")
-        frames.append(reach)
+        frames.append(fits)
     if builder is None:
         return [f[0][1] for f in frames], [f[0][0] for f in frames], dict(TRAJECTORY_TRIES[0])
     why = ""
     for traj in TRAJECTORY_TRIES:
         robots, texts = [], []
-        for share, reach in zip(shares, frames, strict=True):
-            for text, cand in reach:
+        for share, fitting in zip(shares, frames, strict=True):
+            for text, cand in fitting:
                 bad = builder.build(cand, share.jobs, traj)
                 if bad is None:
                     robots.append(cand)

@@ -135,8 +135,8 @@ def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[Cover
         if reuse is None:
             out["plan"][i] = planned_film(plans, jobs[i], T_bp, pts, nrm)
         ex = None if traces is None else traces[i]
-        flow = {} if ex is None else {k: float(ex.meta[k]) for k in ("flow_scale", "flow_drift")
-                                      if k in ex.meta}
+        flow: dict[str, float] = {} if ex is None else {
+            k: float(ex.meta[k]) for k in ("flow_scale", "flow_drift") if k in ex.meta}
         for key, executed, T, x in runs:
             src: Any = ex if executed else tr
             for app, on in job_paint(plans, jobs[i], tr, src.paint_on):

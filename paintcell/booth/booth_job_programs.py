@@ -194,7 +194,7 @@ def load_robots(booth: Booth, rail_shrink_m: float = 0.0, stretch: bool = False)
             if lo >= hi:
                 raise BoothError(f"robot {r.name!r}: the conveyor tracking needs "
                                  f"{2 * rail_shrink_m:.2f} m of its rail"
-                                 + (f" beyond its carriage stretch {list(r.carriage_m)} m"
+                                 + (f" beyond its carriage stretch {list(r.carriage_m or ())} m"
                                     if keep else "")
                                  + "; lengthen rail_m or slow the line")
             out.append(load_rail_robot(r.model[:-5], T_world_rail=r.base.matrix,

@@ -369,7 +369,8 @@ def booth_film(booth: Booth, body: Surface, judged: np.ndarray | None,
     # inside the spec window is the one metrics.json gives
     film = FilmData(planned, films_m["executed"].sum(axis=0), areas, judged,
                     booth.spec.target_m(own), 0.01 * booth.spec.window_pct,
-                    np.asarray(body.vertices, float), faces, judged[faces].all(axis=1))
+                    np.asarray(body.vertices, float), faces,
+                    np.asarray(judged[faces].all(axis=1), bool))
     passes = []
     for bp, plan in zip(booth.parts, plans, strict=True):
         T = bp.placement.matrix

@@ -9,7 +9,17 @@ import numpy as np
 
 from paintcell.core.errors import ScenarioError
 
-__all__ = ["Placement", "pose"]
+__all__ = ["Placement", "pose", "triple"]
+
+
+def triple(x: object, ndigits: int | None = None) -> tuple[float, float, float]:
+    """Three numbers (a position [m], angles [rad] or a direction) as a tuple of floats,
+    rounded to `ndigits` decimals when given; anything but three numbers is a ValueError."""
+    a = np.asarray(x, float).reshape(-1)
+    if len(a) != 3:
+        raise ValueError(f"three numbers expected, got {len(a)}")
+    x0, x1, x2 = (float(v) if ndigits is None else round(float(v), ndigits) for v in a)
+    return (x0, x1, x2)
 
 
 def pose(xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0),

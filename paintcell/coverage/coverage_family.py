@@ -102,7 +102,8 @@ def plan_family(surface: Surface, applicator: Applicator, st: PlannerSettings,
         fill = [np.concatenate(x) for x in zip(fill_samples(real_surface, openings),
                                                notch_samples(real_surface, geo.notches),
                                                strict=True)]
-        plan_passes, n_brush_off = brush_off_openings(applicator, plan_passes, tuple(fill),
+        plan_passes, n_brush_off = brush_off_openings(applicator, plan_passes,
+                                                      (fill[0], fill[1], fill[2]),
                                                       st.max_opening_fraction)
     guard: dict[str, Any] = {}
     if st.optimize_speed and st.film_guard:

@@ -403,7 +403,8 @@ def plot_body_film(path: str | os.PathLike[str], body: Any, part_counts: Sequenc
         sl = slice(offs[i], offs[i + 1])
         n = (np.asarray(body.normals)[sl] * np.asarray(body.vertex_areas)[sl, None]).sum(axis=0)
         k = int(np.argmax(np.abs(n)))
-        ax2 = tuple(j for j in range(3) if j != k)
+        a, b = (j for j in range(3) if j != k)
+        ax2 = (a, b)
         views.setdefault(f"seen from {'+' if n[k] >= 0 else '−'}{_AXES[k]}", (ax2, []))[1].append(i)
     vmin, vmax = thickness_range_um(total_um * 1e-6)
     ncol = len(views)
@@ -411,8 +412,10 @@ def plot_body_film(path: str | os.PathLike[str], body: Any, part_counts: Sequenc
                              ax2[0]])) + 0.1 for ax2, mem in views.values()]
     fig = Figure(figsize=(4.5 * ncol + 1.5, 6.8), layout="constrained")
     axs = fig.subplots(2, ncol, squeeze=False, gridspec_kw={"width_ratios": width})
-    colours = colormaps[ROBOT_CMAP].colors
-    cmap_zone = ListedColormap(list(colours[:max(1, len(robot_names))]))
+    robot_cmap = colormaps[ROBOT_CMAP]
+    assert isinstance(robot_cmap, ListedColormap)      # a qualitative map: its colours
+    colours = np.asarray(robot_cmap.colors, float)             # (n, 3) RGB
+    cmap_zone = ListedColormap(colours[:max(1, len(robot_names))])
     pc = None
     for c, (label, (ax2, members)) in enumerate(views.items()):
         for i in members:

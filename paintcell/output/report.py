@@ -183,7 +183,7 @@ def write_report(results_dir: str | os.PathLike[str], title: str | None = None,
     # one robot's plan.json; a booth: each part's plan_<i>.json, in the parts' order
     plans = [d / "plan.json"] if (d / "plan.json").exists() else sorted(
         (p for p in d.glob("plan_*.json") if p.stem[5:].isdigit()), key=lambda p: int(p.stem[5:]))
-    parts.extend(plan_html(d, None if p is None else _read_json(p)) for p in plans or [None])
+    parts.extend([plan_html(d, _read_json(p)) for p in plans] if plans else [plan_html(d, None)])
     if metrics.get("plan_summary") is not None:
         parts.append("<details><summary>plan summary (metrics.json)</summary>"
                      + kv_table(metrics["plan_summary"]) + "</details>")

@@ -132,8 +132,8 @@ def choose_pieces(v: np.ndarray, f: np.ndarray, groups: list[np.ndarray], d: np.
             gaps[i] = gap
             changed = True
     for i in todo:
-        g = far.get(i, np.inf)
-        reasons[i] = (f"{1e3 * g:.0f} mm from the part" if np.isfinite(g) else
+        g_far = far.get(i, float(np.inf))
+        reasons[i] = (f"{1e3 * g_far:.0f} mm from the part" if np.isfinite(g_far) else
                       f"more than {1e3 * gap_m:.0f} mm from the part") + \
             f" (pieces_gap_m = {gap_m:g})"
     return PieceChoice(tuple(selected), gaps, dict(sorted(reasons.items())))

@@ -121,6 +121,7 @@ def booth_payload(booth: Any, names: tuple[str, ...], digest: str, fast: bool,
     from paintcell.booth.booth_programs import booth_programs
 
     progs = booth_programs(booth, fast)
+    assert progs.robots is not None               # loaded here (None once sent to a worker)
     bcell = build_booth_cell(progs.robots, progs.body, booth.body_placement.matrix,
                              booth.conveyor)
     films = robot_films(booth, bcell, progs.body, progs.plans, progs.jobs, progs.T_body_parts,
@@ -140,6 +141,7 @@ def context(payload: SweepPayload) -> WorkerContext:
         t0 = time.perf_counter()
         scn = payload.scenario
         servo = settings_from(ServoSettings, scn.servo, "servo")
+        cell: Any
         if payload.programs is not None:
             from paintcell.booth.booth_cell import build_booth_cell
             from paintcell.booth.booth_programs import load_robots
