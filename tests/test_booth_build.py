@@ -350,3 +350,93 @@ def test_parts_refined_together_beat_each_part_refined_alone():
             assert q1.speeds_m_s.min() >= st.v_min_m_s - 1e-12
             assert q1.speeds_m_s.max() <= st.v_max_m_s + 1e-12
     assert out[0].passes[2].speeds_m_s.max() <= 0.3 + 1e-12
+
+
+def _turned_panels():
+    """Two library panels 2 cm apart, the second turned half a turn about z (its part frame is
+    not the body's), blended at their seam; (body, plans, placements, vertex counts, panel)."""
+    from paintcell.booth.booth_film import merge_surfaces
+    from paintcell.booth.booth_seams import blend_part_seams
+
+    _, plans, Ts, counts = _panels(0.02)
+    Ts[1][:3, :3] = np.diag([-1.0, -1.0, 1.0])
+    panel = parts.get_part("panel", resolution_m=RES_M)
+    body = merge_surfaces([panel, panel], Ts, "two")
+    plans, _ = blend_part_seams(body, plans, Ts, counts, ["a", "b"])
+    return body, plans, Ts, counts, panel
+
+
+def test_refine_body_re_times_the_part_frame_plans_against_the_body_film():
+    """`booth_plans.refine_body` on two panels, the second turned half a turn and planned with a
+    lower top speed (0.55 m/s, its own `[parts.planner]`), one pass of the first capped at 0.3
+    m/s: the recorded σ/μ before and after are the body films re-measured here from the plans
+    as the robots would paint them (slowed to the bounds and the cap) and from the returned
+    part-frame plans, both placed on the body; lower by a tenth at least; positions, spray axes
+    and paint switches are the planner's; every pass's times follow its speeds along its own
+    positions; each part keeps its own speed bounds and the cap; a part whose planner says
+    film_refine = false holds every part's film."""
+    from types import SimpleNamespace
+
+    from paintcell.booth.booth_plans import refine_body
+    from paintcell.coverage.plan import times_from_speeds
+
+    body, plans, Ts, _, panel = _turned_panels()
+    booth = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={}),
+                                               SimpleNamespace(planner={"v_max_m_s": 0.55})])
+    pp = SimpleNamespace(surfaces=[panel, panel], T_body_parts=Ts)
+    caps = [[None] * len(plans[0].passes), None]
+    caps[0][2] = np.full(len(plans[0].passes[2].speeds_m_s), 0.3)
+    out, rec = refine_body(booth, pp, plans, body, caps)
+    assert rec["applied"]
+    a = body.vertex_areas
+    after = _body_film(body, out, Ts)
+    assert 100 * _nsd(after, a) == pytest.approx(rec["nsd_after_pct"], rel=1e-9)
+
+    def slowed(q, top):               # what the robot paints: the plan under its caps
+        v = np.minimum(q.speeds_m_s, top)
+        return dataclasses.replace(q, speeds_m_s=v, times_s=times_from_speeds(q.positions, v))
+
+    start = [dataclasses.replace(plans[0], passes=tuple(
+                 slowed(q, 0.3 if i == 2 else 1.0) for i, q in enumerate(plans[0].passes))),
+             dataclasses.replace(plans[1], passes=tuple(slowed(q, 0.55) for q in plans[1].passes))]
+    before = _body_film(body, start, Ts)
+    assert 100 * _nsd(before, a) == pytest.approx(rec["nsd_before_pct"], rel=1e-9)
+    assert _nsd(after, a) < 0.9 * _nsd(before, a)
+    for k, (p0, p1) in enumerate(zip(plans, out, strict=True)):
+        assert p1.applicator is p0.applicator
+        for q0, q1 in zip(p0.passes, p1.passes, strict=True):
+            for key in ("positions", "spray_axes", "paint_on"):
+                assert np.array_equal(getattr(q0, key), getattr(q1, key))
+            assert np.abs(times_from_speeds(q1.positions, q1.speeds_m_s)
+                          - q1.times_s).max() < 1e-12
+            assert q1.speeds_m_s.max() <= (1.0 if k == 0 else 0.55) + 1e-12
+    assert max(q.speeds_m_s.max() for q in plans[1].passes) > 0.55   # the bound did bind
+    assert out[0].passes[2].speeds_m_s.max() <= 0.3 + 1e-12
+    held = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={}),
+                                              SimpleNamespace(planner={"film_refine": False})])
+    same, why = refine_body(held, pp, plans, body, caps)
+    assert same is plans and not why["applied"] and "film_refine = false" in why["reason"]
+
+
+def test_refine_together_is_the_same_with_shared_or_copied_deposition_models():
+    """Plans made on Dask workers come back with their own (equal) copy of the deposition
+    model, plans made here share one object: `refine_together` re-times both alike, bit for
+    bit."""
+    import pickle
+
+    from paintcell.booth.booth_seams import pass_in_body, seam_band
+    from paintcell.coverage.film_refine import refine_together
+
+    body, plans, Ts, counts, _ = _turned_panels()
+    moved = [dataclasses.replace(p, passes=tuple(pass_in_body(q, T) for q in p.passes))
+             for p, T in zip(plans, Ts, strict=True)]
+    assert moved[0].applicator is moved[1].applicator
+    copied = [pickle.loads(pickle.dumps(p)) for p in moved]
+    assert copied[0].applicator is not copied[1].applicator
+    st, interior = PlannerSettings(), ~seam_band(body.vertices, counts)
+    here, rec_here = refine_together(body, moved, [st, st], interior)
+    there, rec_there = refine_together(body, copied, [st, st], interior)
+    assert rec_here["applied"] and rec_here == rec_there
+    for p, q in zip(here, there, strict=True):
+        for a, b in zip(p.passes, q.passes, strict=True):
+            assert np.array_equal(a.speeds_m_s, b.speeds_m_s)

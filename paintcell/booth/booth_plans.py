@@ -114,8 +114,9 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
                  caps: list[list[np.ndarray | None] | None] | None = None) -> FinishedPlans:
     """The robots' plans from the planner's `plans` (one per part, generation order): reversed
     where the part says so, refined with the pace held (`Booth.film_refine_pace`), one film build,
-    seams blended. caps: per part, per pass of its finished plan (execution order) the robot's
-    speed caps [m/s] the refinement keeps under (None: none)."""
+    seams blended, then (`film_refine_pace`, two parts or more) every part re-timed together
+    against the body's film (`refine_body`). caps: per part, per pass of its finished plan
+    (execution order) the robot's speed caps [m/s] the refinement keeps under (None: none)."""
     plans = [reversed_plan(pl) if bp.reverse else pl
              for pl, bp in zip(plans, booth.parts, strict=True)]
     names = [f"{i}:{bp.part}" for i, bp in enumerate(booth.parts)]
@@ -175,11 +176,14 @@ def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Su
                        "reason": "a part's planner says film_refine = false: its film is held"}
     judged = judged_body_mask(pp.surfaces)
     band = seam_band(body.vertices, [len(x.vertices) for x in pp.surfaces])
+    interior = judged & ~band
+    if not interior.any():          # every judged vertex near a seam: judged on all of them
+        interior = judged
     seen = replace(body, vertex_areas=np.where(judged, body.vertex_areas, 0.0))
     moved = [replace(pl, passes=tuple(pass_in_body(p, T) for p in pl.passes))
              for pl, T in zip(plans, pp.T_body_parts, strict=True)]
     out, rec = refine_together(seen, moved, [settings_from(PlannerSettings, kw, "planner")
-                                             for kw in kws], judged & ~band, caps)
+                                             for kw in kws], interior, caps)
     # only the timing changed: the part-frame passes take the new speeds and times
     return [replace(pl, passes=tuple(replace(p, speeds_m_s=q.speeds_m_s, times_s=q.times_s)
                                      for p, q in zip(pl.passes, o.passes, strict=True)))

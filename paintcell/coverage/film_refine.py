@@ -31,7 +31,9 @@ delays measured on these timings) refines each part with every pass's DURATION h
 to even the film, but each pass starts and ends when it did, so robots in step stay in step and
 the allocation's estimates and the stagger see the same program lengths. Re-timed freely, every
 part drifts: four of the booth scenario's five ranked allocations then failed the arm stagger
-and the fifth left a robot idle.
+and the fifth left a robot idle. `refine_together` then re-times every part's passes as one fit
+against the film they lay together (the seams, which each part refined alone cannot see), the
+durations held again.
 """
 
 from __future__ import annotations
@@ -134,10 +136,12 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
 
     surface: the parts together, in the plans' frame (a vertex of zero area is not judged);
     plans: per part, at its own deposition model; settings: per part, its `PlannerSettings`
-    (speed bounds); interior: (N,) bool, the vertices away from the seams and edges (the result
-    must not be worse there either); caps: per part, per pass its robot's speed caps [m/s] (or
-    None). Returns the plans (unchanged unless σ/μ drops on the whole and on the interior) and
-    a record {rule, applied, σ/μ before/after [%], knots, largest pass duration change [s]}.
+    (speed bounds); interior: (N,) bool, the vertices the result must not be worse on either
+    (`refine_body`: those away from the seams); caps: per part, per pass its robot's speed caps
+    [m/s] (or None). Returns the plans (re-timed where σ/μ drops on the whole and on the
+    interior; otherwise as given, slowed to the caps where they asked for more, as
+    `refine_speeds` returns them) and a record {rule, applied, σ/μ before/after [%], knots,
+    largest pass duration change [s]}.
     """
     caps = caps if caps is not None else [None] * len(plans)
     passes: list[PassPlan] = []
@@ -394,8 +398,8 @@ def _retimed(p: PassPlan, speeds_m_s: np.ndarray) -> PassPlan:
 
 def _per_pass(x: Any, n: int, what: str) -> list[Any]:
     """x as a list of one per pass: a single value repeated n times, else the n given."""
-    if isinstance(x, (Applicator, float, int)):
-        return [x] * n
+    if isinstance(x, Applicator) or np.ndim(x) == 0:
+        return [float(x) if not isinstance(x, Applicator) else x] * n
     out = list(x)
     if len(out) != n:
         raise ValueError(f"{what}: {len(out)} given for {n} passes")
@@ -405,10 +409,15 @@ def _per_pass(x: Any, n: int, what: str) -> list[Any]:
 def _plan_film(apps: list[Applicator], passes: list[PassPlan], points: np.ndarray,
                normals: np.ndarray) -> np.ndarray:
     """(N,) film [m] of the passes' brush-on samples at their planned timing, each pass at its
-    own deposition model (passes of one model summed in one call)."""
+    own deposition model (passes of equal models summed in one call: the same sums whether the
+    parts share one model object or each holds an equal copy, as plans made on workers do)."""
+    models: list[Applicator] = []
+    for a in apps:                                     # a model per part: a few
+        if not any(a is m or a == m for m in models):
+            models.append(a)
     out = np.zeros(len(points))
-    for app in {id(a): a for a in apps}.values():     # a model per part: a few
-        mine = [p for a, p in zip(apps, passes, strict=True) if a is app]
+    for app in models:
+        mine = [p for a, p in zip(apps, passes, strict=True) if a is app or a == app]
         gun = GunSamples(
             positions=np.concatenate([p.positions[p.paint_on] for p in mine]),
             spray_axes=np.concatenate([p.spray_axes[p.paint_on] for p in mine]),
