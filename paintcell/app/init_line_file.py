@@ -104,8 +104,8 @@ def line_toml(line: Line, files: Sequence[str], sides: Sequence[Sequence[float]]
         "verified ones; the run checks its cycle against max_cycle_time_s. Each seam between "
         "two panels is blended at its own share (seam_shares = \"per seam\": a door next to "
         "the roof and a fender next to a door want different ones; only paint switches), then "
-        "every panel's passes are re-timed together against the body's film, each pass's "
-        "duration held again (speeds move along a pass, its start and end stay)."]
+        "every panel's passes are re-timed together against the body's film (the durations "
+        "free this time: each pass moves by a fraction of a second)."]
     text = "\n".join(_fill(h) for h in head)
     parts = ""
     for f, side, bp in zip(files, sides, b.parts, strict=True):

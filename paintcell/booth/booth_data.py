@@ -28,7 +28,7 @@ area-weighted planned mean) set one film build over the parts (`paintcell.booth.
 `seam_shares` ("one", the default, or "per seam") gives the whole body one seam share or each
 seam its own (`Booth.seam_shares`).
 `film_refine_pace` (default false) refines each part's film with every pass's duration held,
-then every part together against the body's film after the seam step
+then every part together against the body's film after the seam step, the durations free
 (`paintcell.coverage.film_refine`, `paintcell.booth.booth_plans.refine_body`).
 `robot_aware_speeds` (default true) re-plans the parts' speeds under what the robots' programs
 reach (`paintcell.motion.speed_feedback`).

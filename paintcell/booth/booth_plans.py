@@ -163,8 +163,9 @@ def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Su
     the film they lay on the body (`paintcell.coverage.film_refine.refine_together`): each part
     refined alone sees only its own film, and the seams get both parts' edges. The film is
     judged on the body's judged vertices, its interior those away from the seams
-    (`paintcell.booth.booth_seams.seam_band`); every pass's duration is held, so the programs'
-    pace and the start delays stay. Returns the plans and the record."""
+    (`paintcell.booth.booth_seams.seam_band`); the passes' durations are free (each part's own
+    refinement held its pace; the programs and their start delays are built from these plans).
+    Returns the plans and the record."""
     from paintcell.booth.booth_seams import pass_in_body, seam_band
     from paintcell.core.settings import settings_from
     from paintcell.coverage.coverage_settings import PlannerSettings
