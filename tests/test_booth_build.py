@@ -452,3 +452,45 @@ def test_refine_together_is_the_same_with_shared_or_copied_deposition_models():
     for p, q in zip(here, there, strict=True):
         for a, b in zip(p.passes, q.passes, strict=True):
             assert np.array_equal(a.speeds_m_s, b.speeds_m_s)
+
+
+def test_a_pass_switched_off_at_a_seam_is_painted_again_only_where_the_film_wants_it():
+    """`refine_together` with `restorable`: on two panels, the first panel's middle pass
+    switched off entirely (as a seam's blending would) leaves a thin stripe, and a copy of a
+    pass lifted 2 m over the panels (it paints nothing there) is switched off too. The relaxed
+    fit wants most of the middle pass back and none of the lifted one; the result paints those
+    samples of the middle pass again (and only samples it painted before), its σ/μ is the body
+    film re-measured here, lower than the fit without giving back and no worse on the interior
+    than the start; the lifted pass stays off."""
+    from paintcell.booth.booth_seams import pass_in_body, seam_band
+    from paintcell.coverage.film_refine import RESTORE_SHARE, refine_together
+
+    body, plans, Ts, counts, _ = _turned_panels()
+    moved = [dataclasses.replace(p, passes=tuple(pass_in_body(q, T) for q in p.passes))
+             for p, T in zip(plans, Ts, strict=True)]
+    mid = len(moved[0].passes) // 2
+    p_mid = moved[0].passes[mid]
+    lifted = dataclasses.replace(p_mid, positions=p_mid.positions + [0.0, 0.0, 2.0])
+    a_passes = list(moved[0].passes)
+    a_passes[mid] = dataclasses.replace(p_mid, paint_on=np.zeros_like(p_mid.paint_on))
+    a_passes.append(dataclasses.replace(lifted, paint_on=np.zeros_like(lifted.paint_on)))
+    start = [dataclasses.replace(moved[0], passes=tuple(a_passes)), moved[1]]
+    restorable = [[None] * len(a_passes), [None] * len(moved[1].passes)]
+    restorable[0][mid] = p_mid.paint_on.copy()
+    restorable[0][-1] = lifted.paint_on.copy()
+    st, interior = PlannerSettings(), ~seam_band(body.vertices, counts)
+    plain, rec_plain = refine_together(body, start, [st, st], interior)
+    out, rec = refine_together(body, start, [st, st], interior, restorable=restorable)
+    shares = rec["paint_shares"]
+    assert shares[f"0:{mid}"] >= RESTORE_SHARE > shares[f"0:{len(a_passes) - 1}"]
+    again = out[0].passes[mid].paint_on
+    assert rec["passes_painted_again"] == {f"0:{mid}": int(again.sum())}
+    assert not np.any(again & ~p_mid.paint_on) and again.sum() > 0.5 * p_mid.paint_on.sum()
+    assert not out[0].passes[-1].paint_on.any()
+    a, eye = body.vertex_areas, [np.eye(4)] * 2
+    after = _body_film(body, out, eye)
+    assert 100 * _nsd(after, a) == pytest.approx(rec["nsd_after_pct"], rel=1e-9)
+    assert rec["nsd_before_pct"] == pytest.approx(100 * _nsd(_body_film(body, start, eye), a))
+    assert _nsd(after, a) < _nsd(_body_film(body, plain, eye), a)
+    before = _body_film(body, start, eye)
+    assert _nsd(after[interior], a[interior]) <= _nsd(before[interior], a[interior])

@@ -208,7 +208,7 @@ class Booth:
     every pass's duration held, so robots sweeping in step keep their pace
     (`paintcell.coverage.film_refine.refine_parts`), then every part together against the
     body's film after the seam step, the durations free (`paintcell.booth.booth_plans.
-    refine_body`: the changes left are small, ~0.2 s a pass); a part
+    refine_body`: the changes left are small, under a second a pass); a part
     whose planner sets `film_refine = false` (the booth's `[planner]` or its own) is not
     refined at all, nor then the body."""
     robot_aware_speeds: bool = True

@@ -144,6 +144,7 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
         plans, build = common_film_build(pp.surfaces, plans, names, booth.film_target_um)
     body = merge_surfaces(pp.surfaces, pp.T_body_parts, booth.name)
     seams: dict[str, Any] = {"rule": "off" if not booth.blend_seams else "one part: no seams"}
+    unblended = plans
     if booth.blend_seams and len(plans) > 1:
         from paintcell.booth.booth_seams import blend_part_seams
 
@@ -152,12 +153,13 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
                                         judged_body_mask(pp.surfaces),
                                         per_seam=booth.seam_shares == "per seam")
     if booth.film_refine_pace and len(plans) > 1:
-        plans, refine["body"] = refine_body(booth, pp, plans, body, caps)
+        plans, refine["body"] = refine_body(booth, pp, plans, body, caps, unblended)
     return FinishedPlans(plans, body, refine, build, seams)
 
 
 def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Surface,
-                caps: list[list[np.ndarray | None] | None] | None
+                caps: list[list[np.ndarray | None] | None] | None,
+                unblended: list[CoveragePlan] | None = None
                 ) -> tuple[list[CoveragePlan], dict[str, Any]]:
     """The parts' plans (part frames, execution order, seams blended) re-timed together against
     the film they lay on the body (`paintcell.coverage.film_refine.refine_together`): each part
@@ -165,7 +167,9 @@ def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Su
     judged on the body's judged vertices, its interior those away from the seams
     (`paintcell.booth.booth_seams.seam_band`); the passes' durations are free (each part's own
     refinement held its pace; the programs and their start delays are built from these plans).
-    Returns the plans and the record."""
+    unblended: the same plans before the seams were blended; a pass the blending switched off
+    entirely may be painted again where the body's film wants it (`refine_together`'s
+    restorable). Returns the plans and the record."""
     from paintcell.booth.booth_seams import pass_in_body, seam_band
     from paintcell.core.settings import settings_from
     from paintcell.coverage.coverage_settings import PlannerSettings
@@ -183,10 +187,16 @@ def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Su
     seen = replace(body, vertex_areas=np.where(judged, body.vertex_areas, 0.0))
     moved = [replace(pl, passes=tuple(pass_in_body(p, T) for p in pl.passes))
              for pl, T in zip(plans, pp.T_body_parts, strict=True)]
+    restorable = None if unblended is None else [
+        [np.asarray(u.paint_on, bool) & ~np.asarray(p.paint_on, bool)
+         for p, u in zip(pl.passes, ub.passes, strict=True)]
+        for pl, ub in zip(plans, unblended, strict=True)]
     out, rec = refine_together(seen, moved, [settings_from(PlannerSettings, kw, "planner")
-                                             for kw in kws], interior, caps)
-    # only the timing changed: the part-frame passes take the new speeds and times
-    return [replace(pl, passes=tuple(replace(p, speeds_m_s=q.speeds_m_s, times_s=q.times_s)
+                                             for kw in kws], interior, caps,
+                               restorable=restorable)
+    # only the timing and the paint switches changed: the part-frame passes take them
+    return [replace(pl, passes=tuple(replace(p, speeds_m_s=q.speeds_m_s, times_s=q.times_s,
+                                             paint_on=q.paint_on)
                                      for p, q in zip(pl.passes, o.passes, strict=True)))
             for pl, o in zip(plans, out, strict=True)], rec
 

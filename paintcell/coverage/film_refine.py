@@ -76,6 +76,12 @@ INTERIOR_WEIGHTS = (1.0, 2.0, 4.0, 8.0)
 #: term is (σ/μ)² ≈ 0.005 at 7 %; a 1 % longer or shorter pass costs 1e3 · 1e-4 = 0.1, twenty
 #: times the whole film term, so the durations stay within ~0.1 % (`refine_parts`' record).
 PASS_TIME_WEIGHT = 1e3
+#: A pass the seams' blending switched off entirely is painted again (`refine_together`) at the
+#: samples where a relaxed joint fit, free to take its paint down to none, still wants at least
+#: this share of the film it lays there at its top speed. On the seed-1 SUV line the rear doors'
+#: and quarters' top passes (the only ones over the frame headers under the roof) wanted up to
+#: 0.35–0.50 and the seven other candidates at most 0.03.
+RESTORE_SHARE = 0.2
 
 
 def refine_plan(app: Applicator, surface: Surface, passes: list[PassPlan],
@@ -127,7 +133,8 @@ def refine_parts(surfaces: list[Surface], plans: list[CoveragePlan],
 def refine_together(surface: Surface, plans: list[CoveragePlan],
                     settings: list[PlannerSettings], interior: np.ndarray,
                     caps: list[list[np.ndarray | None] | None] | None = None,
-                    pass_time_weight: float = 0.0
+                    pass_time_weight: float = 0.0,
+                    restorable: list[list[np.ndarray | None]] | None = None
                     ) -> tuple[list[CoveragePlan], dict[str, Any]]:
     """Several parts' plans re-timed as one against the film they lay together on `surface`:
     where two parts meet, both parts' edge passes and overspray paint the seam, and each part
@@ -136,19 +143,31 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
 
     The passes' durations are free by default (pass_time_weight 0; `PASS_TIME_WEIGHT` holds
     them): each part's own refinement already held its pace, and the joint fit moves what is
-    left a little (on the seed-1 SUV line every pass within 0.19 s); held, the fit cannot move
-    paint between a seam's two sides (a pass that should run faster over a seam must then run
-    slower elsewhere) and the SUV line's body film gained 0.8 pp instead of 1.3 pp. The
-    programs, their stagger and the cycle are built afterwards from the re-timed plans.
+    left a little (on the seed-1 SUV line under 0.9 s a pass, the passes 0.2 s shorter in all);
+    held, the fit cannot move paint between a seam's two sides (a pass that should run faster
+    over a seam must then run slower elsewhere) and the SUV line's body film gained 0.8 pp
+    instead of 1.3 pp. The programs, their stagger and the cycle are built afterwards from the
+    re-timed plans.
+
+    A pass whose paint the seams' blending switched off entirely (`restorable`) may be painted
+    again: over a narrow strip between two parts (a door's frame header under the roof) the
+    pass that would paint it lays more on the neighbour and is switched off, and the strip is
+    left thin. A relaxed fit, free to take each such pass's paint down to none
+    (`refine_speeds`' paint_free), says how much of it the film wants at each sample; where it
+    wants at least `RESTORE_SHARE` of its top-speed film (there: under the robot's cap) the
+    pass is switched on again, and every pass is re-timed with it, kept when that beats the fit
+    without it.
 
     surface: the parts together, in the plans' frame (a vertex of zero area is not judged);
     plans: per part, at its own deposition model; settings: per part, its `PlannerSettings`
     (speed bounds); interior: (N,) bool, the vertices the result must not be worse on either
     (`refine_body`: those away from the seams); caps: per part, per pass its robot's speed caps
-    [m/s] (or None). Returns the plans (re-timed where σ/μ drops on the whole and on the
-    interior; otherwise as given, slowed to the caps where they asked for more, as
+    [m/s] (or None); restorable: per part, per pass the brush-on samples (bool (M,)) the seams'
+    blending switched off, or None. Returns the plans (re-timed where σ/μ drops on the whole and
+    on the interior; otherwise as given, slowed to the caps where they asked for more, as
     `refine_speeds` returns them) and a record {rule, applied, σ/μ before/after [%], knots,
-    largest pass duration change and the passes' total change [s]}.
+    largest pass duration change and the passes' total change [s], the passes painted again
+    ("part:pass": samples) and each candidate's largest wanted share}.
     """
     caps = caps if caps is not None else [None] * len(plans)
     passes: list[PassPlan] = []
@@ -166,6 +185,14 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
         owner += [k] * len(plan.passes)
     out, info = refine_speeds(apps, surface, passes, lo, hi, interior, cap_all,
                               pass_time_weight=pass_time_weight)
+    flat = [m for part in (restorable or [[None] * len(pl.passes) for pl in plans])
+            for m in part]
+    cand = [i for i, (p, m) in enumerate(zip(passes, flat, strict=True))
+            if m is not None and np.any(m) and not p.paint_on.any()]
+    given: dict[str, Any] = {}
+    if cand:
+        out, info, given = _give_back(apps, surface, passes, lo, hi, interior, cap_all,
+                                      pass_time_weight, cand, flat, owner, out, info)
     change = [float((q.times_s[-1] - q.times_s[0]) - (p.times_s[-1] - p.times_s[0]))
               for p, q in zip(passes, out, strict=True)]
     own = np.asarray(owner)
@@ -180,8 +207,56 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
            "nsd_after_pct": info.get("nsd_after_pct"), "knots": info.get("knots"),
            "max_pass_duration_change_s": float(max(np.abs(change), default=0.0)),
            "pass_duration_change_s": float(sum(change)),
+           **given,
            **({"reason": info["reason"]} if "reason" in info else {})}
     return refined, rec
+
+
+def _give_back(apps: list[Applicator], surface: Surface, passes: list[PassPlan],
+               lo: list[float], hi: list[float], interior: np.ndarray,
+               caps: list[np.ndarray | None], pass_time_weight: float, cand: list[int],
+               masks: list[np.ndarray | None], owner: list[int], out: list[PassPlan],
+               info: dict[str, Any]) -> tuple[list[PassPlan], dict[str, Any], dict[str, Any]]:
+    """`refine_together`'s passes switched off by the seams, painted again where the film
+    wants them: the relaxed fit's share per candidate pass, then the fit with those over
+    `RESTORE_SHARE` switched on, kept when it beats the fit without them (`out`, `info`) on the
+    whole and is no worse on the interior than the start. Returns the passes, the info (σ/μ
+    before: the start without them) and the record's part {passes_painted_again: samples per
+    pass, paint_shares: each candidate's largest wanted share}."""
+    label = [f"{o}:{i - owner.index(o)}" for i, o in enumerate(owner)]
+    trial = [replace(p, paint_on=np.asarray(masks[i], bool)) if i in cand else p
+             for i, p in enumerate(passes)]
+    _, relaxed = refine_speeds(apps, surface, trial, lo, hi, interior, caps,
+                               pass_time_weight=pass_time_weight,
+                               paint_free=[i in cand for i in range(len(passes))])
+    shares = relaxed.get("paint_share", {})
+    wanted = {i: np.asarray(masks[i], bool) & (shares[i] >= RESTORE_SHARE)
+              for i in cand if i in shares}
+    back = [i for i in cand if i in wanted and wanted[i].any()]
+    rec = {"passes_painted_again": {label[i]: int(wanted[i].sum()) for i in back},
+           "paint_shares": {label[i]: round(float(np.max(shares.get(i, 0.0))), 4)
+                            for i in cand}}
+    if not back:
+        return out, info, rec
+    with_back = [replace(p, paint_on=wanted[i]) if i in back else p
+                 for i, p in enumerate(passes)]
+    out2, info2 = refine_speeds(apps, surface, with_back, lo, hi, interior, caps,
+                                pass_time_weight=pass_time_weight)
+    start = info.get("nsd_capped_pct", info["nsd_before_pct"])
+    start_int = info.get("interior_capped_pct", info["interior_before_pct"])
+    best = info["nsd_after_pct"] if info["applied"] else start
+    if not (info2["applied"] and info2["nsd_after_pct"] < best
+            and info2["interior_after_pct"] <= start_int):
+        rec["passes_painted_again"] = {}
+        rec["reason_not_painted_again"] = "no lower σ/μ than the fit without them"
+        return out, info, rec
+    info2.update(nsd_before_pct=info["nsd_before_pct"],
+                 interior_before_pct=info["interior_before_pct"])
+    for k in ("nsd_capped_pct", "interior_capped_pct"):
+        info2.pop(k, None)
+        if k in info:
+            info2[k] = info[k]
+    return out2, info2, rec
 
 
 def _knot_basis(arc_m: np.ndarray, spacing_m: float) -> tuple[sp.csr_matrix, int]:
@@ -226,7 +301,8 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
                   passes: list[PassPlan], v_min_m_s: float | Sequence[float],
                   v_max_m_s: float | Sequence[float], interior: np.ndarray,
                   caps_m_s: list[np.ndarray | None] | None = None,
-                  pass_time_weight: float = 0.0
+                  pass_time_weight: float = 0.0,
+                  paint_free: Sequence[bool] | None = None
                   ) -> tuple[list[PassPlan], dict[str, Any]]:
     """Passes re-timed so the simulated film on `surface` is as even as the bounds allow.
 
@@ -238,7 +314,13 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
     pass (M,) robot speed caps [m/s] or None;
     pass_time_weight: weight of each pass's duration staying as planned (relative squared
     change, added to the fit; 0: free) — robots that sweep in step keep their pace
-    (`refine_parts`).
+    (`refine_parts`);
+    paint_free: per pass, whether the fit may take its paint down to none (a relaxed fit that
+    asks how much a pass is wanted, `refine_together`): its knots range from zero slowness up,
+    with no pull toward the planned speed nor its duration, and the mean film is that of the
+    other passes; info["paint_share"] then gives, per such pass and sample ((M,)), the film it
+    is fitted to lay over what it lays at its top speed there (the speeds returned for it mean
+    nothing).
     Returns the passes (unchanged when refining does not lower σ/μ on both the whole part and
     the interior) and an info dict (σ/μ before/after [%], cycle change [s], knots).
     """
@@ -247,13 +329,18 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
     apps = _per_pass(app, len(passes), "applicators")
     v_lo = _per_pass(v_min_m_s, len(passes), "v_min_m_s")
     v_hi = _per_pass(v_max_m_s, len(passes), "v_max_m_s")
+    free = [False] * len(passes) if paint_free is None else [bool(f) for f in paint_free]
 
     def nsd(f: np.ndarray, m: np.ndarray | None = None) -> float:
         w = a if m is None else a * m
         mean = np.dot(w, f) / w.sum()
         return 100.0 * float(np.sqrt(np.dot(w, (f - mean) ** 2) / w.sum()) / mean)
 
-    film0 = _plan_film(apps, passes, V, N)
+    def film_of(ps: list[PassPlan]) -> np.ndarray:      # the paint-free passes left out
+        return _plan_film(apps, [replace(p, paint_on=np.zeros_like(p.paint_on)) if f else p
+                                 for p, f in zip(ps, free, strict=True)], V, N)
+
+    film0 = film_of(passes)
     info: dict[str, Any] = {"nsd_before_pct": nsd(film0),
                             "interior_before_pct": nsd(film0, interior), "applied": False}
     # Where the planned speeds exceed the robot's caps the robot paints the capped speeds: the
@@ -262,7 +349,7 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
     if any(np.any(p.speeds_m_s > t) for p, t in zip(passes, tops, strict=True)):
         passes = [_retimed(p, np.minimum(p.speeds_m_s, t))
                   for p, t in zip(passes, tops, strict=True)]
-        film0 = _plan_film(apps, passes, V, N)
+        film0 = film_of(passes)
         info.update(nsd_capped_pct=nsd(film0), interior_capped_pct=nsd(film0, interior))
     before = (nsd(film0), nsd(film0, interior))
     mu = float(np.dot(a, film0) / a.sum())
@@ -285,6 +372,10 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
             lo.append(float(s_lo[rows].max()))
             hi.append(float(max(s_hi[rows].min(), lo[-1] + 1e-6)))
     lo_a, hi_a = np.asarray(lo), np.asarray(hi)
+    knot_pass = np.concatenate([np.full(b.shape[1], i) for i, b in enumerate(basis)])
+    free_k = np.asarray(free, bool)[knot_pass]
+    top_lo = lo_a.copy()                # the slowness at the top speed
+    lo_a = np.where(free_k, 0.0, lo_a)
     n_k = sum(b.shape[1] for b in basis)
     stride = max(1, int(np.ceil(len(V) * n_k / MAX_FIT_ENTRIES)))
     fit = np.arange(0, len(V), stride)
@@ -293,7 +384,8 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
     problem = _FitProblem(apps=apps, passes=passes, basis=basis, tops=tops, areas=a, fit=fit,
                           interior=interior, mu=mu, M=M, lo=lo_a, hi=hi_a,
                           v_min_m_s=v_lo, pass_time_weight=pass_time_weight,
-                          vertices=V, normals=N)
+                          vertices=V, normals=N, free=np.asarray(free, bool),
+                          keep_target=np.where(free_k, 0.0, 1.0))
     # Fitted with the interior weighted 1×; if the result lowers σ/μ on the whole part but not
     # on its interior, fitted again with the interior weighted more (INTERIOR_WEIGHTS): the fit
     # trades some of the edge's gain for the interior, and the first that lowers both is kept.
@@ -306,6 +398,10 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
             break
         if not after[0] < before[0]:       # no gain on the whole part: more weight won't help
             break
+    if any(free):                       # per sample: the wanted share of its top-speed film
+        share = s / np.maximum(top_lo, 1e-12)
+        info["paint_share"] = {i: basis[i] @ share[knot_pass == i]
+                               for i in np.flatnonzero(free).tolist()}
     info.update(nsd_after_pct=after[0], interior_after_pct=after[1], solver=int(res.status),
                 slowness_range=[float(s.min()), float(s.max())], cycle_change_s=dt,
                 interior_weights_tried=tried)
@@ -325,8 +421,9 @@ class _FitProblem:
     (execution order) and their knot bases, each sample's top speed [m/s], the vertices' areas
     [m²], the fitted vertices' indices `fit` and film matrix `M` (film [m] per unit knot
     slowness), the interior mask, the mean film mu [m], the knots' slowness bounds lo / hi, each
-    pass's v_min_m_s [m/s], the pass-time weight and the part's vertices and normals (the film
-    judged on all of them)."""
+    pass's v_min_m_s [m/s], the pass-time weight, the part's vertices and normals (the film
+    judged on all of them), which passes are paint-free (`refine_speeds`) and each knot's
+    target of the pull toward the planned speed (1; 0 on a paint-free pass)."""
 
     apps: list[Applicator]
     passes: list[PassPlan]
@@ -343,6 +440,8 @@ class _FitProblem:
     pass_time_weight: float
     vertices: np.ndarray
     normals: np.ndarray
+    free: np.ndarray
+    keep_target: np.ndarray
 
 
 def _fit(pb: _FitProblem, w_int: float
@@ -366,15 +465,16 @@ def _fit(pb: _FitProblem, w_int: float
             blocks.append(rows)
         col += k
     blocks.append(np.sqrt(KEEP_WEIGHT) * np.eye(n_k))
-    tail = [np.sqrt(KEEP_WEIGHT) * np.ones(n_k)]
+    tail = [np.sqrt(KEEP_WEIGHT) * pb.keep_target]
     if pass_time_weight > 0:          # a pass's new duration is Σ dwell · slowness
         rows, col = np.zeros((len(passes), n_k)), 0
         for i, (p, b) in enumerate(zip(passes, basis, strict=True)):
             rows[i, col:col + b.shape[1]] = (p.dwell_s() @ b) / max(p.times_s[-1] - p.times_s[0],
                                                                     1e-12)
             col += b.shape[1]
-        blocks.append(np.sqrt(pass_time_weight) * rows)
-        tail.append(np.sqrt(pass_time_weight) * np.ones(len(passes)))
+        held = ~pb.free                 # a paint-free pass's slowness is not its duration
+        blocks.append(np.sqrt(pass_time_weight) * rows[held])
+        tail.append(np.sqrt(pass_time_weight) * np.ones(int(held.sum())))
     A_ls = np.vstack(blocks)
     n_tail = sum(len(t) for t in tail)
     rhs = np.concatenate([rw * mu, np.zeros(len(A_ls) - len(fit) - n_tail), *tail])
@@ -387,8 +487,9 @@ def _fit(pb: _FitProblem, w_int: float
     col = 0
     for p, b, top, lo_v in zip(passes, basis, pb.tops, pb.v_min_m_s, strict=True):
         k = b.shape[1]
-        q = _retimed(p, np.clip(p.speeds_m_s / (b @ s[col:col + k]), np.minimum(lo_v, top),
-                                top))
+        with np.errstate(divide="ignore"):        # a paint-free knot at zero: the top speed
+            q = _retimed(p, np.clip(p.speeds_m_s / (b @ s[col:col + k]), np.minimum(lo_v, top),
+                                    top))
         col += k
         dt += float(q.times_s[-1] - p.times_s[-1])
         out.append(q)
