@@ -494,3 +494,33 @@ def test_a_pass_switched_off_at_a_seam_is_painted_again_only_where_the_film_want
     assert _nsd(after, a) < _nsd(_body_film(body, plain, eye), a)
     before = _body_film(body, start, eye)
     assert _nsd(after[interior], a[interior]) <= _nsd(before[interior], a[interior])
+
+
+def test_refine_body_paints_again_in_the_part_frame_a_pass_the_blend_switched_off():
+    """`booth_plans.refine_body` given the plans before the blend (`unblended`): the turned
+    second panel's middle pass, switched off entirely as a seam's blending would, comes back
+    in the part-frame plan it returns (paint on only where it painted before, more than half of
+    it), the record names it, and the film re-measured from the returned plans is the
+    recorded one and lower than without `unblended`."""
+    from types import SimpleNamespace
+
+    from paintcell.booth.booth_plans import refine_body
+
+    body, plans, Ts, _, panel = _turned_panels()
+    mid = len(plans[1].passes) // 2
+    p_mid = plans[1].passes[mid]
+    b_passes = list(plans[1].passes)
+    b_passes[mid] = dataclasses.replace(p_mid, paint_on=np.zeros_like(p_mid.paint_on))
+    blended = [plans[0], dataclasses.replace(plans[1], passes=tuple(b_passes))]
+    booth = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={})] * 2)
+    pp = SimpleNamespace(surfaces=[panel, panel], T_body_parts=Ts)
+    plain, _ = refine_body(booth, pp, blended, body, None)
+    out, rec = refine_body(booth, pp, blended, body, None, unblended=plans)
+    again = out[1].passes[mid].paint_on
+    assert rec["passes_painted_again"] == {f"1:{mid}": int(again.sum())}
+    assert not np.any(again & ~p_mid.paint_on) and again.sum() > 0.5 * p_mid.paint_on.sum()
+    assert np.array_equal(out[1].passes[mid].positions, p_mid.positions)
+    a = body.vertex_areas
+    after = _body_film(body, out, Ts)
+    assert 100 * _nsd(after, a) == pytest.approx(rec["nsd_after_pct"], rel=1e-9)
+    assert _nsd(after, a) < _nsd(_body_film(body, plain, Ts), a)

@@ -78,9 +78,11 @@ INTERIOR_WEIGHTS = (1.0, 2.0, 4.0, 8.0)
 PASS_TIME_WEIGHT = 1e3
 #: A pass the seams' blending switched off entirely is painted again (`refine_together`) at the
 #: samples where a relaxed joint fit, free to take its paint down to none, still wants at least
-#: this share of the film it lays there at its top speed. On the seed-1 SUV line the rear doors'
-#: and quarters' top passes (the only ones over the frame headers under the roof) wanted up to
-#: 0.35–0.50 and the seven other candidates at most 0.03.
+#: this share of its top-speed film (`refine_speeds`' paint_share). On the seed-1 SUV line the
+#: rear doors' and quarters' top passes (the only ones over the frame headers under the roof)
+#: wanted up to 0.35–0.50 and the seven other candidates at most 0.03; a share read per sample
+#: against each sample's own top speed, with 0.2 or 0.5, gave back more or less of the capped
+#: stretches and left the body's planned film 0.5–0.9 pp less even on the captured plans.
 RESTORE_SHARE = 0.2
 
 
@@ -154,9 +156,9 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
     pass that would paint it lays more on the neighbour and is switched off, and the strip is
     left thin. A relaxed fit, free to take each such pass's paint down to none
     (`refine_speeds`' paint_free), says how much of it the film wants at each sample; where it
-    wants at least `RESTORE_SHARE` of its top-speed film (there: under the robot's cap) the
-    pass is switched on again, and every pass is re-timed with it, kept when that beats the fit
-    without it.
+    wants at least `RESTORE_SHARE` of its top-speed film (there: under the robot's cap) its
+    samples are switched on again, and every pass is re-timed with them, kept when that beats
+    the fit without them.
 
     surface: the parts together, in the plans' frame (a vertex of zero area is not judged);
     plans: per part, at its own deposition model; settings: per part, its `PlannerSettings`
@@ -248,7 +250,8 @@ def _give_back(apps: list[Applicator], surface: Surface, passes: list[PassPlan],
     if not (info2["applied"] and info2["nsd_after_pct"] < best
             and info2["interior_after_pct"] <= start_int):
         rec["passes_painted_again"] = {}
-        rec["reason_not_painted_again"] = "no lower σ/μ than the fit without them"
+        rec["reason_not_painted_again"] = ("no lower σ/μ than the fit without them on the "
+                                           "body, or a worse interior than the start")
         return out, info, rec
     info2.update(nsd_before_pct=info["nsd_before_pct"],
                  interior_before_pct=info["interior_before_pct"])
@@ -318,9 +321,11 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
     paint_free: per pass, whether the fit may take its paint down to none (a relaxed fit that
     asks how much a pass is wanted, `refine_together`): its knots range from zero slowness up,
     with no pull toward the planned speed nor its duration, and the mean film is that of the
-    other passes; info["paint_share"] then gives, per such pass and sample ((M,)), the film it
-    is fitted to lay over what it lays at its top speed there (the speeds returned for it mean
-    nothing).
+    other passes; info["paint_share"] then gives, per such pass and sample ((M,), interpolated
+    from its knots), each knot's fitted slowness over its slowness at the top speed of the most
+    constrained sample it carries: the share of that film it wants (a knot over a stretch the
+    robot caps reads against the cap, so a capped stretch is wanted less than its free samples
+    would be); the speeds returned for such a pass mean nothing.
     Returns the passes (unchanged when refining does not lower σ/μ on both the whole part and
     the interior) and an info dict (σ/μ before/after [%], cycle change [s], knots).
     """
@@ -394,11 +399,13 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
         out, film, s, res, dt = _fit(problem, w_int)
         after = (nsd(film), nsd(film, interior))
         tried.append({"interior_weight": w_int, "nsd_pct": after[0], "interior_pct": after[1]})
+        if any(free):       # a relaxed fit: its shares are the answer, not its acceptance
+            break
         if after[0] < before[0] and after[1] <= before[1]:
             break
         if not after[0] < before[0]:       # no gain on the whole part: more weight won't help
             break
-    if any(free):                       # per sample: the wanted share of its top-speed film
+    if any(free):     # per knot, then interpolated to the samples (docstring)
         share = s / np.maximum(top_lo, 1e-12)
         info["paint_share"] = {i: basis[i] @ share[knot_pass == i]
                                for i in np.flatnonzero(free).tolist()}
