@@ -2,8 +2,9 @@
 surface and its plan as the planner makes it (`plan_parts`), then what the booth does to the
 plans together (`finish_plans`): passes run backwards where a part says `reverse`, the film
 refined with the robots' pace held (`paintcell.coverage.film_refine.refine_parts`), one film build
-(`paintcell.booth.booth_build`), blended seams (`paintcell.booth.booth_seams`) and, with the pace
-held again, every part re-timed together against the body's film (`refine_body`: the seams).
+(`paintcell.booth.booth_build`), blended seams (`paintcell.booth.booth_seams`) and every part
+re-timed together against the body's film, the durations free and the passes the blend switched
+off painted again where that film wants them (`refine_body`: the seams).
 
 The two steps are apart so the robot-aware speeds (`paintcell.motion.speed_feedback`) can plan
 a part again under its robots' speed caps and finish the plans the same way.

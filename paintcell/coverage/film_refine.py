@@ -80,9 +80,9 @@ PASS_TIME_WEIGHT = 1e3
 #: samples where a relaxed joint fit, free to take its paint down to none, still wants at least
 #: this share of its top-speed film (`refine_speeds`' paint_share). On the seed-1 SUV line the
 #: rear doors' and quarters' top passes (the only ones over the frame headers under the roof)
-#: wanted up to 0.35–0.50 and the seven other candidates at most 0.03; a share read per sample
-#: against each sample's own top speed, with 0.2 or 0.5, gave back more or less of the capped
-#: stretches and left the body's planned film 0.5–0.9 pp less even on the captured plans.
+#: wanted up to 0.35–0.50 and the seven other candidates at most 0.03. A share read per sample
+#: against each sample's own top speed gave back more (at 0.2) or less (at 0.5) of the capped
+#: stretches and left the body's planned σ/μ 0.5–0.9 pp higher on the captured plans.
 RESTORE_SHARE = 0.2
 
 
