@@ -81,7 +81,7 @@ def test_two_robots_film_is_one_robot_running_all_passes(roof_booth):
     conv, t_ref = ROOF_BOOTH.conveyor, res.trajectories[0].meta["conveyor"]["t_ref_s"]
     x = conv.position_m(t, t_ref)                    # kinematic: the carrier is where planned
     gs = [gun_in_body(t, ex.tcp_pos_world, ex.tcp_rot_world, tr.paint_on,
-                       ROOF_BOOTH.body_placement.matrix, x, conv.unit)
+                       ROOF_BOOTH.body_placement.matrix, x, conv.unit, brush=tr.flow)
           for ex, tr in zip(res.traces, res.trajectories, strict=True)]
     one = GunSamples(*(np.concatenate([getattr(g, f) for g in gs])
                        for f in ("positions", "spray_axes", "travel_dirs", "dwell_s")))

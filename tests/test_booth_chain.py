@@ -197,13 +197,13 @@ def test_two_jobs_chain_and_film_superposition():
     chained = np.zeros(len(pts))
     for ap, on in job_paint(plans, jobs, booth_clock):
         g = gun_in_body(t, booth_clock.tcp_pos_world, booth_clock.tcp_rot_world, on, np.eye(4),
-                        zero, np.array([1.0, 0, 0]))
+                        zero, np.array([1.0, 0, 0]), brush=booth_clock.flow)
         chained += thickness(ap, g, pts, nrm)
     alone = np.zeros(len(pts))
     for ap, p in zip(apps, (p1, p2), strict=True):
         alone += thickness(ap, gun_in_body(p.t_s, p.tcp_pos_world, p.tcp_rot_world, p.paint_on,
                                            np.eye(4), np.zeros(len(p.t_s)),
-                                           np.array([1.0, 0, 0])), pts, nrm)
+                                           np.array([1.0, 0, 0]), brush=p.flow), pts, nrm)
     assert alone.max() > 0
     np.testing.assert_allclose(chained, alone, rtol=1e-9, atol=1e-12 * alone.max())
 

@@ -174,7 +174,8 @@ def test_booth_time_shares_re_measured_from_the_traces(booth_dir):
 
 def test_booth_paint_re_measured_from_plans_traces_and_film(booth_dir):
     """Paint sent per robot = its part's bell flow (the plan file's applicator) × its brush-on
-    time in its trace; the film on the body = ∫ film dA of film.npz; the transfer efficiency is
+    time in its trace, each step at the flow its brush table commanded (the trace's `flow`); the
+    film on the body = ∫ film dA of film.npz; the transfer efficiency is
     their ratio and the parts' sent paint adds up to the booth's."""
     from paintcell.coverage.plan import CoveragePlan
     from paintcell.execution.trace import ExecutedTrace
@@ -186,7 +187,8 @@ def test_booth_paint_re_measured_from_plans_traces_and_film(booth_dir):
         r = m["robots"][name]
         plan = CoveragePlan.load(booth_dir / f"plan_{parts[r['part']]}.json")
         tr = ExecutedTrace.load_npz(booth_dir / f"trace_{name}.npz")
-        on_s = float(tr.paint_on.sum()) * float(tr.t_s[1] - tr.t_s[0])
+        assert tr.flow is not None
+        on_s = float(tr.flow[tr.paint_on].sum()) * float(tr.t_s[1] - tr.t_s[0])
         sent[name] = _closed_form_flow(plan.applicator) * on_s * 1e3
         assert r["paint_used_l"] == pytest.approx(sent[name], rel=1e-6)
         assert 0 < r["transfer_efficiency_pct"] < 100

@@ -130,7 +130,7 @@ def test_conveyor_at_speed_zero_is_the_static_cell(door_program, mode):
                             executed_gun_samples(static, np.linalg.inv(T_wp)),
                             surface.vertices, surface.normals)
     g = gun_in_body(booth.t_s, booth.tcp_pos_world, booth.tcp_rot_world, traj.paint_on, T_wp,
-                     booth.q[:, -1], conv.unit)
+                     booth.q[:, -1], conv.unit, brush=traj.flow)
     film_booth = thickness(plan.applicator, g, surface.vertices, surface.normals)
     assert np.abs(film_booth - film_static).max() < 1e-9 * film_static.max()
     assert booth.contacts == static.contacts == ()

@@ -213,13 +213,15 @@ def test_a_program_whose_run_still_slows_after_robot_aware_speeds_is_refused(pan
     brush-on samples on the part more than 10 % below the planned speed — re-measured here by
     finite differences of its TCP positions (the truth) — so the run would fail the
     `reachability_pct = 100` init writes. init refuses the cell in one line, naming the pass;
-    at the plan's own speeds it does not."""
+    at the plan's own speeds it does not. The flow held constant (`flow_min = 1`): a brush table
+    that makes up for the slowdown lays the planned film (`tests/test_flow.py`)."""
     from paintcell.app.pipeline import robot_aware_run
 
     scn0, surf, plan0 = panel
     k = 4.0
     scn = replace(scn0, planner={**scn0.planner, "v_nominal_m_s": 0.5 * k, "v_min_m_s": 0.2 * k,
-                                 "v_max_m_s": 1.0 * k, "a_max_m_s2": 5.0 * k * k})
+                                 "v_max_m_s": 1.0 * k, "a_max_m_s2": 5.0 * k * k},
+                  trajectory={**scn0.trajectory, "flow_min": 1.0})
     plan = make_plan(scn, surf, fast=True)
     robot = load_robot_for(scn)
     run_plan, run_traj = robot_aware_run(scn, surf, robot, plan,

@@ -127,7 +127,7 @@ def test_conveyor_speed_sweep_on_a_loopback_cluster(
     app, body = progs.plans[0].applicator, progs.body
     film = sum(thickness(app, gun_in_body(t, tr.tcp_pos_world, tr.tcp_rot_world, tr.paint_on,
                                           ROOF_BOOTH.body_placement.matrix, carrier,
-                                          ROOF_BOOTH.conveyor.unit),
+                                          ROOF_BOOTH.conveyor.unit, brush=tr.flow),
                          body.vertices, body.normals) for tr in progs.trajs)
     nsd = body_uniformity(film, body.vertex_areas)
     assert abs(nsd - rec["metrics"]["executed_nsd_pct"]) < 1e-9 * nsd
@@ -166,7 +166,8 @@ def test_part_offset_on_the_skid_moves_the_body_the_films_see(roof_payload: Any)
         (job,) = progs.jobs[i]                   # one job per robot here
         app = progs.plans[job.part].applicator   # robot i's part, at its own flow
         film += thickness(app, gun_in_body(t, tr.tcp_pos_world - o, tr.tcp_rot_world,
-                                           tr.paint_on, T0, carrier, ROOF_BOOTH.conveyor.unit),
+                                           tr.paint_on, T0, carrier, ROOF_BOOTH.conveyor.unit,
+                                           brush=tr.flow),
                           body.vertices, body.normals)
     nsd = body_uniformity(film, body.vertex_areas)
     m, m0 = rec["metrics"], nominal["metrics"]

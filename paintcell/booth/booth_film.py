@@ -70,28 +70,32 @@ def booth_disturbances(table: dict[str, Any]) -> Any:
 
 
 def disturbed_robot(trace: ExecutedTrace, pos: np.ndarray, rot: np.ndarray,
-                    paint_on: np.ndarray, cell: Any) -> tuple[np.ndarray, np.ndarray,
-                                                          dict[str, float]]:
+                    traj: JointTrajectory, cell: Any
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, float]]:
     """One robot's share of the booth trace's disturbances (`trace.meta`, as `execute` realized
     them): its TCP positions (K, 3) [m] moved by the TCP offset in its tool frame `rot`
-    (K, 3, 3), its paint trigger (K,) shifted by the trigger delay, and the flow factors its
-    film takes (`ExecutedTrace.gun_samples`); the nominal ones without a disturbance."""
+    (K, 3, 3), its program's (`traj`) paint trigger (K,) and commanded flow (K,) [-] shifted by
+    the trigger delay, and the flow factors its film takes (`ExecutedTrace.gun_samples`); the
+    nominal ones without a disturbance."""
     d = trace.meta.get("disturbances")
     if d is None:
-        return pos, paint_on, {}
+        return pos, traj.paint_on, traj.flow, {}
     from paintcell.execution.execute import Disturbances
 
     off = np.asarray(trace.meta.get("tcp_offset_tool_m", (0.0, 0.0, 0.0)), float)
-    return (pos + rot @ off, Disturbances(**d).paint_on(paint_on, cell.model.opt.timestep),
+    dist, dt = Disturbances(**d), cell.model.opt.timestep
+    return (pos + rot @ off, dist.paint_on(traj.paint_on, dt), dist.flow(traj.flow, dt),
             {k: float(trace.meta[k]) for k in ("flow_scale", "flow_drift") if k in trace.meta})
 
 
 def gun_in_body(t_s: np.ndarray, pos: np.ndarray, rot: np.ndarray, paint_on: np.ndarray,
                 T_world_body0: np.ndarray, carrier_m: np.ndarray, unit: np.ndarray,
-                flow: dict[str, float] | None = None) -> GunSamples:
+                flow: dict[str, float] | None = None,
+                brush: np.ndarray | None = None) -> GunSamples:
     """Binned paint-on gun samples of a TCP trace (K,) in the body frame, the body at
     T_world_body0 shifted by carrier_m (K,) [m] along unit (3,); flow: a flow disturbance's
-    `flow_scale` / `flow_drift` (`ExecutedTrace.gun_samples`)."""
+    `flow_scale` / `flow_drift` (`ExecutedTrace.gun_samples`); brush: (K,) the commanded flow
+    ÷ the part's [-] (None: 1)."""
     R, t0 = T_world_body0[:3, :3], T_world_body0[:3, 3]
     p_body = (pos - t0 - carrier_m[:, None] * unit) @ R
     rot_body = np.einsum("ji,kjl->kil", R, rot)
@@ -99,7 +103,7 @@ def gun_in_body(t_s: np.ndarray, pos: np.ndarray, rot: np.ndarray, paint_on: np.
                                tau=np.zeros((len(t_s), 1)), tcp_pos_world=p_body,
                                tcp_rot_world=rot_body, paint_on=paint_on,
                                pass_index=np.zeros(len(t_s), int), mode="kinematic",
-                               meta=dict(flow or {}))
+                               meta=dict(flow or {}), flow=brush)
     return executed_gun_samples(body_trace, np.eye(4))
 
 
@@ -141,7 +145,7 @@ def robot_films(booth: Booth, bcell: BoothCell, body: Surface, plans: list[Cover
             src: Any = ex if executed else tr
             for app, on in job_paint(plans, jobs[i], tr, src.paint_on):
                 g = gun_in_body(t, src.tcp_pos_world, src.tcp_rot_world, on, T, x, unit,
-                                flow if executed else None)
+                                flow if executed else None, src.flow)
                 out[key][i] += thickness(app, g, pts, nrm)
     return out
 

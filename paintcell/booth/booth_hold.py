@@ -20,7 +20,7 @@ def held_to(traj: JointTrajectory, K: int) -> JointTrajectory:
            "qd": np.zeros((n, a["qd"].shape[1])), "qdd": np.zeros((n, a["qdd"].shape[1])),
            "v_tcp_planned": np.zeros(n), "paint_on": np.zeros(n, bool),
            "pass_index": np.full(n, -1), "segment": np.full(n, RETRACT),
-           "s_pass_m": np.full(n, np.nan)}
+           "s_pass_m": np.full(n, np.nan), "flow": np.ones(n)}
     out = {k: np.concatenate([v, ext[k] if k in ext else np.repeat(v[-1:], n, axis=0)])
            for k, v in a.items()}
     return JointTrajectory(**out, robot_name=traj.robot_name, joint_names=traj.joint_names,
@@ -35,7 +35,7 @@ def delayed(traj: JointTrajectory, n: int) -> JointTrajectory:
     a = {name: getattr(traj, name) for name in JointTrajectory._ARRAYS}
     head = {"qd": np.zeros((n, a["qd"].shape[1])), "qdd": np.zeros((n, a["qdd"].shape[1])),
             "v_tcp_planned": np.zeros(n), "paint_on": np.zeros(n, bool),
-            "pass_index": np.full(n, -1), "s_pass_m": np.full(n, np.nan)}
+            "pass_index": np.full(n, -1), "s_pass_m": np.full(n, np.nan), "flow": np.ones(n)}
     out = {k: np.concatenate([head[k] if k in head else np.repeat(v[:1], n, axis=0), v])
            for k, v in a.items() if k != "t_s"}
     out["t_s"] = traj.t_s[0] + traj.dt_s * np.arange(len(traj.t_s) + n)

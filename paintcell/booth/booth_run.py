@@ -86,7 +86,7 @@ def combined_program(bcell: BoothCell, trajs: list[JointTrajectory], t_ref_s: fl
     first = trajs[0]
     a = {name: getattr(first, name) for name in JointTrajectory._ARRAYS}
     a.update(q=np.hstack(q), qd=np.hstack(qd), qdd=np.hstack(qdd),
-             paint_on=np.any([tr.paint_on for tr in trajs], axis=0))
+             paint_on=np.any([tr.paint_on for tr in trajs], axis=0), flow=np.ones(len(t)))
     return JointTrajectory(**a, robot_name="booth", joint_names=bcell.cell.joint_names)
 
 
@@ -172,11 +172,12 @@ def robot_traces(bcell: BoothCell, trace: ExecutedTrace, trajs: list[JointTrajec
     for i, (cols, tr) in enumerate(zip(bcell.columns, trajs, strict=True)):
         mine = tuple(c for c in trace.contacts
                      if bcell.robot_of_body(c.body1) == i or bcell.robot_of_body(c.body2) == i)
-        p_i, on_i, flow = disturbed_robot(trace, pos[i], rot[i], tr.paint_on, bcell.cell)
+        p_i, on_i, brush, flow = disturbed_robot(trace, pos[i], rot[i], tr, bcell.cell)
         out.append(ExecutedTrace(
             t_s=trace.t_s, q=trace.q[:, cols], qd=trace.qd[:, cols], tau=trace.tau[:, cols],
             tcp_pos_world=p_i, tcp_rot_world=rot[i], paint_on=on_i,
             pass_index=tr.pass_index, mode=trace.mode, contacts=mine,
             meta={"robot": bcell.robots[i].name, **flow},
-            tau_demand=None if trace.tau_demand is None else trace.tau_demand[:, cols]))
+            tau_demand=None if trace.tau_demand is None else trace.tau_demand[:, cols],
+            flow=brush))
     return out

@@ -70,11 +70,15 @@ def time_shares(t_s: np.ndarray, in_pass: np.ndarray, start_s: float, program_s:
     return out
 
 
-def paint_sent_m3(apps_on: list[tuple[Any, np.ndarray]], t_s: np.ndarray) -> float:
+def paint_sent_m3(apps_on: list[tuple[Any, np.ndarray]], t_s: np.ndarray,
+                  flow: np.ndarray | None = None) -> float:
     """Film volume the bell sent [m³]: Σ over (applicator, brush-on mask (K,)) pairs of the
     applicator's flow [m³/s] × the brush-on time, each sample standing for its step (the
-    midpoint rule the film's dwell uses, `ExecutedTrace.gun_samples`)."""
+    midpoint rule the film's dwell uses, `ExecutedTrace.gun_samples`) times the flow the
+    program commands there (`flow` (K,) [-], None: 1)."""
     dt = np.gradient(np.asarray(t_s, float))
+    if flow is not None:
+        dt = dt * np.asarray(flow, float)
     return float(sum(app.emitted_flow_m3_s * float(dt[np.asarray(on, bool)].sum())
                      for app, on in apps_on))
 
@@ -118,8 +122,8 @@ def booth_usage(names: list[str], part_keys: list[str], plans: list[CoveragePlan
                         program_s[i], cycle_s)
         per_job = job_paint(plans, jobs[i], tr)
         for j, pair in zip(jobs[i], per_job, strict=True):
-            sent_part[j.part] += paint_sent_m3([pair], t_s)
-        sent[i] = paint_sent_m3(per_job, t_s)
+            sent_part[j.part] += paint_sent_m3([pair], t_s, tr.flow)
+        sent[i] = paint_sent_m3(per_job, t_s, tr.flow)
         planned_sent[i] = _planned_sent_m3(plans, jobs[i])
         bell_on += float(dt[tr.paint_on].sum())
         laid = float(films["executed"][i] @ areas)

@@ -63,6 +63,7 @@ RANGES: dict[tuple[str, str], tuple[float, float, str]] = {
     ("trajectory", "grid_spacing_m"): (0.0005, 0.5, "m"),
     ("trajectory", "path_tolerance_m"): (1e-6, 0.05, "m"),
     ("trajectory", "slowdown_threshold"): (1e-6, 0.999, "a fraction"),
+    ("trajectory", "flow_min"): (0.05, 1.0, "a fraction of the part's flow (1: constant)"),
     ("trajectory", "q_home"): (-100.0, 100.0, "rad (a rail: m)"),
     # ServoSettings (`paintcell.execution.execute`)
     ("servo", "bandwidth_hz"): (0.01, 200.0, "Hz"),

@@ -263,15 +263,23 @@ class Disturbances:
     def paint_on(self, paint_on: np.ndarray, dt_s: float) -> np.ndarray:
         """The brush signal (K,) the bell really followed: `paint_on` shifted by the trigger
         delay (whole steps of dt_s [s]), off where the shift leaves no programmed value."""
+        return self._delayed(np.asarray(paint_on, bool), dt_s, False)
+
+    def flow(self, flow: np.ndarray, dt_s: float) -> np.ndarray:
+        """The flow (K,) ÷ the part's flow [-] the bell really followed: the program's
+        (`JointTrajectory.flow`) shifted by the trigger delay like the brush, 1 where the shift
+        leaves no programmed value."""
+        return self._delayed(np.asarray(flow, float), dt_s, 1.0)
+
+    def _delayed(self, signal: np.ndarray, dt_s: float, fill: Any) -> np.ndarray:
         k = int(round(self.trigger_delay_s / dt_s))
-        on = np.asarray(paint_on, bool)
         if k == 0:
-            return on.copy()
-        out = np.zeros_like(on)
-        if 0 < k < len(on):
-            out[k:] = on[:-k]
-        elif -len(on) < k < 0:
-            out[:k] = on[-k:]
+            return signal.copy()
+        out = np.full_like(signal, fill)
+        if 0 < k < len(signal):
+            out[k:] = signal[:-k]
+        elif -len(signal) < k < 0:
+            out[:k] = signal[-k:]
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -771,4 +779,6 @@ def execute(cell: Cell, traj: JointTrajectory, mode: Literal["servo", "kinematic
         paint_on=(np.asarray(traj.paint_on, bool).copy() if disturbances is None
                   else disturbances.paint_on(traj.paint_on, cell.model.opt.timestep)),
         pass_index=np.asarray(traj.pass_index).copy(), mode=mode, contacts=contacts, meta=meta,
-        tau_demand=np.ascontiguousarray(tau_demand))
+        tau_demand=np.ascontiguousarray(tau_demand),
+        flow=(np.asarray(traj.flow, float).copy() if disturbances is None
+              else disturbances.flow(traj.flow, cell.model.opt.timestep)))

@@ -57,14 +57,15 @@ class ExecutedTrace:
     contacts: tuple[Contact, ...] = ()
     meta: dict[str, Any] = field(default_factory=dict)
     tau_demand: np.ndarray | None = None
+    flow: np.ndarray | None = None
 
     _ARRAYS = ("t_s", "q", "qd", "tau", "tcp_pos_world", "tcp_rot_world", "paint_on", "pass_index")
     #: arrays that may be None (absent from older files).
-    _OPTIONAL_ARRAYS = ("tau_demand",)
+    _OPTIONAL_ARRAYS = ("tau_demand", "flow")
 
     def gun_samples(self, T_part_world: np.ndarray | None = None) -> GunSamples:
         """Paint-on samples as `GunSamples` in the part frame (dwell = step time, times the
-        flow factor of a flow disturbance recorded in `meta`).
+        commanded flow `flow` and the flow factor of a flow disturbance recorded in `meta`).
 
         T_part_world: (4, 4) transform from world to part coordinates (identity if None).
         Spray axis = site z, travel = site x, as the TCP convention says.
@@ -72,6 +73,8 @@ class ExecutedTrace:
         T = np.eye(4) if T_part_world is None else np.asarray(T_part_world, float)
         on = self.paint_on.astype(bool)
         dt = np.gradient(self.t_s)[on]
+        if self.flow is not None:
+            dt = dt * np.asarray(self.flow, float)[on]
         # a flow disturbance (meta flow_scale, flow_drift) scales the film rate, i.e. the dwell
         scale, drift = float(self.meta.get("flow_scale", 1.0)), float(self.meta.get("flow_drift",
                                                                                    0.0))

@@ -49,6 +49,10 @@ class JointTrajectory:
     slowdowns: where a joint limit made the TCP slower than planned: dicts with pass, s_start_m,
         s_end_m, t_start_s, duration_s, max_speed_deficit_pct, limiting (joint/limit names).
     pass_summary: per pass: planned vs time-parameterized duration, speed-following error.
+    flow: (K,) the bell flow the program commands ÷ its part's flow [-] (the brush table's
+        level): below 1 where the time law is slower than the plan, so the film keeps the plan's
+        build (`paintcell.motion.flow`); 1 off the passes and where the plan is met. Left out:
+        1 everywhere (a program at constant flow).
     """
 
     t_s: np.ndarray
@@ -67,12 +71,19 @@ class JointTrajectory:
     slowdowns: tuple[dict[str, Any], ...] = ()
     pass_summary: tuple[dict[str, Any], ...] = ()
     meta: dict[str, Any] = field(default_factory=dict)
+    flow: np.ndarray = field(default_factory=lambda: np.ones(0))
 
     _ARRAYS = ("t_s", "q", "qd", "qdd", "tcp_pos_world", "tcp_rot_world", "v_tcp_planned",
-               "paint_on", "pass_index", "segment", "s_pass_m")
+               "paint_on", "pass_index", "segment", "s_pass_m", "flow")
 
     def __post_init__(self) -> None:
         k = len(self.t_s)
+        flow = np.asarray(self.flow, float)
+        flow = np.ones(k) if len(flow) == 0 else flow
+        if not np.all(np.isfinite(flow)) or np.any(flow <= 0) or np.any(flow > 1 + 1e-12):
+            raise TrajectoryError("trajectory flow must be in (0, 1] (the commanded bell flow ÷ "
+                                  "the part's flow)")
+        object.__setattr__(self, "flow", flow)
         for name in self._ARRAYS:
             if len(getattr(self, name)) != k:
                 raise TrajectoryError(f"trajectory array {name} has {len(getattr(self, name))} "
@@ -117,7 +128,7 @@ class JointTrajectory:
             meta = json.loads(str(z["_json"]))
             if meta.get("format") != "paintcell.JointTrajectory/1":
                 raise TrajectoryError(f"{path} is not a paintcell joint trajectory")
-            arrays = {name: z[name] for name in cls._ARRAYS}
+            arrays = {name: z[name] for name in cls._ARRAYS if name in z.files}
         return cls(**arrays, robot_name=meta["robot_name"],
                    joint_names=tuple(meta["joint_names"]),
                    slowdowns=tuple(meta["slowdowns"]), pass_summary=tuple(meta["pass_summary"]),

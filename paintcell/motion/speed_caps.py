@@ -21,6 +21,7 @@ import numpy as np
 
 from paintcell.coverage.offset_polyline import arc_length
 from paintcell.coverage.plan import CoveragePlan
+from paintcell.motion.flow import cap_speed
 
 #: A sample is capped where the robot's TCP speed is below the plan by more than this fraction.
 SLOW_REL = 0.005
@@ -35,8 +36,10 @@ MET_REL = 0.05
 CAP_MARGIN = 0.03
 
 
-def pass_speeds(p: Any, traj: Any, index: int) -> np.ndarray:
-    """The TCP speed a joint program reaches at each sample of pass `p` [m/s] ((M,)).
+def pass_speeds(p: Any, traj: Any, index: int, trust_floor: bool = False) -> np.ndarray:
+    """The TCP speed a joint program reaches at each sample of pass `p` [m/s] ((M,)), as the
+    caps see it (÷ the flow the program commands there, unless that flow is at its lowest level:
+    `paintcell.motion.flow.cap_speed`).
 
     traj: `paintcell.motion.joint_trajectory.JointTrajectory` whose samples with
     pass_index == index run `p` (s_pass_m along the plan samples' arc length). The speed is ds/dt
@@ -48,18 +51,19 @@ def pass_speeds(p: Any, traj: Any, index: int) -> np.ndarray:
     if len(idx) < 3:
         return np.asarray(p.speeds_m_s, float).copy()
     s = traj.s_pass_m[idx]
-    v = np.gradient(s, traj.t_s[idx])
+    v = cap_speed(np.gradient(s, traj.t_s[idx]), traj, idx, trust_floor)
     order = np.argsort(s, kind="stable")
     return np.interp(s_plan, s[order], v[order])
 
 
 def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
-             margin: float = CAP_MARGIN) -> np.ndarray:
+             margin: float = CAP_MARGIN, trust_floor: bool = False) -> np.ndarray:
     """Caps [m/s] ((M,), inf where none) that bring the plan of pass `p` under what the joint
     program reached BETWEEN its samples.
 
     traj: the `JointTrajectory` whose samples with pass_index == index run `p`. The program's TCP
-    speed v = |dp/dt| at every control sample is compared with the planned speed there
+    speed v = |dp/dt| at every control sample (as the caps see it,
+    `paintcell.motion.flow.cap_speed`) is compared with the planned speed there
     (`v_tcp_planned`: v² linear in arc length between plan samples, constant tangential
     acceleration). Where the robot cannot accelerate (or brake) as fast as an interval asks —
     the plan's speed rising steeply out of a slow sample while a joint's acceleration is taken
@@ -78,7 +82,8 @@ def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
     idx = np.flatnonzero(traj.pass_index == index)
     if len(idx) < 3 or len(s_plan) < 2:
         return caps
-    v_a = np.linalg.norm(np.gradient(traj.tcp_pos_world[idx], traj.t_s[idx], axis=0), axis=1)
+    v_a = cap_speed(np.linalg.norm(np.gradient(traj.tcp_pos_world[idx], traj.t_s[idx],
+                                                axis=0), axis=1), traj, idx, trust_floor)
     v_p = np.asarray(traj.v_tcp_planned, float)[idx]
     s = traj.s_pass_m[idx]
     lag = np.isfinite(s) & (v_p > 1e-9) & (v_a < (1.0 - lag_rel) * v_p)
@@ -106,12 +111,14 @@ def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
 
 
 def part_speeds(plans: Sequence[CoveragePlan], jobs: dict[int, tuple[Any, ...]],
-                programs: Sequence[Any], lags: bool = False, margin: float = CAP_MARGIN
-                ) -> list[list[np.ndarray]]:
+                programs: Sequence[Any], lags: bool = False, margin: float = CAP_MARGIN,
+                trust_floor: bool = False) -> list[list[np.ndarray]]:
     """Per part, per pass of its plan, the TCP speed its robot reaches at each sample [m/s]
     (`pass_speeds`; jobs: {robot: its jobs, passes [first, end) of plan `part`, run on in its
     program from `meta["job_first_pass_index"]`, default 0}); the plan's own speeds for a pass
-    no robot runs. lags: instead, the caps between samples (`lag_caps`; inf where none) [m/s]."""
+    no robot runs. lags: instead, the caps between samples (`lag_caps`; inf where none) [m/s].
+    trust_floor: the speeds as the film sees them also where the flow is at its lowest level
+    (`paintcell.motion.flow.cap_speed`)."""
     out = [[np.full(len(p.speeds_m_s), np.inf) if lags else np.asarray(p.speeds_m_s, float)
             for p in pl.passes] for pl in plans]
     for r, js in jobs.items():
@@ -120,8 +127,9 @@ def part_speeds(plans: Sequence[CoveragePlan], jobs: dict[int, tuple[Any, ...]],
         for k, job in enumerate(js):
             for m in range(job.end - job.first):
                 p = plans[job.part].passes[job.first + m]
-                out[job.part][job.first + m] = (lag_caps(p, traj, firsts[k] + m, margin=margin)
-                                                if lags else pass_speeds(p, traj, firsts[k] + m))
+                out[job.part][job.first + m] = (
+                    lag_caps(p, traj, firsts[k] + m, margin=margin, trust_floor=trust_floor)
+                    if lags else pass_speeds(p, traj, firsts[k] + m, trust_floor))
     return out
 
 
@@ -138,8 +146,8 @@ def achieved_speeds(plan: CoveragePlan, traj: Any) -> list[np.ndarray]:
 
 
 def speed_caps(plan: CoveragePlan, traj: Any, previous: dict[int, np.ndarray] | None = None,
-               slow_rel: float = SLOW_REL, margin: float = CAP_MARGIN
-               ) -> tuple[dict[int, np.ndarray], int, float]:
+               slow_rel: float = SLOW_REL, margin: float = CAP_MARGIN,
+               trust_floor: bool = False) -> tuple[dict[int, np.ndarray], int, float]:
     """Caps {side: (M,) [m/s]} where the program is slower than the plan, in generation direction.
 
     Returns (caps, number of newly capped samples, largest speed deficit [%]; the samples capped
@@ -147,22 +155,25 @@ def speed_caps(plan: CoveragePlan, traj: Any, previous: dict[int, np.ndarray] | 
     robot running the whole plan.
     """
     caps, counts, worst = parts_caps([plan], [plan], [False], one_robot_jobs(plan), [traj],
-                                     [previous or {}], slow_rel, margin)
+                                     [previous or {}], slow_rel, margin, trust_floor)
     return caps[0], counts[0], worst
 
 
 def parts_caps(plans0: Sequence[CoveragePlan], finished: Sequence[CoveragePlan],
                reverse: Sequence[bool], jobs: dict[int, tuple[Any, ...]],
                programs: Sequence[Any], previous: Sequence[dict[int, np.ndarray]],
-               slow_rel: float = SLOW_REL, margin: float = CAP_MARGIN
+               slow_rel: float = SLOW_REL, margin: float = CAP_MARGIN,
+               trust_floor: bool = False
                ) -> tuple[list[dict[int, np.ndarray]], list[int], float]:
     """Per part, the caps of `caps_from_speeds` on its planner's plan `plans0[i]` from what the
     robots reached on its finished plan `finished[i]` (the one they ran: passes reversed where
-    `reverse[i]`; jobs, programs: `part_speeds`'); previous: each part's caps so far.
+    `reverse[i]`; jobs, programs, trust_floor: `part_speeds`'); previous: each part's caps so
+    far.
     Returns (caps per part {side: (M,) [m/s]}, newly capped samples per part, largest deficit
     over the parts [%])."""
-    v_act = part_speeds(finished, jobs, programs, margin=margin)
-    lags = part_speeds(finished, jobs, programs, lags=True, margin=margin)
+    v_act = part_speeds(finished, jobs, programs, margin=margin, trust_floor=trust_floor)
+    lags = part_speeds(finished, jobs, programs, lags=True, margin=margin,
+                       trust_floor=trust_floor)
     caps, counts, worst = [], [], 0.0
     for i, rev in enumerate(reverse):
         asked = [np.asarray(p.speeds_m_s, float) for p in finished[i].passes]

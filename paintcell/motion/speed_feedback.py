@@ -95,8 +95,9 @@ def robot_aware_plan(surface: Surface, app: Applicator, settings: PlannerSetting
     cycle0 = float(traj.t_s[-1])
     caps: dict[int, np.ndarray] = {}
     tool_x: dict[int, np.ndarray] = {}
-    for _ in range(rounds):
-        caps, n_new, worst = speed_caps(res.plan, res.trajectory, caps)
+    for k in range(rounds):
+        # the first caps trust the brush table's lowest flow (`paintcell.motion.flow`)
+        caps, n_new, worst = speed_caps(res.plan, res.trajectory, caps, trust_floor=k == 0)
         turn = 0.0
         if T_world_part is not None:
             new_x = tool_axes(res.plan, res.trajectory, T_world_part)
@@ -195,9 +196,10 @@ def robot_aware_parts(names: Sequence[str], reverse: Sequence[bool], planned: An
                                    f"between samples), re-planned at most {rounds}×, kept if "
                                    f"the cycle grows ≤ "
                                    f"{MAX_CYCLE_GROWTH:.0%}", "rounds": []}
-    for _ in range(rounds + 1):
+    for k in range(rounds + 1):
+        # the first caps trust the brush table's lowest flow (`paintcell.motion.flow`)
         new_caps, counts, worst = parts_caps(plans0, finished.plans, reverse, built.jobs,
-                                             built.static, caps)
+                                             built.static, caps, trust_floor=k == 0)
         rnd: dict[str, Any] = {"capped_samples": int(sum(counts)), "max_deficit_pct": worst,
                                "cycle_s": built.cycle_s}
         rec["rounds"].append(rnd)

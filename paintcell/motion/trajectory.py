@@ -60,6 +60,7 @@ import pinocchio as pin
 
 from paintcell.coverage.offset_polyline import arc_length
 from paintcell.coverage.plan import CoveragePlan
+from paintcell.motion.flow import brush_flow
 from paintcell.motion.joint_trajectory import (
     APPROACH,
     PAINT,
@@ -161,6 +162,13 @@ class TrajectorySettings:
     """Passes start and end at the planned TCP speed (False: at rest)."""
     ik_free_spin: bool = False
     """Let IK rotate the tool about its spray axis (bell atomizers are symmetric)."""
+    flow_min: float = 0.7
+    """Lowest bell flow the program may command on a pass, a fraction of its part's flow [-]:
+    where the time law is slower than the plan the flow drops with it (a brush table,
+    `paintcell.motion.flow`) so the film keeps the plan's build. 1: constant flow. 0.7: a
+    moderate turn-down, over which the bell's spray pattern (the deposition model, linear in
+    the flow) changes little; a bell's whole flow range is wider, about 2:1 at a fixed speed and
+    shaping air."""
 
     def __post_init__(self) -> None:
         checks = [
@@ -177,6 +185,8 @@ class TrajectorySettings:
             (self.grid_spacing_m > 0, "grid_spacing_m must be positive [m]"),
             (self.path_tolerance_m > 0, "path_tolerance_m must be positive [m]"),
             (0 < self.slowdown_threshold < 1, "slowdown_threshold must be in (0, 1)"),
+            (0 < self.flow_min <= 1, "flow_min must be in (0, 1] (a fraction of the part's "
+             "flow; 1: constant flow)"),
         ]
         for ok, msg in checks:
             if not ok:
@@ -325,8 +335,9 @@ def sample_program(robot: RobotLike, plan: CoveragePlan, segments: list[Segment]
                    knot_lists: list[np.ndarray], settings: TrajectorySettings, v_lim: np.ndarray,
                    a_lim: np.ndarray) -> JointTrajectory:
     """The whole program sampled every `dt` [s] from its segments: q, q̇, q̈, the TCP pose and
-    speed and the paint trigger, with each pass's limit utilization (`knot_lists`: the passes'
-    IK knots; v_lim, a_lim (n,): the joint limits handed to TOPP-RA)."""
+    speed, the paint trigger and the flow (`paintcell.motion.flow`), with each pass's limit
+    utilization (`knot_lists`: the passes' IK knots; v_lim, a_lim (n,): the joint limits handed
+    to TOPP-RA)."""
     n = int(robot.nq)
     starts = np.concatenate([[0.0], np.cumsum([sg.duration_s for sg in segments])])
     total = float(starts[-1])
@@ -342,6 +353,7 @@ def sample_program(robot: RobotLike, plan: CoveragePlan, segments: list[Segment]
     segment = np.empty(k, np.int64)
     s_pass = np.full(k, np.nan)
     sd_pass = np.full(k, np.nan)
+    v_law = np.zeros(k)
     for j, sg in enumerate(segments):
         idx = np.flatnonzero(seg_of == j)
         if len(idx) == 0:
@@ -357,6 +369,7 @@ def sample_program(robot: RobotLike, plan: CoveragePlan, segments: list[Segment]
         p = plan.passes[sg.pass_index]
         s_knots = knot_lists[sg.pass_index]
         s_pass[idx], sd_pass[idx] = s, sd
+        v_law[idx] = np.interp(s, law.s_grid, law.tcp_speed_scale_grid) * sd
         pass_index[idx] = sg.pass_index
         v_plan[idx] = np.interp(s, s_knots, p.speeds_m_s**2) ** 0.5
         # Brush on over the knot intervals whose both ends the plan marks as painted.
@@ -370,7 +383,9 @@ def sample_program(robot: RobotLike, plan: CoveragePlan, segments: list[Segment]
                            tcp_rot_world=T[:, :3, :3], v_tcp_planned=v_plan, paint_on=paint,
                            pass_index=pass_index, segment=segment, s_pass_m=s_pass,
                            robot_name=str(robot.name), joint_names=tuple(robot.joint_names),
-                           slowdowns=tuple(slowdowns), pass_summary=tuple(summary))
+                           slowdowns=tuple(slowdowns), pass_summary=tuple(summary),
+                           flow=brush_flow(s_pass, v_law, v_plan, paint, pass_index,
+                                           settings.flow_min))
 
 
 def _speed_report(plan: CoveragePlan, segments: list[Segment], starts: np.ndarray,

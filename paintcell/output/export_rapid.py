@@ -45,6 +45,7 @@ import numpy as np
 
 from paintcell.core.transforms import quat_wxyz_from_matrix
 from paintcell.coverage.offset_polyline import arc_length
+from paintcell.motion.flow import FLOW_STEP
 from paintcell.motion.joint_trajectory import PAINT, JointTrajectory
 from paintcell.output.rapid_text import IDENT, RESERVED, comment_text, rapid_ident
 
@@ -68,7 +69,7 @@ class RapidTarget:
     quat_wxyz: np.ndarray
     conf: tuple[int, int, int, int]
     speed_mm_s: float
-    brush: int | None  # 1: switch on at this target, 0: switch off, None: no change
+    brush: int | None  # n ≥ 1: on at brush-table level n from this target, 0: off, None: same
 
 
 def confdata(q: np.ndarray) -> tuple[int, int, int, int]:
@@ -96,9 +97,12 @@ def _pass_targets(traj: JointTrajectory, q: np.ndarray, T_base_world: np.ndarray
     """
     pos_world = traj.tcp_pos_world[idx]
     on = traj.paint_on[idx]
+    level = brush_numbers(traj.flow[idx])
     s = arc_length(pos_world)
-    # Keep: first, last, every brush toggle, and enough points in between to respect the spacing.
-    toggles = np.flatnonzero(np.diff(on.astype(np.int8)) != 0) + 1
+    # Keep: first, last, every brush toggle and flow level change, and enough points in between
+    # to respect the spacing.
+    toggles = np.flatnonzero((np.diff(on.astype(np.int8)) != 0)
+                             | (on[1:] & (np.diff(level) != 0))) + 1
     n_seg = max(1, int(np.ceil(s[-1] / max_spacing_m)))
     regular = np.searchsorted(s, np.linspace(0.0, s[-1], n_seg + 1))
     keep = np.unique(np.concatenate([[0, len(idx) - 1], toggles,
@@ -116,15 +120,42 @@ def _pass_targets(traj: JointTrajectory, q: np.ndarray, T_base_world: np.ndarray
     targets = []
     for j, i in enumerate(keep):
         brush = None
-        if (j == 0 and on[i]) or (j > 0 and on[i] and not on[keep[j - 1]]):
-            brush = 1
-        elif j > 0 and not on[i] and on[keep[j - 1]]:
+        prev = keep[j - 1] if j > 0 else -1
+        if on[i] and (j == 0 or not on[prev] or level[i] != level[prev]):
+            brush = int(level[i])
+        elif j > 0 and not on[i] and on[prev]:
             brush = 0
         if j == len(keep) - 1 and on[i]:
             brush = 0  # the brush goes off where the pass (and its painting) ends
         targets.append(RapidTarget(f"p{k}_{j}", pos_base_mm[j], quats[j],
                                    confdata(q[idx[i]]), float(speed_mm_s[j]), brush))
     return targets
+
+
+def brush_numbers(flow: np.ndarray) -> np.ndarray:
+    """Brush-table entry of each commanded flow ÷ the part's flow (`JointTrajectory.flow`):
+    1 at full flow, n at 1 − (n − 1) · `FLOW_STEP` (the levels of `paintcell.motion.flow`)."""
+    return 1 + np.round((1.0 - np.asarray(flow, float)) / FLOW_STEP).astype(np.int64)
+
+
+def brush_flow_of(n: int) -> float:
+    """The flow ÷ the part's flow [-] of brush-table entry n ≥ 1 (`brush_numbers`)."""
+    return 1.0 - (n - 1) * FLOW_STEP
+
+
+def _triggers(brush: int | None, levels: list[int], prev: int) -> str:
+    """The `TriggL` trigger arguments of a pass target whose brush event is `brush`
+    (`RapidTarget.brush`; the last event before it: `prev`), with the flow levels `levels` in
+    use (empty: the program's flow is constant, no flow trigger)."""
+    if brush is None:
+        return ""
+    if brush == 0:
+        return "tBrushOff, "
+    if not levels:
+        return "tBrushOn, "
+    if prev == 0:
+        return f"tBrushOn \\T2:=tFlow{brush}, "
+    return f"tFlow{brush}, "
 
 
 def _via_targets(traj: JointTrajectory, idx: np.ndarray, via_dt_s: float
@@ -257,7 +288,7 @@ def _multimove_head(mm: MultiMove, name: str, rail: bool, job_first_pass: list[i
 
 def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcell",
                  style: str = "trigg", max_spacing_m: float = 0.05, via_dt_s: float = 0.2,
-                 brush_signal: str = "doBrush",
+                 brush_signal: str = "doBrush", flow_signal: str = "aoFlow",
                  load: tuple[float, np.ndarray] | None = None,
                  validation: list[str] | None = None,
                  multimove: MultiMove | None = None) -> str:
@@ -267,8 +298,10 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
         `load` is given) `mjcf_path` + `flange_site_name` for the tool load; a rail robot
         (`robot.rail` not None: `traj.q`'s first column is the carriage [m]) the same of its
         arm, `robot.rail.arm`.
-    style: "trigg" — `TriggL` with `TriggIO` on the digital output `brush_signal`; "paintl" —
-        `PaintL` with `SetBrush` (ABB paint option).
+    style: "trigg" — `TriggL` with `TriggIO` on the digital output `brush_signal` (and, where
+        the program lowers the flow, the analog output `flow_signal`: the flow ÷ the part's);
+        "paintl" — `PaintL` with `SetBrush` n (ABB paint option; brush-table entry n,
+        `brush_numbers`).
     max_spacing_m: the longest stretch of a pass between two exported targets [m].
     via_dt_s: time between joint via points on moves between passes [s].
     load: (mass [kg], centre of mass in the flange frame (3,) [m]) of the tool; None: from the
@@ -280,9 +313,10 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
     """
     if style not in ("trigg", "paintl"):
         raise ValueError(f"unknown RAPID style {style!r}; use 'trigg' or 'paintl'")
-    if not IDENT.match(brush_signal) or brush_signal.upper() in RESERVED:
-        raise ValueError(f"brush signal {brush_signal!r} is not a RAPID identifier; name a "
-                         "digital output like doBrush")
+    for what, sig, like in (("brush signal", brush_signal, "a digital output like doBrush"),
+                            ("flow signal", flow_signal, "an analog output like aoFlow")):
+        if not IDENT.match(sig) or sig.upper() in RESERVED:
+            raise ValueError(f"{what} {sig!r} is not a RAPID identifier; name {like}")
     for name, v in (("target spacing", max_spacing_m), ("via point interval", via_dt_s)):
         if not (isinstance(v, int | float) and math.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a positive finite number, got {v!r}")
@@ -302,9 +336,12 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
 
     decl: list[str] = []
     proc: list[str] = []
+    # brush-table entries the program's flow uses besides full flow (`paintcell.motion.flow`)
+    levels = sorted(set(brush_numbers(traj.flow[traj.paint_on]).tolist()) - {1})
     n_via = 0
     n_pass = 0
     last_pass_move = -1
+    prev_brush = 0
     for is_paint, k, idx in program_runs(traj):
         if is_paint:
             n_pass += 1
@@ -316,7 +353,7 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
                             f"[{c[0]},{c[1]},{c[2]},{c[3]}],{ext[idx[0]]}];")
                 decl.append(f"  CONST speeddata v_{tg.name} := [{tg.speed_mm_s:.1f},500,5000,"
                             "1000];")
-                trig = "" if tg.brush is None else ("tBrushOn, " if tg.brush else "tBrushOff, ")
+                trig = _triggers(tg.brush, levels, prev_brush)
                 move = "PaintL" if style == "paintl" else "TriggL" if trig else "MoveL"
                 proc.append(f"    {move} {tg.name}, v_{tg.name}, "
                             f"{trig if style == 'trigg' else ''}{PASS_ZONE}, {tool};")
@@ -324,6 +361,8 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
                 if style == "paintl" and tg.brush is not None:
                     # SetBrush acts from the start of the next move, i.e. at this target.
                     proc.append(f"    SetBrush {tg.brush};")
+                if tg.brush is not None:
+                    prev_brush = tg.brush
         else:
             for i, v in _via_targets(traj, idx, via_dt_s):
                 name = f"j{n_via}"
@@ -351,9 +390,15 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
         proc.extend(["    DeactUnit CNV1;", "    WaitSyncTask sync_end, booth_tasks;"])
     L.append(f"  PERS tooldata tBell := [TRUE,{_pose_text(tp, tq)},"
              f"[{mass:.2f},[{cog[0]:.1f},{cog[1]:.1f},{cog[2]:.1f}],[1,0,0,0],0,0,0]];")
+    if levels:
+        L.append("  ! Brush table: the flow follows the validated time law where it is slower "
+                 "than planned (paintcell.motion.flow); entry n is "
+                 f"1 - {FLOW_STEP:g} (n - 1) x the part's flow; used: "
+                 + ", ".join(f"{n} ({brush_flow_of(n):.2f})" for n in [1, *levels]) + ".")
     if style == "trigg":
         L.append("  VAR triggdata tBrushOn;")
         L.append("  VAR triggdata tBrushOff;")
+        L.extend(f"  VAR triggdata tFlow{n};" for n in [1, *levels] if levels)
     L.append("  CONST jointtarget jHome := [[" + ",".join(
         f"{a:.3f}" for a in np.degrees(q[0])) + "]," + ext[0] + "];")
     L.extend(decl)
@@ -362,6 +407,8 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
     if style == "trigg":
         L.append(f"    TriggIO tBrushOn, 0 \\DOp:={brush_signal}, 1;")
         L.append(f"    TriggIO tBrushOff, 0 \\DOp:={brush_signal}, 0;")
+        L.extend(f"    TriggIO tFlow{n}, 0 \\AOp:={flow_signal}, {brush_flow_of(n):.2f};"
+                 for n in [1, *levels] if levels)
     L.append("    MoveAbsJ jHome, v1000, fine, tBell;")
     if multimove is not None:
         L.append("    WaitSyncTask sync_start, booth_tasks;")

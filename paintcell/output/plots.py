@@ -150,7 +150,8 @@ def _speed(t_s: np.ndarray, pos: np.ndarray) -> np.ndarray:
 
 def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
                    max_passes: int = 12) -> Path:
-    """Planned vs executed TCP speed [mm/s] along each pass (x: arc length along the pass [m]).
+    """Planned vs executed TCP speed [mm/s] along each pass (x: arc length along the pass [m]),
+    with the bell flow the program lowers where it is slower than planned (`paintcell.motion.flow`).
 
     trajectory: `JointTrajectory` (t_s, v_tcp_planned, pass_index, s_pass_m, tcp_pos_world);
     trace: `ExecutedTrace` (t_s, tcp_pos_world, pass_index) or None (planned only).
@@ -167,6 +168,7 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
     v_plan = np.asarray(trajectory.v_tcp_planned, float)
     t_traj = np.asarray(trajectory.t_s, float)
     v_traj = _speed(t_traj, np.asarray(trajectory.tcp_pos_world, float))
+    flow = np.asarray(getattr(trajectory, "flow", np.ones(len(t_traj))), float)
     if trace is not None:
         t_exe = np.asarray(trace.t_s, float)
         p_exe = np.asarray(trace.tcp_pos_world, float)
@@ -184,6 +186,8 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
         ok = v_plan[m] > 0
         dev_traj = np.where(ok, (v_traj[m] - v_plan[m]) / np.where(ok, v_plan[m], 1.0), np.nan)
         ax_dev.plot(s[st], dev_traj[st] * 100.0, ":", color=c, lw=1.0)
+        if np.any(flow[m] < 1.0):
+            ax_dev.plot(s[st], (flow[m][st] - 1.0) * 100.0, "-.", color=c, lw=0.8)
         if trace is not None and len(t_exe) >= len(t_traj):
             # The trace is sampled at the program's steps (plus a final hold).
             v_e = v_exe[: len(t_traj)][m]
@@ -199,6 +203,10 @@ def plot_tcp_speed(path: str | os.PathLike[str], trajectory: Any, trace: Any,
                Line2D([], [], ls=":", color="k", label="time law (trajectory)")]
     if trace is not None:
         handles.append(Line2D([], [], ls="-", color="k", label="executed (MuJoCo)"))
+    if np.any(flow[pidx >= 0] < 1.0):
+        ax_dev.legend(handles=[Line2D([], [], ls="-.", color="k",
+                                      label="bell flow (brush table) − 100 %")],
+                      loc="lower center", fontsize=8)
     ax.legend(handles=handles, loc="lower center", fontsize=8)
     ax_dev.set_xlabel("arc length along the pass [m]")
     ax.set_ylabel("TCP speed [mm/s]")

@@ -16,8 +16,11 @@ collisions. Here a pose is *reached* only when all of these hold:
 - no contact: the executed trace touched nothing (part, booth, itself) while painting it — a
   contact during a move between passes counts against the last pose before it and the first pose
   after it (the move that links them is not executable);
-- no slowdown: on the part, the time law kept the TCP within `slowdown_fraction` of the planned
-  speed at it (the film there is thicker than planned by the inverse of the speed ratio). The
+- no slowdown: on the part, the paint the program sends over the stretch of path nearest the
+  pose (its control samples' time × the flow it commands there, `paintcell.motion.flow`) is
+  within `slowdown_fraction` of the plan's time for the same travel (a slower TCP lays a
+  thicker film by the inverse of the speed ratio; a slowdown the brush table's lower flow makes
+  up for lays the planned film). The
   overspray ends of a pass are not counted: a scenario may start and end its passes at rest there
   (`join_at_speed = False`), off the part, by design.
 
@@ -54,8 +57,9 @@ from paintcell.robots.rail import RAIL_JOINT
 class HonestReachSettings:
     """What counts against reachability.
 
-    slowdown_fraction: a pose whose TCP speed falls more than this fraction below the planned
-        speed is not painted as planned (0.10: the film's ±10 % window) [-].
+    slowdown_fraction: a pose whose TCP speed, as the film sees it (÷ the commanded flow) and
+        averaged over the stretch of path nearest it, falls more than this fraction below the
+        planned speed is not painted as planned (0.10: the film's ±10 % window) [-].
     wrist_joint_index: the arm joint whose sin changes sign at the wrist singularity (J5 of the
         ABB arms and of the UR10; counted after the rail axis when the trajectory's first joint
         is `paintcell.robots.rail.RAIL_JOINT`); None: flips are not counted.
@@ -156,8 +160,11 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
 
     paint = np.asarray(traj.segment) == PAINT
     pidx = np.asarray(traj.pass_index)
-    # speed actually commanded by the time law vs the plan's, on paint samples
-    v_act = np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1)
+    # the TCP's travel per step [m] and the paint the program sends per step (time × the flow it
+    # commands) [s], against the plan's time for that travel, on paint samples
+    dt = np.gradient(np.asarray(traj.t_s, float))
+    travel = np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1) * dt
+    sent = dt * np.asarray(traj.flow, float)
     v_plan = np.asarray(traj.v_tcp_planned, float)
     signs_of = arm_configuration_signs(traj.robot_name)
     arm0 = 1 if traj.joint_names and traj.joint_names[0] == RAIL_JOINT else 0
@@ -167,11 +174,15 @@ def honest_reachability(plan: CoveragePlan, traj: JointTrajectory, trace: Execut
         if len(sel) == 0:
             continue
         k = nearest_pose(s, traj.s_pass_m[sel])
+        ok = v_plan[sel] > 1e-9
+        # per pose, over the samples nearest it: the plan's time for the travel against the
+        # program's paint time (the film's dwell there)
+        plan_t = np.bincount(k[ok], travel[sel][ok] / v_plan[sel][ok], minlength=len(s))
+        film_t = np.bincount(k[ok], sent[sel][ok], minlength=len(s))
         with np.errstate(invalid="ignore", divide="ignore"):
-            deficit = 1.0 - v_act[sel] / v_plan[sel]
-        bad = np.isfinite(deficit) & (v_plan[sel] > 1e-9) & (deficit > st.slowdown_fraction)
+            deficit = 1.0 - plan_t / film_t
+        ks = np.flatnonzero((film_t > 0) & (deficit > st.slowdown_fraction))
         on_part = np.asarray(plan.passes[i].on_part, bool)
-        ks = np.unique(k[bad])
         slow[offsets[i] + ks[on_part[ks]]] = True
         wi = st.wrist_joint_index
         if wi is not None and traj.joint_names and traj.joint_names[0] == RAIL_JOINT:

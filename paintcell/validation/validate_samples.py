@@ -29,12 +29,13 @@ def executed_gun_samples(trace: ExecutedTrace, T_part_world: np.ndarray,
 
 def trajectory_gun_samples(traj: JointTrajectory, T_part_world: np.ndarray,
                            sample_s: float | None = 0.005) -> GunSamples:
-    """The trajectory's own paint-on TCP samples (ideal kinematics at the time law's timing) in
-    the part frame, sampled and binned exactly as `executed_gun_samples` does a trace."""
+    """The trajectory's own paint-on TCP samples (ideal kinematics at the time law's timing and
+    its commanded flow) in the part frame, sampled and binned exactly as `executed_gun_samples`
+    does a trace."""
     ideal = ExecutedTrace(
         t_s=traj.t_s, q=traj.q, qd=traj.qd, tau=np.zeros_like(traj.q),
         tcp_pos_world=traj.tcp_pos_world, tcp_rot_world=traj.tcp_rot_world,
-        paint_on=traj.paint_on, pass_index=traj.pass_index, mode="kinematic")
+        paint_on=traj.paint_on, pass_index=traj.pass_index, mode="kinematic", flow=traj.flow)
     return executed_gun_samples(ideal, T_part_world, sample_s)
 
 
