@@ -137,10 +137,15 @@ def test_the_trigger_delay_shifts_the_flow_with_the_brush(slowed) -> None:
     assert g.dwell_s.sum() == pytest.approx(traj.dt_s * traj.flow[traj.paint_on].sum())
 
 
-def test_save_load_keeps_the_flow(slowed, tmp_path) -> None:
+def test_save_load_and_csv_keep_the_flow(slowed, tmp_path) -> None:
     traj = slowed[0.5]
     traj.save_npz(tmp_path / "t.npz")
     np.testing.assert_array_equal(JointTrajectory.load_npz(tmp_path / "t.npz").flow, traj.flow)
+    traj.save_csv(tmp_path / "t.csv")
+    with open(tmp_path / "t.csv") as f:
+        assert f.readline().strip().split(",")[-1] == "flow"
+    np.testing.assert_allclose(np.loadtxt(tmp_path / "t.csv", delimiter=",", skiprows=1)[:, -1],
+                               traj.flow, atol=0.005)
 
 
 @pytest.mark.parametrize("style", ["paintl", "trigg"])

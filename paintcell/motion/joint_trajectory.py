@@ -135,14 +135,16 @@ class JointTrajectory:
                    meta=meta["meta"])
 
     def save_csv(self, path: str | Path) -> None:
-        """Write a CSV (one row per sample: t, q, qd, TCP xyz, planned speed, paint, pass)."""
+        """Write a CSV (one row per sample: t, q, qd, TCP xyz, planned speed, paint, pass,
+        segment, commanded flow ÷ the part's)."""
         n = self.q.shape[1]
         header = (["t_s"] + [f"q{i + 1}_rad" for i in range(n)]
                   + [f"qd{i + 1}_rad_s" for i in range(n)]
                   + ["tcp_x_m", "tcp_y_m", "tcp_z_m", "v_planned_m_s", "paint_on", "pass_index",
-                     "segment"])
+                     "segment", "flow"])
         data = np.column_stack([self.t_s, self.q, self.qd, self.tcp_pos_world, self.v_tcp_planned,
-                                self.paint_on.astype(int), self.pass_index, self.segment])
-        fmt = ["%.4f"] + ["%.7f"] * (2 * n) + ["%.6f"] * 3 + ["%.5f", "%d", "%d", "%d"]
+                                self.paint_on.astype(int), self.pass_index, self.segment,
+                                self.flow])
+        fmt = ["%.4f"] + ["%.7f"] * (2 * n) + ["%.6f"] * 3 + ["%.5f", "%d", "%d", "%d", "%.2f"]
         with atomic_path(path) as tmp:
             np.savetxt(tmp, data, delimiter=",", header=",".join(header), comments="", fmt=fmt)
