@@ -504,7 +504,7 @@ def test_refine_body_paints_again_in_the_part_frame_a_pass_the_blend_switched_of
     recorded one and lower than without `unblended`."""
     from types import SimpleNamespace
 
-    from paintcell.booth.booth_plans import refine_body
+    from paintcell.booth.booth_plans import refine_body, samples_off
 
     body, plans, Ts, _, panel = _turned_panels()
     mid = len(plans[1].passes) // 2
@@ -518,6 +518,8 @@ def test_refine_body_paints_again_in_the_part_frame_a_pass_the_blend_switched_of
     out, rec = refine_body(booth, pp, blended, body, None, unblended=plans)
     again = out[1].passes[mid].paint_on
     assert rec["passes_painted_again"] == {f"1:{mid}": int(again.sum())}
+    # what stays off: the pass switched off here less what came back (the seams record's count)
+    assert samples_off(out, plans) == [0, int(p_mid.paint_on.sum() - again.sum())]
     assert not np.any(again & ~p_mid.paint_on) and again.sum() > 0.5 * p_mid.paint_on.sum()
     assert np.array_equal(out[1].passes[mid].positions, p_mid.positions)
     a = body.vertex_areas

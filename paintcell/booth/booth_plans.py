@@ -155,7 +155,19 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
                                         per_seam=booth.seam_shares == "per seam")
     if booth.film_refine_pace and len(plans) > 1:
         plans, refine["body"] = refine_body(booth, pp, plans, body, caps, unblended)
+        if "samples_switched_off" in seams:
+            # the body's refinement may paint some of them again: what stays off in the end
+            seams["samples_off_after_refinement"] = dict(zip(
+                names, samples_off(plans, unblended), strict=True))
     return FinishedPlans(plans, body, refine, build, seams)
+
+
+def samples_off(plans: list[CoveragePlan], unblended: list[CoveragePlan]) -> list[int]:
+    """Per part, the brush-on samples of `unblended` (the plans before the seams' blending)
+    that `plans` (the same passes, blended and refined) leave off."""
+    return [int(sum(np.count_nonzero(np.asarray(u.paint_on, bool) & ~np.asarray(p.paint_on, bool))
+                    for p, u in zip(pl.passes, ub.passes, strict=True)))
+            for pl, ub in zip(plans, unblended, strict=True)]
 
 
 def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Surface,

@@ -532,9 +532,13 @@ def parts_html(metrics: dict[str, Any]) -> str:
                f"({sm['unblended_planned_nsd_pct']:.2f} %): "
                + ("one share for the whole body switches nothing off." if "seams" in sm
                   else "nothing is switched off."))
-            + "</p>" + values_table(["part", "samples switched off"
-                                     + (" (per seam)" if "seams" in sm else "")],
-                                    sm["samples_switched_off"].items()))
+            + "</p>" + values_table(
+                ["part", "samples switched off" + (" (per seam)" if "seams" in sm else "")]
+                + (["still off after the body's refinement"]
+                   if "samples_off_after_refinement" in sm else []),
+                ([nm, n, *([sm["samples_off_after_refinement"].get(nm)]
+                           if "samples_off_after_refinement" in sm else [])]
+                 for nm, n in sm["samples_switched_off"].items())))
     if "seams" in sm:
         out.append(
             "<p>Per seam: each seam (two parts; a sample's seam is the part it paints most after "
