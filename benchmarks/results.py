@@ -170,7 +170,8 @@ def markdown(runs: dict[str, dict[str, Any]], paper: dict[str, Any] | None,
               "target film by default); the executed cycle time; honest "
               "reachability (a pose counts only if IK reached it, no joint jump or "
               "configuration flip led into it, nothing touched and the time law kept ≥ 90 % of "
-              "the planned speed); poses reached through a jump or a flip; collision events; "
+              "the planned speed over the path nearest it, as the film sees it: ÷ the flow the "
+              "brush table commands); poses reached through a jump or a flip; collision events; "
               "PASS when the scenario meets every one of its thresholds.", ""]
     groups = (("Library parts", "library", "The parts of `paintcell.surface.parts`, built "
                "from their closed-form or B-spline definitions."),
