@@ -186,12 +186,14 @@ def _lost(plan: Any, traj: Any) -> str | None:
 
 def _slowest_pass(plan: Any, traj: Any) -> str:
     """Where the program slows most: the pass with the most brush-on samples over the part > 10 %
-    below the planned speed (honest reachability's slowdown), its slowest speed ratio there and
-    the sharpest turn of its planned TCP path between two samples."""
+    below the planned speed as the film sees it (÷ the flow the brush table commands, as honest
+    reachability reads a slowdown), its slowest such speed ratio there and the sharpest turn of
+    its planned TCP path between two samples."""
     from paintcell.motion.joint_trajectory import PAINT
     from paintcell.validation.honest_reach import nearest_pose, pose_arc_lengths
 
-    v = np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1)
+    v = (np.linalg.norm(np.gradient(traj.tcp_pos_world, traj.t_s, axis=0), axis=1)
+         / np.asarray(traj.flow, float))
     on = (np.asarray(traj.segment) == PAINT) & (np.asarray(traj.v_tcp_planned) > 1e-9)
     ratio = np.full(len(v), np.inf)
     for i, (p, s) in enumerate(zip(plan.passes, pose_arc_lengths(plan), strict=True)):

@@ -15,7 +15,8 @@ time (the `busy_share_pct` beside them).
 
 Paint, in film volume (the deposition model's unit, `Applicator.emitted_flow_m3_s`: the volume
 of film the bell's spray would lay, not the wet paint with its solvent): sent = the bell's flow ×
-the time its brush is on, per job at its part's flow (`paintcell.booth.booth_build`); laid on
+the time its brush is on (× the flow its brush table commands there), per job at its part's
+flow (`paintcell.booth.booth_build`); laid on
 the body = ∫ film dA over the whole body mesh (judged or not); transfer efficiency = laid ÷
 sent. Overspray that misses every part is the difference.
 """

@@ -43,6 +43,8 @@ class ExecutedTrace:
     tau_demand: (K, n) joint torques the controller demanded before the actuator limits clamped
     them [N·m] (kinematic replay: the inverse dynamics of the reference); None in traces written
     before it was recorded. |tau_demand| > τ_max where the actuator saturated.
+    flow: (K,) the bell flow the bell really followed ÷ its part's flow [-] (the program's
+    brush table, `JointTrajectory.flow`, shifted with the trigger); None: 1 everywhere.
     """
 
     t_s: np.ndarray

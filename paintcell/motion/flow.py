@@ -13,9 +13,10 @@ build there.
   film is thicker than planned by what is left (and the speed caps of
   `paintcell.motion.speed_caps` bring the plan under what the robot reaches).
 - Stretches: `FLOW_STRETCH_M` of arc length along each pass; each gets the plan's time over the
-  program's time on its brush-on samples (the mean of v_program / v_plan), rounded to the
-  nearest level. A level holds over its whole stretch, so the brush events (RAPID `SetBrush`)
-  are at least that far apart.
+  program's time on its brush-on samples (the mean of v_program / v_plan, each sample's ratio
+  taken at most 1: the flow never rises above the part's), rounded to the nearest level. A
+  level holds over its whole stretch, so the brush events (RAPID `SetBrush`) are at least that
+  far apart.
 
 The speed the film sees is the program's speed ÷ the flow: what honest reachability compares
 with the plan, pose by pose (`paintcell.validation.honest_reach`), and what the speed caps

@@ -128,7 +128,9 @@ class JointTrajectory:
             meta = json.loads(str(z["_json"]))
             if meta.get("format") != "paintcell.JointTrajectory/1":
                 raise TrajectoryError(f"{path} is not a paintcell joint trajectory")
-            arrays = {name: z[name] for name in cls._ARRAYS if name in z.files}
+            # the flow is optional (programs written at constant flow); every other array is not
+            arrays = {name: z[name] for name in cls._ARRAYS
+                      if name in z.files or name != "flow"}
         return cls(**arrays, robot_name=meta["robot_name"],
                    joint_names=tuple(meta["joint_names"]),
                    slowdowns=tuple(meta["slowdowns"]), pass_summary=tuple(meta["pass_summary"]),

@@ -1,5 +1,7 @@
 """A joint program's TCP speeds measured against its plan, and the speed caps that bring the
-plan under what the robot reached (`paintcell.motion.speed_feedback` re-plans under them).
+plan under what the robot reached (`paintcell.motion.speed_feedback` re-plans under them). The
+speeds are taken as the caps see them (`paintcell.motion.flow.cap_speed`): ÷ the flow the
+program's brush table commands, unless that flow sits at its lowest level.
 
 The speed is measured twice: at the plan samples (ds/dt of the program there, `pass_speeds`) and
 between them (|dp/dt| at every control sample, `lag_caps`: a robot can meet the plan at two
@@ -87,7 +89,7 @@ def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
     v_p = np.asarray(traj.v_tcp_planned, float)[idx]
     s = traj.s_pass_m[idx]
     lag = np.isfinite(s) & (v_p > 1e-9) & (v_a < (1.0 - lag_rel) * v_p)
-    # as honest reach judges them: a control sample counts for its nearest plan pose, and the
+    # as honest reach maps them: a control sample counts for its nearest plan pose, and the
     # overspray ends off the part do not count (a pass may start and end there at rest)
     near = np.searchsorted(0.5 * (s_plan[1:] + s_plan[:-1]), np.where(np.isfinite(s), s, 0.0))
     lag &= np.asarray(getattr(p, "on_part", np.ones(len(s_plan), bool)), bool)[near]
@@ -141,7 +143,7 @@ def one_robot_jobs(plan: CoveragePlan) -> dict[int, tuple[Any, ...]]:
 
 def achieved_speeds(plan: CoveragePlan, traj: Any) -> list[np.ndarray]:
     """Per pass, the TCP speed the joint program reaches at each plan sample [m/s] ((M,) each;
-    `pass_speeds` of pass i at pass_index i)."""
+    `pass_speeds` of pass i at pass_index i: as the caps see it, ÷ the commanded flow)."""
     return part_speeds([plan], one_robot_jobs(plan), [traj])[0]
 
 

@@ -393,8 +393,10 @@ def rapid_module(traj: JointTrajectory, robot: Any, module_name: str = "paintcel
     if levels:
         L.append("  ! Brush table: the flow follows the validated time law where it is slower "
                  "than planned (paintcell.motion.flow); entry n is "
-                 f"1 - {FLOW_STEP:g} (n - 1) x the part's flow; used: "
-                 + ", ".join(f"{n} ({brush_flow_of(n):.2f})" for n in [1, *levels]) + ".")
+                 f"1 - {FLOW_STEP:g} (n - 1) x the part's flow. Used:")
+        used = [f"{n} ({brush_flow_of(n):.2f})" for n in [1, *levels]]
+        L.extend("  ! " + comment_text(", ".join(used[k:k + 10]))
+                 for k in range(0, len(used), 10))
     if style == "trigg":
         L.append("  VAR triggdata tBrushOn;")
         L.append("  VAR triggdata tBrushOff;")
