@@ -541,18 +541,19 @@ def test_programs_are_chosen_again_with_the_rail_the_tracking_needs():
     rail less the conveyor tracking's travel over the *estimated* cycle — none for a fixed
     allocation — and when tracking the real cycle drives a carriage off its rail, the programs
     are planned again on the rail shrunk by the real cycle's travel. Forced for real: roof_r's
-    rail ends at −0.3 m, just past where one of its passes sits best (−0.33 m on its ±1.2 m rail;
-    the line would carry it to −0.39 m); without the retry this raises ConveyorError.
+    rail starts at +0.25 m, just short of where its third pass sits best (+0.28 m on its ±1.2 m
+    rail; the line, at 15 mm/s, carries it toward the rail's start); without the retry this
+    raises ConveyorError.
     Checked: a margin was used (the first plan had none), every paint sample of roof_r's own
     program stays that margin inside its rail, every pose is reachable, and the tracked programs
     re-measured stay inside every joint's limits, the rail's included."""
     from paintcell.booth.booth_programs import booth_programs
 
-    lo, hi = -0.3, 2.0
+    lo, hi = 0.25, 2.0
     roof_r = BoothRobot("roof_r", "irb5500_rail", Placement((0.0, -2.2, 2.6), (0, 0, math.pi / 2)),
                         (0.5 * (lo + hi),) + HOME[1:], rail_m=(lo, hi))
     booth = dataclasses.replace(ROOF_BOOTH, robots=(ROOF_BOOTH.robots[0], roof_r),
-                                conveyor=Conveyor(speed_m_s=0.03),
+                                conveyor=Conveyor(speed_m_s=0.015),
                                 allocation={"roof_r": (0, 0, 3), "roof_l": (0, 3, 5)})
     progs = booth_programs(booth, fast=True)
     margin = progs.record["rail_tracking_margin_m"]

@@ -73,8 +73,14 @@ def robot():
     return load_robot("abb_paint")
 
 
-def _build(robot, plan: CoveragePlan, **kw) -> JointTrajectory:
-    ik = [_ik(robot, plan.tcp_frames(i), robot.q_home) for i in range(len(plan.passes))]
+def _build(robot, plan: CoveragePlan, keep_roll: bool = True, **kw) -> JointTrajectory:
+    """The plan's program from the test-local IK, each pass seeded with the end of the one
+    before; keep_roll=False: IK of x = travel frames, each pass from home (the bell half-turns
+    at every turn-around: a program whose turn-arounds reconfigure the wrist)."""
+    ik, seed = [], robot.q_home
+    for i in range(len(plan.passes)):
+        ik.append(_ik(robot, plan.tcp_frames(i, keep_roll=keep_roll), seed))
+        seed = ik[-1][-1] if keep_roll else robot.q_home
     return build_program(robot, plan, np.eye(4), TrajectorySettings(**kw), ik_results=ik)
 
 
@@ -271,7 +277,9 @@ def test_wrong_ik_results_raise(robot, plan) -> None:
 
 
 def test_turnaround_via_clearance(robot, plan) -> None:
-    tr = _build(robot, plan, turnaround_clearance_m=0.1, turnaround_max_dip_m=0.0)
+    # the wrist half-turns at each turn-around: a direct move dips below the passes
+    tr = _build(robot, plan, keep_roll=False, turnaround_clearance_m=0.1,
+                turnaround_max_dip_m=0.0)
     assert all(x["mode"] == "backed-off" for x in tr.meta["turnarounds"])
     assert tr.meta["turnaround_max_dip_m"] < 1e-3
     v, a, _ = _limits(tr)
@@ -398,8 +406,9 @@ def test_moving_vias_are_faster_and_keep_their_clearance(robot, plan) -> None:
     """Approach and retract pass their backed-off via moving, turn-arounds pick the fastest
     midpoint via within the dip limit; re-measured on the 1 kHz samples (FK), against the same
     program with stops at the vias."""
-    at_rest = _build(robot, plan, moving_vias=False, turnaround_max_dip_m=0.01)
-    tr = _build(robot, plan, turnaround_max_dip_m=0.01)
+    # the wrist half-turns at each turn-around: a direct move dips below the passes
+    at_rest = _build(robot, plan, keep_roll=False, moving_vias=False, turnaround_max_dip_m=0.01)
+    tr = _build(robot, plan, keep_roll=False, turnaround_max_dip_m=0.01)
     for kind, end in ((APPROACH, 0), (RETRACT, -1)):
         sel = np.flatnonzero(tr.segment == kind)
         assert len(sel) < np.sum(at_rest.segment == kind)           # shorter than stopping
@@ -415,7 +424,7 @@ def test_moving_vias_are_faster_and_keep_their_clearance(robot, plan) -> None:
     assert tr.duration_s < at_rest.duration_s
     # at the default settings (turnaround_max_dip_m = 50 mm) too: a moving via never brings the
     # TCP nearer the part than the stop at it does (0 here: never nearer than the pass end)
-    default = _build(robot, plan)
+    default = _build(robot, plan, keep_roll=False)
     for kind, end in ((APPROACH, 0), (RETRACT, -1)):
         T_pass = plan.tcp_frames(0 if kind == APPROACH else N_PASSES - 1)[end]
         rest_dip, dip = (np.max((t.tcp_pos_world[t.segment == kind] - T_pass[:3, 3])
@@ -431,6 +440,6 @@ def test_moving_vias_are_faster_and_keep_their_clearance(robot, plan) -> None:
         deeper = max(0.0, float((b[:3, 3] - a[:3, 3]) @ z))
         assert np.max((tr.tcp_pos_world[k0:k1] - a[:3, 3]) @ z) - deeper <= 0.01 + 1e-6
     # stopping behind both pass ends (the only kind within a zero dip) is slower
-    stop = _build(robot, plan, turnaround_max_dip_m=0.0)
+    stop = _build(robot, plan, keep_roll=False, turnaround_max_dip_m=0.0)
     assert sum(t["duration_s"] for t in tr.meta["turnarounds"]) < \
         sum(t["duration_s"] for t in stop.meta["turnarounds"])

@@ -386,8 +386,17 @@ def estimate_s(pass_durations: np.ndarray) -> float:
 def pass_feasible(robot: Any, T_world_tcp: np.ndarray) -> bool:
     """Whether one pass is feasible for the robot in closed form on every pose: some branch
     inside the limits, off the wrist singularity, without a joint jump (a rail robot: at some
-    carriage position at most RAIL_STEP_M from the next tried). A subsample of the pass screens
-    (`paintcell.robots.rail.search_poses`); what it passes is confirmed on the whole pass."""
+    carriage position at most RAIL_STEP_M from the next tried), as planned or with the bell
+    half-turned about its axis (`paintcell.robots.paths`: the same film). A subsample of the
+    pass screens (`paintcell.robots.rail.search_poses`); what it passes is confirmed on the
+    whole pass."""
+    from paintcell.core.transforms import half_turned
+
+    return _held(robot, T_world_tcp) or _held(robot, half_turned(T_world_tcp))
+
+
+def _held(robot: Any, T_world_tcp: np.ndarray) -> bool:
+    """`pass_feasible` for the pass's frames as given."""
     from paintcell.robots.ik import IKSettings, branch_feasibility, opw_branches
     from paintcell.robots.rail import feasible_positions, search_poses
 

@@ -138,3 +138,12 @@ def inverse_pose(T: npt.ArrayLike) -> np.ndarray:
     out[..., :3, 3] = -(Rt @ A[..., :3, 3, None])[..., 0]
     out[..., 3, 3] = 1.0
     return out
+
+
+def half_turned(T: npt.ArrayLike) -> np.ndarray:
+    """Poses (..., 4, 4) turned half a turn about their own z axis (x → −x, y → −y): the same
+    position and z axis. A bell's spray pattern is even in x and y, so a pass whose TCP frames
+    are half-turned lays the same film (`paintcell.paint.deposition`)."""
+    out = np.array(T, float, copy=True)
+    out[..., :3, :2] *= -1.0
+    return out

@@ -211,10 +211,27 @@ class CoveragePlan:
             dwell_s=np.concatenate([x[3] for x in parts]),
         )
 
-    def tcp_frames(self, pass_index: int) -> np.ndarray:
-        """(M, 4, 4) TCP poses `T_part_tcp` of one pass: x = travel, z = spray axis."""
+    def tcp_frames(self, pass_index: int, keep_roll: bool = True) -> np.ndarray:
+        """(M, 4, 4) TCP poses `T_part_tcp` of one pass: z = spray axis, x = ± travel with the
+        sign of `roll_signs` (the bell keeps its roll from one pass to the next); keep_roll=False:
+        x = travel (what a free-spin IK starts each pass from,
+        `paintcell.motion.trajectory.TrajectorySettings.ik_free_spin`)."""
         p = self.passes[pass_index]
-        return tcp_frames(p.positions, p.spray_axes, p.travel_dirs)
+        sign = self.roll_signs()[pass_index] if keep_roll else 1.0
+        return tcp_frames(p.positions, p.spray_axes, sign * p.travel_dirs)
+
+    def roll_signs(self) -> np.ndarray:
+        """(P,) ±1 per pass: the TCP x axis is sign × travel. The spray pattern is even in x and
+        y (`paintcell.paint.deposition`), so a bell turned half a turn about its axis lays the
+        same film; what the sign spares is the wrist's half turn at every turn-around of a
+        back-and-forth family (x = travel flips with the travel). The first pass keeps x =
+        travel; each later pass takes the sign that points its first x the way the previous
+        pass's last x points."""
+        signs = np.ones(len(self.passes))
+        for i in range(1, len(self.passes)):
+            prev = signs[i - 1] * self.passes[i - 1].travel_dirs[-1]
+            signs[i] = -1.0 if float(prev @ self.passes[i].travel_dirs[0]) < 0 else 1.0
+        return signs
 
     # --- persistence -----------------------------------------------------------------------
     def _arrays(self) -> dict[str, np.ndarray]:

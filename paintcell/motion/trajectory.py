@@ -161,7 +161,8 @@ class TrajectorySettings:
     join_at_speed: bool = True
     """Passes start and end at the planned TCP speed (False: at rest)."""
     ik_free_spin: bool = False
-    """Let IK rotate the tool about its spray axis (bell atomizers are symmetric)."""
+    """Let IK rotate the tool about its spray axis (bell atomizers are symmetric); each pass
+    starts from x = travel (`paintcell.coverage.plan.CoveragePlan.tcp_frames`, keep_roll)."""
     flow_min: float = 0.7
     """Lowest bell flow the program may command on a pass, a fraction of its part's flow [-]:
     where the time law is slower than the plan the flow drops with it (a brush table,
@@ -706,7 +707,8 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
     # --- 1. IK (then joint paths in `_build`) ----------------------------------------------
     # Nothing reachable, or a failure while poses are unreachable, is an `UnreachableError` that
     # carries the IK verdict; a partly unreachable plan that can be timed is (with warnings).
-    T_world_tcp = [T_wp @ plan.tcp_frames(i) for i in range(len(plan.passes))]
+    T_world_tcp = [T_wp @ plan.tcp_frames(i, keep_roll=not settings.ik_free_spin)
+                   for i in range(len(plan.passes))]
     t0 = time.perf_counter()
     q_paths, reachability = ik_paths(robot, T_world_tcp, q_home, settings, ik_results)
     timing["ik"] = time.perf_counter() - t0

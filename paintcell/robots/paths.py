@@ -1,5 +1,12 @@
 """IK of a whole program: every pass in order, each seeded with the end of the one before; a robot
-on a rail gets its rail position per pass from `paintcell.robots.rail`."""
+on a rail gets its rail position per pass from `paintcell.robots.rail`.
+
+The plan keeps the bell's roll about its axis from one pass to the next
+(`paintcell.coverage.plan.CoveragePlan.roll_signs`), so the wrist does not turn at the
+turn-arounds; a pass the arm cannot hold that way (a pose out of reach, a joint jump) is solved
+half-turned about the spray axis (`paintcell.core.transforms.half_turned`, the same film), and
+that solution is kept where it holds the whole pass. The returned results hold the joint paths;
+their FK, not the plan's frames, is what the program runs."""
 
 from __future__ import annotations
 
@@ -7,6 +14,7 @@ from collections.abc import Sequence
 
 import numpy.typing as npt
 
+from paintcell.core.transforms import half_turned
 from paintcell.robots.ik import IKPathResult, IKSettings, solve_path
 from paintcell.robots.rail import solve_rail_paths
 from paintcell.robots.robot import Robot
@@ -31,6 +39,16 @@ def solve_paths(robot: Robot, paths: Sequence[npt.ArrayLike], q_seed: npt.ArrayL
     seed = q_seed
     for T in paths:
         res = solve_path(robot, T, q_seed=seed, free_spin=free_spin, settings=settings)
+        whole = (len(res.q), 0)
+        if not free_spin and _score(res) < whole:
+            alt = solve_path(robot, half_turned(T), q_seed=seed, settings=settings)
+            if _score(alt) == whole:
+                res = alt       # the whole pass held half-turned
         results.append(res)
         seed = res.q[-1]
     return results
+
+
+def _score(res: IKPathResult) -> tuple[int, int]:
+    """How well an IK result holds its pass: (reachable poses, − joint jumps)."""
+    return res.reachability.n_reachable, -res.reachability.n_jumps

@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import minimize_scalar
 
+from paintcell.core.transforms import half_turned
 from paintcell.robots.arms import load_arm
 from paintcell.robots.errors import RobotError
 from paintcell.robots.robot import Robot, write_generated_mjcf
@@ -406,7 +407,12 @@ def solve_rail_paths(robot: Robot, paths: Sequence[npt.ArrayLike],
     out = []
     for T in paths:
         T = np.asarray(T, float)
-        s_m, _ = best_rail_position(robot, T, pref, s, penalty=penalty)
+        s_m, ok = best_rail_position(robot, T, pref, s, penalty=penalty)
+        if not ok and not free_spin:    # the bell half-turned: the same film (paths module doc)
+            T_half = half_turned(T)
+            s_half, ok = best_rail_position(robot, T_half, pref, s, penalty=penalty)
+            if ok:
+                T, s_m = T_half, s_half
         res = solve_path(ax.arm_at(s_m), T, q_seed=seed, free_spin=free_spin, settings=s)
         q = np.column_stack([np.full(len(T), s_m), res.q])
         report = ReachabilityReport.measure(robot, q, T, free_spin=free_spin,
