@@ -314,14 +314,12 @@ def test_parts_refined_together_beat_each_part_refined_alone():
     passes' re-measured ones; every speed stays within the planner's bounds and the cap. With
     the durations held (`PASS_TIME_WEIGHT`) every pass keeps its duration within 0.5 % and the
     film still gains."""
-    from paintcell.booth.booth_build import scaled_applicator
     from paintcell.booth.booth_seams import blend_part_seams, pass_in_body, seam_band
     from paintcell.coverage.film_refine import PASS_TIME_WEIGHT, refine_parts, refine_together
     from paintcell.coverage.plan import times_from_speeds
 
     body, plans, Ts, counts = _panels(0.02)
-    plans = [plans[0], dataclasses.replace(plans[1], applicator=scaled_applicator(
-        plans[1].applicator, 1.3))]
+    plans = [plans[0], dataclasses.replace(plans[1], applicator=plans[1].applicator.scaled(1.3))]
     plans, _ = blend_part_seams(body, plans, Ts, counts, ["a", "b"])
     moved = [dataclasses.replace(p, passes=tuple(pass_in_body(q, T) for q in p.passes))
              for p, T in zip(plans, Ts, strict=True)]

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from paintcell.booth.booth import BoothError, Job, estimate_s, rank_allocations
-from paintcell.booth.booth_build import scaled_applicator
 from paintcell.booth.booth_chain import chain_programs, job_windows
 from paintcell.booth.booth_film import gun_in_body, job_paint
 from paintcell.booth.booth_hold import delayed
@@ -186,7 +185,7 @@ def test_two_jobs_chain_and_film_superposition():
     w = job_windows(booth_clock, 2)
     assert not (w[0] & w[1]).any() and (w[0] | w[1]).all()
     app = Applicator.default()
-    apps = [app, scaled_applicator(app, 1.7)]
+    apps = [app, app.scaled(1.7)]
     pts = np.array([[x, y, 0.0] for x in np.linspace(0.3, 1.6, 14)
                     for y in np.linspace(-0.8, 0.8, 14)])
     nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))

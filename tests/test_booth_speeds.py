@@ -6,6 +6,7 @@ again by where they are in space — through a part run backwards and a robot wi
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from paintcell.booth.booth import Job
 from paintcell.booth.booth_build import reversed_plan
@@ -70,3 +71,94 @@ def test_a_slowdown_in_a_reversed_part_is_capped_where_it_happened() -> None:
     caps, n_new, _ = caps_from_speeds(plan0, planner_order(v_free[0], True),
                                       planner_order(asked, True))
     assert caps == {} and n_new == 0
+
+
+def _caps_at(plan, ratio_of_pass: dict[int, float]) -> dict[int, np.ndarray]:
+    """Caps {side: generation direction} at ratio × the asked speed on whole passes."""
+    caps = {}
+    for i, r in ratio_of_pass.items():
+        p = plan.passes[i]
+        c = r * np.asarray(p.speeds_m_s, float)
+        caps[p.side] = c[::-1] if i % 2 == 1 else c
+    return caps
+
+
+def test_part_pace_is_the_slowdown_the_flow_cannot_make_up() -> None:
+    """`part_pace` by hand: r = cap ÷ asked per sample (the caps of the first round are the
+    speeds the film sees, the flow's floor already counted); k = the 5 % quantile of r, clipped
+    to [0.5, 1], 1 above 0.9."""
+    from paintcell.motion.speed_feedback import PACE_MIN, part_pace
+
+    plan = plan_coverage(parts.panel(0.04), APP, ST)
+    n_samples = sum(len(p.speeds_m_s) for p in plan.passes)
+    # every sample reached at 80 % of the asked speed: k = 0.8
+    every = _caps_at(plan, {i: 0.8 for i in range(len(plan.passes))})
+    assert part_pace(plan, every) == pytest.approx(0.8, rel=1e-12)
+    # one pass of several at 20 %: more than 5 % of the samples, k = 0.2 → the floor
+    one = _caps_at(plan, {1: 0.2})
+    assert len(plan.passes[1].speeds_m_s) > 0.05 * n_samples
+    assert part_pace(plan, one) == PACE_MIN
+    # a slowdown the pace would hardly shorten (r ≥ 0.9): the planned speeds
+    assert part_pace(plan, _caps_at(plan, {1: 0.92})) == 1.0
+    # a few samples, under 5 % of the part, deeply slowed: not worth a slower part
+    p = plan.passes[0]
+    few = np.full(len(p.speeds_m_s), np.inf)
+    few[:2] = 0.1 * p.speeds_m_s[:2]
+    assert 2 < 0.05 * n_samples
+    assert part_pace(plan, {p.side: few}) == 1.0
+    # no caps at all
+    assert part_pace(plan, {}) == 1.0
+
+
+def test_a_paced_plan_is_the_same_film_slower() -> None:
+    """`paced`: the same passes (positions) at k × the speeds, so k × the paint per metre: the
+    film on the part is 1 / k thicker everywhere and its σ/μ the same (the speed QP's problem
+    scales with its bounds); measured on the panel's own vertices by the deposition model."""
+    from paintcell.motion.speed_feedback import paced
+    from paintcell.paint.deposition import thickness
+
+    surf = parts.panel(0.04)
+    k = 0.6
+    a, b = plan_coverage(surf, APP, ST), plan_coverage(surf, APP, paced(ST, k))
+    assert len(a.passes) == len(b.passes)
+    for pa, pb in zip(a.passes, b.passes, strict=True):
+        np.testing.assert_allclose(pb.positions, pa.positions, atol=1e-9)
+        np.testing.assert_allclose(pb.speeds_m_s, k * pa.speeds_m_s, rtol=2e-3)
+    fa = thickness(APP, a.gun_samples(), surf.vertices, surf.normals)
+    fb = thickness(APP, b.gun_samples(), surf.vertices, surf.normals)
+    np.testing.assert_allclose(fb, fa / k, rtol=5e-3, atol=1e-3 * fa.max())
+    # planned with the bell's flow turned down by the pace: the unpaced plan's film
+    c = plan_coverage(surf, APP.scaled(k), paced(ST, k))
+    fc = thickness(c.applicator, c.gun_samples(), surf.vertices, surf.normals)
+    np.testing.assert_allclose(fc, fa, rtol=5e-3, atol=1e-3 * fa.max())
+    assert paced(ST, 1.0) is ST
+
+
+def test_a_scaled_bell_is_the_same_pattern_at_another_flow() -> None:
+    """`Applicator.scaled`: f × factor at every point of the plane, and the closed-form emitted
+    flow (∫∫ f dx dy) × factor; the footprint unchanged."""
+    k = 0.58
+    b = APP.scaled(k)
+    x, y = np.meshgrid(np.linspace(-0.4, 0.4, 41), np.linspace(-0.4, 0.4, 41))
+    np.testing.assert_allclose(b.flux(x, y), k * APP.flux(x, y), rtol=1e-12, atol=0.0)
+    assert b.emitted_flow_m3_s == pytest.approx(k * APP.emitted_flow_m3_s, rel=1e-12)
+    assert b.footprint_radius_m == pytest.approx(APP.footprint_radius_m, rel=1e-9)
+
+
+def test_a_paced_part_is_refined_within_its_own_bounds() -> None:
+    """`planned_speeds`: the part table's bounds scaled by the pace the plan records (its nominal
+    speed over the table's), the table's own where the plan was planned at it."""
+    import dataclasses
+
+    from paintcell.booth.booth_plans import planned_speeds
+    from paintcell.motion.speed_feedback import paced
+
+    plan = plan_coverage(parts.panel(0.04), APP, paced(ST, 0.6))
+    got = planned_speeds(ST, plan)
+    assert (got.v_nominal_m_s, got.v_min_m_s, got.v_max_m_s) == pytest.approx(
+        (0.6 * ST.v_nominal_m_s, 0.6 * ST.v_min_m_s, 0.6 * ST.v_max_m_s), rel=1e-12)
+    own = plan_coverage(parts.panel(0.04), APP, ST)
+    assert planned_speeds(ST, own) is ST
+    # a part table with a lower v_max than its plan's (the plan made elsewhere): the table's
+    table = dataclasses.replace(ST, v_max_m_s=0.55)
+    assert planned_speeds(table, own) is table

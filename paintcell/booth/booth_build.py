@@ -29,7 +29,6 @@ import numpy as np
 
 from paintcell.booth.booth import BoothError
 from paintcell.coverage.plan import CoveragePlan
-from paintcell.paint.applicator import Applicator
 from paintcell.paint.deposition import thickness
 from paintcell.paint.metrics import uniformity
 from paintcell.surface.surface_data import Surface
@@ -37,13 +36,6 @@ from paintcell.surface.surface_data import Surface
 #: flow factors outside this range are refused (a bell's flow range is about 1:5 either way of
 #: its nominal; outside it the atomization and so the spray pattern change).
 FLOW_FACTOR_RANGE = (0.2, 5.0)
-
-
-def scaled_applicator(app: Applicator, factor: float) -> Applicator:
-    """`app` with its flow (every film-thickness rate [m/s]) multiplied by `factor` (> 0)."""
-    return dataclasses.replace(app, a0_m_s=app.a0_m_s * factor,
-                               ring_amplitudes_m_s=np.asarray(app.ring_amplitudes_m_s) * factor,
-                               name=f"{app.name} ×{factor:.3f} flow")
 
 
 def planned_mean_m(plan: CoveragePlan, surface: Surface) -> tuple[float, float]:
@@ -75,7 +67,7 @@ def common_film_build(surfaces: list[Surface], plans: list[CoveragePlan], names:
             raise BoothError(f"part {name!r} plans {1e6 * mean:.1f} µm; reaching "
                              f"{1e6 * target:.1f} µm needs {k:.2f}× the bell flow, outside "
                              f"{lo}–{hi}×; set film_target_um nearer the parts' planned films")
-        out.append(dataclasses.replace(plan, applicator=scaled_applicator(plan.applicator, k)))
+        out.append(dataclasses.replace(plan, applicator=plan.applicator.scaled(k)))
         rec[name] = {"planned_mean_um": 1e6 * float(mean), "flow_factor": float(k)}
     return out, {"target_um": 1e6 * target,
                  "rule": ("film_target_um of the booth" if target_um is not None else

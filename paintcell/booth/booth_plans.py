@@ -132,7 +132,8 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
         on = [i for i, kw in enumerate(kws) if kw.get("film_refine") is not False]
         refined, refine = refine_parts(
             [pp.surfaces[i] for i in on], [plans[i] for i in on],
-            [settings_from(PlannerSettings, kws[i], "planner") for i in on],
+            [planned_speeds(settings_from(PlannerSettings, kws[i], "planner"), plans[i])
+             for i in on],
             [names[i] for i in on], None if caps is None else [caps[i] for i in on])
         plans = [refined[on.index(i)] if i in on else pl for i, pl in enumerate(plans)]
         refine["parts"].update({names[i]: {"applied": False,
@@ -160,6 +161,17 @@ def finish_plans(booth: Booth, pp: PartPlans, plans: list[CoveragePlan],
             seams["samples_off_after_refinement"] = dict(zip(
                 names, samples_off(plans, unblended), strict=True))
     return FinishedPlans(plans, body, refine, build, seams)
+
+
+def planned_speeds(st: Any, plan: CoveragePlan) -> Any:
+    """The part's planner settings `st` at the pace `plan` was planned at: a part planned again
+    slower (`paintcell.motion.speed_feedback.paced`, its nominal speed recorded in the plan's
+    settings below st's) is refined within its own, paced speed bounds."""
+    from paintcell.motion.speed_feedback import paced
+
+    v = plan.settings.get("v_nominal_m_s")
+    pace = 1.0 if v is None else float(v) / st.v_nominal_m_s
+    return paced(st, pace) if pace < 1.0 - 1e-9 else st
 
 
 def samples_off(plans: list[CoveragePlan], unblended: list[CoveragePlan]) -> list[int]:
@@ -204,8 +216,9 @@ def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Su
         [np.asarray(u.paint_on, bool) & ~np.asarray(p.paint_on, bool)
          for p, u in zip(pl.passes, ub.passes, strict=True)]
         for pl, ub in zip(plans, unblended, strict=True)]
-    out, rec = refine_together(seen, moved, [settings_from(PlannerSettings, kw, "planner")
-                                             for kw in kws], interior, caps,
+    out, rec = refine_together(seen, moved,
+                               [planned_speeds(settings_from(PlannerSettings, kw, "planner"), pl)
+                                for kw, pl in zip(kws, plans, strict=True)], interior, caps,
                                restorable=restorable)
     # only the timing and the paint switches changed: the part-frame passes take them
     return [replace(pl, passes=tuple(replace(p, speeds_m_s=q.speeds_m_s, times_s=q.times_s,

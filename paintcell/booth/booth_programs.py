@@ -125,7 +125,7 @@ def booth_programs(booth: Booth, fast: bool, part_plans: PartPlans | None = None
             fin, built, speeds = robot_aware_parts(
                 [bp.part for bp in booth.parts], [bp.reverse for bp in booth.parts], pp, fin,
                 built, lambda pls, caps: finish_plans(booth, pp, pls, caps), rebuild,
-                pool=tasks)
+                pool=tasks, max_cycle_s=booth.thresholds.max_cycle_time_s)
             built.tried = tried0
         jobs, static, trajs0, tried = built.jobs, built.static, built.trajs, built.tried
         K = max(len(tr.t_s) for tr in trajs0)

@@ -114,13 +114,15 @@ def lag_caps(p: Any, traj: Any, index: int, lag_rel: float = LAG_REL,
 
 def part_speeds(plans: Sequence[CoveragePlan], jobs: dict[int, tuple[Any, ...]],
                 programs: Sequence[Any], lags: bool = False, margin: float = CAP_MARGIN,
-                trust_floor: bool = False) -> list[list[np.ndarray]]:
+                trust_floor: bool | Sequence[bool] = False) -> list[list[np.ndarray]]:
     """Per part, per pass of its plan, the TCP speed its robot reaches at each sample [m/s]
     (`pass_speeds`; jobs: {robot: its jobs, passes [first, end) of plan `part`, run on in its
     program from `meta["job_first_pass_index"]`, default 0}); the plan's own speeds for a pass
     no robot runs. lags: instead, the caps between samples (`lag_caps`; inf where none) [m/s].
     trust_floor: the speeds as the film sees them also where the flow is at its lowest level
-    (`paintcell.motion.flow.cap_speed`)."""
+    (`paintcell.motion.flow.cap_speed`); one flag, or one per part."""
+    trust = [bool(trust_floor)] * len(plans) if isinstance(trust_floor, bool) \
+        else [bool(t) for t in trust_floor]
     out = [[np.full(len(p.speeds_m_s), np.inf) if lags else np.asarray(p.speeds_m_s, float)
             for p in pl.passes] for pl in plans]
     for r, js in jobs.items():
@@ -130,8 +132,9 @@ def part_speeds(plans: Sequence[CoveragePlan], jobs: dict[int, tuple[Any, ...]],
             for m in range(job.end - job.first):
                 p = plans[job.part].passes[job.first + m]
                 out[job.part][job.first + m] = (
-                    lag_caps(p, traj, firsts[k] + m, margin=margin, trust_floor=trust_floor)
-                    if lags else pass_speeds(p, traj, firsts[k] + m, trust_floor))
+                    lag_caps(p, traj, firsts[k] + m, margin=margin,
+                             trust_floor=trust[job.part])
+                    if lags else pass_speeds(p, traj, firsts[k] + m, trust[job.part]))
     return out
 
 
@@ -165,7 +168,7 @@ def parts_caps(plans0: Sequence[CoveragePlan], finished: Sequence[CoveragePlan],
                reverse: Sequence[bool], jobs: dict[int, tuple[Any, ...]],
                programs: Sequence[Any], previous: Sequence[dict[int, np.ndarray]],
                slow_rel: float = SLOW_REL, margin: float = CAP_MARGIN,
-               trust_floor: bool = False
+               trust_floor: bool | Sequence[bool] = False
                ) -> tuple[list[dict[int, np.ndarray]], list[int], float]:
     """Per part, the caps of `caps_from_speeds` on its planner's plan `plans0[i]` from what the
     robots reached on its finished plan `finished[i]` (the one they ran: passes reversed where

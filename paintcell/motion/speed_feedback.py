@@ -17,7 +17,13 @@ than the first by more than `MAX_CYCLE_GROWTH` ends the loop with the previous r
 
 One robot also feeds back the bell's spin about its axis (`tool_axes`). In a cell of N robots
 each capped part is planned again, the cell's `finish` makes the plans the robots run from them
-and `rebuild` builds the same allocation's programs again.
+and `rebuild` builds the same allocation's programs again. A part whose robots reach only a
+fraction of its speeds, more than the brush table's lowest flow makes up for (an arm reaching
+round a fascia's corner), is planned again at that pace (`part_pace`, `paced`): all its speeds
+slower by one factor, the same passes and uniformity, and the cell's common film build turns
+its flow down by the same factor; the caps then bind on a plan the arm can nearly follow,
+instead of thickening the film where they bind. A round is kept while the cell's cycle stays
+within its limit (the scenario's `max_cycle_time_s`) or grows by at most `MAX_CYCLE_GROWTH`.
 """
 
 from __future__ import annotations
@@ -44,6 +50,12 @@ SPIN_TOL_DEG = 1.0
 MAX_CYCLE_GROWTH = 0.05
 #: Re-plans at most of a cell of N robots.
 CELL_ROUNDS = 2
+#: A part's pace (`part_pace`): the share of its samples whose slowdown may stay deeper than
+#: the brush table's lowest flow makes up for [-], the slowest pace [-] (the flow turned down
+#: to half, a bell's range), and the pace above which the part keeps its planned speeds [-].
+PACE_QUANTILE = 0.05
+PACE_MIN = 0.5
+PACE_KEEP = 0.9
 
 
 @dataclass
@@ -163,6 +175,32 @@ class CellPrograms:
         return (max(len(tr.t_s) for tr in self.trajs) - 1) * self.trajs[0].dt_s
 
 
+def part_pace(plan: CoveragePlan, caps: dict[int, np.ndarray]) -> float:
+    """The factor [-] on a part's planned speeds that lets its robots' slowdowns be made up by
+    the brush table (`paintcell.motion.flow`). caps: the part's first caps {pass side: (M,)
+    [m/s]} (`parts_caps` trusting the lowest flow: the speed the film sees, the TCP's over the
+    flow), so r = cap ÷ asked < 1 only where the flow already sits at its floor and still falls
+    short; a plan paced by k asks k × the speed there, and the flow makes up the rest while
+    r ≥ k. k is the PACE_QUANTILE-th quantile of r over the part's samples (1 where uncapped), in
+    [PACE_MIN, 1]; 1 when that is above PACE_KEEP (the caps alone cost less time than a slower
+    part)."""
+    r = [np.ones(len(p.speeds_m_s)) if c is None else
+         np.minimum(1.0, c / np.asarray(p.speeds_m_s, float))
+         for p, c in zip(plan.passes, stored_caps(plan, caps, False), strict=True)]
+    k = float(np.quantile(np.concatenate(r), PACE_QUANTILE))
+    return 1.0 if k > PACE_KEEP else max(PACE_MIN, k)
+
+
+def paced(st: PlannerSettings, pace: float) -> PlannerSettings:
+    """Planner settings whose pass speeds (nominal, lowest, highest) are `pace` × st's: the same
+    passes at the same film uniformity, a film 1 / pace thicker at the same flow; planned with
+    the bell's flow scaled by pace too (`Applicator.scaled`), the same film."""
+    if pace == 1.0:
+        return st
+    return replace(st, v_nominal_m_s=pace * st.v_nominal_m_s, v_min_m_s=pace * st.v_min_m_s,
+                   v_max_m_s=pace * st.v_max_m_s)
+
+
 def replan_capped(skin: Surface, app: Applicator, st: PlannerSettings,
                   caps_m_s: dict[int, np.ndarray]) -> CoveragePlan | PaintcellError:
     """A part's plan again with per-sample speed caps {pass side: (M,) [m/s]} (`plan_coverage`),
@@ -177,7 +215,8 @@ def robot_aware_parts(names: Sequence[str], reverse: Sequence[bool], planned: An
                       finished: Any, built: CellPrograms,
                       finish: Callable[[list[CoveragePlan], list[Any]], Any],
                       rebuild: Callable[[list[CoveragePlan]], CellPrograms],
-                      rounds: int = CELL_ROUNDS, pool: Any = None
+                      rounds: int = CELL_ROUNDS, pool: Any = None,
+                      max_cycle_s: float | None = None
                       ) -> tuple[Any, CellPrograms, dict[str, Any]]:
     """The plans and programs of a cell of N robots after the robot-aware rounds (module doc) and
     a record {rule, rounds: [{capped_samples, max_deficit_pct, cycle_s, replanned}], cycle_s (the
@@ -188,30 +227,51 @@ def robot_aware_parts(names: Sequence[str], reverse: Sequence[bool], planned: An
     plans the robots run (`.plans`), made by finish(planner plans, each part's caps per pass of
     its finished plan); built: the programs of the chosen allocation, built again by
     rebuild(finished plans). pool: a `paintcell.booth.booth_tasks.TaskPool` that plans a round's
-    capped parts side by side (None: one after the other here; the same plans)."""
+    capped parts side by side (None: one after the other here; the same plans). max_cycle_s:
+    the cell's cycle limit [s]: a round is kept while the cycle stays within it or grows by at
+    most MAX_CYCLE_GROWTH (None: the growth only).
+
+    The first round also sets each part's pace (`part_pace`): a part whose robots reach only a
+    fraction of its speeds, deeper than the brush table makes up for, is planned again at
+    that pace (`paced`), its caps kept."""
     plans0 = list(planned.plans)
     caps: list[dict[int, np.ndarray]] = [{} for _ in plans0]
+    pace = [1.0] * len(plans0)
     cycle0 = built.cycle_s
+    limit = max((1.0 + MAX_CYCLE_GROWTH) * cycle0, max_cycle_s or 0.0)
     rec: dict[str, Any] = {"rule": f"caps where a robot ran > 0.5 % slower than asked (at or "
-                                   f"between samples), re-planned at most {rounds}×, kept if "
-                                   f"the cycle grows ≤ "
-                                   f"{MAX_CYCLE_GROWTH:.0%}", "rounds": []}
+                                   f"between samples), re-planned at most {rounds}×, a part "
+                                   f"whose robots reach only a fraction of its speeds planned "
+                                   f"again at that pace, kept if the cycle stays within "
+                                   f"{limit:.2f} s", "rounds": []}
+    fresh = [True] * len(plans0)       # a part's first caps on its plan at its pace
     for k in range(rounds + 1):
-        # the first caps trust the brush table's lowest flow (`paintcell.motion.flow`)
+        # a part's first caps trust the brush table's lowest flow (`paintcell.motion.flow`)
         new_caps, counts, worst = parts_caps(plans0, finished.plans, reverse, built.jobs,
-                                             built.static, caps, trust_floor=k == 0)
+                                             built.static, caps, trust_floor=fresh)
         rnd: dict[str, Any] = {"capped_samples": int(sum(counts)), "max_deficit_pct": worst,
                                "cycle_s": built.cycle_s}
         rec["rounds"].append(rnd)
         if not any(counts) or len(rec["rounds"]) > rounds:
             break
+        fresh = [False] * len(plans0)
+        if k == 0:
+            pace = [part_pace(plans0[i], new_caps[i]) for i in range(len(plans0))]
+            rnd["paced"] = {names[i]: round(x, 3) for i, x in enumerate(pace) if x < 1.0}
+            # a paced part is planned again at its pace, under the caps, its flow turned down
+            # by the pace (the same film); what its robots reach on that plan is measured
+            # in the next round as on a first plan (trusting the lowest flow)
+            for i, x in enumerate(pace):
+                if x < 1.0:
+                    counts[i], fresh[i] = max(counts[i], 1), True
         trial = list(plans0)
         rnd["replanned"] = []
         capped = [i for i, n in enumerate(counts) if n]
         args = []
         for i in capped:
-            st = planned.settings[i]
-            args.append((planned.skins[i], planned.applicator, st,
+            st = paced(planned.settings[i], pace[i])
+            app = planned.applicator if pace[i] == 1.0 else planned.applicator.scaled(pace[i])
+            args.append((planned.skins[i], app, st,
                          {k: np.where(np.isfinite(v), v, st.v_max_m_s)
                           for k, v in new_caps[i].items()}))
         for i, got in zip(capped, map_tasks(replan_capped, args, pool), strict=True):
@@ -233,8 +293,9 @@ def robot_aware_parts(names: Sequence[str], reverse: Sequence[bool], planned: An
         except PaintcellError as exc:           # the re-planned programs do not work: stop
             rnd["rejected"] = str(exc)
             break
-        if built2.cycle_s > (1.0 + MAX_CYCLE_GROWTH) * cycle0:
-            rnd["rejected"] = f"cycle {built2.cycle_s:.2f} s against {cycle0:.2f} s"
+        if built2.cycle_s > limit:
+            rnd["rejected"] = (f"cycle {built2.cycle_s:.2f} s against {cycle0:.2f} s "
+                               f"(limit {limit:.2f} s)")
             break
         plans0, caps, finished, built = trial, new_caps, fin2, built2
     rec["cycle_s"] = built.cycle_s           # the programs run (the tried table: before it)

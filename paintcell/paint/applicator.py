@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 import os
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from importlib import resources
 from pathlib import Path
@@ -104,6 +104,13 @@ class Applicator:
                 raise ApplicatorError(f"{msg}; {valid}")
 
     # --- the model ----------------------------------------------------------------------------
+    def scaled(self, factor: float) -> Applicator:
+        """This bell with its flow (every film-thickness rate [m/s]) multiplied by `factor`
+        (> 0): the same spray pattern, `factor` × the film at the same motion."""
+        return replace(self, a0_m_s=self.a0_m_s * factor,
+                       ring_amplitudes_m_s=np.asarray(self.ring_amplitudes_m_s) * factor,
+                       name=f"{self.name} ×{factor:.3f} flow")
+
     def flux(self, x: npt.ArrayLike, y: npt.ArrayLike) -> np.ndarray:
         """Film-thickness rate f(x, y) on the reference plane [m/s] (broadcasting).
 
