@@ -56,11 +56,15 @@ def test_half_turned_bell_lays_the_same_film() -> None:
     np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-15)
 
 
-def test_program_wrist_holds_its_roll_through_turnarounds() -> None:
+@pytest.mark.parametrize("keep_roll", [True, False])
+def test_program_wrist_holds_its_roll_through_turnarounds(keep_roll: bool) -> None:
+    """With `keep_roll` (the default) the bell's x axis turns < 5° over every turn-around and
+    J4/J6 move less than a quarter turn; with keep_roll = false it turns half a turn (x follows
+    the travel): both re-measured by Pinocchio FK of the program's joints."""
     robot = load_robot("abb_paint")
     plan = _plan()
     T = np.eye(4)
-    traj = build_program(robot, plan, T, TrajectorySettings())
+    traj = build_program(robot, plan, T, TrajectorySettings(keep_roll=keep_roll))
     # re-measured: the bell's x axis by Pinocchio FK of the program's joints
     m, d, fid = robot.pin_model, robot.pin_data, robot.tcp_frame_id
 
@@ -75,6 +79,10 @@ def test_program_wrist_holds_its_roll_through_turnarounds() -> None:
         assert np.all(traj.segment[end + 1:start] == TURNAROUND)
         angle = np.degrees(np.arccos(np.clip(x_axis(traj.q[end]) @ x_axis(traj.q[start]),
                                              -1, 1)))
+        if not keep_roll:
+            assert angle > 175.0, f"turn-around {i}: the bell turns only {angle:.1f}°"
+            turns += 1
+            continue
         assert angle < 5.0, f"turn-around {i}: the bell turns {angle:.1f}° about its axis"
         # the wrist joints (J4, J6) move less than a quarter turn over the turn-around
         span = np.ptp(traj.q[end:start + 1, [3, 5]], axis=0)

@@ -85,10 +85,14 @@ PLANNER_TRIES: tuple[dict[str, Any], ...] = (
      "v_max_m_s": 0.45},
     {"orientation": RAIL_AXIS, "v_nominal_m_s": 0.3, "v_max_m_s": 0.45})
 #: `[trajectory]` tables tried in turn: a 0.3 m retract, then 0.15 m (backed off 0.3 m from a
-#: pass on a wing's lower edge, the via pose can leave the joint limits).
+#: pass on a wing's lower edge, the via pose can leave the joint limits); then both with the
+#: bell's roll following the travel (`keep_roll = false`: another arm pose on every other
+#: pass, which two arms close over a small part may need to keep apart and off the part).
 TRAJECTORY_TRIES: tuple[dict[str, Any], ...] = (
     {"approach_clearance_m": 0.15, "retract_clearance_m": 0.3},
-    {"approach_clearance_m": 0.15, "retract_clearance_m": 0.15})
+    {"approach_clearance_m": 0.15, "retract_clearance_m": 0.15},
+    {"approach_clearance_m": 0.15, "retract_clearance_m": 0.3, "keep_roll": False},
+    {"approach_clearance_m": 0.15, "retract_clearance_m": 0.15, "keep_roll": False})
 #: `[servo]` of the cell: gains from each joint's effective inertia (the IRB 5500's J3 loop
 #: rings with the diagonal inertia in fast turn-arounds).
 SERVO: dict[str, Any] = {"gain_inertia": "effective"}

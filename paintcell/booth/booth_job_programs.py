@@ -125,7 +125,7 @@ def _clear_program(booth: Booth, name: str, robot: Any, plan: CoveragePlan,
     if getattr(robot, "rail", None) is not None:
         from paintcell.robots.rail import solve_rail_paths
 
-        ik = solve_rail_paths(robot, [T_world_part @ plan.tcp_frames(k)
+        ik = solve_rail_paths(robot, [T_world_part @ plan.tcp_frames(k, settings.keep_roll)
                                       for k in range(len(plan.passes))],
                               q_seed=q_home, free_spin=settings.ik_free_spin,
                               penalty=probe.rail_penalty(bc.PLACEMENT_MARGIN_M,

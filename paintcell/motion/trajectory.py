@@ -163,6 +163,11 @@ class TrajectorySettings:
     ik_free_spin: bool = False
     """Let IK rotate the tool about its spray axis (bell atomizers are symmetric); each pass
     starts from x = travel (`paintcell.coverage.plan.CoveragePlan.tcp_frames`, keep_roll)."""
+    keep_roll: bool = True
+    """The bell keeps its roll about the spray axis from pass to pass (the wrist does not turn
+    half a turn at each turn-around; `CoveragePlan.roll_signs`). False: x = the travel on every
+    pass, the roll turning half a turn between back-and-forth passes (the same film; another
+    arm pose on every other pass, which a cell whose arms come close may need)."""
     flow_min: float = 0.7
     """Lowest bell flow the program may command on a pass, a fraction of its part's flow [-]:
     where the time law is slower than the plan the flow drops with it (a brush table,
@@ -707,7 +712,8 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
     # --- 1. IK (then joint paths in `_build`) ----------------------------------------------
     # Nothing reachable, or a failure while poses are unreachable, is an `UnreachableError` that
     # carries the IK verdict; a partly unreachable plan that can be timed is (with warnings).
-    T_world_tcp = [T_wp @ plan.tcp_frames(i, keep_roll=not settings.ik_free_spin)
+    T_world_tcp = [T_wp @ plan.tcp_frames(i, keep_roll=settings.keep_roll
+                                          and not settings.ik_free_spin)
                    for i in range(len(plan.passes))]
     t0 = time.perf_counter()
     q_paths, reachability = ik_paths(robot, T_world_tcp, q_home, settings, ik_results)
