@@ -275,13 +275,16 @@ def robot_aware_parts(names: Sequence[str], reverse: Sequence[bool], planned: An
                          {k: np.where(np.isfinite(v), v, st.v_max_m_s)
                           for k, v in new_caps[i].items()}))
         for i, got in zip(capped, map_tasks(replan_capped, args, pool), strict=True):
-            if isinstance(got, PaintcellError):  # the caps do not fit this part's plan: keep it
-                rnd.setdefault("failed", {})[names[i]] = str(got)
+            why = str(got) if isinstance(got, PaintcellError) else (
+                "other passes" if [len(p.positions) for p in got.passes]
+                != [len(p.positions) for p in plans0[i].passes] else None)
+            if why is not None:        # the caps (or pace) do not fit this part's plan: keep it
+                rnd.setdefault("failed", {})[names[i]] = why
+                if k == 0 and pace[i] < 1.0:         # it keeps its planned speeds
+                    pace[i], fresh[i] = 1.0, False
+                    rnd["paced"].pop(names[i], None)
                 continue
-            if [len(p.positions) for p in got.passes] != \
-                    [len(p.positions) for p in plans0[i].passes]:
-                rnd.setdefault("failed", {})[names[i]] = "other passes"
-                continue
+            assert not isinstance(got, PaintcellError)
             trial[i] = got
             rnd["replanned"].append(names[i])
         if not rnd["replanned"]:
