@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import re
 import tempfile
+import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -78,9 +79,23 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> None:
     _write(path, "", "w", lambda f: f.write(text))
 
 
+#: zlib level of the `.npz` files written: 1 writes a run's traces ~2.7× faster than
+#: `numpy.savez_compressed`'s 6 (a 95 MB six-robot trace: 2.5 s against 6.9 s) for files
+#: under 1 % larger; `numpy.load` reads either.
+NPZ_COMPRESS_LEVEL = 1
+
+
+def _savez(f: IO[bytes], arrays: dict[str, np.ndarray]) -> None:
+    """`numpy.savez_compressed` at `NPZ_COMPRESS_LEVEL`: one `.npy` member per array."""
+    with zipfile.ZipFile(f, "w", zipfile.ZIP_DEFLATED, compresslevel=NPZ_COMPRESS_LEVEL) as zf:
+        for name, a in arrays.items():
+            with zf.open(f"{name}.npy", "w", force_zip64=True) as m:
+                np.lib.format.write_array(m, np.asanyarray(a), allow_pickle=False)
+
+
 def atomic_write_npz(path: str | os.PathLike[str], arrays: dict[str, np.ndarray]) -> None:
-    """Write an `.npz` atomically (temp file + rename)."""
-    _write(path, ".npz", "wb", lambda f: np.savez_compressed(f, **arrays))  # type: ignore[arg-type]
+    """Write an `.npz` atomically (temp file + rename), deflated at `NPZ_COMPRESS_LEVEL`."""
+    _write(path, ".npz", "wb", lambda f: _savez(f, arrays))
 
 
 @contextmanager
