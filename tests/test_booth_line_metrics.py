@@ -139,6 +139,11 @@ def test_seam_band_and_seam_film_closed_form():
             1e6 * (film[i] @ w[i]) / w[i].sum(), rel=1e-12)
         assert f["loss_pp"] == 0.0 and f["executed_inside_spec_pct"] == pytest.approx(100.0)
     assert out["seam_film"]["seam_area_pct"] == pytest.approx(100 * w[want].sum() / w.sum())
+    # the ratio the line's max_seam_nsd_ratio checks: the band's σ/μ over the interior's,
+    # each measured here from the film and the areas
+    assert out["seam_nsd_ratio"] == pytest.approx(
+        _nsd(film, w * want) / _nsd(film, w * ~want), rel=1e-9)
+    assert 0.0 < out["seam_nsd_ratio"] < 1.0      # the band is the narrower stretch of x
 
 
 def _nsd(film: np.ndarray, w: np.ndarray) -> float:

@@ -251,6 +251,21 @@ def test_the_built_line_meets_the_takt_and_keeps_its_carriages_apart(
     assert all(np.ptp(a) > 0.5 * d for a in x)
 
 
+def test_the_written_line_holds_the_film_spec(written: dict[str, Any]) -> None:
+    """The written line's [thresholds] hold a paint line's film spec (panel σ/μ ≤ 8 %, body
+    ≤ 7 %, seams ≤ 1.5× the interiors) as read back from the file, so `paintcell check` fails
+    a line whose film falls short of it."""
+    import tomllib
+
+    from paintcell.booth.booth_data import load_toml_booth
+
+    table = tomllib.loads(Path(written["out"]).read_text())["thresholds"]
+    assert (table["max_executed_nsd_pct"], table["max_body_nsd_pct"],
+            table["max_seam_nsd_ratio"]) == (8.0, 7.0, 1.5)
+    th = load_toml_booth(written["out"]).thresholds
+    assert (th.max_executed_nsd_pct, th.max_body_nsd_pct, th.max_seam_nsd_ratio) == (8.0, 7.0, 1.5)
+
+
 def test_tighter_takt_never_gives_fewer_robots(written: dict[str, Any]) -> None:
     from paintcell.app.init_line import choose_line
 

@@ -64,6 +64,13 @@ MIN_TCP_Z_M = 0.6
 #: Times half the body's travel over a takt that each end of a rail leaves for tracking [-]
 #: (`paintcell.booth.booth_programs`' own rail margin is 1.25 × half the travel).
 TRACK_FACTOR = 1.3
+#: The line's film spec, written to its `[thresholds]` (each editable there): every panel's
+#: executed σ/μ at most `LINE_PANEL_NSD_PCT` [%], the whole body's at most `LINE_BODY_NSD_PCT`
+#: [%], and the seams between panels at most `LINE_SEAM_NSD_RATIO` × as uneven as the panels'
+#: interiors (σ/μ ratio, `BoothThresholds.max_seam_nsd_ratio`) [-].
+LINE_PANEL_NSD_PCT = 8.0
+LINE_BODY_NSD_PCT = 7.0
+LINE_SEAM_NSD_RATIO = 1.5
 
 
 #: Planner table of a side panel or fascia: passes along the panel's straight direction (a car
@@ -267,4 +274,7 @@ def panel_booth(name: str, files: Sequence[Any], takt: LineTakt) -> Any:
                  servo={"gain_inertia": "effective"},
                  trajectory=dict(TRAJECTORY_TRIES[0]),
                  film_refine_pace=True, robot_aware_speeds=True,
-                 thresholds=BoothThresholds(min_bell_distance_m=0.6))
+                 thresholds=BoothThresholds(min_bell_distance_m=0.6,
+                                            max_executed_nsd_pct=LINE_PANEL_NSD_PCT,
+                                            max_body_nsd_pct=LINE_BODY_NSD_PCT,
+                                            max_seam_nsd_ratio=LINE_SEAM_NSD_RATIO))

@@ -193,6 +193,11 @@ max_collisions = 0
 max_robot_collisions = 0
 min_bell_distance_m = {b.thresholds.min_bell_distance_m}
 max_cycle_time_s = {cycle}
+# the film: every panel's executed σ/μ [%], the whole body's [%], and the seams' σ/μ over the
+# panels' interiors' [-]
+max_executed_nsd_pct = {b.thresholds.max_executed_nsd_pct}
+max_body_nsd_pct = {b.thresholds.max_body_nsd_pct}
+max_seam_nsd_ratio = {b.thresholds.max_seam_nsd_ratio}
 """
 
 

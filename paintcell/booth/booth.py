@@ -141,6 +141,9 @@ class BoothThresholds:
         paint spec's `max_nsd_pct` (`Booth.spec`).
     max_body_nsd_pct: executed film σ/μ over the whole body [%] (with a common film build,
         `Booth.common_film_build`, it measures the parts' edges and the robots' seams).
+    max_seam_nsd_ratio: the executed film's σ/μ over the body's seams (its vertices near another
+        part, `paintcell.booth.booth_seams.seam_band`) ÷ its σ/μ over the parts' interiors [-]:
+        how much more uneven the paint is where two parts meet.
     max_abs_loss_pp: |executed − planned σ/μ| [pp]. max_cycle_time_s: booth cycle [s].
     min_bell_distance_m: smallest distance between two bells while both paint [m].
     max_torque_utilization: largest demanded/limit torque of any joint [-].
@@ -153,6 +156,7 @@ class BoothThresholds:
     max_robot_collisions: int | None = 0
     max_executed_nsd_pct: float | None = 20.0
     max_body_nsd_pct: float | None = None
+    max_seam_nsd_ratio: float | None = None
     max_abs_loss_pp: float | None = 1.0
     max_cycle_time_s: float | None = 120.0
     min_bell_distance_m: float | None = 0.8

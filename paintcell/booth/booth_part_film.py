@@ -101,6 +101,7 @@ def part_film_figures(body: Surface, tot: dict[str, np.ndarray], areas: np.ndarr
                       judged_faces: np.ndarray | None, offs: np.ndarray, keys: list[str],
                       target_m: float, spec: PaintSpec) -> dict[str, Any]:
     """{"part_film": {part key: figures}, "seam_film": the body's seams and interiors,
+    "seam_nsd_ratio": the seams' executed σ/μ ÷ the interiors' [-] (NaN without both),
     "seam_band_m", and the whole body's "planned_inside_spec_pct" (its planned film in the
     window), "planned_mean_um", "executed_min_um", "executed_max_um" and the executed film's
     largest and RMS difference from the planned, "max_thickness_diff_um",
@@ -123,8 +124,12 @@ def part_film_figures(body: Surface, tot: dict[str, np.ndarray], areas: np.ndarr
     w = np.asarray(areas, float)
     whole = _figures(tot, w, body, fmask, target_m, spec)
     diff = (tot["executed"] - tot["plan"])[w > 0]
+    seams = _seam_figures(tot["executed"], w, body, fmask, band, target_m, spec)
     return {"part_film": parts,
-            "seam_film": _seam_figures(tot["executed"], w, body, fmask, band, target_m, spec),
+            "seam_film": seams,
+            # NaN (a failed check) when the body has no seam or no interior
+            "seam_nsd_ratio": seams["seam_executed_nsd_pct"] / seams["interior_executed_nsd_pct"]
+            if seams["interior_executed_nsd_pct"] > 0 else float("nan"),
             "seam_band_m": SEAM_BAND_M,
             **{k: whole[k] for k in ("planned_inside_spec_pct", "planned_mean_um",
                                      "executed_min_um", "executed_max_um")},

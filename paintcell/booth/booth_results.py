@@ -209,6 +209,7 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
             ("robot-robot collisions", "n_robot_robot_collisions", th.max_robot_collisions,
              "events", "max"),
             ("executed σ/μ (whole body)", "executed_nsd_pct", th.max_body_nsd_pct, "%", "max"),
+            ("seams' σ/μ ÷ interiors'", "seam_nsd_ratio", th.max_seam_nsd_ratio, "-", "max"),
             ("|uniformity loss|", "abs_loss_pp", th.max_abs_loss_pp, "pp", "max"),
             ("cycle time", "executed_cycle_time_s", th.max_cycle_time_s, "s", "max"),
             ("bell distance", "min_bell_distance_m", th.min_bell_distance_m, "m", "min"),

@@ -77,6 +77,7 @@ THRESHOLD_RANGES: dict[str, tuple[float, float, bool, str]] = {
     # a booth's (paintcell.booth.booth.BoothThresholds)
     "max_robot_collisions": (0.0, math.inf, True, "a count of robot–robot collision events"),
     "max_body_nsd_pct": (0.0, math.inf, False, "σ/μ [%]"),
+    "max_seam_nsd_ratio": (0.0, math.inf, False, "a ratio of σ/μ (seams ÷ interiors) [-]"),
     "min_bell_distance_m": (0.0, math.inf, True, "a distance [m]"),
 }
 
