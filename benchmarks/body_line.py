@@ -122,7 +122,7 @@ def main() -> None:
                     help="local Dask worker counts to time, in order (0: in this process)")
     ap.add_argument("--takt", type=float, default=100.0,
                     help="the generated body line's takt [s] (a body every TAKT seconds; 100: "
-                         "the seed-1 SUV's six-robot line has an 89.7 s cycle, which a 75 s or "
+                         "the seed-1 SUV's six-robot line has an ~83 s cycle, which a 75 s or "
                          "90 s takt does not leave room for)")
     ap.add_argument("--seed", type=int, default=1,
                     help="the generated body's seed (odd: an SUV; candidates/body_line.toml's: 1)")
