@@ -26,8 +26,8 @@ from paintcell.surface.surface_data import Surface
 
 #: the body's refinement fits the seams' film (the vertices near another part,
 #: `paintcell.booth.booth_seams.seam_band`) at this many times their area's weight
-#: (`refine_body`). Fitted by area alone, the seed-1 SUV line's seams stayed ~1.6× as uneven as
-#: the interiors; its last robot-aware round's body film (planned σ/μ, seams ÷ interiors) at
+#: (`refine_body`). Fitted by area alone, the seed-1 SUV line's seams are ~1.6× as uneven as the
+#: interiors; its last robot-aware round's body film (planned σ/μ, seams ÷ interiors) at
 #: weights 1, 2 and 3: 4.82 % and 1.58×, 4.64 % and 1.38×, 4.61 % and 1.28×, its worst panel
 #: (the front fascia, by its own interior) 7.76, 7.90 and 8.02 %.
 SEAM_FIT_WEIGHT = 2.0
@@ -198,8 +198,9 @@ def refine_body(booth: Booth, pp: PartPlans, plans: list[CoveragePlan], body: Su
     the film they lay on the body (`paintcell.coverage.film_refine.refine_together`): each part
     refined alone sees only its own film, and the seams get both parts' edges. The film is
     judged on the body's judged vertices, its interior those away from the seams
-    (`paintcell.booth.booth_seams.seam_band`), which the fit weighs `SEAM_FIT_WEIGHT` × their
-    areas (the result judged by area alone); the passes' durations are free (each part's own
+    (`paintcell.booth.booth_seams.seam_band`); the fit weighs the seams' vertices
+    `SEAM_FIT_WEIGHT` × their areas (the result is judged by area alone); the passes' durations
+    are free (each part's own
     refinement held its pace; the programs and their start delays are built from these plans).
     unblended: the same plans before the seams were blended; a pass the blending switched off
     entirely may be painted again where the body's film wants it (`refine_together`'s

@@ -161,7 +161,7 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
     wants at least `RESTORE_SHARE` of its top-speed film (there: under the robot's cap) its
     samples are switched on again, and every pass is re-timed with them, kept when that beats
     the fit without them. The relaxed fit weighs the film by area alone: weighing the seams
-    more (edge_weight) it asked for more of those passes back than the film could take (the
+    more (edge_weight) it asks for more of those passes back than the film can take (on the
     seed-1 SUV line's last round at weight 3: 145 samples against 117, the body's σ/μ 5.34 %
     against 4.61 %).
 
@@ -480,7 +480,8 @@ def _fit(pb: _FitProblem, w_int: float
     # H = L Lᵀ, ‖A s − b‖² = ‖Lᵀ s − L⁻¹ g‖² + const, so the bounded-variable solver runs on the
     # K × K triangle (a few hundred to a thousand knots). The pull toward the planned speeds
     # keeps H's eigenvalues ≥ KEEP_WEIGHT: the Cholesky factor is well conditioned (≈ 13 on the
-    # seed-1 SUV body's 1244 knots) and the solution that of the stacked system's QR to ~1e-13.
+    # seed-1 SUV body's 1244 knots): the slownesses equal a QR solve of the stacked system's to
+    # ~1e-13.
     Mw = pb.M * rw[:, None]
     H = Mw.T @ Mw
     g = Mw.T @ (rw * mu)
