@@ -146,6 +146,27 @@ def test_seam_band_and_seam_film_closed_form():
     assert 0.0 < out["seam_nsd_ratio"] < 1.0      # the band is the narrower stretch of x
 
 
+def test_panels_meet_only_within_the_seam_band():
+    """`init --line` judges the seams only where panels meet: two 0.5 m plates 0.045 m apart
+    meet (their facing columns are 0.045 m apart, under SEAM_BAND_M = 0.10 m) and keep an
+    interior (their far columns are 0.545 m from the other plate); 0.30 m apart they do not
+    meet; a gap under the band where every vertex is within it (0.05 m strips) leaves no
+    interior."""
+    from paintcell.app.init_line_file import panels_meet
+
+    def pair(gap_m: float, width_m: float = 0.5):
+        a = plane(width_m, 0.4, resolution_m=0.01)
+        T = np.eye(4)
+        T[0, 3] = -(width_m + gap_m) / 2
+        left = a.transformed(T)
+        T[0, 3] = (width_m + gap_m) / 2
+        return [left, a.transformed(T)]
+
+    assert panels_meet(pair(0.045))
+    assert not panels_meet(pair(0.30))
+    assert not panels_meet(pair(0.02, width_m=0.05))
+
+
 def _nsd(film: np.ndarray, w: np.ndarray) -> float:
     mu = film @ w / w.sum()
     return 100.0 * math.sqrt(((film - mu) ** 2) @ w / w.sum()) / mu

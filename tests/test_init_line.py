@@ -253,17 +253,26 @@ def test_the_built_line_meets_the_takt_and_keeps_its_carriages_apart(
 
 def test_the_written_line_holds_the_film_spec(written: dict[str, Any]) -> None:
     """The written line's [thresholds] hold a paint line's film spec (panel σ/μ ≤ 8 %, body
-    ≤ 7 %, seams ≤ 1.5× the interiors) as read back from the file, so `paintcell check` fails
-    a line whose film falls short of it."""
+    ≤ 7 %) as read back from the file, so `paintcell check` fails a line whose film falls short
+    of it; the seams' check (≤ 1.5× the interiors) is left out here, where the two panels (the
+    front fender and the rear door, the front door between them) are farther apart than the
+    seam band: measured on their planned surfaces, nearest vertices."""
     import tomllib
 
-    from paintcell.booth.booth_data import load_toml_booth
+    from scipy.spatial import cKDTree
 
-    table = tomllib.loads(Path(written["out"]).read_text())["thresholds"]
-    assert (table["max_executed_nsd_pct"], table["max_body_nsd_pct"],
-            table["max_seam_nsd_ratio"]) == (8.0, 7.0, 1.5)
+    from paintcell.booth.booth_data import load_toml_booth
+    from paintcell.booth.booth_seams import SEAM_BAND_M
+
+    a, b = (np.asarray(s.vertices) for s in written["pp"].surfaces)
+    assert cKDTree(a).query(b)[0].min() > SEAM_BAND_M
+    text = Path(written["out"]).read_text()
+    table = tomllib.loads(text)["thresholds"]
+    assert (table["max_executed_nsd_pct"], table["max_body_nsd_pct"]) == (8.0, 7.0)
+    assert "max_seam_nsd_ratio" not in table and "no two panels meet" in text
     th = load_toml_booth(written["out"]).thresholds
-    assert (th.max_executed_nsd_pct, th.max_body_nsd_pct, th.max_seam_nsd_ratio) == (8.0, 7.0, 1.5)
+    assert (th.max_executed_nsd_pct, th.max_body_nsd_pct, th.max_seam_nsd_ratio) == \
+        (8.0, 7.0, None)
 
 
 def test_tighter_takt_never_gives_fewer_robots(written: dict[str, Any]) -> None:

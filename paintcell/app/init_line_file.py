@@ -158,6 +158,9 @@ rpy_rad = {_v([float(v) for v in r.base.rpy_rad])}
                     for name, jobs in b.allocation.items())
     traj = "".join(f"{k} = {_v(v)}\n" for k, v in b.trajectory.items())
     cycle = math.floor(t.max_cycle_s() * 100) / 100
+    seam = (f"max_seam_nsd_ratio = {b.thresholds.max_seam_nsd_ratio}\n"
+            if b.thresholds.max_seam_nsd_ratio is not None else
+            "# (no max_seam_nsd_ratio: no two panels meet, so the body has no seam to judge)\n")
     return f"""{text}
 name = {_v(b.name)}
 resolution_m = {b.fast_resolution_m}
@@ -197,8 +200,18 @@ max_cycle_time_s = {cycle}
 # panels' interiors' [-]
 max_executed_nsd_pct = {b.thresholds.max_executed_nsd_pct}
 max_body_nsd_pct = {b.thresholds.max_body_nsd_pct}
-max_seam_nsd_ratio = {b.thresholds.max_seam_nsd_ratio}
-"""
+{seam}"""
+
+
+def panels_meet(surfaces: Sequence[Any]) -> bool:
+    """Whether the panels (surfaces in the body frame) have seams to judge: some vertex within
+    `paintcell.booth.booth_seams.SEAM_BAND_M` of another panel, and some vertex farther than
+    that (the interior the seams are judged against)."""
+    from paintcell.booth.booth_seams import seam_band
+
+    band = seam_band(np.concatenate([np.asarray(s.vertices, float) for s in surfaces]),
+                     [len(s.vertices) for s in surfaces])
+    return bool(band.any() and not band.all())
 
 
 def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, force: bool,
@@ -248,6 +261,9 @@ def init_line(panels: Sequence[Any], out: Path, takt_s: float, max_robots: int, 
         say(f"init: planning {len(specs)} panels (fast resolution, no film refinement)")
         pp = plan_parts(booth, fast=True)
         line = choose_line(booth, pp, takt, max_robots, say=say)
+        if not panels_meet(pp.surfaces):     # no seam to judge: the seams' check left out
+            line.booth = replace(line.booth, thresholds=replace(line.booth.thresholds,
+                                                                max_seam_nsd_ratio=None))
         check_new_target(out, "--out", force)
         folder.mkdir(parents=True, exist_ok=True)
         rel = []

@@ -143,7 +143,8 @@ class BoothThresholds:
         `Booth.common_film_build`, it measures the parts' edges and the robots' seams).
     max_seam_nsd_ratio: the executed film's σ/μ over the body's seams (its vertices near another
         part, `paintcell.booth.booth_seams.seam_band`) ÷ its σ/μ over the parts' interiors [-]:
-        how much more uneven the paint is where two parts meet.
+        how much more uneven the paint is where two parts meet. A body with no seam (or no
+        interior) fails it (the ratio is NaN): leave it unset there.
     max_abs_loss_pp: |executed − planned σ/μ| [pp]. max_cycle_time_s: booth cycle [s].
     min_bell_distance_m: smallest distance between two bells while both paint [m].
     max_torque_utilization: largest demanded/limit torque of any joint [-].
