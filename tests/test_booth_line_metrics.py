@@ -284,6 +284,28 @@ def test_booth_loss_split_and_part_figures_re_measured(booth_dir):
     assert m["part_film"]["1:door"]["seam_area_pct"] > 0
 
 
+def test_booth_seam_ratio_re_measured(booth_dir):
+    """metrics.json's seam_nsd_ratio (what max_seam_nsd_ratio checks) re-measured from the
+    run's files: the seam band from the body's vertices and the parts' vertex counts (another
+    part's vertex within 0.10 m, by brute force over every pair), the executed film's σ/μ over
+    the judged band and the judged rest."""
+    m = _metrics(booth_dir)
+    with np.load(booth_dir / "cell.npz") as c, np.load(booth_dir / "film.npz") as z:
+        counts, judged = c["part_vertex_counts"], c["judged"]
+        ex, areas, V = z["executed_thickness_m"], z["vertex_areas_m2"], z["vertices_m"]
+    part = np.repeat(np.arange(len(counts)), counts)
+    band = np.zeros(len(V), bool)
+    for k in range(len(counts)):
+        mine, other = V[part == k], V[part != k]
+        d2 = np.concatenate([((mine[i:i + 256, None, :] - other[None, :, :]) ** 2).sum(-1)
+                             .min(axis=1) for i in range(0, len(mine), 256)])
+        band[part == k] = d2 <= 0.10 ** 2
+    w = areas * judged
+    assert band.any() and (~band).any()
+    assert m["seam_nsd_ratio"] == pytest.approx(_nsd(ex, w * band) / _nsd(ex, w * ~band),
+                                                rel=1e-9)
+
+
 class _Tables(HTMLParser):
     """Every table of a page as rows of cell texts, keyed by its own id, else the h2 id before
     it."""
