@@ -125,7 +125,7 @@ def main() -> None:
                          "the seed-1 SUV's six-robot line has an ~83 s cycle, which a 75 s or "
                          "90 s takt does not leave room for)")
     ap.add_argument("--seed", type=int, default=1,
-                    help="the generated body's seed (odd: an SUV; candidates/body_line.toml's: 1)")
+                    help="the generated body's seed (odd: an SUV; scenarios/body_line.toml's: 1)")
     ap.add_argument("--no-body", action="store_true", help="only scenarios/booth.toml")
     args = ap.parse_args()
     print(f"{os.cpu_count()} CPU cores; load average {os.getloadavg()[0]:.1f}")
