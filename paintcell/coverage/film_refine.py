@@ -18,9 +18,10 @@ least-squares problem
 
 (a_v vertex areas, off the interior × `edge_weight` in the fit, A their sum, μ the mean film
 of the start: the film is held where it is, only its spread shrinks) with
-OSQP (a box-constrained QP on the normal equations, polished to its active set: the unique
-minimiser; `scipy.optimize.lsq_linear`'s bounded-variable least squares when the polish does
-not take), rebuilds speeds and times, and
+OSQP (a box-constrained QP on the normal equations; the bounds OSQP finds active are held, the
+free knots solved exactly by Cholesky and the result checked against the optimality conditions,
+`scipy.optimize.lsq_linear`'s bounded-variable least squares where the check fails:
+`bounded_minimum`), rebuilds speeds and times, and
 keeps the result only when the simulated film's σ/μ on the part is lower than before, on the
 whole part and on its interior. The start is the planned timing, slowed to
 the robot's speed caps where it exceeds them (what the robot would paint; a robot-aware re-plan,
