@@ -156,6 +156,12 @@ def test_a_local_cluster_of_two_workers_gives_the_same_run(
     assert res.passed
     assert sent.count("plan_part") == 2 and sent.count("remote_job_program") >= 2
     _assert_same_results(ref, tmp_path / "dask")
+    # the client waited for the plans it could not make itself, within the two stages' wall
+    t = res.timings_s
+    assert 0.0 < t["workers_wait"] <= t["plan"] + t["trajectory"]
+    metrics = json.loads((tmp_path / "dask" / "metrics.json").read_text())
+    assert metrics["stage_times_s"]["workers_wait"] == t["workers_wait"]
+    assert "workers_wait" not in json.loads((ref / "metrics.json").read_text())["stage_times_s"]
 
 
 def test_robot_aware_replans_on_workers_are_the_ones_made_here() -> None:

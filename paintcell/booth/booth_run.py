@@ -57,6 +57,9 @@ class BoothResult:
     static_trajectories: list[JointTrajectory] = field(default_factory=list)
     """Each robot's own program in the static cell, before staggering and tracking."""
     timings_s: dict[str, float] = field(default_factory=dict)
+    """Wall time of each stage [s] (plan, trajectory, execute, validate); on a pool of workers
+    also workers_wait: of plan + trajectory, the time the client waited for the workers' tasks
+    (the rest is its own work: reading parts, film refinement, seams, staggering)."""
     part_vertex_counts: list[int] = field(default_factory=list)
     """The parts' vertex counts, in the order they are stacked in `surface`."""
     judged: np.ndarray | None = None
@@ -116,8 +119,11 @@ def run_booth(booth: Booth, out_dir: str | Path | None = None, *, fast: bool = F
     from paintcell.booth.booth_results import booth_metrics, write_booth_results
     from paintcell.core.results_dir import new_results
 
+    waited0 = getattr(tasks, "waited_s", None)
     progs = booth_programs(booth, fast, tasks=tasks)
     timings = dict(progs.timings_s)
+    if waited0 is not None:     # of plan + trajectory, the time spent waiting on the workers
+        timings["workers_wait"] = tasks.waited_s - waited0
     robots = progs.robots
     assert robots is not None
     surfaces, body, plans, jobs = progs.surfaces, progs.body, progs.plans, progs.jobs

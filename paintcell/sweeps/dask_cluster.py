@@ -89,11 +89,13 @@ def dask_client(workers: int, scheduler: str | None) -> Iterator[Any]:
 class DaskTasks:
     """A booth's task pool (`paintcell.booth.booth_tasks.TaskPool`) on a Dask client: objects
     scattered to every worker, functions submitted as tasks (each its own, never cached by the
-    scheduler), their results waited for as the module doc says."""
+    scheduler), their results waited for as the module doc says. waited_s: the time the client
+    has spent waiting for results [s] (a run's `stage_times_s["workers_wait"]`)."""
 
     def __init__(self, client: Any, where: str) -> None:
         self.client = client
         self.where = where      # the cluster, as a message names it
+        self.waited_s = 0.0
 
     def share(self, obj: Any) -> Any:
         """obj on every worker (a handle a task takes in its place)."""
@@ -111,6 +113,13 @@ class _DaskFuture(Generic[T]):
 
     def result(self) -> T:
         """The task's value or its own error; a lost task or cluster: a one-line ClusterError."""
+        t0 = time.perf_counter()
+        try:
+            return self._result()
+        finally:
+            self.pool.waited_s += time.perf_counter() - t0
+
+    def _result(self) -> T:
         from concurrent.futures import CancelledError
 
         from distributed import KilledWorker
