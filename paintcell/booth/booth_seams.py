@@ -31,6 +31,7 @@ each part's interior by `paintcell.booth.booth_part_film`).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -112,9 +113,19 @@ def blend_part_seams(body: Surface, plans: list[CoveragePlan], T_body_parts: lis
             n.append(n_off)
         return out, n
 
+    films: dict[tuple[int, bytes], np.ndarray] = {}
+
+    def part_film(k: int, plan: CoveragePlan) -> np.ndarray:
+        """Part k's film [m] on the body with this plan of its (only paint switches here, so
+        its paint-on samples name the film: a repeated one is not computed again)."""
+        key = (k, np.packbits(np.concatenate([p.paint_on for p in plan.passes])).tobytes())
+        if key not in films:
+            films[key] = thickness(plan.applicator, plan_gun_in_body(plan, T_body_parts[k]),
+                                   body.vertices, body.normals)
+        return films[key]
+
     def body_nsd(ps: list[CoveragePlan]) -> float:
-        film = sum(thickness(p.applicator, plan_gun_in_body(p, T), body.vertices, body.normals)
-                   for p, T in zip(ps, T_body_parts, strict=True))
+        film = sum(part_film(k, p) for k, p in enumerate(ps))
         return float(uniformity(np.asarray(film), body.vertex_areas, mask=judged).nsd_pct)
 
     unblended = body_nsd(plans)
@@ -141,7 +152,8 @@ def blend_part_seams(body: Surface, plans: list[CoveragePlan], T_body_parts: lis
            "samples_switched_off": dict(zip(names, n, strict=True))}
     if not per_seam:
         return out, rec
-    return per_seam_shares(body, plans, T_body_parts, vols, nbrs, names, judged, best_s, rec)
+    return per_seam_shares(body, plans, T_body_parts, vols, nbrs, names, judged, best_s, rec,
+                           part_film)
 
 
 def part_volumes(app: Applicator, passes: list[PassPlan], own: np.ndarray, body: Surface,
@@ -168,13 +180,16 @@ def part_volumes(app: Applicator, passes: list[PassPlan], own: np.ndarray, body:
 def per_seam_shares(body: Surface, plans: list[CoveragePlan], T_body_parts: list[np.ndarray],
                     vols: list[list[tuple[np.ndarray, np.ndarray]]],
                     nbrs: list[list[np.ndarray]], names: list[str], judged: np.ndarray | None,
-                    start: float | None, rec: dict[str, Any]
+                    start: float | None, rec: dict[str, Any],
+                    part_film: Callable[[int, CoveragePlan], np.ndarray] | None = None
                     ) -> tuple[list[CoveragePlan], dict[str, Any]]:
     """Each seam's share by coordinate descent from the single share `start` (None: no
     blending) (module doc). vols, nbrs: per part, per pass, `part_volumes`' (own, other) and
     neighbour; rec: the single share's record, returned with {seams: share per seam, steps:
-    σ/μ by accepted change, film_evaluations, single_share_planned_nsd_pct} added and its
-    figures those of the shares chosen; converged: the last sweep changed nothing."""
+    σ/μ by accepted change, film_evaluations (the trial films asked for; a sample set asked
+    for again is taken from a cache), single_share_planned_nsd_pct} added and its
+    figures those of the shares chosen; converged: the last sweep changed nothing.
+    part_film(k, plan): part k's film [m] on the body with the plan (None: computed here)."""
     n = len(plans)
     own_v = [np.concatenate([v[0] for v in vk]) for vk in vols]
     oth_v = [np.concatenate([v[1] for v in vk]) for vk in vols]
@@ -205,15 +220,27 @@ def per_seam_shares(body: Surface, plans: list[CoveragePlan], T_body_parts: list
                      np.concatenate([p.travel_dirs for p in ps]) @ R.T,
                      np.concatenate([p.dwell_s() for p in ps])))
     n_eval = 0
+    # a trial's film by its part and samples; the sweeps ask for many again (a seam whose parts
+    # did not change since the last sweep tries the same switches): kept sparse, the nonzero
+    # vertices only (a few samples paint a few bell footprints of the body)
+    seen: dict[tuple[int, bytes], tuple[np.ndarray, np.ndarray]] = {}
 
     def film_of(k: int, keep: np.ndarray) -> np.ndarray:
         nonlocal n_eval
+        out = np.zeros(len(body.vertices))
         if not keep.any():
-            return np.zeros(len(body.vertices))
+            return out
         n_eval += 1
-        app, pos, ax, tr, dw = guns[k]
-        return thickness(app, GunSamples(pos[keep], ax[keep], tr[keep], dw[keep]),
-                         body.vertices, body.normals)
+        key = (k, np.packbits(keep).tobytes())
+        if key not in seen:
+            app, pos, ax, tr, dw = guns[k]
+            f = thickness(app, GunSamples(pos[keep], ax[keep], tr[keep], dw[keep]),
+                          body.vertices, body.normals)
+            nz = np.flatnonzero(f)
+            seen[key] = (nz, f[nz])
+        nz, val = seen[key]
+        out[nz] = val
+        return out
 
     def nsd(films: list[np.ndarray]) -> float:
         return float(uniformity(np.sum(films, axis=0), body.vertex_areas, mask=judged).nsd_pct)
@@ -265,10 +292,12 @@ def per_seam_shares(body: Surface, plans: list[CoveragePlan], T_body_parts: list
                   for p, e0 in zip(pl.passes, ends, strict=True)]
         out.append(dataclasses.replace(pl, passes=tuple(passes)) if any(
             q is not p for q, p in zip(passes, pl.passes, strict=True)) else pl)
-    final = float(uniformity(
-        sum(thickness(p.applicator, plan_gun_in_body(p, T), body.vertices, body.normals)
-            for p, T in zip(out, T_body_parts, strict=True)),
-        body.vertex_areas, mask=judged).nsd_pct)
+    if part_film is None:
+        def part_film(k: int, plan: CoveragePlan) -> np.ndarray:
+            return thickness(plan.applicator, plan_gun_in_body(plan, T_body_parts[k]),
+                             body.vertices, body.normals)
+    final = float(uniformity(sum(part_film(k, p) for k, p in enumerate(out)),
+                             body.vertex_areas, mask=judged).nsd_pct)
     return out, {**rec, "rule": "per seam (a pair of parts; a sample's seam: the part it paints "
                                "most after its own): samples painting other parts more than the "
                                "seam's share × their own switched off; shares by coordinate "
