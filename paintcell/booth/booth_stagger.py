@@ -50,9 +50,9 @@ def pair_offsets_ok(p: np.ndarray, q: np.ndarray, offsets: np.ndarray,
     close = cKDTree(p.reshape(-1, 3)).sparse_distance_matrix(
         cKDTree(q.reshape(-1, 3)), min_distance_m, output_type="ndarray")
     close = close[close["v"] < min_distance_m]
-    a, b = close["i"] // P, close["j"] // P
-    pairs = np.unique(np.column_stack([a, b]), axis=0) if len(a) else np.zeros((0, 2), int)
-    a, b = pairs[:, 0], pairs[:, 1]
+    # the distinct sample pairs (a, b), one integer each (np.unique over rows is ~10× slower)
+    ab = np.unique((close["i"] // P).astype(np.int64) * Kq + close["j"] // P)
+    a, b = ab // Kq, ab % Kq
     lo = np.where((a < Kp - 1) & (b > 0), b - a, np.iinfo(np.int64).min // 2)
     hi = np.where((a > 0) & (b < Kq - 1), b - a, np.iinfo(np.int64).max // 2)
     o = np.asarray(offsets)[:, None]
