@@ -58,17 +58,6 @@ class RepairReport:
                 "holes filled")
 
 
-def face_quality(v: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """(F,) 2·inradius/circumradius of each triangle [-] (1 equilateral, 0 degenerate)."""
-    a = np.linalg.norm(v[f[:, 1]] - v[f[:, 2]], axis=1)
-    b = np.linalg.norm(v[f[:, 2]] - v[f[:, 0]], axis=1)
-    c = np.linalg.norm(v[f[:, 0]] - v[f[:, 1]], axis=1)
-    s = 0.5 * (a + b + c)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        q = 8.0 * (s - a) * (s - b) * (s - c) / (a * b * c)
-    return np.nan_to_num(np.clip(q, 0.0, 1.0))
-
-
 def sliver_mask(v: np.ndarray, f: np.ndarray) -> np.ndarray:
     """(F,) True for faces with three distinct vertices and an altitude below
     `SLIVER_HEIGHT_M` (2·area / longest edge)."""

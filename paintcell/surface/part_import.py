@@ -26,7 +26,6 @@ from paintcell.surface.pieces import choose_pieces
 from paintcell.surface.regions import (
     BACK,
     EDGE,
-    REGION_NAMES,
     SKIN,
     Opening,
     PartRegions,
@@ -350,8 +349,3 @@ def _wind_toward(v: np.ndarray, f: np.ndarray, groups: list[np.ndarray], d: np.n
         if not m.is_watertight and float((m.face_normals * m.area_faces[:, None]).sum(0) @ d) < 0:
             f[g] = f[g][:, ::-1]
     return f
-
-
-def region_names() -> tuple[str, ...]:
-    """The region names, in label order."""
-    return REGION_NAMES
