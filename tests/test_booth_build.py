@@ -391,8 +391,9 @@ def test_refine_body_re_times_the_part_frame_plans_against_the_body_film():
     from paintcell.coverage.plan import times_from_speeds
 
     body, plans, Ts, _, panel = _turned_panels()
-    booth = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={}),
-                                               SimpleNamespace(planner={"v_max_m_s": 0.55})])
+    booth = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={}, part="a"),
+                                               SimpleNamespace(planner={"v_max_m_s": 0.55},
+                                                               part="b")])
     pp = SimpleNamespace(surfaces=[panel, panel], T_body_parts=Ts)
     caps = [[None] * len(plans[0].passes), None]
     caps[0][2] = np.full(len(plans[0].passes[2].speeds_m_s), 0.3)
@@ -422,8 +423,9 @@ def test_refine_body_re_times_the_part_frame_plans_against_the_body_film():
             assert q1.speeds_m_s.max() <= (1.0 if k == 0 else 0.55) + 1e-12
     assert max(q.speeds_m_s.max() for q in plans[1].passes) > 0.55   # the bound did bind
     assert out[0].passes[2].speeds_m_s.max() <= 0.3 + 1e-12
-    held = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={}),
-                                              SimpleNamespace(planner={"film_refine": False})])
+    held = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={}, part="a"),
+                                              SimpleNamespace(planner={"film_refine": False},
+                                                              part="b")])
     same, why = refine_body(held, pp, plans, body, caps)
     assert same is plans and not why["applied"] and "film_refine = false" in why["reason"]
 
@@ -510,7 +512,7 @@ def test_refine_body_paints_again_in_the_part_frame_a_pass_the_blend_switched_of
     b_passes = list(plans[1].passes)
     b_passes[mid] = dataclasses.replace(p_mid, paint_on=np.zeros_like(p_mid.paint_on))
     blended = [plans[0], dataclasses.replace(plans[1], passes=tuple(b_passes))]
-    booth = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={})] * 2)
+    booth = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={}, part="p")] * 2)
     pp = SimpleNamespace(surfaces=[panel, panel], T_body_parts=Ts)
     plain, _ = refine_body(booth, pp, blended, body, None)
     out, rec = refine_body(booth, pp, blended, body, None, unblended=plans)
@@ -524,3 +526,49 @@ def test_refine_body_paints_again_in_the_part_frame_a_pass_the_blend_switched_of
     after = _body_film(body, out, Ts)
     assert 100 * _nsd(after, a) == pytest.approx(rec["nsd_after_pct"], rel=1e-9)
     assert _nsd(after, a) < _nsd(_body_film(body, plain, Ts), a)
+
+
+def test_refine_body_weighs_its_most_uneven_part_and_keeps_only_a_better_fit():
+    """`booth_plans.refine_body` on two turned panels, a pass of the first capped by its robot
+    at 0.4 m/s (its film the more uneven): the worst part, its weight (its σ/μ over the
+    body's) and every σ/μ of the record are the body films re-measured here, part by part,
+    from the body fitted without the weight (`refine_together` alone) and from the plans
+    returned; the weighted fit was kept because it lowered the worst part's σ/μ by more than
+    it raised the body's."""
+    from types import SimpleNamespace
+
+    from paintcell.booth.booth_plans import SEAM_FIT_WEIGHT, refine_body
+    from paintcell.booth.booth_seams import pass_in_body, seam_band
+    from paintcell.coverage.film_refine import refine_together
+
+    body, plans, Ts, counts, panel = _turned_panels()
+    booth = SimpleNamespace(planner={}, parts=[SimpleNamespace(planner={}, part="a"),
+                                               SimpleNamespace(planner={}, part="b")])
+    pp = SimpleNamespace(surfaces=[panel, panel], T_body_parts=Ts)
+    caps = [[None] * len(plans[0].passes), None]
+    caps[0][2] = np.full(len(plans[0].passes[2].speeds_m_s), 0.4)
+    out, rec = refine_body(booth, pp, plans, body, caps)
+    worst = rec["worst_part"]
+    a = body.vertex_areas
+    offs = np.cumsum([0, *counts])
+
+    def by_part(film):
+        return [_nsd(film[offs[k]:offs[k + 1]], a[offs[k]:offs[k + 1]]) for k in range(2)]
+
+    interior = ~seam_band(body.vertices, counts)
+    moved = [dataclasses.replace(p, passes=tuple(pass_in_body(q, T) for q in p.passes))
+             for p, T in zip(plans, Ts, strict=True)]
+    first, _ = refine_together(body, moved, [PlannerSettings()] * 2, interior, caps,
+                               edge_weight=SEAM_FIT_WEIGHT)
+    eye = [np.eye(4)] * 2
+    f0, f1 = _body_film(body, first, eye), _body_film(body, out, Ts)
+    parts0, parts1 = by_part(f0), by_part(f1)
+    assert worst["part"] == "0:a" and parts0[0] > parts0[1]
+    assert 100 * parts0[0] == pytest.approx(worst["worst_nsd_before_pct"], rel=1e-9)
+    assert 100 * _nsd(f0, a) == pytest.approx(worst["body_nsd_before_pct"], rel=1e-9)
+    assert worst["weight"] == pytest.approx(parts0[0] / _nsd(f0, a), abs=1e-4)
+    assert worst["applied"]
+    assert 100 * max(parts1) == pytest.approx(worst["worst_nsd_after_pct"], rel=1e-9)
+    assert 100 * _nsd(f1, a) == pytest.approx(worst["body_nsd_after_pct"], rel=1e-9)
+    assert 0 < parts0[0] - max(parts1) and _nsd(f1, a) - _nsd(f0, a) < parts0[0] - max(parts1)
+    assert 100 * _nsd(f1, a) == pytest.approx(rec["nsd_after_pct"], rel=1e-9)

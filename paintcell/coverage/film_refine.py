@@ -143,7 +143,7 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
                     caps: list[list[np.ndarray | None] | None] | None = None,
                     pass_time_weight: float = 0.0,
                     restorable: list[list[np.ndarray | None]] | None = None,
-                    edge_weight: float = 1.0
+                    edge_weight: float = 1.0, vertex_weight: np.ndarray | None = None
                     ) -> tuple[list[CoveragePlan], dict[str, Any]]:
     """Several parts' plans re-timed as one against the film they lay together on `surface`:
     where two parts meet, both parts' edge passes and overspray paint the seam, and each part
@@ -176,11 +176,13 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
     (`refine_body`: those away from the seams); caps: per part, per pass its robot's speed caps
     [m/s] (or None); restorable: per part, per pass the brush-on samples (bool (M,)) the seams'
     blending switched off, or None; edge_weight: the fits' weight of the vertices off the
-    interior (`refine_speeds`; the relaxed fit's is 1). Returns the plans (re-timed where σ/μ
-    drops on the whole and on the interior; otherwise as given, slowed to the caps where they
-    asked for more, as `refine_speeds` returns them) and a record {rule, applied, σ/μ
-    before/after [%], knots, largest pass duration change and the passes' total change [s], the
-    passes painted again ("part:pass": samples) and each candidate's largest wanted share}.
+    interior (`refine_speeds`; the relaxed fit's is 1); vertex_weight: (N,) a further weight of
+    each vertex in the fits (`refine_speeds`; not in the relaxed fit). Returns the plans
+    (re-timed where σ/μ drops on the whole and on the interior; otherwise as given, slowed to
+    the caps where they asked for more, as `refine_speeds` returns them) and a record {rule,
+    applied, σ/μ before/after [%], knots, largest pass duration change and the passes' total
+    change [s], the passes painted again ("part:pass": samples) and each candidate's largest
+    wanted share}.
     """
     caps = caps if caps is not None else [None] * len(plans)
     passes: list[PassPlan] = []
@@ -197,7 +199,8 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
         cap_all += list(cap) if cap is not None else [None] * len(plan.passes)
         owner += [k] * len(plan.passes)
     out, info = refine_speeds(apps, surface, passes, lo, hi, interior, cap_all,
-                              pass_time_weight=pass_time_weight, edge_weight=edge_weight)
+                              pass_time_weight=pass_time_weight, edge_weight=edge_weight,
+                              vertex_weight=vertex_weight)
     flat = [m for part in (restorable or [[None] * len(pl.passes) for pl in plans])
             for m in part]
     cand = [i for i, (p, m) in enumerate(zip(passes, flat, strict=True))
@@ -206,7 +209,7 @@ def refine_together(surface: Surface, plans: list[CoveragePlan],
     if cand:
         out, info, given = _give_back(apps, surface, passes, lo, hi, interior, cap_all,
                                       pass_time_weight, cand, flat, owner, out, info,
-                                      edge_weight)
+                                      edge_weight, vertex_weight)
     change = [float((q.times_s[-1] - q.times_s[0]) - (p.times_s[-1] - p.times_s[0]))
               for p, q in zip(passes, out, strict=True)]
     own = np.asarray(owner)
@@ -230,7 +233,8 @@ def _give_back(apps: list[Applicator], surface: Surface, passes: list[PassPlan],
                lo: list[float], hi: list[float], interior: np.ndarray,
                caps: list[np.ndarray | None], pass_time_weight: float, cand: list[int],
                masks: list[np.ndarray | None], owner: list[int], out: list[PassPlan],
-               info: dict[str, Any], edge_weight: float = 1.0
+               info: dict[str, Any], edge_weight: float = 1.0,
+               vertex_weight: np.ndarray | None = None
                ) -> tuple[list[PassPlan], dict[str, Any], dict[str, Any]]:
     """`refine_together`'s passes switched off by the seams, painted again where the film
     wants them: the relaxed fit's share per candidate pass, then the fit with those over
@@ -256,7 +260,8 @@ def _give_back(apps: list[Applicator], surface: Surface, passes: list[PassPlan],
     with_back = [replace(p, paint_on=wanted[i]) if i in back else p
                  for i, p in enumerate(passes)]
     out2, info2 = refine_speeds(apps, surface, with_back, lo, hi, interior, caps,
-                                pass_time_weight=pass_time_weight, edge_weight=edge_weight)
+                                pass_time_weight=pass_time_weight, edge_weight=edge_weight,
+                                vertex_weight=vertex_weight)
     start = info.get("nsd_capped_pct", info["nsd_before_pct"])
     start_int = info.get("interior_capped_pct", info["interior_before_pct"])
     best = info["nsd_after_pct"] if info["applied"] else start
@@ -319,7 +324,7 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
                   caps_m_s: list[np.ndarray | None] | None = None,
                   pass_time_weight: float = 0.0,
                   paint_free: Sequence[bool] | None = None,
-                  edge_weight: float = 1.0
+                  edge_weight: float = 1.0, vertex_weight: np.ndarray | None = None
                   ) -> tuple[list[PassPlan], dict[str, Any]]:
     """Passes re-timed so the simulated film on `surface` is as even as the bounds allow.
 
@@ -341,8 +346,9 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
     robot caps reads against the cap, so a capped stretch is wanted less than its free samples
     would be); the speeds returned for such a pass mean nothing;
     edge_weight: the fit's weight of the vertices off the interior, relative to their areas
-    (the interior's is 1, or more while `INTERIOR_WEIGHTS` are tried); σ/μ is judged by area
-    alone, whatever the fit weighed.
+    (the interior's is 1, or more while `INTERIOR_WEIGHTS` are tried); vertex_weight: (N,) a
+    further weight of each vertex in the fit, × the above (None: 1; `refine_body` weighs a
+    body's worst part more); σ/μ is judged by area alone, whatever the fit weighed.
     Returns the passes (unchanged when refining does not lower σ/μ on both the whole part and
     the interior) and an info dict (σ/μ before/after [%], cycle change [s], knots).
     """
@@ -407,7 +413,8 @@ def refine_speeds(app: Applicator | Sequence[Applicator], surface: Surface,
                           interior=interior, mu=mu, M=M, lo=lo_a, hi=hi_a,
                           v_min_m_s=v_lo, pass_time_weight=pass_time_weight,
                           vertices=V, normals=N, free=np.asarray(free, bool),
-                          keep_target=np.where(free_k, 0.0, 1.0), edge_weight=edge_weight)
+                          keep_target=np.where(free_k, 0.0, 1.0), edge_weight=edge_weight,
+                          vertex_weight=vertex_weight)
     # Fitted with the interior weighted 1×; if the result lowers σ/μ on the whole part but not
     # on its interior, fitted again with the interior weighted more (INTERIOR_WEIGHTS): the fit
     # trades some of the edge's gain for the interior, and the first that lowers both is kept.
@@ -448,7 +455,8 @@ class _FitProblem:
     pass's v_min_m_s [m/s], the pass-time weight, the part's vertices and normals (the film
     judged on all of them), which passes are paint-free (`refine_speeds`), each knot's
     target of the pull toward the planned speed (1; 0 on a paint-free pass) and the fit's
-    weight of the vertices off the interior (`edge_weight`, × their areas)."""
+    weight of the vertices off the interior (`edge_weight`, × their areas) and of every vertex
+    (`vertex_weight`, None: 1)."""
 
     apps: list[Applicator]
     passes: list[PassPlan]
@@ -468,6 +476,7 @@ class _FitProblem:
     free: np.ndarray
     keep_target: np.ndarray
     edge_weight: float = 1.0
+    vertex_weight: np.ndarray | None = None
 
 
 def _fit(pb: _FitProblem, w_int: float
@@ -480,6 +489,8 @@ def _fit(pb: _FitProblem, w_int: float
         pb.pass_time_weight
     n_k = len(pb.lo)
     wa = pb.areas[fit] * np.where(pb.interior[fit], w_int, pb.edge_weight)
+    if pb.vertex_weight is not None:
+        wa = wa * pb.vertex_weight[fit]
     rw = np.sqrt(wa / wa.sum()) / mu
     # The normal equations of ‖A s − b‖² (A: the weighted film rows, the smoothing, the pull
     # toward the planned speeds and the held durations stacked): H = AᵀA, g = Aᵀb. With
