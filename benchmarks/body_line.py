@@ -16,10 +16,14 @@ serial, the same with any worker count), each with its ratio.
 
 Then the same on a generated car body's paint line (`paintcell generate body --seed S`, then
 `paintcell init BODY --line --takt T`, each command's wall time printed), when this paintcell
-has those commands; when it has not, it says so and skips that part. Other jobs may share the
-machine: the load average is printed beside the figures.
+has those commands; when it has not, it says so and skips that part. With --hand, the seed-1
+SUV's line laid out by hand (benchmarks/hand_line.toml: scenarios/booth.toml's layout extended
+to the whole body, the same body, panels, plans and spec) runs after it, and the two booth
+cycles are printed with their ratio. Other jobs may share the machine: the load average is
+printed beside the figures.
 
     .venv/bin/python benchmarks/body_line.py [--workers 1 2] [--takt 100] [--seed 1] [--no-body]
+                                             [--hand]
 """
 
 from __future__ import annotations
@@ -36,6 +40,8 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 BOOTH = ROOT / "scenarios" / "booth.toml"
+#: the seed-1 SUV's line laid out by hand (scenarios/booth.toml's layout extended).
+HAND = ROOT / "benchmarks" / "hand_line.toml"
 #: metrics.json's stage_times_s keys, as the benchmark names them.
 STAGES = {"plan": "planning", "trajectory": "programs", "execute": "execution",
           "validate": "validation"}
@@ -70,8 +76,9 @@ def run_once(scenario: Path, workers: int, out: Path) -> dict[str, Any]:
             "passed": r.returncode == 0}
 
 
-def bench(label: str, scenario: Path, workers: list[int], tmp: Path) -> None:
-    """Run the scenario with each worker count; print every figure and the 1→2 ratios."""
+def bench(label: str, scenario: Path, workers: list[int], tmp: Path) -> dict[int, dict[str, Any]]:
+    """Run the scenario with each worker count; print every figure and the 1→2 ratios; the
+    runs by worker count."""
     print(f"\n== {label}: paintcell run --fast {scenario}")
     runs: dict[int, dict[str, Any]] = {}
     for n in workers:
@@ -98,6 +105,21 @@ def bench(label: str, scenario: Path, workers: list[int], tmp: Path) -> None:
         for k in a["split"]:
             print(f"    {k:<26} {a['split'][k] / b['split'][k]:8.2f} ×")
         print(f"  {'wall time':<28} {a['wall'] / b['wall']:8.2f} ×")
+    return runs
+
+
+def beside_hand(auto: dict[str, Any], workers: int, tmp: Path) -> None:
+    """The hand-laid line (`HAND`) run as the automatic one was; both cycles and their ratio."""
+    print(f"\n== the line laid out by hand: paintcell run --fast {HAND} --workers {workers}")
+    hand = run_once(HAND, workers, tmp / "hand")
+    a, h = (float(r["metrics"]["executed_cycle_time_s"]) for r in (auto, hand))
+    print(f"  result {'PASS' if hand['passed'] else 'FAIL'}; worst panel σ/μ "
+          f"{hand['metrics']['max_part_executed_nsd_pct']:.2f} %, body "
+          f"{hand['metrics']['executed_nsd_pct']:.2f} %, seams ÷ interiors "
+          f"{hand['metrics']['seam_nsd_ratio']:.2f}")
+    print(f"  booth cycle: automatic {a:.2f} s (result {'PASS' if auto['passed'] else 'FAIL'}), "
+          f"by hand {h:.2f} s; automatic ÷ by hand {a / h:.3f} (> 1: the automatic line is "
+          "slower)")
 
 
 def body_line(tmp: Path, takt_s: float, seed: int) -> Path | None:
@@ -141,13 +163,19 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1,
                     help="the generated body's seed (odd: an SUV; scenarios/body_line.toml's: 1)")
     ap.add_argument("--no-body", action="store_true", help="only scenarios/booth.toml")
+    ap.add_argument("--hand", action="store_true",
+                    help="also run benchmarks/hand_line.toml (the seed-1 SUV's line laid out by "
+                         "hand) with the largest --workers, beside the generated line (seed 1, "
+                         "takt 100: the body and panels it was laid out for)")
     args = ap.parse_args()
     print(f"{os.cpu_count()} CPU cores; load average {os.getloadavg()[0]:.1f}")
     with tempfile.TemporaryDirectory(prefix="paintcell-body-line-") as d:
         tmp = Path(d)
         bench("booth", BOOTH, args.workers, tmp)
         if not args.no_body and (line := body_line(tmp, args.takt, args.seed)) is not None:
-            bench("body line", line, args.workers, tmp)
+            runs = bench("body line", line, args.workers, tmp)
+            if args.hand:
+                beside_hand(runs[max(args.workers)], max(args.workers), tmp)
 
 
 if __name__ == "__main__":
