@@ -33,16 +33,24 @@ SIDE_GAPS_M = (1.9, 1.6, 2.2)
 #: arms, where an elevated rail at the roof's height stands in their way.
 WALL_GAPS_M = (1.3, 1.6, 1.9)
 WALL_Z_M = 3.0
-#: Home of a wall-mounted robot: carriage at 0, the arm raised over the car's centre line (the
-#: bell about 0.6 m above the roof, measured on the generated SUV), clear of the floor robots'
-#: arms below it at the car's sides (folded beside the body at window height, as roof_r's home,
-#: its bell came within 0.1 m of a floor robot's painting a door's window frame).
-WALL_HOME = (0.0, 0.0, -1.4, 0.4, 0.0, 1.0, 0.0)
-#: How far past its stretch of the car a robot parks when it shares its side [m].
+#: Home of a wall-mounted robot: carriage at 0, the arm folded up over the car's centre line,
+#: clear of the floor robots' arms below it at the car's sides (folded beside the body at window
+#: height, as roof_r's home, its bell came within 0.1 m of a floor robot's painting a door's
+#: window frame). Folded higher than (−1.4, 0.4) on J2/J3, its first moves down to the roof
+#: clear the floor robots' at once: on the seed-1 SUV line the staggered starts went from up to
+#: 13.9 s to up to 5.0 s for the top robots (with the floor robots parked at their stretches).
+WALL_HOME = (0.0, 0.0, -1.5, 0.7, 0.0, 1.0, 0.0)
+#: Further rail travel past a robot's stretch of the car, at the end it parks toward, when it
+#: shares its side [m] (a top robot parks there, `TOP_PARK_M`).
 PARK_M = 1.5
+#: How far past its stretch a floor robot parks [m]: at the stretch's end, its arm folded low
+#: beside the car's end. Parked 1.5 m further out, every program began and ended with a long
+#: carriage move toward its neighbours' work, and the seed-1 SUV line's staggered starts reached
+#: 18.5 s (cycle 83.5 s; 68.8 s parked at the stretches' ends, with `WALL_HOME`).
+FLOOR_PARK_M = 0.0
 #: How far past its stretch a top robot parks [m]: beyond the floor robots of its side, which
-#: park `PARK_M` past theirs at about the same x (the stretches of both end at the car's ends),
-#: so the two folded arms do not stand over one spot (measured: 0.5 m apart at `PARK_M`).
+#: park at their stretches' ends at about the same x (the stretches of both end at the car's
+#: ends), so the two folded arms do not stand over one spot.
 TOP_PARK_M = 1.5
 #: Least distance between the rail centres of two robots of one zone [m].
 STATION_SPACING_M = 1.5
@@ -82,14 +90,15 @@ def _stations(shares: list[RobotShare], pts: list[np.ndarray]) -> list[float]:
 
 def _sides_and_parks(shares: list[RobotShare], stations: list[float]
                      ) -> tuple[list[bool], list[int]]:
-    """Each robot's side of the car (True: left) and where it parks along the line (+1: past
-    its stretch toward the car's front, −1: toward its rear, 0: at its station). A lone top robot
-    stands on the side with fewer floor robots; of the robots on one side, ordered front to
-    rear, the front half park toward the front, the rear half toward the rear, the middle one
-    toward the front on the left and the rear on the right (a parked arm would otherwise stand in
-    a neighbour's stretch, which the booth's staggering cannot clear); so do two top robots
-    across the car from each other (each folded over the body at home, they meet over the
-    centre line). A robot alone on its side with no top partner parks at its station."""
+    """Each robot's side of the car (True: left) and where it parks along the line (+1: at or
+    past its stretch's end toward the car's front, −1: toward its rear, 0: at its station).
+    A lone top robot stands on the side with fewer floor robots; of the robots on one side,
+    ordered front to rear, the front half park toward the front, the rear half toward the
+    rear, the middle one toward the front on the left and the rear on the right (a parked arm
+    would otherwise stand in a neighbour's stretch, which the booth's staggering cannot clear);
+    so do two top robots across the car from each other (each folded over the body at home,
+    they meet over the centre line). A robot alone on its side with no top partner parks at
+    its station."""
     tops = [s.zone for s in shares if s.zone.startswith("top")]
     floor_left = sum(s.zone == "left" for s in shares)
     floor_right = sum(s.zone == "right" for s in shares)
@@ -124,7 +133,8 @@ def _robot_frames(share: RobotShare, k: int, pts: np.ndarray, x_m: float, left: 
     park_m = PARK_M if share.zone in ("left", "right") else TOP_PARK_M
     half = round(reach + (park_m if park else 0.0) + track_m + RAIL_MARGIN_M, 3)
     # the carriage runs along world +x on the left, −x on the right (the arm faces the car)
-    home0 = round(park * (reach + park_m) * (1.0 if left else -1.0), 3)
+    home_m = reach + (TOP_PARK_M if share.zone not in ("left", "right") else FLOOR_PARK_M)
+    home0 = round(park * home_m * (1.0 if left else -1.0), 3)
     name = f"{share.zone}_{k}" if share.zone in ("left", "right") \
         else f"top_{'left' if left else 'right'}_{k}"
     out = []
