@@ -103,7 +103,8 @@ def bench(label: str, scenario: Path, workers: list[int], tmp: Path) -> dict[int
         par = [sum(r["stages"][k] for k in PARALLEL) for r in (a, b)]
         print(f"  {'planning + programs':<28} {par[0] / par[1]:8.2f} ×")
         for k in a["split"]:
-            print(f"    {k:<26} {a['split'][k] / b['split'][k]:8.2f} ×")
+            ratio = f"{a['split'][k] / b['split'][k]:8.2f} ×" if b["split"][k] > 0 else "     n/a"
+            print(f"    {k:<26} {ratio}")
         print(f"  {'wall time':<28} {a['wall'] / b['wall']:8.2f} ×")
     return runs
 
