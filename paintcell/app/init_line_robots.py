@@ -36,9 +36,9 @@ WALL_Z_M = 3.0
 #: Home of a wall-mounted robot: carriage at 0, the arm folded up over the car's centre line,
 #: clear of the floor robots' arms below it at the car's sides (folded beside the body at window
 #: height, as roof_r's home, its bell came within 0.1 m of a floor robot's painting a door's
-#: window frame). Folded higher than (−1.4, 0.4) on J2/J3, its first moves down to the roof
-#: clear the floor robots' at once: on the seed-1 SUV line the staggered starts went from up to
-#: 13.9 s to up to 5.0 s for the top robots (with the floor robots parked at their stretches).
+#: window frame). Folded this high, its first moves down to the roof clear the floor robots' at
+#: once: on the seed-1 SUV line (the floor robots parked at their stretches' ends) the top
+#: robots' staggered starts are 0 and 5.0 s; folded at (−1.4, 0.4) on J2/J3, up to 13.9 s.
 WALL_HOME = (0.0, 0.0, -1.5, 0.7, 0.0, 1.0, 0.0)
 #: Further rail travel past a robot's stretch of the car, at the end it parks toward, when it
 #: shares its side [m] (a top robot parks there, `TOP_PARK_M`).

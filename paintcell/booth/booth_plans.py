@@ -29,8 +29,8 @@ from paintcell.surface.surface_data import Surface
 #: (`refine_body`). Fitted by area alone, the seed-1 SUV line's seams are ~1.6× as uneven as the
 #: interiors; its last robot-aware round's body film (planned σ/μ, seams ÷ interiors) at
 #: weights 1, 2 and 3: 4.82 % and 1.58×, 4.64 % and 1.38×, 4.61 % and 1.28×, its worst panel
-#: (the front fascia, by its own interior) 7.76, 7.90 and 8.02 % (the first fit's, before
-#: `weigh_worst_part` weighs the fascia: 7.53 % at weight 2, seams 1.42×).
+#: (the front fascia, by its own interior) 7.76, 7.90 and 8.02 %: the first fit's; at weight 2
+#: `weigh_worst_part`'s second fit, the fascia weighed 1.7×, gives 7.53 % and 1.42×.
 SEAM_FIT_WEIGHT = 2.0
 
 
@@ -202,14 +202,17 @@ def part_nsds(body: Surface, part_counts: list[int], plans: list[CoveragePlan]
     film = sum(thickness(pl.applicator, pl.gun_samples(), body.vertices, body.normals)
                for pl in plans)
     film = np.asarray(film, float)
+
+    def nsd(w: np.ndarray) -> float:        # NaN where nothing is judged or painted
+        return body_uniformity(film, w) if w.sum() > 0 and film @ w > 0 else float("nan")
+
     offs = np.cumsum([0, *part_counts])
     parts = []
     for k in range(len(part_counts)):
         w = np.zeros(len(film))
         w[offs[k]:offs[k + 1]] = body.vertex_areas[offs[k]:offs[k + 1]]
-        parts.append(body_uniformity(film, w) if w.sum() > 0 and film @ w > 0
-                     else float("nan"))
-    return body_uniformity(film, body.vertex_areas), parts
+        parts.append(nsd(w))
+    return nsd(body.vertex_areas), parts
 
 
 def weigh_worst_part(body: Surface, part_counts: list[int], plans: list[CoveragePlan],
@@ -228,8 +231,9 @@ def weigh_worst_part(body: Surface, part_counts: list[int], plans: list[Coverage
                                    "drops by more than the body's rises",
                            "applied": False}
     whole, parts = part_nsds(body, part_counts, plans)
-    if len(parts) < 2 or not np.isfinite(parts).any():
-        return plans, {**fitted, "worst_part": {**rec, "reason": "fewer than two judged parts"}}
+    if len(parts) < 2 or not np.isfinite(parts).any() or not np.isfinite(whole):
+        return plans, {**fitted, "worst_part": {**rec, "reason": "fewer than two judged, "
+                                                                 "painted parts"}}
     k = int(np.nanargmax(parts))
     w = parts[k] / whole
     rec.update(part=names[k], weight=round(float(w), 4), body_nsd_before_pct=whole,
