@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -167,10 +168,11 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         made["booth"] = booth
         return made["pp"]
 
+    builds: list[tuple[Any, Any]] = []
+
     def keep_programs(booth: Any, fast: bool, pp: Any = None, tasks: Any = None) -> Any:
-        made["progs"] = real_programs(booth, fast, pp, tasks)
-        made["built"] = booth
-        return made["progs"]
+        builds.append((booth, real_programs(booth, fast, pp, tasks)))
+        return builds[-1][1]
 
     booth_plans.plan_parts = keep
     booth_programs.booth_programs = keep_programs
@@ -180,6 +182,12 @@ def written(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     finally:
         booth_plans.plan_parts = real
         booth_programs.booth_programs = real_programs
+    # the build of the written robots (init builds again when it moves a robot's home)
+    from paintcell.booth.booth_data import load_toml_booth
+
+    homes = [r.home for r in load_toml_booth(out).robots]
+    made["built"], made["progs"] = next((b, progs) for b, progs in builds[::-1]
+                                        if [r.home for r in b.robots] == homes)
     return {"out": out, "body": body, **made}
 
 
@@ -249,6 +257,65 @@ def test_the_built_line_meets_the_takt_and_keeps_its_carriages_apart(
     assert gap.min() >= CARRIAGE_GAP_M - 1e-6, gap.min()
     # the line moved them: every carriage travelled with the body
     assert all(np.ptp(a) > 0.5 * d for a in x)
+
+
+def _least_cycle_s(robots: list[Any], trajs: list[Any], min_distance_m: float) -> float:
+    """Brute force over every start offset of two robots' programs (the booth's stagger steps,
+    up to its largest delay either way): the shortest cycle [s] (the later one's offset +
+    program) at which their arm points keep `min_distance_m` apart at every 20 ms, a robot
+    holding its first pose before its start and its last after its end."""
+    from paintcell.booth.booth import arm_points
+    from paintcell.booth.booth_stagger import STAGGER_MAX_S, STAGGER_STEP_S
+
+    dt = trajs[0].dt_s
+    sub = max(1, round(0.02 / dt))
+    p, q = (arm_points(r, tr.q[::sub]) for r, tr in zip(robots, trajs, strict=True))
+    step = max(1, round(STAGGER_STEP_S / (sub * dt)))
+    best = np.inf
+    for o in range(-round(STAGGER_MAX_S / (sub * dt)) // step * step,
+                   round(STAGGER_MAX_S / (sub * dt)) + 1, step):
+        n = max(len(p) + max(o, 0), len(q) + max(-o, 0))
+        t = np.arange(n)
+        a = p[np.clip(t - max(o, 0), 0, len(p) - 1)]
+        b = q[np.clip(t - max(-o, 0), 0, len(q) - 1)]
+        gap = np.linalg.norm(a[:, :, None] - b[:, None], axis=-1).min()
+        if gap >= min_distance_m:
+            best = min(best, (n - 1) * sub * dt)
+    return float(best)
+
+
+def test_a_robot_parked_away_from_its_work_is_parked_where_the_cycle_is_shorter(
+        written: dict[str, Any]) -> None:
+    """The verified two-robot line with its rear robot's home moved 2 m further from its
+    station, along its carriage's stretch: `shorter_parks` moves it (to its station), and the
+    booth built again with the homes it returns has a cycle shorter by at least a stagger step,
+    both cycles re-measured by brute force over the start offsets on the programs the booth
+    built; each program starts and ends at its robot's home, inside its carriage's stretch."""
+    from paintcell.app.init_line_robots import shorter_parks
+    from paintcell.booth.booth_programs import booth_programs
+    from paintcell.booth.booth_stagger import STAGGER_STEP_S
+
+    built, pp = written["built"], written["pp"]
+    rear = built.robots[1]
+    assert rear.carriage_m is not None
+    far = round(rear.home[0] + 2.0 * float(np.sign(rear.home[0])), 3)   # 2 m further out
+    assert rear.carriage_m[0] < far < rear.carriage_m[1]
+    away = replace(built, robots=(built.robots[0], replace(rear, home=(far, *rear.home[1:]))))
+    before = booth_programs(away, True, pp)
+    got = shorter_parks(away, before, say=lambda _: None)
+    assert got is not None
+    parked, why = got
+    assert rear.name in why and parked.robots[1].home[0] != far
+    after = booth_programs(parked, True, pp)
+    dist = built.thresholds.min_bell_distance_m
+    was = _least_cycle_s(before.robots, before.static, dist)
+    now = _least_cycle_s(after.robots, after.static, dist)
+    assert now <= was - STAGGER_STEP_S + 0.02, (was, now)
+    for r, tr in zip(parked.robots, after.static, strict=True):
+        lo, hi = r.carriage_m if r.carriage_m is not None else r.rail_m
+        assert lo - 1e-9 <= r.home[0] <= hi + 1e-9
+        assert tr.q[0, 0] == pytest.approx(r.home[0], abs=1e-6)
+        assert tr.q[-1, 0] == pytest.approx(r.home[0], abs=1e-6)
 
 
 def test_the_written_line_holds_the_film_spec(written: dict[str, Any]) -> None:

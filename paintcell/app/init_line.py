@@ -16,6 +16,10 @@
   line's travel over a takt at each end, as the booth's own rail margin) and a margin; floor
   rails beside the body for the side zones, wall mounts 3 m up (else elevated rails) for the
   top; the first frame that reaches every pass of its jobs and whose program builds alone.
+  Once the line is verified, each robot in turn is tried parked at its station instead of at
+  its stretch's end (`shorter_parks`: its program built again, the booth staggered again); the
+  homes that shorten the cycle are kept when the booth, building the line again, verifies the
+  shorter cycle.
 - The body rides on its skid: lifted until its lowest pass is `MIN_TCP_Z_M` above the floor.
 - Count: from the first estimate up to `max_robots`, the smallest whose every robot's estimated
   program plus return fits the takt, every robot reaches its passes, and whose programs the
@@ -42,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from paintcell.app.init_layout import TRAJECTORY_TRIES
-from paintcell.app.init_line_robots import ProgramBuilder, place_robots
+from paintcell.app.init_line_robots import ProgramBuilder, place_robots, shorter_parks
 from paintcell.booth.line_allocation import (
     FLOOR_ROBOTS_PER_SIDE,
     LinePanel,
@@ -237,8 +241,7 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
             failed.append(f"{n}: the booth cannot build it ({str(exc).split('; ')[0][:160]})")
             say(f"init: {failed[-1]}")
             continue
-        built = [float(tr.duration_s) for tr in progs.static]
-        cycle = float(max(len(tr.t_s) for tr in progs.trajs) - 1) * progs.trajs[0].dt_s
+        cycle = _cycle_s(progs)
         if cycle > takt.max_cycle_s():
             delays = progs.record.get("start_delays_s", [])
             failed.append(f"{n}: the booth's cycle {cycle:.1f} s (start delays "
@@ -246,7 +249,9 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
                           f"{takt.robot_cycle_s(cycle) - cycle:.1f} s > takt {takt.takt_s:g} s")
             say(f"init: {failed[-1]}")
             continue
-        return Line(cand, takt, shares, built, cycle, n0, n_passes, total, failed, frames,
+        cand, progs, frames = _parked(cand, progs, pp, frames, say)
+        return Line(cand, takt, shares, [float(tr.duration_s) for tr in progs.static],
+                    _cycle_s(progs), n0, n_passes, total, failed, frames,
                     {"start_delays_s": progs.record.get("start_delays_s", []),
                      "body_clearance": progs.record.get("body_clearance", {})})
     raise PaintcellError(
@@ -254,6 +259,36 @@ def choose_line(booth: Any, pp: Any, takt: LineTakt, max_robots: int, verify: bo
         f"(conveyor {takt.conveyor_speed_m_s:.3f} m/s, estimated {total:.0f} s of programs, first "
         f"estimate {n0} robots): {' | '.join(failed) or 'the first estimate exceeds the limit'}; "
         "lengthen --takt or raise --max-robots")
+
+
+def _cycle_s(progs: Any) -> float:
+    """The booth's cycle [s]: its staggered programs' common clock."""
+    return float(max(len(tr.t_s) for tr in progs.trajs) - 1) * progs.trajs[0].dt_s
+
+
+def _parked(booth: Any, progs: Any, pp: Any, frames: list[str], say: Callable[[str], None]
+            ) -> tuple[Any, Any, list[str]]:
+    """The verified line `booth` (programs `progs`) with the homes of `shorter_parks` when the
+    booth, building it again, verifies a shorter cycle; else as it was. frames: each robot's why,
+    the moved robots' park appended."""
+    from paintcell.booth.booth_programs import booth_programs
+
+    moved = shorter_parks(booth, progs, say)
+    if moved is None:
+        return booth, progs, frames
+    parked, why = moved
+    say("init: building the robots' programs again with those homes")
+    try:
+        again = booth_programs(parked, True, pp)
+    except PaintcellError as exc:
+        say(f"init: kept the homes as placed ({str(exc).split('; ')[0][:160]})")
+        return booth, progs, frames
+    if _cycle_s(again) >= _cycle_s(progs):
+        say(f"init: kept the homes as placed (cycle {_cycle_s(again):.1f} s against "
+            f"{_cycle_s(progs):.1f} s)")
+        return booth, progs, frames
+    return parked, again, [f + (f", {why[r.name]}" if r.name in why else "")
+                           for f, r in zip(frames, parked.robots, strict=True)]
 
 
 def panel_booth(name: str, files: Sequence[Any], takt: LineTakt) -> Any:

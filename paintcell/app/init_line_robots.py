@@ -8,6 +8,7 @@ the top panels), the first of them from which it reaches every pass of its jobs 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -17,7 +18,7 @@ from paintcell.app.init_layout import ARM, HOME, TRAJECTORY_TRIES, rail_robots
 from paintcell.booth.line_allocation import RobotShare
 from paintcell.core.errors import PaintcellError
 
-__all__ = ["ProgramBuilder", "place_robots"]
+__all__ = ["ProgramBuilder", "place_robots", "shorter_parks"]
 
 #: Carriage top of a floor rail above the floor [m], tried in this order: 0.3 m as
 #: scenarios/booth.toml's side robots, then on a pedestal for a robot whose passes reach high at
@@ -52,6 +53,9 @@ FLOOR_PARK_M = 0.0
 #: park at their stretches' ends at about the same x (the stretches of both end at the car's
 #: ends), so the two folded arms do not stand over one spot.
 TOP_PARK_M = 1.5
+#: Where `shorter_parks` tries each robot's home along its rail, as a fraction of its home as
+#: placed (1: parked at or past its stretch's end; 0: at its station, the rail's middle) [-].
+PARK_TRIES = (0.0,)
 #: Least distance between the rail centres of two robots of one zone [m].
 STATION_SPACING_M = 1.5
 #: Gap beside the top panels' box of an elevated rail frame [m], tried in this order.
@@ -340,3 +344,65 @@ def place_robots(booth: Any, pp: Any, shares: list[RobotShare], track_m: float,
         if len(robots) == len(shares):
             return robots, texts, dict(traj)
     return f"no rail frame tried builds every robot's program (first: {why})"
+
+
+def shorter_parks(booth: Any, progs: Any, say: Callable[[str], None] = print
+                  ) -> tuple[Any, dict[str, str]] | None:
+    """Homes that shorten the staggered cycle of the verified line `booth` (its programs
+    `progs`, `paintcell.booth.booth_programs.booth_programs`), or None when none does.
+
+    Where a robot parks decides its program's first and last moves: parked at one end of its
+    stretch and starting at the other, it runs the car's length at the start, its arm over its
+    neighbours' first panels, and the booth's staggering holds one of them back. Each robot in
+    turn (coordinate descent, one sweep) has its home tried at `PARK_TRIES` × its home as
+    placed, inside its carriage's stretch; its program is built again on the verified plans
+    (the same passes, speeds and rail margin: only the moves to and from home change), the
+    booth is staggered again with the others' programs as verified, and the home is kept when
+    the cycle (max over the robots of start delay + program) is shorter by a stagger step. A
+    home whose program cannot be built, or whose arm cannot be kept apart from a neighbour's,
+    is passed over. Returns the booth with the kept homes and, per moved robot, why (one
+    phrase)."""
+    from paintcell.booth.booth_job_programs import body_probe, load_robots, robot_programs
+    from paintcell.booth.booth_programs import start_delays
+    from paintcell.booth.booth_stagger import STAGGER_STEP_S
+
+    dt = progs.static[0].dt_s
+    shrink = float(progs.record.get("rail_tracking_margin_m", 0.0))
+    counts = tuple(len(s.vertices) for s in progs.surfaces)
+    T_wb = booth.body_placement.matrix
+    robots, trajs = list(booth.robots), list(progs.static)
+    models = list(progs.robots)
+
+    def cycle_s(ts: list[Any], ms: list[Any]) -> float:
+        d = start_delays(booth, ms, ts)
+        return (max(len(t.t_s) + k for t, k in zip(ts, d, strict=True)) - 1) * dt
+
+    best = cycle_s(trajs, models)
+    why: dict[str, str] = {}
+    for i, r in enumerate(robots):
+        lo, hi = r.carriage_m if r.carriage_m is not None else r.rail_m
+        for f in PARK_TRIES:
+            home0 = float(np.clip(round(f * r.home[0], 3), np.ceil(lo * 1e3) / 1e3,
+                                  np.floor(hi * 1e3) / 1e3)) + 0.0      # no −0.0
+            if home0 == robots[i].home[0]:
+                continue
+            cand = replace(r, home=(home0, *r.home[1:]))
+            alone = replace(booth, robots=(cand,), allocation=None)
+            model = load_robots(alone)[0]
+            try:
+                traj = robot_programs(alone, load_robots(alone, shrink, stretch=True),
+                                      progs.plans, {0: progs.jobs[i]}, T_wb, progs.T_body_parts,
+                                      {}, [body_probe(alone, model, progs.body, counts)])[0]
+                got = cycle_s([*trajs[:i], traj, *trajs[i + 1:]],
+                              [*models[:i], model, *models[i + 1:]])
+            except PaintcellError:
+                continue
+            if got <= best - STAGGER_STEP_S:
+                say(f"init: {r.name} parked at {home0:+.2f} m on its rail: staggered cycle "
+                    f"{got:.1f} s (was {best:.1f} s)")
+                why[r.name] = (f"parked at {home0:+.2f} m on its rail, where the staggered "
+                               f"cycle is {got:.1f} s against {best:.1f} s at {r.home[0]:+.2f} m")
+                robots[i], trajs[i], models[i], best = cand, traj, model, got
+    if not why:
+        return None
+    return replace(booth, robots=tuple(robots)), why

@@ -212,7 +212,7 @@ def _choose(booth: Booth, robots: list[Any], plans: list[CoveragePlan],
             trajs0 = robot_programs(booth, planners, plans, jobs, T_wb, T_bp, cache, probes,
                                     remote)
             chained.update({(r, jobs[r]): len(tr.t_s) for r, tr in enumerate(trajs0)})
-            delays = _stagger(booth, robots, trajs0)
+            delays = start_delays(booth, robots, trajs0)
         except PaintcellError as exc:   # an unbuildable program, arms that cannot be kept apart
             tried.append({"rank": rank + 1, "jobs": names, "rejected": str(exc)})
             continue
@@ -324,7 +324,7 @@ def _allocate(booth: Booth, robots: list[Any], plans: list[CoveragePlan], T_wb: 
                             [patch_pass_counts(pl) for pl in plans])
 
 
-def _stagger(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> list[int]:
+def start_delays(booth: Booth, robots: list[Any], trajs: list[JointTrajectory]) -> list[int]:
     """Start delays [samples] of `paintcell.booth.booth_stagger.stagger_starts` (none
     without a clearance limit)."""
     if booth.thresholds.min_bell_distance_m is None:
