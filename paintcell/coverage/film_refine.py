@@ -37,11 +37,16 @@ the allocation's estimates and the stagger see the same program lengths. Re-time
 part drifts: four of the booth scenario's five ranked allocations then failed the arm stagger
 and the fifth left a robot idle. `refine_together` then re-times every part's passes as one fit
 against the film they lay together (the seams, which each part refined alone cannot see), the
-durations free this time (see its doc).
+durations free this time (see its doc). M's column blocks are kept by their passes' content
+between fits (`_Blocks`): a booth's joint fit builds the same ones for its fit, its relaxed fit
+and its refit with the worst part weighed.
 """
 
 from __future__ import annotations
 
+import hashlib
+import threading
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
@@ -293,21 +298,85 @@ def _knot_basis(arc_m: np.ndarray, spacing_m: float) -> tuple[sp.csr_matrix, int
     return sp.csr_matrix((vals, (rows, cols)), shape=(len(arc_m), k)), k
 
 
+class _Blocks:
+    """The film matrix's column blocks of recently fitted passes (`_film_matrix`), by content
+    (the pass's samples, timing and brush-on, its deposition model, the fitted points), the
+    least recently used dropped past `BLOCK_CACHE_BYTES`. A body's joint fit builds the same
+    blocks again and again: its fit, its relaxed fit (only the passes it frees differ) and its
+    refit with the worst part weighed (all equal) share them. A block is computed the same way
+    whether kept or not, so the fits are equal bit for bit."""
+
+    def __init__(self, max_bytes: int) -> None:
+        self.max_bytes, self.used = max_bytes, 0
+        self._blocks: OrderedDict[bytes, np.ndarray] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: bytes) -> np.ndarray | None:
+        with self._lock:
+            block = self._blocks.get(key)
+            if block is not None:
+                self._blocks.move_to_end(key)
+            return block
+
+    def put(self, key: bytes, block: np.ndarray) -> None:
+        if block.nbytes > self.max_bytes:
+            return
+        with self._lock:
+            if key in self._blocks:
+                return
+            self._blocks[key] = block
+            self.used += block.nbytes
+            while self.used > self.max_bytes:
+                self.used -= self._blocks.popitem(last=False)[1].nbytes
+
+
+#: most bytes of film-matrix blocks kept between fits (`_Blocks`): about one body's matrix
+#: (`MAX_FIT_ENTRIES` float64 entries is 0.16 GB).
+BLOCK_CACHE_BYTES = 200_000_000
+_BLOCKS = _Blocks(BLOCK_CACHE_BYTES)
+
+
+def _block_key(app: Applicator, p: PassPlan, b: sp.csr_matrix, points_key: bytes) -> bytes:
+    """The content key of one pass's film-matrix block (`_Blocks`): its deposition model,
+    samples, brush-on, dwell and knot basis b, and the fitted points' key."""
+    h = hashlib.blake2b(points_key, digest_size=20)
+    h.update(repr(tuple(float(getattr(app, k)) for k in _APP_SCALARS)).encode())
+    for arr in (app.ring_amplitudes_m_s, app.ring_radii_m, app.ring_sigmas_m, p.positions,
+                p.spray_axes, p.travel_dirs, p.paint_on, p.dwell_s(), b.data, b.indices,
+                b.indptr, np.asarray(b.shape)):
+        a = np.ascontiguousarray(arr)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.digest()
+
+
+_APP_SCALARS = ("standoff_m", "a0_m_s", "sigma_x_m", "sigma_y_m")
+
+
 def _film_matrix(apps: list[Applicator], passes: list[PassPlan], basis: list[sp.csr_matrix],
                  points: np.ndarray, normals: np.ndarray) -> np.ndarray:
     """(N, K) film [m] at each point per unit slowness of each knot (planned dwell); apps: the
-    deposition model of each pass."""
+    deposition model of each pass. Each pass's block is kept (`_BLOCKS`) for the next fit."""
     k_total = sum(b.shape[1] for b in basis)
     out = np.zeros((len(points), k_total))
+    pts = np.ascontiguousarray(points, float)
+    nrm = np.ascontiguousarray(normals, float)
+    points_key = hashlib.blake2b(pts.tobytes() + nrm.tobytes(), digest_size=20).digest()
     col = 0
     for app, p, b in zip(apps, passes, basis, strict=True):
-        on = np.flatnonzero(p.paint_on)
-        dB = sp.diags(p.dwell_s()) @ b                     # (M, K_p) dwell per knot [s]
-        for i in range(0, len(on), _BLOCK):
-            idx = on[i:i + _BLOCK]
-            rate = deposition_rate(app, p.positions[idx], p.spray_axes[idx],
-                                   p.travel_dirs[idx], points, normals)   # (s, N) [m/s]
-            out[:, col:col + b.shape[1]] += (dB[idx].T @ rate).T
+        key = _block_key(app, p, b, points_key)
+        block = _BLOCKS.get(key)
+        if block is None:
+            block = np.zeros((len(points), b.shape[1]))
+            on = np.flatnonzero(p.paint_on)
+            dB = sp.diags(p.dwell_s()) @ b                     # (M, K_p) dwell per knot [s]
+            for i in range(0, len(on), _BLOCK):
+                idx = on[i:i + _BLOCK]
+                rate = deposition_rate(app, p.positions[idx], p.spray_axes[idx],
+                                       p.travel_dirs[idx], points, normals)   # (s, N) [m/s]
+                block += (dB[idx].T @ rate).T
+            _BLOCKS.put(key, block)
+        out[:, col:col + b.shape[1]] = block
         col += b.shape[1]
     return out
 
