@@ -26,6 +26,20 @@ MESH_AREA_RTOL = 1e-3
 ROUND_TRIP_ATOL_M = 1e-12
 
 
+def sampled_film(app, passes, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
+    """Film [m] at the points pts (normals nrm) summed sample by sample: each brush-on sample's
+    deposition rate times its dwell (eq. 1), the truth a film refinement's matrix is held to."""
+    from paintcell.paint.deposition import deposition_rate
+
+    film = np.zeros(len(pts))
+    for p in passes:
+        on = np.flatnonzero(p.paint_on)
+        rate = deposition_rate(app, p.positions[on], p.spray_axes[on], p.travel_dirs[on],
+                               pts, nrm)
+        film += p.dwell_s()[on] @ rate
+    return film
+
+
 def assert_unit(vectors: np.ndarray, atol: float = UNIT_NORM_ATOL) -> None:
     """Every row of `vectors` (..., 3) has unit length within `atol`."""
     norms = np.linalg.norm(vectors, axis=-1)

@@ -16,19 +16,8 @@ from paintcell.coverage.algorithm import plan_coverage
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.offset_polyline import arc_length
 from paintcell.paint.applicator import Applicator
-from paintcell.paint.deposition import deposition_rate
 from paintcell.surface import parts
-
-
-def _film(app: Applicator, passes: list, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
-    """Film [m] summed sample by sample: each brush-on sample's rate times its dwell."""
-    film = np.zeros(len(pts))
-    for p in passes:
-        on = np.flatnonzero(p.paint_on)
-        rate = deposition_rate(app, p.positions[on], p.spray_axes[on], p.travel_dirs[on],
-                               pts, nrm)
-        film += p.dwell_s()[on] @ rate
-    return film
+from tests.helpers import sampled_film
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +40,7 @@ def test_film_matrix_at_unit_slowness_is_the_plans_film(plan_on_panel: tuple,
     V, N = part.vertices, part.normals
     monkeypatch.setattr(film_refine, "_BLOCKS", film_refine._Blocks(10**9))
     M = _matrix(app, passes, V, N)
-    truth = _film(app, passes, V, N)
+    truth = sampled_film(app, passes, V, N)
     assert truth.max() > 0
     np.testing.assert_allclose(M.sum(axis=1), truth, rtol=1e-9, atol=1e-12 * truth.max())
     # built again from the kept blocks: the same matrix, bit for bit
@@ -63,7 +52,7 @@ def test_film_matrix_at_unit_slowness_is_the_plans_film(plan_on_panel: tuple,
     half[: len(half) // 2] = False
     changed = [*passes[:k], replace(passes[k], paint_on=half), *passes[k + 1:]]
     M2 = _matrix(app, changed, V, N)
-    np.testing.assert_allclose(M2.sum(axis=1), _film(app, changed, V, N), rtol=1e-9,
+    np.testing.assert_allclose(M2.sum(axis=1), sampled_film(app, changed, V, N), rtol=1e-9,
                                atol=1e-12 * truth.max())
     assert not np.array_equal(M2, M)
     # with no block kept, the same matrix bit for bit

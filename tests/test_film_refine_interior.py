@@ -15,22 +15,11 @@ from paintcell.coverage.algorithm import plan_coverage
 from paintcell.coverage.coverage_settings import PlannerSettings
 from paintcell.coverage.film_refine import refine_speeds
 from paintcell.paint.applicator import Applicator
-from paintcell.paint.deposition import deposition_rate
 from paintcell.paint.metrics import boundary_band_mask, boundary_vertices
 from paintcell.surface import parts
+from tests.helpers import sampled_film
 
 NARROW_BELL = Path(__file__).resolve().parents[1] / "scenarios" / "bells" / "narrow_bell.toml"
-
-
-def _film(app: Applicator, passes: list, pts: np.ndarray, nrm: np.ndarray) -> np.ndarray:
-    """Film [m] summed sample by sample: each brush-on sample's rate times its dwell."""
-    film = np.zeros(len(pts))
-    for p in passes:
-        on = np.flatnonzero(p.paint_on)
-        rate = deposition_rate(app, p.positions[on], p.spray_axes[on], p.travel_dirs[on],
-                               pts, nrm)
-        film += p.dwell_s()[on] @ rate
-    return film
 
 
 def test_interior_weighted_fit_lowers_both_when_the_plain_fit_does_not() -> None:
@@ -55,7 +44,7 @@ def test_interior_weighted_fit_lowers_both_when_the_plain_fit_does_not() -> None
         return 100 * float(np.sqrt(np.average((f[m] - mu) ** 2, weights=a[m])) / mu)
 
     every = np.ones(len(V), bool)
-    f0, f1 = _film(app, plan.passes, V, N), _film(app, out, V, N)
+    f0, f1 = sampled_film(app, plan.passes, V, N), sampled_film(app, out, V, N)
     assert nsd(f1, every) < nsd(f0, every) - 0.2
     assert nsd(f1, interior) <= nsd(f0, interior)
     for p, q in zip(out, plan.passes, strict=True):
@@ -87,7 +76,7 @@ def test_edge_weight_evens_the_edge_and_is_judged_by_area() -> None:
         out, info = refine_speeds(app, part, list(plan.passes), st.v_min_m_s, st.v_max_m_s,
                                   interior, edge_weight=w)
         assert info["applied"] and len(info["interior_weights_tried"]) == 1
-        films[w] = _film(app, out, V, N)
+        films[w] = sampled_film(app, out, V, N)
         assert abs(info["nsd_after_pct"] - nsd(films[w], every)) < 1e-6
         assert abs(info["interior_after_pct"] - nsd(films[w], interior)) < 1e-6
     assert nsd(films[3.0], ~interior) < nsd(films[1.0], ~interior) - 0.05
