@@ -271,9 +271,9 @@ def _least_cycle_s(robots: list[Any], trajs: list[Any], min_distance_m: float) -
     sub = max(1, round(0.02 / dt))
     p, q = (arm_points(r, tr.q[::sub]) for r, tr in zip(robots, trajs, strict=True))
     step = max(1, round(STAGGER_STEP_S / (sub * dt)))
+    most = round(STAGGER_MAX_S / (sub * dt)) // step * step
     best = np.inf
-    for o in range(-round(STAGGER_MAX_S / (sub * dt)) // step * step,
-                   round(STAGGER_MAX_S / (sub * dt)) + 1, step):
+    for o in range(-most, most + 1, step):
         n = max(len(p) + max(o, 0), len(q) + max(-o, 0))
         t = np.arange(n)
         a = p[np.clip(t - max(o, 0), 0, len(p) - 1)]
