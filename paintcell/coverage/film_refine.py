@@ -340,17 +340,14 @@ def _block_key(app: Applicator, p: PassPlan, b: sp.csr_matrix, points_key: bytes
     """The content key of one pass's film-matrix block (`_Blocks`): its deposition model,
     samples, brush-on, dwell and knot basis b, and the fitted points' key."""
     h = hashlib.blake2b(points_key, digest_size=20)
-    h.update(repr(tuple(float(getattr(app, k)) for k in _APP_SCALARS)).encode())
-    for arr in (app.ring_amplitudes_m_s, app.ring_radii_m, app.ring_sigmas_m, p.positions,
-                p.spray_axes, p.travel_dirs, p.paint_on, p.dwell_s(), b.data, b.indices,
-                b.indptr, np.asarray(b.shape)):
+    h.update(repr(sorted(app.to_dict().items())).encode())     # exact floats (round trip)
+    for arr in (p.positions, p.spray_axes, p.travel_dirs, p.paint_on, p.dwell_s(), b.data,
+                b.indices, b.indptr, np.asarray(b.shape)):
         a = np.ascontiguousarray(arr)
         h.update(f"{a.dtype.str}{a.shape}".encode())
         h.update(a.tobytes())
     return h.digest()
 
-
-_APP_SCALARS = ("standoff_m", "a0_m_s", "sigma_x_m", "sigma_y_m")
 
 
 def _film_matrix(apps: list[Applicator], passes: list[PassPlan], basis: list[sp.csr_matrix],
