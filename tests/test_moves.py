@@ -113,3 +113,56 @@ def test_phase_tables_cover_brake_and_hold() -> None:
     m = plan_move(*a, *b, V, A, J)
     ts = np.linspace(0.0, m.duration_s, 40)
     _assert_matches_ruckig(m, traj, ts)
+
+
+#: A retract from a car bumper's last pass (an IRB 5500 on a rail, axis 3 its shoulder) into a
+#: moving via: time-synchronized, axis 3 swings 0.009 rad past its 1.9199 rad limit while
+#: ruckig's `Trajectory.position_extrema` reports a largest position of 1.9077 rad.
+BUMPER_RETRACT = dict(
+    q0=[1.3881, -1.0771, 1.6963, -1.4606, -4.5781, 1.6889, -0.6313],
+    qd0=[0.0, 0.0212, 0.69, -1.2738, 0.0759, -0.0967, 0.5806],
+    qdd0=[0.0, -0.0509, 2.8384, -5.0864, 0.2687, -0.237, 2.2361],
+    q1=[1.3099, -1.0877, 1.6904, -1.4613, -4.5795, 1.6983, -0.6232],
+    qd1=[-0.939, 0.7797, -1.3551, 1.1909, 3.2827, -0.7873, 0.4468],
+    qdd1=[0.0] * 7,
+    v=[1.425, 1.6581, 2.1555, 2.1555, 7.6271, 7.6271, 9.9484],
+    a=[3.6, 4.05, 4.95, 5.85, 22.5, 22.5, 31.5],
+    j=[45.0, 50.625, 61.875, 73.125, 281.25, 281.25, 393.75],
+    lo=[-2.0, -2.618, -1.5708, -3.1416, -5.236, -2.1817, -5.236],
+    hi=[2.0, 2.618, 1.9199, 1.1345, 5.236, 2.1817, 5.236])
+
+
+def test_move_past_a_limit_is_refused_whatever_ruckig_reports() -> None:
+    """The move's positions, sampled every 0.1 ms by ruckig's own `at_time`, leave axis 3's
+    limit: plan_move refuses it (naming the axis and the overshoot) rather than trust ruckig's
+    reported extrema."""
+    c = {k: np.array(v) for k, v in BUMPER_RETRACT.items()}
+    states = [c[k] for k in ("q0", "qd0", "qdd0", "q1", "qd1", "qdd1", "v", "a", "j")]
+    m = plan_move(*states)                                  # no limits: the move as ruckig plans it
+    inp = ruckig.InputParameter(7)
+    (inp.current_position, inp.current_velocity, inp.current_acceleration, inp.target_position,
+     inp.target_velocity, inp.target_acceleration, inp.max_velocity, inp.max_acceleration,
+     inp.max_jerk) = (x.tolist() for x in states)
+    traj = ruckig.Trajectory(7)
+    ruckig.Ruckig(7).calculate(inp, traj)
+    ts = np.arange(0.0, traj.duration, 1e-4)
+    peak = max(traj.at_time(float(t))[0][2] for t in ts)
+    assert peak > c["hi"][2] + 5e-3                         # it truly leaves the limit
+    assert m.position_bounds()[1][2] == pytest.approx(peak, abs=1e-6)
+    with pytest.raises(TrajectoryError, match=r"axis 3 of 7 by 0\.00\d+ rad"):
+        plan_move(*states, q_lower=c["lo"], q_upper=c["hi"])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_position_bounds_match_dense_sampling(seed: int) -> None:
+    """Each joint's exact lowest and highest position equals the extremes of the move sampled
+    every 50 µs (to the sampling's resolution), and is never inside them."""
+    rng = np.random.default_rng(seed)
+    for _ in range(20):
+        m = plan_move(*_random_state(rng, 0.9), *_random_state(rng, 0.5), V, A, J)
+        lo, hi = m.position_bounds()
+        q, qd, _ = m.sample(np.arange(0.0, m.duration_s + 5e-5, 5e-5))
+        step = np.abs(qd).max(axis=0) * 5e-5                  # the most a joint moves a sample
+        assert np.all(hi >= q.max(axis=0) - 1e-12) and np.all(lo <= q.min(axis=0) + 1e-12)
+        assert np.all(hi - q.max(axis=0) <= step + 1e-12)
+        assert np.all(q.min(axis=0) - lo <= step + 1e-12)

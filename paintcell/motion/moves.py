@@ -62,6 +62,26 @@ class JointMove:
             qdd[:, k] = a + tau * j
         return q, qd, qdd
 
+    def position_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Each joint's lowest and highest position over the move, (n,) each [rad], exact: every
+        phase's cubic at its two ends and where its velocity is zero inside it."""
+        t0 = self.t_start
+        t_next = np.concatenate([t0[:, 1:], np.full((len(t0), 1), np.inf)], axis=1)
+        live = t0 <= self.duration_s                    # padded phases start at t = inf
+        dur = np.where(live, np.clip(np.minimum(t_next, self.duration_s) - t0, 0.0, None), 0.0)
+        p, v, a, j = self.p0, self.v0, self.a0, self.j
+        # v + a τ + j τ²/2 = 0: two roots where j ≠ 0, one where only a ≠ 0
+        disc = np.sqrt(np.clip(a * a - 2.0 * j * v, 0.0, None))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            quad = np.abs(j) > 1e-12
+            lin = ~quad & (np.abs(a) > 1e-12)
+            r1 = np.where(quad, (-a + disc) / j, np.where(lin, -v / a, 0.0))
+            r2 = np.where(quad, (-a - disc) / j, 0.0)
+        taus = np.stack([np.zeros_like(dur), dur, np.clip(r1, 0.0, dur), np.clip(r2, 0.0, dur)])
+        q = p + taus * (v + taus * (a / 2 + taus * j / 6))
+        q = np.where(live, q, np.nan)
+        return np.nanmin(q, axis=(0, 2)), np.nanmax(q, axis=(0, 2))
+
 
 def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: npt.ArrayLike,
               qd1: npt.ArrayLike, qdd1: npt.ArrayLike, v_max: npt.ArrayLike,
@@ -101,10 +121,13 @@ def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: np
     if result not in (ruckig.Result.Working, ruckig.Result.Finished):
         raise TrajectoryError(f"ruckig failed on a move ({result}); check the boundary states "
                               "against the move limits")
+    move = _from_profiles(traj, n)
+    _crosscheck(move, traj)
     if q_lower is not None and q_upper is not None:
-        # ruckig (community) does not enforce position limits: check the move's extrema.
-        lo = np.array([b.min for b in traj.position_extrema])
-        hi = np.array([b.max for b in traj.position_extrema])
+        # ruckig (community) neither enforces position limits nor always reports a
+        # time-synchronized move's extrema right (`Trajectory.position_extrema` can miss an
+        # overshoot by centimetres): the move's own cubics are measured.
+        lo, hi = move.position_bounds()
         over = np.maximum(np.asarray(q_lower) - lo, hi - np.asarray(q_upper))
         if np.any(over > 1e-9):
             k = int(np.argmax(over))
@@ -113,8 +136,6 @@ def plan_move(q0: npt.ArrayLike, qd0: npt.ArrayLike, qdd0: npt.ArrayLike, q1: np
             raise TrajectoryError("a move between passes would leave the joint position limits "
                                   f"(axis {k + 1} of {n} by {over[k]:.3g} {unit}); move the part "
                                   "or the robot base")
-    move = _from_profiles(traj, n)
-    _crosscheck(move, traj)
     return move
 
 
