@@ -65,15 +65,17 @@ class ProgramCheck:
 
     scenario(robot name, T_base, trajectory table): the candidate `Scenario`; plan: the fast
     `CoveragePlan`; surface: the part (its part frame) as planned, placed by the scenarios'
-    `part_placement`. `trajectory[name]` holds the `[trajectory]` table of the last cell of that
+    `part_placement`; run_plan: the plan `run --fast` makes of it, when already made (None: made
+    here when needed). `trajectory[name]` holds the `[trajectory]` table of the last cell of that
     robot that passed (`{}` or `{"fold_moves": True}`), `clearance_m[name]` its smallest distance
     to the part [m] (`FOLD_BELOW_M` when nothing came closer).
     """
 
     def __init__(self, scenario: Callable[[str, np.ndarray, dict[str, Any]], Any], plan: Any,
-                 surface: Any) -> None:
+                 surface: Any, run_plan: Any = None) -> None:
         self._scenario, self._plan, self._surface = scenario, plan, surface
-        self._run_plan: Any = None       # the plan `run --fast` makes (film refined), once
+        # the plan `run --fast` makes (film refined), made once when not given
+        self._run_plan: Any = run_plan
         self.trajectory: dict[str, dict[str, Any]] = {}
         self.clearance_m: dict[str, float] = {}
 
