@@ -243,3 +243,31 @@ def test_a_program_whose_run_still_slows_after_robot_aware_speeds_is_refused(pan
     worst = int(np.argmax(np.bincount(run_traj.pass_index[slowed])))
     assert f"pass {worst} " in why
     assert _check(scn0, plan0, surf)("abb_paint", scn0.base.matrix) is None
+
+
+def test_a_robot_aware_plan_whose_film_falls_out_of_spec_is_refused(panel) -> None:
+    """A run's robot-aware speeds cap a plan where the arm cannot follow it; a capped plan that
+    lays an uneven film would fail the spec init writes with no pose slowed. The panel's plan
+    (σ/μ under `MAX_CAPPED_NSD_PCT`) is kept; the same plan with its middle pass at a third of
+    its speeds (three times the film there) is refused, naming the σ/μ — re-measured here as
+    the area-weighted σ/μ of the film over the skin."""
+    from paintcell.app.init_verify import MAX_CAPPED_NSD_PCT, _capped_film
+    from paintcell.paint.deposition import thickness
+
+    _, surf, plan = panel
+    skin = surf.region_surface(("skin",))
+
+    def nsd(pl) -> float:
+        f = thickness(pl.applicator, pl.gun_samples(), skin.vertices, skin.normals)
+        w = skin.vertex_areas
+        mean = (w @ f) / w.sum()
+        return 100.0 * float(np.sqrt((w @ (f - mean) ** 2) / w.sum()) / mean)
+
+    mid = len(plan.passes) // 2
+    p = plan.passes[mid]
+    slow = replace(p, speeds_m_s=p.speeds_m_s / 3.0, times_s=p.times_s * 3.0)
+    capped = replace(plan, passes=(*plan.passes[:mid], slow, *plan.passes[mid + 1:]))
+    assert nsd(plan) <= MAX_CAPPED_NSD_PCT < nsd(capped)
+    assert _capped_film(plan, surf) is None
+    why = _capped_film(capped, surf)
+    assert why is not None and f"{nsd(capped):.1f} % σ/μ" in why and "\n" not in why

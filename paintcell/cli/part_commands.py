@@ -266,7 +266,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     from paintcell.app.init_cell import AUTO_ROBOTS, choose_cell
     from paintcell.app.init_layout import MAX_ROBOTS
     from paintcell.app.init_toml import scenario_toml
-    from paintcell.app.init_verify import ProgramCheck
+    from paintcell.app.init_verify import ProgramCheck, planned_nsd_pct
     from paintcell.app.pipeline import make_plan
     from paintcell.app.scenario import Scenario
     from paintcell.core.atomic_io import atomic_write_text
@@ -314,7 +314,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
         except PaintcellError as exc:
             tried.append(f"{planner or 'defaults'}: {exc}")
             continue
-        plans.append((_planned_nsd_pct(run_plan, surf), k, planner, plan, run_plan))
+        plans.append((planned_nsd_pct(run_plan, surf), k, planner, plan, run_plan))
         if plans[-1][0] <= GOOD_PLANNED_NSD_PCT:
             break
     if not plans:
@@ -415,12 +415,3 @@ _PLANNER_TRIES: tuple[dict[str, Any], ...] = (
 #: 5.83 %), door_pieces seed 7 at 9.39 % (zero-curvature: 3.12 %).
 GOOD_PLANNED_NSD_PCT = 7.0
 
-
-def _planned_nsd_pct(plan: Any, surf: Any) -> float:
-    """σ/μ [%] over the skin's area of the film `plan` lays on the skin of `surf`."""
-    from paintcell.paint.deposition import thickness
-    from paintcell.paint.metrics import uniformity
-
-    skin = surf.region_surface(("skin",))
-    film = thickness(plan.applicator, plan.gun_samples(), skin.vertices, skin.normals)
-    return float(uniformity(film, skin.vertex_areas).nsd_pct)
