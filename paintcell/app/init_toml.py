@@ -4,6 +4,7 @@ defaults it states (the thresholds and the paint spec, `paintcell.validation.pai
 from __future__ import annotations
 
 import json
+import textwrap
 from typing import Any
 
 from paintcell.surface.part_spec import MeshPart
@@ -22,12 +23,13 @@ def toml_value(x: Any) -> str:
 
 def scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, base: Any,
                   verdict: str, n_passes: int, planner: dict[str, Any], tried: list[str],
-                  trajectory: dict[str, Any], clearance_m: float | None) -> str:
+                  trajectory: dict[str, Any], clearance_m: float | None,
+                  planner_why: str = "") -> str:
     """The scenario text: name, robot, the `[part]` table `spec` with what the import found
     (`rep`, an `ImportReport`), the placements `pl` and `base` (`Placement`), the base's
     `verdict`, the planner settings that planned the part (and the `tried` ones that failed),
     the trajectory settings and the program's clearance [m], the servo's gain rule, thresholds
-    and the paint spec."""
+    and the paint spec; planner_why: why these planner settings, when others were tried too."""
     ops = rep.openings
     pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m² {'painted' if p.painted else 'not'}"
                        for p in rep.pieces[:6])
@@ -35,6 +37,7 @@ def scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, base
     d = [round(x, 3) for x in rep.painted_direction]
     regions = ", ".join(f"{k} {v:.3f} m²" for k, v in rep.region_areas_m2.items())
     planner_lines = "".join(f"# failed: {t[:300]}\n" for t in tried)
+    planner_lines += "".join(f"# {line}\n" for line in textwrap.wrap(planner_why, 96))
     planner_lines += "".join(f"{k} = {toml_value(v)}\n" for k, v in planner.items()) or \
         "# the planner's defaults plan this part\n"
     gap = f"at least {(clearance_m or 0.0) * 1e3:.0f} mm"   # init_verify's sweep of the program

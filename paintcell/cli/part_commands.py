@@ -320,11 +320,17 @@ def _cmd_init(args: argparse.Namespace) -> int:
     if not plans:
         raise PaintcellError(f"no planner setting plans {spec.file} ({len(tried)} tried; first: "
                              f"{tried[0]}); see `paintcell inspect` for its regions")
-    nsd, _, planner, plan, run_plan = min(plans, key=lambda x: x[:2])
-    if len(plans) > 1:
-        print("init: planned σ/μ (film refined) by planner setting: " + "; ".join(
-            f"{p or 'defaults'} {x:.2f} %" for x, _, p, _, _ in plans)
-            + f"; kept {planner or 'the defaults'}")
+    _, _, planner, plan, run_plan = min(plans, key=lambda x: x[:2])
+
+    def named(p: dict[str, Any]) -> str:
+        return ", ".join(f"{k} = {v}" for k, v in p.items()) or "defaults"
+
+    planner_why = "" if len(plans) == 1 else (
+        "planned σ/μ over the skin (fast plan, film refined) by planner setting: " + "; ".join(
+            f"{named(p)} {x:.2f} %" for x, _, p, _, _ in plans)
+        + f"; kept the most even ({named(planner)})")
+    if planner_why:
+        print(f"init: {planner_why}")
     paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
     # The lowest pass (edge passes run outside the part) at least _MIN_TCP_Z_M above the floor:
     # below that the wrist and the bell sweep the floor. The plan is in the part frame: lift both.
@@ -360,7 +366,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
     text = scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
                           f"{cell.why}. {cell.verdict}", len(plan.passes), planner, tried,
-                          trajectory, check.clearance_m.get(cell.robot))
+                          trajectory, check.clearance_m.get(cell.robot), planner_why)
     check_new_target(out, "--out", args.force)
     atomic_write_text(out, text)
     print(_describe(rep, surf))
