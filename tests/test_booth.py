@@ -441,6 +441,22 @@ def test_pair_offsets_match_the_clock_replay():
     assert got.tolist() == want and 0 < got.sum() < len(offsets)
 
 
+@pytest.mark.parametrize("step", [3, 12])
+def test_pair_offsets_at_a_step_match_the_clock_replay(step):
+    """Offsets every `step` samples (a stagger's) search only the sample pairs of one residue,
+    and the held first and last samples against all: the same verdict as replaying both arms on
+    one clock at each offset, with the walks long enough to meet across residues."""
+    rng = np.random.default_rng(step)
+    p = np.cumsum(rng.normal(0, 0.05, (90, 3, 3)), axis=0)
+    q = np.cumsum(rng.normal(0, 0.05, (70, 3, 3)), axis=0) + [0.8, 0.0, 0.0]
+    offsets = np.arange(-110 // step, 110 // step + 1) * step
+    for offs in (offsets, np.array([0])):
+        got = pair_offsets_ok(p, q, offs, 0.25)
+        want = [_clearance([p, q], [max(o, 0), max(-o, 0)]) >= 0.25 for o in offs]
+        assert got.tolist() == want
+    assert 0 < pair_offsets_ok(p, q, offsets, 0.25).sum() < len(offsets)
+
+
 def test_booth_toml_is_read_and_checked(tmp_path):
     """scenarios/booth.toml loads as a Booth through the scenario loader; unknown keys and a
     malformed rail are refused with one line naming the file and the valid keys."""

@@ -41,21 +41,42 @@ def pair_offsets_ok(p: np.ndarray, q: np.ndarray, offsets: np.ndarray,
     (O,) samples after q (negative: before). p, q: (K, P, 3) arm points on one clock; each holds
     its first pose before its start and its last after its end, so only the offset matters.
 
-    The close pairs of samples (a of p, b of q) are found once (a k-d tree); a pair meets on the
+    The close pairs of samples (a of p, b of q) are found with k-d trees; a pair meets on the
     common clock at offset o when p's sample a and q's sample b are shown at one instant: o =
-    b − a, or any o ≤ / ≥ that when a or b is a held first / last sample."""
+    b − a, or any o ≤ / ≥ that when a or b is a held first / last sample. The offsets are
+    multiples of their greatest common divisor m (a stagger's step), so two samples that are
+    neither held meet at an offset only when b − a is one too: those pairs are searched among
+    the samples of one residue modulo m alone (one tree, the residue a fourth coordinate far
+    apart), the held samples against every sample of the other arm."""
     from scipy.spatial import cKDTree
 
+    offsets = np.asarray(offsets)
     Kp, Kq, P = len(p), len(q), p.shape[1]
-    close = cKDTree(p.reshape(-1, 3)).sparse_distance_matrix(
-        cKDTree(q.reshape(-1, 3)), min_distance_m, output_type="ndarray")
-    close = close[close["v"] < min_distance_m]
-    # the distinct sample pairs (a, b), one integer each (np.unique over rows is ~10× slower)
-    ab = np.unique((close["i"] // P).astype(np.int64) * Kq + close["j"] // P)
+    m = int(np.gcd.reduce(np.abs(offsets.astype(np.int64)))) if len(offsets) else 1
+    m = m if m > 0 else Kp + Kq                      # offset 0 alone: a = b only
+    far = 10.0 * (min_distance_m + float(np.ptp(np.concatenate([p, q]).reshape(-1, 3), 0).max())
+                  + 1.0)
+
+    def tree(x: np.ndarray, ks: np.ndarray, by_residue: bool) -> cKDTree:
+        r = np.repeat((ks % m).astype(float) * far if by_residue else np.zeros(len(ks)), P)
+        return cKDTree(np.column_stack([x[ks].reshape(-1, 3), r]))
+
+    def close(kp: np.ndarray, kq: np.ndarray, by_residue: bool) -> np.ndarray:
+        """The close sample pairs (a, b) of p's samples kp and q's kq, as a·Kq + b."""
+        c = tree(p, kp, by_residue).sparse_distance_matrix(
+            tree(q, kq, by_residue), min_distance_m, output_type="ndarray")
+        c = c[c["v"] < min_distance_m]
+        return kp[c["i"] // P].astype(np.int64) * Kq + kq[c["j"] // P]
+
+    all_p, all_q = np.arange(Kp), np.arange(Kq)
+    ends_p, ends_q = np.unique([0, Kp - 1]), np.unique([0, Kq - 1])
+    # the distinct sample pairs, one integer each (np.unique over rows is ~10× slower)
+    ab = np.unique(np.concatenate([close(all_p, all_q, True), close(ends_p, all_q, False),
+                                   close(all_p, ends_q, False)]))
     a, b = ab // Kq, ab % Kq
     lo = np.where((a < Kp - 1) & (b > 0), b - a, np.iinfo(np.int64).min // 2)
     hi = np.where((a > 0) & (b < Kq - 1), b - a, np.iinfo(np.int64).max // 2)
-    o = np.asarray(offsets)[:, None]
+    o = offsets[:, None]
     return ~np.any((lo[None] <= o) & (o <= hi[None]), axis=1)
 
 
