@@ -420,4 +420,3 @@ _PLANNER_TRIES: tuple[dict[str, Any], ...] = (
 #: unevenly (`paintcell generate`, film refined): door_solid seed 7 at 14.06 % (w_max_m 0.3:
 #: 5.83 %), door_pieces seed 7 at 9.39 % (zero-curvature: 3.12 %).
 GOOD_PLANNED_NSD_PCT = 7.0
-
