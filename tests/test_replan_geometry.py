@@ -65,3 +65,40 @@ def test_a_capped_replan_retimes_the_kept_passes_and_equals_a_replan_from_scratc
             cap = caps[p.side][::-1] if i % 2 else caps[p.side]
             assert np.all(q.speeds_m_s <= cap * (1 + 1e-6))
     assert moved > 0.01
+
+
+def test_a_refined_plan_after_the_unrefined_one_plans_its_passes_once(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """`paintcell init` plans a part without the film refinement, then with it: the second
+    plan re-times the kept passes (no width search) and equals a refined plan from scratch."""
+    import dataclasses
+
+    searches = [0]
+    orig = cp.search_widths
+
+    def counted(*a, **k):
+        searches[0] += 1
+        return orig(*a, **k)
+
+    monkeypatch.setattr(cp, "search_widths", counted)
+    family_geometry.forget()
+    s = parts.cylinder_section(0.05)
+    plain = plan_coverage(s, Applicator.default(), dataclasses.replace(ST, film_refine=False))
+    assert searches[0] > 0
+    searches[0] = 0
+    refined = plan_coverage(s, Applicator.default(), ST)
+    assert searches[0] == 0
+    family_geometry.forget()
+    fresh = plan_coverage(s, Applicator.default(), ST)
+    assert searches[0] > 0
+    a, b = refined._arrays(), fresh._arrays()
+    assert a.keys() == b.keys()
+    for k in a:
+        assert a[k].dtype == b[k].dtype and np.array_equal(a[k], b[k]), k
+    assert refined.settings == fresh.settings
+    # the refinement re-timed the same poses
+    assert refined.settings["report"]["film_refine"]["applied"]
+    for p, q in zip(plain.passes, refined.passes, strict=True):
+        np.testing.assert_array_equal(q.positions, p.positions)
+    assert max(float(np.max(np.abs(q.speeds_m_s - p.speeds_m_s)))
+               for p, q in zip(plain.passes, refined.passes, strict=True)) > 1e-3

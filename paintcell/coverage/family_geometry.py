@@ -87,10 +87,13 @@ _KEPT: OrderedDict[str, FamilyGeometry | PlanError] = OrderedDict()
 def geometry_key(surface: Surface, app: Applicator, st: PlannerSettings,
                  fails_fast: bool) -> str:
     """Digest of what the geometry depends on: the surface (name, vertices, faces), the
-    applicator's values (a run loads its bell again for the re-plans), the settings (all of
-    them: the timing ones cost nothing to include), and whether an `AxisTurnError` ends the
-    plan at once."""
-    h = hashlib.sha1(repr((st.to_dict(), fails_fast, surface.name)).encode())
+    applicator's values (a run loads its bell again for the re-plans), the settings (the timing
+    ones cost nothing to include) but `film_refine`, and whether an `AxisTurnError` ends the
+    plan at once. The film refinement re-times the timed passes after the geometry is chosen,
+    so a part planned without it and then with it (`paintcell init` measures both) plans its
+    passes once."""
+    kept_settings = {k: v for k, v in st.to_dict().items() if k != "film_refine"}
+    h = hashlib.sha1(repr((kept_settings, fails_fast, surface.name)).encode())
     for f in dataclasses.fields(app):
         v = getattr(app, f.name)
         if isinstance(v, np.ndarray):
