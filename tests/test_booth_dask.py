@@ -200,10 +200,13 @@ def test_robot_aware_replans_on_workers_are_the_ones_made_here() -> None:
 
 
 def test_a_booth_sends_its_robot_aware_replans_to_the_pool() -> None:
-    """scenarios/booth.toml re-plans parts under robot-aware caps (its fender and roof): given a
-    pool (here one that runs each call in this process when its value is asked for), the booth
-    sends those re-plans to it, as it does the parts' plans and the robots' programs, and the
-    plans and programs equal the run without a pool."""
+    """scenarios/booth.toml re-plans parts under robot-aware caps (its fender and roof; the
+    booth here keeps those two and their robots): given a pool (here one that runs each call in
+    this process when its value is asked for), the booth sends those re-plans to it, as it does
+    the parts' plans and the robots' programs, and the plans and programs equal the run without
+    a pool."""
+    from dataclasses import replace
+
     from paintcell.booth.booth_data import load_toml_booth
     from paintcell.booth.booth_programs import booth_programs
 
@@ -222,7 +225,11 @@ def test_a_booth_sends_its_robot_aware_replans_to_the_pool() -> None:
 
             return Later()
 
-    booth = load_toml_booth(Path(__file__).resolve().parent.parent / "scenarios" / "booth.toml")
+    full = load_toml_booth(Path(__file__).resolve().parent.parent / "scenarios" / "booth.toml")
+    kept = [p for p in full.parts if p.part in ("fender", "roof")]
+    booth = replace(full, parts=tuple(kept), robots=tuple(
+        r for r in full.robots if any(r.name in (p.robots or ()) for p in kept)))
+    assert len(booth.parts) == len(booth.robots) == 2
     pooled = booth_programs(booth, True, tasks=Here())
     plain = booth_programs(booth, True)
     replanned = [r.get("replanned", []) for r in pooled.record["speed_feedback"]["rounds"]]
