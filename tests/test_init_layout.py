@@ -311,3 +311,36 @@ def test_init_lays_out_two_robots_and_run_passes_as_written(arch, tmp_path):
     n = max(b for _, b in jobs)
     assert jobs[0][0] == 0 and all(a[1] == b[0] for a, b in zip(jobs, jobs[1:], strict=False))
     assert sum(b - a for a, b in jobs) == n
+
+
+@pytest.mark.slow
+def test_a_planner_table_whose_film_is_over_the_spec_gives_way_to_an_even_one(arch, monkeypatch):
+    """A table whose passes stand 0.45 m apart (wider than the bell lays an even film across)
+    comes first: init plans it, measures its film over the spec and lays the cell out with the
+    next table; the σ/μ it gives for each equals the film re-measured here (each table's plan as
+    `run` plans it, the bell's film summed over the skin, σ/μ area-weighted by hand)."""
+    from paintcell.app.init_toml import SPEC
+    from paintcell.paint.deposition import thickness
+
+    path, surf = arch
+    wide = {"orientation": "zero-curvature", "w_min_m": 0.45, "w_max_m": 0.45}
+    even = dict(init_layout.PLANNER_TRIES[0])
+    monkeypatch.setattr(init_layout, "PLANNER_TRIES", (wide, even))
+    mesh = MeshPart(file=str(path), units="m")
+    cell = choose_layout("arch", mesh, surf, (2,), say=lambda s: None)
+    nsd = []
+    for table in (wide, even):
+        booth = Booth(name="arch", parts=(BodyPart("arch", Placement((0.0,) * 3, (0.0,) * 3),
+                                                   table, mesh=mesh),),
+                      robots=cell.booth.robots)
+        pp = plan_parts(booth, fast=True)
+        skin = pp.surfaces[0].region_surface(("skin",))
+        f = thickness(pp.plans[0].applicator, pp.plans[0].gun_samples(), skin.vertices,
+                      skin.normals)
+        w = skin.vertex_areas
+        mean = (w @ f) / w.sum()
+        nsd.append(100.0 * float(np.sqrt((w @ (f - mean) ** 2) / w.sum()) / mean))
+    assert nsd[0] > SPEC.max_nsd_pct >= nsd[1]
+    assert cell.planner == even
+    assert f"planner table 1 lays a film of {nsd[0]:.1f} % σ/μ" in cell.why["plan"]
+    assert cell.planned_nsd_pct == pytest.approx(nsd[1], rel=1e-9)

@@ -81,7 +81,8 @@ rpy_rad = {_v([round(v, 6) for v in r.base.rpy_rad])}
         f"The part: {cell.why.get('pose', '')}; its lowest point {PART_LOW_Z_M} m above the "
         "floor.",
         f"The plan: {plan_why}" + (f"; {speed}" if speed else "")
-        + (f" ({cell.why['plan']})." if cell.why.get("plan") else ".")]
+        + (f" ({cell.why['plan']})" if cell.why.get("plan") else "")
+        + f"; its film {cell.planned_nsd_pct:.1f} % σ/μ over the skin (fast plan, refined)."]
     text = "\n".join(textwrap.fill(h, 96, initial_indent="# ", subsequent_indent="# ")
                      for h in head)
     return f"""{text}

@@ -20,7 +20,9 @@ every program built, swept through the part's collision model, the robots stagge
   elbow, shoulder and base keep the booth's bell distance from every other robot's.
 - The plan: the planner tables of `PLANNER_TRIES` in turn, the first whose longest pass over the
   part is at most `LONG_PASS_FACTOR` × the part's length along the rails (passes that run round the
-  part leave a rail robot's reach). Candidates are then checked, at most `LAYOUTS_VERIFIED` per
+  part leave a rail robot's reach) and whose film, planned as `run` plans it (film refined), is
+  within the spec init writes (σ/μ); when no such table makes a cell, those over it in turn,
+  the most even first. Candidates are then checked, at most `LAYOUTS_VERIFIED` per
   plan, with each `TRAJECTORY_TRIES` table, by the booth's own program build (IK, moves, body
   clearance, staggering); the first that builds with no pose after a joint jump (the IK report's
   threshold; a frame built with one does not count toward `LAYOUTS_VERIFIED`, and its other
@@ -32,12 +34,13 @@ every program built, swept through the part's collision model, the robots stagge
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from paintcell.app.init_toml import SPEC
 from paintcell.core.errors import PaintcellError
 
 __all__ = ["MAX_ROBOTS", "MultiCell", "choose_layout", "crown_up", "layout_problem", "rail_angle",
@@ -114,6 +117,7 @@ class MultiCell:
     patches: bool
     why: dict[str, str] = field(default_factory=dict)
     jumps: int = 0
+    planned_nsd_pct: float = float("nan")
 
 
 def crown_up(surf: Any) -> tuple[np.ndarray, str]:
@@ -210,11 +214,16 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
     length = float(hi[0] - lo[0])
     failed: list[str] = []
     plans: dict[int, Any] = {}        # planner try → its part plans (or why it was skipped)
+    nsd: dict[int, float] = {}        # planner try → σ/μ [%] of its film-refined plan's film
     for n in counts:
         tried_n: list[str] = []
         jumpy: MultiCell | None = None
-        for k, table in enumerate(PLANNER_TRIES):
-            planner = dict(table)
+        uneven: list[int] = []        # tables whose film is over the spec: tried last
+        for k, last in _tables_in_turn(uneven, nsd):
+            if last:
+                tried_n.append(f"planner table {k + 1} kept: the most even film of those that "
+                               "plan the part")
+            planner = dict(PLANNER_TRIES[k])
             if planner["orientation"] == RAIL_AXIS:
                 planner["orientation"] = rail_angle(surf, R)
             part = BodyPart(mesh.stem, pl, {**planner, "film_refine": False}, mesh=mesh)
@@ -235,14 +244,23 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
                         f"planner table {k + 1}'s longest pass over the part is {longest:.1f} m, "
                         f"over "
                         f"{LONG_PASS_FACTOR:.0f}× the part's {length:.2f} m along the rails")
+                    if not isinstance(plans[k], str):   # the film `run` plans: refined
+                        nsd[k] = _refined_nsd_pct(replace(booth, parts=(replace(
+                            part, planner=planner),)))
             if isinstance(plans[k], str):
                 tried_n.append(plans[k])
+                continue
+            if not last and nsd[k] > SPEC.max_nsd_pct:
+                tried_n.append(f"planner table {k + 1} lays a film of {nsd[k]:.1f} % σ/μ "
+                               f"(planned, refined), over the spec's {SPEC.max_nsd_pct:g} %")
+                uneven.append(k)
                 continue
             cell = _try_layouts(booth, plans[k], n, lo, hi, model, tried_n, say)
             if cell is not None:
                 cell.planner = dict(planner)
                 cell.why["pose"] = why_pose
                 cell.why["plan"] = "; ".join(t for t in tried_n if t.startswith("planner"))
+                cell.planned_nsd_pct = nsd[k]
                 if cell.jumps == 0:
                     return cell
                 jumpy = jumpy or cell
@@ -255,6 +273,23 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
         f"no layout of {counts[0]} to {counts[-1]} {model} robots on rails paints {mesh.file}: "
         f"{' | '.join(failed)}; paint it in pieces (`--pieces`), or write the cell by hand (a "
         f"[[robots]] booth, as scenarios/crs_cowling_3_holes.toml){more}")
+
+
+def _tables_in_turn(uneven: list[int], nsd: dict[int, float]) -> Iterator[tuple[int, bool]]:
+    """(planner table, as a last resort) in turn: every table of `PLANNER_TRIES`, then those
+    put in `uneven` meanwhile (their film over the spec), the lowest σ/μ in `nsd` first."""
+    yield from ((k, False) for k in range(len(PLANNER_TRIES)))
+    yield from ((k, True) for k in sorted(uneven, key=lambda j: nsd[j]))
+
+
+def _refined_nsd_pct(booth: Any) -> float:
+    """σ/μ [%] over the skin of the film of the booth's one part planned as `run` plans it (film
+    refinement on: it re-times the passes planned without it, which the geometry cache keeps)."""
+    from paintcell.app.init_verify import planned_nsd_pct
+    from paintcell.booth.booth_plans import plan_parts
+
+    pp = plan_parts(booth, fast=True)
+    return planned_nsd_pct(pp.plans[0], pp.surfaces[0])
 
 
 def _pass_length(plan: Any, i: int) -> float:

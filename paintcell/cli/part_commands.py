@@ -372,6 +372,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     print(_describe(rep, surf))
     print(f"cell: {cell.why}")
     print(f"placement: {cell.verdict}")
+    _warn_uneven(min(x for x, *_ in plans))        # the kept plan's
     print(f"scenario written: {out}")
     return 0
 
@@ -390,8 +391,21 @@ def _init_multi(args: argparse.Namespace, name: str, spec: MeshPart, spec_rel: M
     atomic_write_text(args.out, text)
     print(_describe(rep, surf))
     print(f"cell: {len(cell.booth.robots)} {model} robots on rails; {cell.why['jobs']}")
+    _warn_uneven(cell.planned_nsd_pct)
     print(f"scenario written: {args.out}")
     return 0
+
+
+def _warn_uneven(nsd_pct: float) -> None:
+    """Say so when the kept plan's film [% σ/μ, fast plan, refined] is over the spec init wrote:
+    no planner setting init tries plans the part evenly, and `run` will fail its spec."""
+    from paintcell.app.init_toml import SPEC
+
+    if nsd_pct > SPEC.max_nsd_pct:
+        print(f"init: warning: the most even plan init found lays {nsd_pct:.1f} % σ/μ on the "
+              f"skin, over the spec's {SPEC.max_nsd_pct:g} %: `paintcell run` will fail it; "
+              "paint the part in pieces (--pieces) or write a [planner] table for it "
+              "(docs/interfaces.md)")
 
 
 def _relpath(p: Path, start: Path) -> str:
