@@ -18,17 +18,32 @@ from paintcell.surface import parts
 ST = PlannerSettings(sample_spacing_m=0.04, overspray_m=0.1, n_knots=8, first_side="best")
 
 
-def test_a_capped_replan_retimes_the_kept_passes_and_equals_a_replan_from_scratch(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    searches = [0]
+@pytest.fixture
+def searches(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """[the index-width searches run since], counted from an empty geometry cache."""
+    count = [0]
     orig = cp.search_widths
 
     def counted(*a, **k):
-        searches[0] += 1
+        count[0] += 1
         return orig(*a, **k)
 
     monkeypatch.setattr(cp, "search_widths", counted)
     family_geometry.forget()
+    return count
+
+
+def _assert_same_plan(a: object, b: object) -> None:
+    """Every array of the two plans equal (dtype and values), and their settings."""
+    x, y = a._arrays(), b._arrays()
+    assert x.keys() == y.keys()
+    for k in x:
+        assert x[k].dtype == y[k].dtype and np.array_equal(x[k], y[k]), k
+    assert a.settings == b.settings
+
+
+def test_a_capped_replan_retimes_the_kept_passes_and_equals_a_replan_from_scratch(
+        searches: list[int]) -> None:
     s = parts.cylinder_section(0.05)
     plan = plan_coverage(s, Applicator.default(), ST)
     assert searches[0] > 0 and len(plan.passes) >= 3
@@ -51,11 +66,7 @@ def test_a_capped_replan_retimes_the_kept_passes_and_equals_a_replan_from_scratc
     family_geometry.forget()
     fresh = plan_coverage(s, Applicator.default(), ST, speed_caps_m_s=caps, tool_x=tool_x)
     assert searches[0] > 0                      # planned from scratch
-    a, b = kept._arrays(), fresh._arrays()
-    assert a.keys() == b.keys()
-    for k in a:
-        assert a[k].dtype == b[k].dtype and np.array_equal(a[k], b[k]), k
-    assert kept.settings == fresh.settings
+    _assert_same_plan(kept, fresh)
     # the caps moved the speeds, not the passes; every capped sample is within its cap
     moved = 0.0
     for i, (p, q) in enumerate(zip(plan.passes, kept.passes, strict=True)):
@@ -68,20 +79,11 @@ def test_a_capped_replan_retimes_the_kept_passes_and_equals_a_replan_from_scratc
 
 
 def test_a_refined_plan_after_the_unrefined_one_plans_its_passes_once(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+        searches: list[int]) -> None:
     """`paintcell init` plans a part without the film refinement, then with it: the second
     plan re-times the kept passes (no width search) and equals a refined plan from scratch."""
     import dataclasses
 
-    searches = [0]
-    orig = cp.search_widths
-
-    def counted(*a, **k):
-        searches[0] += 1
-        return orig(*a, **k)
-
-    monkeypatch.setattr(cp, "search_widths", counted)
-    family_geometry.forget()
     s = parts.cylinder_section(0.05)
     plain = plan_coverage(s, Applicator.default(), dataclasses.replace(ST, film_refine=False))
     assert searches[0] > 0
@@ -91,11 +93,7 @@ def test_a_refined_plan_after_the_unrefined_one_plans_its_passes_once(
     family_geometry.forget()
     fresh = plan_coverage(s, Applicator.default(), ST)
     assert searches[0] > 0
-    a, b = refined._arrays(), fresh._arrays()
-    assert a.keys() == b.keys()
-    for k in a:
-        assert a[k].dtype == b[k].dtype and np.array_equal(a[k], b[k]), k
-    assert refined.settings == fresh.settings
+    _assert_same_plan(refined, fresh)
     # the refinement re-timed the same poses
     assert refined.settings["report"]["film_refine"]["applied"]
     for p, q in zip(plain.passes, refined.passes, strict=True):
