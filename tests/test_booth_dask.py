@@ -234,6 +234,7 @@ def test_a_booth_sends_its_robot_aware_replans_to_the_pool() -> None:
     plain = booth_programs(booth, True)
     replanned = [r.get("replanned", []) for r in pooled.record["speed_feedback"]["rounds"]]
     assert sum(map(len, replanned)) == sent.count("replan_capped") > 0
+    assert {name for r in replanned for name in r} == {"fender", "roof"}
     assert sent.count("plan_part") == len(booth.parts) and "remote_job_program" in sent
     assert pooled.record["speed_feedback"] == plain.record["speed_feedback"]
     for a, b in zip(pooled.trajs, plain.trajs, strict=True):

@@ -320,6 +320,7 @@ def test_a_planner_table_whose_film_is_over_the_spec_gives_way_to_an_even_one(ar
     next table; the σ/μ it gives for each equals the film re-measured here (each table's plan as
     `run` plans it, the bell's film summed over the skin, σ/μ area-weighted by hand)."""
     from paintcell.app.init_toml import SPEC
+    from paintcell.coverage import family_geometry
     from paintcell.paint.deposition import thickness
 
     path, surf = arch
@@ -328,6 +329,7 @@ def test_a_planner_table_whose_film_is_over_the_spec_gives_way_to_an_even_one(ar
     monkeypatch.setattr(init_layout, "PLANNER_TRIES", (wide, even))
     mesh = MeshPart(file=str(path), units="m")
     cell = choose_layout("arch", mesh, surf, (2,), say=lambda s: None)
+    family_geometry.forget()                # each plan made again here, not taken from init's
     nsd = []
     for table in (wide, even):
         booth = Booth(name="arch", parts=(BodyPart("arch", Placement((0.0,) * 3, (0.0,) * 3),

@@ -19,22 +19,22 @@ every program built, swept through the part's collision model, the robots stagge
   `BodyProbe`, MuJoCo's distance between the execution's collision geoms) and its bell, wrist,
   elbow, shoulder and base keep the booth's bell distance from every other robot's.
 - The plan: the planner tables of `PLANNER_TRIES` in turn, the first whose longest pass over the
-  part is at most `LONG_PASS_FACTOR` × the part's length along the rails (passes that run round the
-  part leave a rail robot's reach) and whose film, planned as `run` plans it (film refined), is
-  within the spec init writes (σ/μ); when no such table makes a cell, those over it in turn,
-  the most even first. Candidates are then checked, at most `LAYOUTS_VERIFIED` per
-  plan, with each `TRAJECTORY_TRIES` table, by the booth's own program build (IK, moves, body
-  clearance, staggering); the first that builds with no pose after a joint jump (the IK report's
-  threshold; a frame built with one does not count toward `LAYOUTS_VERIFIED`, and its other
-  trajectory tables are not tried: the poses are the frame's) is the cell, else the first that
-  builds. The check runs on the plan without the film
+  part is at most `LONG_PASS_FACTOR` × the part's length along the rails (passes that run round
+  the part leave a rail robot's reach) and whose film, planned as `run` plans it (film refined),
+  is within the spec init writes (σ/μ), for 2 robots, then more; when no such table makes a cell
+  with any count, those over it in turn, the most even first. Candidates are then checked, at
+  most `LAYOUTS_VERIFIED` per plan, with each `TRAJECTORY_TRIES` table, by the booth's own
+  program build (IK, moves, body clearance, staggering); the first that builds with no pose after
+  a joint jump (the IK report's threshold; a frame built with one does not count toward
+  `LAYOUTS_VERIFIED`, and its other trajectory tables are not tried: the poses are the frame's)
+  is the cell, else the first that builds. The check runs on the plan without the film
   refinement and the robot-aware speeds that `run` adds (both re-time the same passes; the
   refinement's least squares over the whole part is most of a cowling's plan time).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -201,7 +201,6 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
     from scipy.spatial.transform import Rotation
 
     from paintcell.booth.booth import BodyPart, Booth
-    from paintcell.booth.booth_plans import plan_parts
     from paintcell.booth.conveyor import Conveyor
     from paintcell.core.placement import Placement, triple
 
@@ -212,61 +211,56 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
     lo, hi = lo0 + t, hi0 + t
     pl = Placement(triple(t, 4), triple(Rotation.from_matrix(R).as_euler("xyz")))
     length = float(hi[0] - lo[0])
-    failed: list[str] = []
     plans: dict[int, Any] = {}        # planner try → its part plans (or why it was skipped)
     nsd: dict[int, float] = {}        # planner try → σ/μ [%] of its film-refined plan's film
-    for n in counts:
-        tried_n: list[str] = []
-        jumpy: MultiCell | None = None
-        uneven: list[int] = []        # tables whose film is over the spec: tried last
-        for k, last in _tables_in_turn(uneven, nsd):
-            if last:
-                tried_n.append(f"planner table {k + 1} kept: the most even film of those that "
-                               "plan the part")
-            planner = dict(PLANNER_TRIES[k])
-            if planner["orientation"] == RAIL_AXIS:
-                planner["orientation"] = rail_angle(surf, R)
-            part = BodyPart(mesh.stem, pl, {**planner, "film_refine": False}, mesh=mesh)
-            booth = Booth(name=name, parts=(part,), robots=tuple(rail_robots(n, lo, hi, 1.3,
-                                                                             0.45, model)),
-                          conveyor=Conveyor(0.0, (1.0, 0.0, 0.0)), servo=dict(SERVO),
-                          robot_aware_speeds=False)
-            if k not in plans:
-                say(f"init: planning the part with {planner}")
-                try:
-                    pp = plan_parts(booth, fast=True)
-                except PaintcellError as exc:
-                    plans[k] = f"the planner table {k + 1} fails ({str(exc).split(';')[0]})"
-                else:
-                    longest = max(_pass_length(pp.plans[0], i)
-                                  for i in range(len(pp.plans[0].passes)))
-                    plans[k] = pp if longest <= LONG_PASS_FACTOR * length else (
-                        f"planner table {k + 1}'s longest pass over the part is {longest:.1f} m, "
-                        f"over "
-                        f"{LONG_PASS_FACTOR:.0f}× the part's {length:.2f} m along the rails")
-                    if not isinstance(plans[k], str):   # the film `run` plans: refined
-                        nsd[k] = _refined_nsd_pct(replace(booth, parts=(replace(
-                            part, planner=planner),)))
-            if isinstance(plans[k], str):
-                tried_n.append(plans[k])
-                continue
-            if not last and nsd[k] > SPEC.max_nsd_pct:
-                tried_n.append(f"planner table {k + 1} lays a film of {nsd[k]:.1f} % σ/μ "
-                               f"(planned, refined), over the spec's {SPEC.max_nsd_pct:g} %")
-                uneven.append(k)
-                continue
-            cell = _try_layouts(booth, plans[k], n, lo, hi, model, tried_n, say)
-            if cell is not None:
-                cell.planner = dict(planner)
-                cell.why["pose"] = why_pose
-                cell.why["plan"] = "; ".join(t for t in tried_n if t.startswith("planner"))
-                cell.planned_nsd_pct = nsd[k]
-                if cell.jumps == 0:
-                    return cell
-                jumpy = jumpy or cell
-        if jumpy is not None:       # every cell built has a joint jump: the first of them
-            return jumpy
-        failed.append(f"{n} robots: {'; '.join(tried_n)}")
+    uneven: set[int] = set()          # tables whose film is over the spec: tried last
+    tried: dict[int, list[str]] = {n: [] for n in counts}
+    for last_resort in (False, True):  # every count with the even tables, then with the uneven
+        if last_resort and not uneven:
+            break
+        for n in counts:
+            tried_n = tried[n]
+            jumpy: MultiCell | None = None
+            tables = sorted(uneven, key=lambda j: nsd[j]) if last_resort \
+                else range(len(PLANNER_TRIES))
+            for k in tables:
+                planner = dict(PLANNER_TRIES[k])
+                if planner["orientation"] == RAIL_AXIS:
+                    planner["orientation"] = rail_angle(surf, R)
+                part = BodyPart(mesh.stem, pl, {**planner, "film_refine": False}, mesh=mesh)
+                booth = Booth(name=name, parts=(part,), robots=tuple(
+                    rail_robots(n, lo, hi, 1.3, 0.45, model)), conveyor=Conveyor(
+                        0.0, (1.0, 0.0, 0.0)), servo=dict(SERVO), robot_aware_speeds=False)
+                if k not in plans:
+                    say(f"init: planning the part with {planner}")
+                    got = _table_plans(booth, replace(part, planner=planner), k, length)
+                    if isinstance(got, str):
+                        plans[k] = got
+                    else:
+                        plans[k], nsd[k] = got
+                if isinstance(plans[k], str):
+                    tried_n.append(plans[k])
+                    continue
+                if not last_resort and nsd[k] > SPEC.max_nsd_pct:
+                    tried_n.append(f"planner table {k + 1} lays a film of {nsd[k]:.1f} % σ/μ "
+                                   f"(planned, refined), over the spec's {SPEC.max_nsd_pct:g} %")
+                    uneven.add(k)
+                    continue
+                cell = _try_layouts(booth, plans[k], n, lo, hi, model, tried_n, say)
+                if cell is not None:
+                    cell.planner = dict(planner)
+                    cell.why["pose"] = why_pose
+                    cell.why["plan"] = "; ".join(t for t in tried_n if t.startswith("planner"))
+                    if last_resort:
+                        cell.why["plan"] += (f"; no table within the spec makes a cell: table "
+                                             f"{k + 1} kept, the most even of those that do")
+                    cell.planned_nsd_pct = nsd[k]
+                    if cell.jumps == 0:
+                        return cell
+                    jumpy = jumpy or cell
+            if jumpy is not None:   # every cell built has a joint jump: the first of them
+                return jumpy
+    failed = [f"{n} robots: {'; '.join(t)}" for n, t in tried.items()]
     more = (f", or try `--robots N` with more robots (at most {MAX_ROBOTS})"
             if counts[-1] < MAX_ROBOTS else "")
     raise PaintcellError(
@@ -275,21 +269,28 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
         f"[[robots]] booth, as scenarios/crs_cowling_3_holes.toml){more}")
 
 
-def _tables_in_turn(uneven: list[int], nsd: dict[int, float]) -> Iterator[tuple[int, bool]]:
-    """(planner table, as a last resort) in turn: every table of `PLANNER_TRIES`, then those
-    put in `uneven` meanwhile (their film over the spec), the lowest σ/μ in `nsd` first."""
-    yield from ((k, False) for k in range(len(PLANNER_TRIES)))
-    yield from ((k, True) for k in sorted(uneven, key=lambda j: nsd[j]))
-
-
-def _refined_nsd_pct(booth: Any) -> float:
-    """σ/μ [%] over the skin of the film of the booth's one part planned as `run` plans it (film
-    refinement on: it re-times the passes planned without it, which the geometry cache keeps)."""
+def _table_plans(booth: Any, refined_part: Any, k: int, length: float
+                 ) -> tuple[Any, float] | str:
+    """Planner table k's part plans (the booth's one part, film refinement off) and the σ/μ
+    [%] over the skin of its film planned as `run` plans it (`refined_part`: film refinement
+    on; it re-times the passes the geometry cache keeps), or why the table is no candidate."""
     from paintcell.app.init_verify import planned_nsd_pct
     from paintcell.booth.booth_plans import plan_parts
 
-    pp = plan_parts(booth, fast=True)
-    return planned_nsd_pct(pp.plans[0], pp.surfaces[0])
+    try:
+        pp = plan_parts(booth, fast=True)
+    except PaintcellError as exc:
+        return f"the planner table {k + 1} fails ({str(exc).split(';')[0]})"
+    longest = max(_pass_length(pp.plans[0], i) for i in range(len(pp.plans[0].passes)))
+    if longest > LONG_PASS_FACTOR * length:
+        return (f"planner table {k + 1}'s longest pass over the part is {longest:.1f} m, over "
+                f"{LONG_PASS_FACTOR:.0f}× the part's {length:.2f} m along the rails")
+    try:
+        run_pp = plan_parts(replace(booth, parts=(refined_part,)), fast=True)
+    except PaintcellError as exc:
+        return (f"the planner table {k + 1} fails with the film refinement "
+                f"({str(exc).split(';')[0]})")
+    return pp, planned_nsd_pct(run_pp.plans[0], run_pp.surfaces[0])
 
 
 def _pass_length(plan: Any, i: int) -> float:

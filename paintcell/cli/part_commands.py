@@ -398,13 +398,13 @@ def _init_multi(args: argparse.Namespace, name: str, spec: MeshPart, spec_rel: M
 
 def _warn_uneven(nsd_pct: float) -> None:
     """Say so when the kept plan's film [% σ/μ, fast plan, refined] is over the spec init wrote:
-    no planner setting init tries plans the part evenly, and `run` will fail its spec."""
+    `run` will fail its spec."""
     from paintcell.app.init_toml import SPEC
 
     if nsd_pct > SPEC.max_nsd_pct:
-        print(f"init: warning: the most even plan init found lays {nsd_pct:.1f} % σ/μ on the "
-              f"skin, over the spec's {SPEC.max_nsd_pct:g} %: `paintcell run` will fail it; "
-              "paint the part in pieces (--pieces) or write a [planner] table for it "
+        print(f"init: warning: the plan kept lays {nsd_pct:.1f} % σ/μ on the skin (fast plan, "
+              f"film refined), over the spec's {SPEC.max_nsd_pct:g} %: `paintcell run` will "
+              "fail it; paint the part in pieces (--pieces) or write a [planner] table for it "
               "(docs/interfaces.md)")
 
 
