@@ -69,6 +69,8 @@ HOME_CLEARANCE_M = 0.1
 #: A plan whose longest pass over the part exceeds this × the part's length along the rails is
 #: not tried.
 LONG_PASS_FACTOR = 2.0
+#: How the notes on the planner tables begin (the cell's why keeps them, not the layouts').
+_TABLE_NOTES = ("planner table", "the planner table")
 #: Candidate layouts whose programs are built, per plan.
 LAYOUTS_VERIFIED = 2
 #: Planner tables tried in turn (passes along the rails; slower than the defaults because the
@@ -250,7 +252,7 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
                 if cell is not None:
                     cell.planner = dict(planner)
                     cell.why["pose"] = why_pose
-                    cell.why["plan"] = "; ".join(t for t in tried_n if t.startswith("planner"))
+                    cell.why["plan"] = "; ".join(t for t in tried_n if t.startswith(_TABLE_NOTES))
                     if last_resort:
                         cell.why["plan"] += (f"; no table within the spec makes a cell: table "
                                              f"{k + 1} kept, the most even of those that do")
