@@ -234,12 +234,15 @@ def choose_layout(name: str, mesh: Any, surf: Any, counts: tuple[int, ...], mode
                     rail_robots(n, lo, hi, 1.3, 0.45, model)), conveyor=Conveyor(
                         0.0, (1.0, 0.0, 0.0)), servo=dict(SERVO), robot_aware_speeds=False)
                 if k not in plans:
-                    say(f"init: planning the part with {planner}")
+                    say(f"init: planning the part with planner table {k + 1}: " + ", ".join(
+                        f"{key} = {v}" for key, v in planner.items()))
                     got = _table_plans(booth, replace(part, planner=planner), k, length)
                     if isinstance(got, str):
                         plans[k] = got
                     else:
                         plans[k], nsd[k] = got
+                        say(f"init: planner table {k + 1} lays {nsd[k]:.1f} % σ/μ on the skin "
+                            "(fast plan, film refined)")
                 if isinstance(plans[k], str):
                     tried_n.append(plans[k])
                     continue

@@ -329,8 +329,6 @@ def _cmd_init(args: argparse.Namespace) -> int:
         "planned σ/μ over the skin (fast plan, film refined) by planner setting: " + "; ".join(
             f"{named(p)} {x:.2f} %" for x, _, p, _, _ in plans)
         + f"; kept the most even ({named(planner)})")
-    if planner_why:
-        print(f"init: {planner_why}")
     paths = [pl.matrix @ plan.tcp_frames(i) for i in range(len(plan.passes))]
     # The lowest pass (edge passes run outside the part) at least _MIN_TCP_Z_M above the floor:
     # below that the wrist and the bell sweep the floor. The plan is in the part frame: lift both.
@@ -372,6 +370,8 @@ def _cmd_init(args: argparse.Namespace) -> int:
     print(_describe(rep, surf))
     print(f"cell: {cell.why}")
     print(f"placement: {cell.verdict}")
+    if planner_why:
+        print(f"planner: {planner_why}")
     _warn_uneven(min(x for x, *_ in plans))        # the kept plan's
     print(f"scenario written: {out}")
     return 0
@@ -404,8 +404,8 @@ def _warn_uneven(nsd_pct: float) -> None:
     if nsd_pct > SPEC.max_nsd_pct:
         print(f"init: warning: the plan kept lays {nsd_pct:.1f} % σ/μ on the skin (fast plan, "
               f"film refined), over the spec's {SPEC.max_nsd_pct:g} %: `paintcell run` will "
-              "fail it; paint the part in pieces (--pieces) or write a [planner] table for it "
-              "(docs/interfaces.md)")
+              "fail it; write a [planner] table for it (another `orientation`, `patches = "
+              "true`: every key is in the scenario file reference, built by `make docs`)")
 
 
 def _relpath(p: Path, start: Path) -> str:
