@@ -56,13 +56,13 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "(paintcell.robots.placement.find_base_pose) or rail reaches every pose of a "
                    "fast plan, else a booth of 2-4 rail robots (--robots). `paintcell run` "
                    "accepts it as written; when nothing works: one line, no file.")
-    _part_options(n)
+    _part_options(n, resolution=False)
     add_out_force(n, "scenario file to write (.toml)")
     n.add_argument("--robot", default="auto",
                    help="robot name (abb_paint, irb5500, ur10, abb_paint_rail, irb5500_rail), or "
                    "auto: the first of abb_paint, irb5500, irb5500_rail that reaches every pose "
-                   "of the part's fast plan (init says which and why; it refuses in one line "
-                   "when none does)")
+                   "of the part's fast plan (init says which and why; when none does, it lays "
+                   "out several rail robots, see --robots)")
     n.add_argument("--robots", default=None, metavar="N",
                    type=number_option("--robots", int, low=1, high=MAX_ROBOTS, example="2"),
                    help="number of robots. Default: one (as --robots 1) when one reaches every "
@@ -70,7 +70,7 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
                    "split by the booth's automatic allocation; the file is then a booth "
                    "([[robots]]) with the reason for each choice. 1: one robot only (refused "
                    "when none reaches); 2–4: that many, laid out the same way")
-    n.add_argument("--name", default=None, help="scenario name (default: the file stem)")
+    n.add_argument("--name", default=None, help="scenario name (default: the stem of --out)")
     n.add_argument("--line", action="store_true", help="FILE is a car body (`paintcell generate "
                    "body`): write a paint line for it from --takt (a booth file + its panels' "
                    "meshes in <out stem>_panels/), once the booth's checks pass on it")
@@ -85,7 +85,9 @@ def register(add_parser: Callable[..., argparse.ArgumentParser]) -> None:
     add_generate(add_parser)
 
 
-def _part_options(p: argparse.ArgumentParser) -> None:
+def _part_options(p: argparse.ArgumentParser, resolution: bool = True) -> None:
+    """The part file and how to read it; resolution: also --resolution (inspect's remesh; init
+    plans at the fast resolution it writes into the scenario)."""
     p.add_argument("file", type=Path, help="part file: STL/OBJ/PLY mesh or STEP/IGES CAD")
     p.add_argument("--units", default="auto", choices=("auto", "m", "mm", "cm", "in"),
                    help="length unit of the file's coordinates (auto: inferred from the size)")
@@ -100,8 +102,9 @@ def _part_options(p: argparse.ArgumentParser) -> None:
                    "[m] (default 0.04)")
     p.add_argument("--side", default="auto",
                    help="painted side: auto (the convex skin) or a direction like 0,0,1")
-    p.add_argument("--resolution", type=RESOLUTION_M, default=0.025,
-                   help="remesh edge length [m] (0: keep the repaired tessellation)")
+    if resolution:
+        p.add_argument("--resolution", type=RESOLUTION_M, default=0.025,
+                       help="remesh edge length [m] (0: keep the repaired tessellation)")
 
 
 def _spec(args: argparse.Namespace) -> MeshPart:

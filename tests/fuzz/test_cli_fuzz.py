@@ -228,7 +228,7 @@ def test_every_numeric_option_is_range_checked() -> None:
     assert bare == []
     names = {(cmd, opt) for cmd, opt, _ in _numeric_options()}
     assert {("check", "--timeout"), ("check", "--jobs"), ("inspect", "--resolution"),
-            ("init", "--resolution"), ("export", "--spacing"), ("sweep", "--samples"),
+            ("init", "--robots"), ("export", "--spacing"), ("sweep", "--samples"),
             ("sweep", "--seed"), ("sweep", "--workers"), ("generate", "--seed")} <= names
 
 
