@@ -183,7 +183,7 @@ def _describe(rep: Any, surf: Any) -> str:
     lines.append("regions: " + ", ".join(f"{k} {v:.4f} m²" for k, v in rep.region_areas_m2.items()))
     ops = rep.openings
     lines.append(f"openings: {len(ops)}" + "".join(
-        f"\n  {o.area_m2:.4f} m², Ø {o.diameter_m * 1e3:.0f} mm at "
+        f"\n  {o.area_m2:.4f} m², perimeter {o.perimeter_m * 1e3:.0f} mm at "
         f"({', '.join(f'{c:.3f}' for c in o.centre_m)}) m" for o in ops))
     lines.append(f"repairs: {rep.repair.summary()}")
     if rep.resolution_m:

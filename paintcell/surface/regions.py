@@ -60,11 +60,6 @@ class Opening:
     area_m2: float
     centre_m: tuple[float, float, float]
 
-    @property
-    def diameter_m(self) -> float:
-        """Equivalent diameter perimeter/π [m]."""
-        return self.perimeter_m / np.pi
-
 
 @dataclass(frozen=True, eq=False)
 class PartRegions:
