@@ -251,7 +251,7 @@ def test_a_robot_aware_plan_whose_film_falls_out_of_spec_is_refused(panel) -> No
     (σ/μ under `MAX_CAPPED_NSD_PCT`) is kept; the same plan with its middle pass at a third of
     its speeds (three times the film there) is refused, naming the σ/μ — re-measured here as
     the area-weighted σ/μ of the film over the skin."""
-    from paintcell.app.init_verify import MAX_CAPPED_NSD_PCT, _capped_film
+    from paintcell.app.init_verify import MAX_CAPPED_NSD_PCT, _capped_film, planned_nsd_pct
     from paintcell.paint.deposition import thickness
 
     _, surf, plan = panel
@@ -268,6 +268,7 @@ def test_a_robot_aware_plan_whose_film_falls_out_of_spec_is_refused(panel) -> No
     slow = replace(p, speeds_m_s=p.speeds_m_s / 3.0, times_s=p.times_s * 3.0)
     capped = replace(plan, passes=(*plan.passes[:mid], slow, *plan.passes[mid + 1:]))
     assert nsd(plan) <= MAX_CAPPED_NSD_PCT < nsd(capped)
-    assert _capped_film(plan, surf) is None
-    why = _capped_film(capped, surf)
+    assert planned_nsd_pct(plan, surf) == pytest.approx(nsd(plan), rel=1e-9)
+    assert _capped_film(planned_nsd_pct(plan, surf)) is None
+    why = _capped_film(planned_nsd_pct(capped, surf))
     assert why is not None and f"{nsd(capped):.1f} % σ/μ" in why and "\n" not in why

@@ -3,6 +3,7 @@ file, comes out as a ready TOML scenario that `plan` and `run` accept as written
 
 from __future__ import annotations
 
+import re
 import tomllib
 from pathlib import Path
 
@@ -125,7 +126,8 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
 def test_init_keeps_the_planner_setting_whose_film_is_even(tmp_path: Path) -> None:
     """A seeded door in pieces that the planner's defaults plan unevenly: every setting init may
     try is planned here as `run --fast` plans it, its film's σ/μ over the skin measured, and init
-    writes the first under `GOOD_PLANNED_NSD_PCT` (else the lowest); its run passes."""
+    writes the first under `GOOD_PLANNED_NSD_PCT` (else the lowest); its run passes, and the
+    film init gives for the plan run makes under the robot's speed caps is the run's own."""
     from dataclasses import replace
 
     from paintcell.app.pipeline import load_surface, make_plan, run_scenario
@@ -158,3 +160,11 @@ def test_init_keeps_the_planner_setting_whose_film_is_even(tmp_path: Path) -> No
     res = run_scenario(scn, tmp_path / "run", fast=True, mode="kinematic", report=False)
     assert res.report.passed, [c for c in res.report.checks if not c.passed]
     assert res.report.metrics["executed_nsd_pct"] < nsd[0]
+    # the robot cannot follow every planned speed: the file gives the film of the plan run
+    # makes under its speed caps, as the run measured it (its film over the judged skin)
+    capped = re.search(r"cannot follow every planned speed: run caps them and plans again, "
+                       r"laying ([0-9.]+) % σ/μ", why)
+    assert capped is not None
+    assert float(capped.group(1)) == pytest.approx(res.report.metrics["planned_nsd_pct"],
+                                                   abs=0.05)
+    assert float(capped.group(1)) > nsd[want] + 1.0      # the caps cost the film

@@ -85,6 +85,7 @@ class ProgramCheck:
         self._run_plan: Any = run_plan
         self.trajectory: dict[str, dict[str, Any]] = {}
         self.clearance_m: dict[str, float] = {}
+        self.capped_nsd_pct: dict[str, float] = {}
 
     def __call__(self, name: str, T_base: np.ndarray) -> str | None:
         from paintcell.app.pipeline import load_robot_for, make_trajectory
@@ -126,17 +127,21 @@ class ProgramCheck:
             if gap >= FOLD_BELOW_M:                # nothing within FOLD_BELOW_M: done
                 break
         if best is not None:
-            slow = self._run_slowdowns(best[2], robot, best[3])
+            slow, capped = self._run_slowdowns(best[2], robot, best[3])
             if slow is not None:            # the passes themselves: folding cannot help
                 return slow
             self.clearance_m[name], self.trajectory[name] = best[0], dict(best[1])
+            self.capped_nsd_pct.pop(name, None)
+            if capped is not None:
+                self.capped_nsd_pct[name] = capped
             return None
         if len(failed) == 1 or failed[0] == failed[1]:
             return failed[0]
         return f"{failed[0]}; with fold_moves {failed[1].removeprefix('its ')}"
 
-    def _run_slowdowns(self, scn: Any, robot: Any, traj: Any) -> str | None:
-        """Why `run --fast` would lose poses to the time law on this cell, or None. A program of
+    def _run_slowdowns(self, scn: Any, robot: Any, traj: Any) -> tuple[str | None, float | None]:
+        """(Why `run --fast` would lose poses to the time law on this cell, or None; the σ/μ [%]
+        of the robot-aware plan's film when run will cap the plan's speeds, else None). A program of
         init's plan that slows no pose needs nothing more. One that does is built again as `run`
         builds it: on run's own plan (init plans without the film refinement; made once, it does
         not depend on the cell) — reach_hood_panel's irb5500 program slows 18 of 532 poses on
@@ -155,27 +160,28 @@ class ProgramCheck:
         from paintcell.app.pipeline import make_plan, make_trajectory, robot_aware_run
 
         if _honest(self._plan, traj)["n_slowed_poses"] == 0:
-            return None
+            return None, None
         run_scn = replace(scn, fast_planner={})           # the scenario file init writes
         try:
             if self._run_plan is None:
                 self._run_plan = make_plan(run_scn, self._surface, fast=True)
             first = make_trajectory(run_scn, robot, self._run_plan)
         except PaintcellError as exc:
-            return f"its run's program fails ({str(exc).split(';')[0]})"
+            return f"its run's program fails ({str(exc).split(';')[0]})", None
         if _honest(self._run_plan, first)["n_slowed_poses"] == 0:
-            return None     # the robot-aware rounds only cap what runs < 10 % slow: 32 s saved
+            return None, None   # the robot-aware rounds only cap what runs < 10 % slow: 32 s saved
         plan2, traj2 = robot_aware_run(run_scn, self._surface, robot, self._run_plan, first,
                                        fast=True)
         h = _honest(plan2, traj2)
         if h["n_slowed_poses"] == 0:
-            return _capped_film(plan2, self._surface)
+            nsd = planned_nsd_pct(plan2, self._surface)
+            return _capped_film(nsd), nsd
         feedback = traj2.meta.get("speed_feedback", {})
         dropped = any("rejected_cycle_s" in r or "failed" in r for r in feedback.get("rounds", []))
         how = (" (the robot-aware program ran > 5 % longer and was dropped)"
                if dropped and not feedback.get("capped_passes") else " after robot-aware speeds")
         return (f"its run slows {h['n_slowed_poses']} of {h['n_poses']} poses > 10 % below the "
-                f"planned speed{how}; {_slowest_pass(plan2, traj2)}")
+                f"planned speed{how}; {_slowest_pass(plan2, traj2)}"), None
 
 
 def planned_nsd_pct(plan: Any, surface: Any) -> float:
@@ -189,10 +195,10 @@ def planned_nsd_pct(plan: Any, surface: Any) -> float:
     return float(uniformity(film, skin.vertex_areas).nsd_pct)
 
 
-def _capped_film(plan: Any, surface: Any) -> str | None:
-    """Why the film of the robot-aware `plan` (the speeds capped where the robot could not
-    follow them, then re-planned) would fail the spec init writes, or None."""
-    nsd = planned_nsd_pct(plan, surface)
+def _capped_film(nsd: float) -> str | None:
+    """Why the film [σ/μ %, `planned_nsd_pct`] of a robot-aware plan (the speeds capped where
+    the robot could not follow them, then re-planned) would fail the spec init writes, or
+    None."""
     if nsd <= MAX_CAPPED_NSD_PCT:
         return None
     return (f"its robot-aware speeds (capped where the arm cannot follow the plan) leave the "

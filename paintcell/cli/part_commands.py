@@ -363,6 +363,11 @@ def _cmd_init(args: argparse.Namespace) -> int:
         return _init_multi(args, name, spec, spec_rel, surf, rep, tuple(range(2, MAX_ROBOTS + 1)),
                            f"no one robot reaches every pose of the part ({alone})")
     trajectory = check.trajectory.get(cell.robot, {})
+    capped = check.capped_nsd_pct.get(cell.robot)
+    if capped is not None:      # what `run` plans: the plan above re-planned under speed caps
+        planner_why = "; ".join(x for x in (planner_why, (
+            f"{cell.robot} cannot follow every planned speed: run caps them and plans again, "
+            f"laying {capped:.2f} % σ/μ on the skin (fast plan)")) if x)
     T_base = cell.T_base
     base = Placement(tuple(float(x) for x in T_base[:3, 3]), _rpy(T_base[:3, :3]))  # type: ignore[arg-type]
     text = scenario_toml(name, cell.robot, spec_rel, rep, pl, base,
