@@ -75,7 +75,8 @@ class ProgramCheck:
     `part_placement`; run_plan: the plan `run --fast` makes of it, when already made (None: made
     here when needed). `trajectory[name]` holds the `[trajectory]` table of the last cell of that
     robot that passed (`{}` or `{"fold_moves": True}`), `clearance_m[name]` its smallest distance
-    to the part [m] (`FOLD_BELOW_M` when nothing came closer).
+    to the part [m] (`FOLD_BELOW_M` when nothing came closer), `capped_nsd_pct[name]` the σ/μ
+    [%] of the plan `run` makes under that cell's speed caps (absent when it caps none).
     """
 
     def __init__(self, scenario: Callable[[str, np.ndarray, dict[str, Any]], Any], plan: Any,
