@@ -29,7 +29,8 @@ def scenario_toml(name: str, robot: str, spec: MeshPart, rep: Any, pl: Any, base
     (`rep`, an `ImportReport`), the placements `pl` and `base` (`Placement`), the base's
     `verdict`, the planner settings that planned the part (and the `tried` ones that failed),
     the trajectory settings and the program's clearance [m], the servo's gain rule, thresholds
-    and the paint spec; planner_why: why these planner settings, when others were tried too."""
+    and the paint spec; planner_why: why these planner settings, when others were tried too,
+    and the film of the plan `run` makes under the robot's speed caps, when init made it."""
     ops = rep.openings
     pieces = ", ".join(f"{p.index}: {p.area_m2:.3f} m² {'painted' if p.painted else 'not'}"
                        for p in rep.pieces[:6])

@@ -76,7 +76,9 @@ class ProgramCheck:
     here when needed). `trajectory[name]` holds the `[trajectory]` table of the last cell of that
     robot that passed (`{}` or `{"fold_moves": True}`), `clearance_m[name]` its smallest distance
     to the part [m] (`FOLD_BELOW_M` when nothing came closer), `capped_nsd_pct[name]` the σ/μ
-    [%] of the plan `run` makes under that cell's speed caps (absent when it caps none).
+    [%] of the plan `run` makes under that cell's speed caps, when this check made it (a program
+    that slows a pose > 10 % on init's plan and on run's; run also caps smaller slowdowns, which
+    this does not measure).
     """
 
     def __init__(self, scenario: Callable[[str, np.ndarray, dict[str, Any]], Any], plan: Any,

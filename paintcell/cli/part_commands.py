@@ -380,7 +380,7 @@ def _cmd_init(args: argparse.Namespace) -> int:
     print(f"placement: {cell.verdict}")
     if planner_why:
         print(f"planner: {planner_why}")
-    _warn_uneven(min(x for x, *_ in plans))        # the kept plan's
+    _warn_uneven(min(x for x, *_ in plans), "[planner]")     # the kept plan's
     print(f"scenario written: {out}")
     return 0
 
@@ -399,21 +399,21 @@ def _init_multi(args: argparse.Namespace, name: str, spec: MeshPart, spec_rel: M
     atomic_write_text(args.out, text)
     print(_describe(rep, surf))
     print(f"cell: {len(cell.booth.robots)} {model} robots on rails; {cell.why['jobs']}")
-    _warn_uneven(cell.planned_nsd_pct)
+    _warn_uneven(cell.planned_nsd_pct, "[parts.planner]")
     print(f"scenario written: {args.out}")
     return 0
 
 
-def _warn_uneven(nsd_pct: float) -> None:
+def _warn_uneven(nsd_pct: float, table: str) -> None:
     """Say so when the kept plan's film [% σ/μ, fast plan, refined] is over the spec init wrote:
-    `run` will fail its spec."""
+    `run` will fail its spec; table: the file's planner table ("[planner]", "[parts.planner]")."""
     from paintcell.app.init_toml import SPEC
 
     if nsd_pct > SPEC.max_nsd_pct:
         print(f"init: warning: the plan kept lays {nsd_pct:.1f} % σ/μ on the skin (fast plan, "
               f"film refined), over the spec's {SPEC.max_nsd_pct:g} %: `paintcell run` will "
-              "fail it; write a [planner] table for it (another `orientation`, `patches = "
-              "true`: every key is in the scenario file reference, built by `make docs`)")
+              f"fail it; write its {table} table (another `orientation`, `patches = true`: "
+              "every key is in the scenario file reference, built by `make docs`)")
 
 
 def _relpath(p: Path, start: Path) -> str:
