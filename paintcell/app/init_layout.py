@@ -280,7 +280,7 @@ def _table_plans(booth: Any, refined_part: Any, k: int, length: float
     [%] over the skin of its film planned as `run` plans it (`refined_part`: film refinement
     on; it re-times the passes the geometry cache keeps), or why the table is no candidate."""
     from paintcell.app.init_verify import planned_nsd_pct
-    from paintcell.booth.booth_plans import plan_parts
+    from paintcell.booth.booth_plans import plan_part, plan_parts
 
     try:
         pp = plan_parts(booth, fast=True)
@@ -291,11 +291,13 @@ def _table_plans(booth: Any, refined_part: Any, k: int, length: float
         return (f"planner table {k + 1}'s longest pass over the part is {longest:.1f} m, over "
                 f"{LONG_PASS_FACTOR:.0f}× the part's {length:.2f} m along the rails")
     try:
-        run_pp = plan_parts(replace(booth, parts=(refined_part,)), fast=True)
+        # the part's surface as read for the plan above (not read again)
+        surf, _, _, run_plan = plan_part(replace(booth, parts=(refined_part,)), 0,
+                                         booth.fast_resolution_m, pp.applicator, pp.surfaces[0])
     except PaintcellError as exc:
         return (f"the planner table {k + 1} fails with the film refinement "
                 f"({str(exc).split(';')[0]})")
-    return pp, planned_nsd_pct(run_pp.plans[0], run_pp.surfaces[0])
+    return pp, planned_nsd_pct(run_plan, surf)
 
 
 def _pass_length(plan: Any, i: int) -> float:

@@ -440,5 +440,6 @@ _PLANNER_TRIES: tuple[dict[str, Any], ...] = (
 #: A planned film this even [%] (σ/μ over the skin's area) is kept without trying the other
 #: planner settings; the default spec allows 10 % executed. Seeded doors the defaults planned
 #: unevenly (`paintcell generate`, film refined): door_solid seed 7 at 14.06 % (w_max_m 0.3:
-#: 5.83 %), door_pieces seed 7 at 9.39 % (zero-curvature: 3.12 %).
+#: 5.83 %), door_pieces seed 7 as OBJ at 9.39 % (zero-curvature: 3.12 %; as PLY, whose floats
+#: round otherwise, zero-curvature plans it at 8.63 % and max-curvature at 3.61 %).
 GOOD_PLANNED_NSD_PCT = 7.0
