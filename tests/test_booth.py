@@ -158,6 +158,27 @@ def test_booth_checks_and_credit(roof_booth):
     assert abs(m["loss_conveyor_pp"]) < 1e-9
 
 
+def test_booth_judges_every_robots_joint_range_against_its_hard_stops(roof_booth):
+    """The booth checks the joint range use of its robots, re-measured here on each robot's
+    executed joints against the ranges MuJoCo reads from the arm's MJCF and the rail travel the
+    booth gives (`rail_m`): the largest |q − mid| / half-range, every robot and joint. The
+    robots plan inside their ranges, so none reaches a hard stop."""
+    import mujoco
+
+    from paintcell.robots.arms import load_arm
+
+    arm = mujoco.MjModel.from_xml_path(str(load_arm("irb5500").mjcf_path)).jnt_range
+    use = []
+    for spec, tr in zip(ROOF_BOOTH.robots, roof_booth.traces, strict=True):
+        rng = np.vstack([spec.rail_m, arm])
+        mid, half = rng.mean(axis=1), 0.5 * np.diff(rng, axis=1)[:, 0]
+        use.append(np.abs(tr.q[:, :7] - mid) / half)
+    worst = float(max(u.max() for u in use))
+    (check,) = [c for c in roof_booth.report.checks if c.name == "joint range utilization"]
+    assert check.value == pytest.approx(worst, rel=1e-9) and check.limit == 1.0
+    assert check.passed and worst < 1.0
+
+
 def test_allocation_taken_by_its_real_cycle(roof_booth):
     """Of the ranked allocations built and staggered, the one with the shortest real cycle was
     taken; that cycle, re-measured on the programs (each robot's start delay + its own static

@@ -118,9 +118,11 @@ def test_ur10_placement_is_scored_too() -> None:
     paths = _panel_raster(T_part, width=0.4, height=0.3, n_pass=3, step=0.02)
     speeds = [np.full(len(p), 0.8) for p in paths]
     part = np.concatenate([p[:, :3, 3] for p in paths]) + [0.25, 0.0, 0.0]  # the panel itself
-    cands = facing_grid([0.0, 0.0, 0.6], dx=[-0.85, -0.7], dy=[0.0], heights=[0.0])
+    # the arm on a 1 m pedestal (the floor 1 m below its base), 1 m back from the panel: lower or
+    # nearer, its elbow swings within a link's radius of the floor or the panel between passes
+    cands = facing_grid([0.0, 0.0, 0.6], dx=[-1.0, -0.95], dy=[0.0], heights=[0.0])
     T, rep = find_base_pose(ur, paths, candidates=cands, n_refine=2, speeds_m_s=speeds,
-                            part_points_world=part, floor_z_m=0.0)
+                            part_points_world=part, floor_z_m=-1.0)
     assert rep.feasible, rep.verdict
     assert rep.motion and set(rep.motion) <= {0, 1}
     chosen = rep.motion[rep.best]

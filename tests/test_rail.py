@@ -52,8 +52,25 @@ def test_rail_at_a_fixed_position_is_the_fixed_base_robot(rail_robot):
         J7, J6 = rail_robot.jacobian(Q7[0]), fixed.jacobian(Q[0])
         assert np.abs(J7[:, 1:] - J6).max() < 1e-9
         assert np.allclose(J7[:3, 0], T_RAIL[:3, 1]) and np.allclose(J7[3:, 0], 0.0)
-    assert np.allclose(rail_robot.q_lower[0], -2.0) and np.allclose(rail_robot.q_upper[0], 2.0)
+    # the carriage plans inside the rail's travel (±2 m by default), off its hard stops
+    assert -2.0 < rail_robot.q_lower[0] < -1.98 and 1.98 < rail_robot.q_upper[0] < 2.0
     assert rail_robot.joint_names[0] == "rail" and rail_robot.wrist_joint_index == 5
+
+
+def test_a_pass_past_the_travel_end_keeps_the_carriage_off_the_hard_stop(rail_robot):
+    """A pass the arm paints best from 0.3 m beyond the rail's end: the carriage goes to the end
+    of its travel but stays off the hard stop MuJoCo reads from the generated MJCF (a servo
+    holding a joint on its stop presses it past, and a controller stops there)."""
+    import mujoco
+
+    hard = mujoco.MjModel.from_xml_path(str(rail_robot.mjcf_path)).jnt_range[0]
+    fixed = _fixed_at(float(hard[1]) + 0.3)
+    Q = np.tile(fixed.q_home, (30, 1))
+    Q[:, 0] += np.linspace(-0.15, 0.15, 30)        # a sweep of J1 about the home pose
+    s_m, feasible = best_rail_position(rail_robot, fixed.fk_many(Q), rail_robot.rail.arm.q_home,
+                                       IKSettings())
+    assert feasible
+    assert hard[1] - 0.05 < s_m <= hard[1] - 0.005
 
 
 def test_rail_spec_rejects_bad_values():
@@ -314,8 +331,7 @@ def test_the_search_falls_back_to_the_best_position_confirmed_on_every_pose(rail
     T = _pass_with_spin(0.0)
     s0, ok = best_rail_position(rail_robot, T, pref, s)
     assert ok
-    spec = rail.placed_rail(rail_robot).spec
-    grid = np.linspace(spec.lower_m, spec.upper_m, 41)
+    grid = np.linspace(*rail.travel_m(rail_robot), 41)
     whole = rail.rail_branches(rail_robot, T, grid, pref, s)
     want = min(((c, g) for g, (c, f, _) in zip(grid, whole, strict=True)
                 if f and abs(g - s0) > 1e-9), key=lambda cg: cg[0])[1]

@@ -175,11 +175,11 @@ def _carriage_x(robot: Any, tcp: list[np.ndarray]) -> np.ndarray:
     (its rail the planner's) reaches each of the passes `tcp` (P × (M, 4, 4)) in closed form
     (`paintcell.robots.rail.feasible_positions`, every `STRETCH_STEP_M`); NaN where none does."""
     from paintcell.robots.ik import IKSettings
-    from paintcell.robots.rail import feasible_positions
+    from paintcell.robots.rail import feasible_positions, travel_m
 
-    spec, T = robot.rail.spec, robot.rail.T_world_rail
-    n = max(2, int(np.ceil((spec.upper_m - spec.lower_m) / STRETCH_STEP_M)) + 1)
-    grid = np.linspace(spec.lower_m, spec.upper_m, n)
+    (lo, hi), T = travel_m(robot), robot.rail.T_world_rail
+    n = max(2, int(np.ceil((hi - lo) / STRETCH_STEP_M)) + 1)
+    grid = np.linspace(lo, hi, n)
     x = T[0, 3] + grid * T[0, 1]
     out = np.full((len(tcp), 2), np.nan)
     for i, Tp in enumerate(tcp):

@@ -148,6 +148,8 @@ class BoothThresholds:
     max_abs_loss_pp: |executed − planned σ/μ| [pp]. max_cycle_time_s: booth cycle [s].
     min_bell_distance_m: smallest distance between two bells while both paint [m].
     max_torque_utilization: largest demanded/limit torque of any joint [-].
+    max_joint_range_utilization: the largest |q − mid| / half-range of any robot's joint, its rail
+        included (1 = on the MJCF limit, a hard stop) [-].
     reachability_pct: the least robot's honest reachability [%]
         (`paintcell.validation.honest_reach`: poses lost to IK, joint jumps, configuration flips,
         contacts and time-law slowdowns > 10 % count against it).
@@ -162,6 +164,7 @@ class BoothThresholds:
     max_cycle_time_s: float | None = 120.0
     min_bell_distance_m: float | None = 0.8
     max_torque_utilization: float | None = 1.0
+    max_joint_range_utilization: float | None = 1.0
     reachability_pct: float | None = 100.0
 
 
@@ -403,15 +406,14 @@ def pass_feasible(robot: Any, T_world_tcp: np.ndarray) -> bool:
 def _held(robot: Any, T_world_tcp: np.ndarray) -> bool:
     """`pass_feasible` for the pass's frames as given."""
     from paintcell.robots.ik import IKSettings, branch_feasibility, opw_branches
-    from paintcell.robots.rail import feasible_positions, search_poses
+    from paintcell.robots.rail import feasible_positions, search_poses, travel_m
 
     settings = IKSettings()
     if getattr(robot, "rail", None) is not None:
-        spec = robot.rail.spec
+        lo, hi = travel_m(robot)
         # carriage positions at most RAIL_STEP_M apart (21 on a rail up to 2.4 m long)
-        n = max(21, int(np.ceil((spec.upper_m - spec.lower_m) / RAIL_STEP_M - 1e-9)) + 1)
-        return bool(feasible_positions(robot, T_world_tcp, np.linspace(spec.lower_m,
-                                                                       spec.upper_m, n),
+        n = max(21, int(np.ceil((hi - lo) / RAIL_STEP_M - 1e-9)) + 1)
+        return bool(feasible_positions(robot, T_world_tcp, np.linspace(lo, hi, n),
                                        robot.rail.arm.q_home, settings, need="any").any())
     if robot.opw is None:
         raise BoothError(f"{robot.name}: booth allocation needs closed-form IK (abb_paint, "

@@ -215,6 +215,8 @@ def booth_metrics(booth: Booth, bcell: BoothCell, body: Surface, films: dict[str
             ("bell distance", "min_bell_distance_m", th.min_bell_distance_m, "m", "min"),
             ("torque utilization", "max_torque_utilization", th.max_torque_utilization, "-",
              "max"),
+            ("joint range utilization", "max_joint_range_utilization",
+             th.max_joint_range_utilization, "-", "max"),
             ("reachability", "reachability_pct", th.reachability_pct, "%", "min")]
     checks = []
     for name, key, limit, unit, kind in spec:

@@ -197,6 +197,12 @@ def placed_rail(robot: Robot) -> RailAxis:
     return ax
 
 
+def travel_m(robot: Robot) -> tuple[float, float]:
+    """The carriage travel [m] a rail robot plans within: its RailSpec's limits less the robot's
+    joint-limit margin (`paintcell.robots.robot.LIMIT_MARGIN_M`)."""
+    return float(robot.q_lower[0]), float(robot.q_upper[0])
+
+
 def rail_cost(robot: Robot, T_world_tcp: np.ndarray, s_m: float, q_pref: np.ndarray,
               settings: Any, jump_scale: float = 1.0) -> tuple[float, bool]:
     """(cost, feasible) of `rail_branch` (its docstring), without the branch."""
@@ -349,7 +355,7 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
     penalty(s_m, Q): an extra cost of the feasible branch Q (M, 6) [rad] at carriage position
     s_m [m] (e.g. how close the arm comes to things around it:
     `paintcell.booth.booth_clearance`)."""
-    spec = placed_rail(robot).spec
+    lower_m, upper_m = travel_m(robot)
     sub, js = search_poses(T_world_tcp, n_sub)
 
     def base(s: float) -> tuple[float, bool, np.ndarray | None]:
@@ -359,12 +365,12 @@ def best_rail_position(robot: Robot, T_world_tcp: np.ndarray, q_pref: np.ndarray
         return c + float(penalty(float(s), Q)) if ok and penalty is not None \
             and Q is not None else c
 
-    grid = np.linspace(spec.lower_m, spec.upper_m, n_scan)
+    grid = np.linspace(lower_m, upper_m, n_scan)
     scan = rail_branches(robot, sub, grid, q_pref, settings, jump_scale=js)
     totals = _lazy_min([c for c, _, _ in scan], lambda i: total(float(grid[i]), *scan[i]))
     k = int(np.argmin(totals))
     h = grid[1] - grid[0]
-    lo, hi = max(spec.lower_m, grid[k] - h), min(spec.upper_m, grid[k] + h)
+    lo, hi = max(lower_m, grid[k] - h), min(upper_m, grid[k] + h)
     res = minimize_scalar(lambda s: base(s)[0], bounds=(lo, hi), method="bounded",
                           options={"xatol": 1e-4})
     # the refinement of the plain cost, kept where its total is no worse than the grid's

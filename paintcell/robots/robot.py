@@ -29,6 +29,12 @@ from paintcell.robots.errors import RobotError
 from paintcell.robots.opw import OPWParameters
 
 ROBOTS_DIR = Path(__file__).resolve().parent
+#: how far inside each MJCF joint range paintcell plans: 0.01 rad (0.57°) on a hinge, 0.01 m on a
+#: slide (a rail), at most a tenth of the range. A path planned onto a hard stop is executed
+#: against it (the servo presses the joint on its limit, MuJoCo's soft limit gives a little), and
+#: a robot controller stops on its software limit; the margin keeps every planned pose clear.
+LIMIT_MARGIN_RAD = 0.01
+LIMIT_MARGIN_M = 0.01
 
 
 def _as_pose(T: npt.ArrayLike | None, what: str) -> np.ndarray:
@@ -121,8 +127,8 @@ class Robot:
     name: str
     mjcf_path: Path
     joint_names: tuple[str, ...]
-    q_lower: np.ndarray          # (nq,) [rad]
-    q_upper: np.ndarray          # (nq,) [rad]
+    q_lower: np.ndarray          # (nq,) [rad] the range planned within: the MJCF's less the
+    q_upper: np.ndarray          # (nq,) [rad] `LIMIT_MARGIN_RAD` (`_M` on slides) at each end
     v_max: np.ndarray            # (nq,) [rad/s]
     a_max: np.ndarray            # (nq,) [rad/s²]
     tau_max: np.ndarray          # (nq,) [N·m]
@@ -175,6 +181,9 @@ class Robot:
         q_upper = mj.jnt_range[:, 1].copy()
         if np.any(q_upper <= q_lower):
             raise RobotError(f"{path}: every joint needs a range (lower < upper); add range=")
+        margin = np.minimum(np.where(mj.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE, LIMIT_MARGIN_M,
+                                     LIMIT_MARGIN_RAD), 0.1 * (q_upper - q_lower))
+        q_lower, q_upper = q_lower + margin, q_upper - margin
         tau = np.full(nq, np.inf)
         for act in range(mj.nu):
             j = mj.actuator_trnid[act, 0]
@@ -324,7 +333,8 @@ class Robot:
         return np.linalg.inv(self.T_world_base) @ T @ np.linalg.inv(self.T_flange_tcp)
 
     def limit_margin(self, Q: npt.ArrayLike) -> np.ndarray:
-        """(K,) smallest distance [rad] of each row of Q (K, nq) to a joint limit (<0: outside)."""
+        """(K,) smallest distance [rad] of each row of Q (K, nq) to the range planned within
+        (`q_lower`, `q_upper`; <0: outside)."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         return np.minimum(Q - self.q_lower, self.q_upper - Q).min(axis=1)
 
