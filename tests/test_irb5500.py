@@ -93,9 +93,9 @@ def test_static_gravity_within_torque_limits():
 def test_datasheet_values():
     r = load_robot("irb5500")
     # the model's range (its hard stops, as MuJoCo reads them) is the datasheet's; paintcell
-    # plans 0.01 rad inside it
+    # plans 0.001 rad inside it
     hard = np.rad2deg(mujoco.MjModel.from_xml_path(str(r.mjcf_path)).jnt_range)
     assert np.allclose(hard, np.column_stack([[-150, -90, -180, -300, -125, -300], [150, 110, 65, 300, 125, 300]]))
-    assert np.allclose(r.q_lower - np.deg2rad(hard[:, 0]), 0.01)
-    assert np.allclose(np.deg2rad(hard[:, 1]) - r.q_upper, 0.01)
+    assert np.allclose(r.q_lower - np.deg2rad(hard[:, 0]), 0.001)
+    assert np.allclose(np.deg2rad(hard[:, 1]) - r.q_upper, 0.001)
     assert np.allclose(np.rad2deg(r.v_max), [100, 130, 130, 460, 460, 600])

@@ -109,11 +109,11 @@ def test_opw_forward_matches_pinocchio():
 def test_datasheet_values():
     robot = load_robot("abb_paint")
     # the model's range (its hard stops, as MuJoCo reads them) is the datasheet's; paintcell
-    # plans 0.01 rad inside it
+    # plans 0.001 rad inside it
     hard = np.rad2deg(mujoco.MjModel.from_xml_path(str(robot.mjcf_path)).jnt_range)
     assert np.allclose(hard, np.column_stack([[-180, -90, -180, -400, -125, -400], [180, 150, 75, 400, 120, 400]]))
-    assert np.allclose(robot.q_lower - np.deg2rad(hard[:, 0]), 0.01)
-    assert np.allclose(np.deg2rad(hard[:, 1]) - robot.q_upper, 0.01)
+    assert np.allclose(robot.q_lower - np.deg2rad(hard[:, 0]), 0.001)
+    assert np.allclose(np.deg2rad(hard[:, 1]) - robot.q_upper, 0.001)
     assert np.allclose(np.rad2deg(robot.v_max), [175, 175, 175, 250, 250, 360])
     assert robot.joint_names == tuple(f"joint{i}" for i in range(1, 7))
     assert np.all(robot.armature > 0) and np.all(robot.damping > 0)

@@ -29,12 +29,13 @@ from paintcell.robots.errors import RobotError
 from paintcell.robots.opw import OPWParameters
 
 ROBOTS_DIR = Path(__file__).resolve().parent
-#: how far inside each MJCF joint range paintcell plans: 0.01 rad (0.57°) on a hinge, 0.01 m on a
-#: slide (a rail), at most a tenth of the range. A path planned onto a hard stop is executed
-#: against it (the servo presses the joint on its limit, MuJoCo's soft limit gives a little), and
-#: a robot controller stops on its software limit; the margin keeps every planned pose clear.
-LIMIT_MARGIN_RAD = 0.01
-LIMIT_MARGIN_M = 0.01
+#: how far inside each MJCF joint range paintcell plans: 0.001 rad (0.06°) on a hinge, 1 mm on a
+#: slide (a rail), at most a tenth of the range. A path planned onto a limit is executed against
+#: it (the servo presses the joint on its limit and MuJoCo's soft limit gives a few µrad or µm),
+#: and a robot controller stops there; the margin keeps every planned pose clear of it while
+#: taking next to nothing from the arm's reach.
+LIMIT_MARGIN_RAD = 0.001
+LIMIT_MARGIN_M = 0.001
 
 
 def _as_pose(T: npt.ArrayLike | None, what: str) -> np.ndarray:
