@@ -95,7 +95,8 @@ def test_datasheet_values():
     # the model's range (its hard stops, as MuJoCo reads them) is the datasheet's; paintcell
     # plans 0.001 rad inside it
     hard = np.rad2deg(mujoco.MjModel.from_xml_path(str(r.mjcf_path)).jnt_range)
-    assert np.allclose(hard, np.column_stack([[-150, -90, -180, -300, -125, -300], [150, 110, 65, 300, 125, 300]]))
+    assert np.allclose(hard, np.column_stack([[-150, -90, -180, -300, -125, -300],
+                                              [150, 110, 65, 300, 125, 300]]))
     assert np.allclose(r.q_lower - np.deg2rad(hard[:, 0]), 0.001)
     assert np.allclose(np.deg2rad(hard[:, 1]) - r.q_upper, 0.001)
     assert np.allclose(np.rad2deg(r.v_max), [100, 130, 130, 460, 460, 600])

@@ -111,7 +111,8 @@ def test_datasheet_values():
     # the model's range (its hard stops, as MuJoCo reads them) is the datasheet's; paintcell
     # plans 0.001 rad inside it
     hard = np.rad2deg(mujoco.MjModel.from_xml_path(str(robot.mjcf_path)).jnt_range)
-    assert np.allclose(hard, np.column_stack([[-180, -90, -180, -400, -125, -400], [180, 150, 75, 400, 120, 400]]))
+    assert np.allclose(hard, np.column_stack([[-180, -90, -180, -400, -125, -400],
+                                              [180, 150, 75, 400, 120, 400]]))
     assert np.allclose(robot.q_lower - np.deg2rad(hard[:, 0]), 0.001)
     assert np.allclose(np.deg2rad(hard[:, 1]) - robot.q_upper, 0.001)
     assert np.allclose(np.rad2deg(robot.v_max), [175, 175, 175, 250, 250, 360])
