@@ -73,6 +73,26 @@ def test_a_pass_past_the_travel_end_keeps_the_carriage_off_the_hard_stop(rail_ro
     assert hard[1] - 0.05 < s_m <= hard[1] - 0.0005
 
 
+def test_a_carriage_parked_at_the_rails_end_starts_its_moves_inside_the_travel():
+    """A home keyframe with the carriage at the rail's end (its hard stop, as MuJoCo reads the
+    generated MJCF): the robot's home starts inside the planned travel, and a jerk-limited move
+    from it, held to the robot's limits, is planned (ruckig) instead of refused."""
+    import mujoco
+
+    from paintcell.motion.moves import plan_move
+
+    robot = load_rail_robot("irb5500", T_world_rail=T_RAIL, rail=RailSpec(home_m=2.0))
+    model = mujoco.MjModel.from_xml_path(str(robot.mjcf_path))
+    assert model.key_qpos[0, 0] == 2.0 == model.jnt_range[0, 1]
+    assert robot.q_home[0] == robot.q_upper[0] < 2.0
+    target = robot.q_home - np.array([0.5, 0.2, 0.1, 0.1, 0.0, 0.1, 0.0])
+    z = np.zeros(robot.nq)
+    move = plan_move(robot.q_home, z, z, target, z, z, robot.v_max, robot.a_max,
+                     10 * robot.a_max, robot.q_lower, robot.q_upper)
+    lo, hi = move.position_bounds()
+    assert np.all(lo >= robot.q_lower - 1e-9) and np.all(hi <= robot.q_upper + 1e-9)
+
+
 def test_rail_spec_rejects_bad_values():
     with pytest.raises(Exception, match="lower_m"):
         RailSpec(lower_m=1.0, upper_m=-1.0)

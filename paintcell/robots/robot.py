@@ -184,13 +184,18 @@ class Robot:
             raise RobotError(f"{path}: every joint needs a range (lower < upper); add range=")
         margin = np.minimum(np.where(mj.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE, LIMIT_MARGIN_M,
                                      LIMIT_MARGIN_RAD), 0.1 * (q_upper - q_lower))
+        hard = q_lower.copy(), q_upper.copy()
         q_lower, q_upper = q_lower + margin, q_upper - margin
         tau = np.full(nq, np.inf)
         for act in range(mj.nu):
             j = mj.actuator_trnid[act, 0]
             tau[j] = min(abs(mj.actuator_ctrlrange[act, 0]), abs(mj.actuator_ctrlrange[act, 1]))
         key = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_KEY, "home")
-        q_home = mj.key_qpos[key].copy() if key >= 0 else np.clip(np.zeros(nq), q_lower, q_upper)
+        # no keyframe: the joints' zero, clipped into the range; a home on a limit (a carriage
+        # parked at the rail's end) starts the margin inside it
+        q_home = mj.key_qpos[key].copy() if key >= 0 else np.zeros(nq)
+        q_home = np.where((key < 0) | ((q_home >= hard[0]) & (q_home <= hard[1])),
+                          np.clip(q_home, q_lower, q_upper), q_home)
 
         # Tool offset from MuJoCo's compiled values (independent of Pinocchio's site import).
         data = mujoco.MjData(mj)
