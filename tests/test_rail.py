@@ -151,6 +151,25 @@ def test_program_respects_joint_and_rail_limits(roof_case):
     assert np.ptp(q[:, 0]) > 0.1
 
 
+def test_a_program_homed_at_the_rails_end_starts_just_inside_it(roof_case):
+    """A home written with the carriage at the rail's end (a booth's `home`, the scenario's
+    `[trajectory] q_home`), the end as MuJoCo reads it from the robot's MJCF: the program is
+    built, starts and ends at that home moved onto the planned travel, and stays in it."""
+    import dataclasses
+
+    import mujoco
+
+    scn, _, plan, robot = roof_case
+    end = float(mujoco.MjModel.from_xml_path(str(robot.mjcf_path)).jnt_range[0, 1])
+    home = (end, *robot.q_home[1:])
+    settings = dataclasses.replace(TrajectorySettings(**scn.trajectory), q_home=home)
+    traj = build_program(robot, plan, scn.part_placement.matrix, settings)
+    want = np.array([robot.q_upper[0], *robot.q_home[1:]])
+    assert robot.q_upper[0] < end
+    assert np.array_equal(traj.q[0], want) and np.allclose(traj.q[-1], want, rtol=0, atol=1e-12)
+    assert np.all(traj.q >= robot.q_lower - 1e-9) and np.all(traj.q <= robot.q_upper + 1e-9)
+
+
 def test_rail_and_fixed_cells_execute_the_same_tcp_path(roof_case):
     """MuJoCo: a program with the carriage held at s in the rail cell gives the TCP trace of the
     same arm program in a fixed-base cell at that position (kinematic execution)."""

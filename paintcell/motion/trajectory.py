@@ -107,6 +107,10 @@ class RobotLike(Protocol):
         """(N, 4, 4) world poses of the TCP at joint positions Q (N, nq)."""
         ...
 
+    def planned_home(self, q: npt.ArrayLike) -> np.ndarray:
+        """q (nq,) with a joint on its limit moved just inside it, onto the planned range."""
+        ...
+
     def jacobian(self, q: npt.ArrayLike) -> np.ndarray:
         """(6, nq) TCP Jacobian [v; ω] at q in world-aligned axes at the TCP (m/rad, rad/rad)."""
         ...
@@ -707,6 +711,7 @@ def build_program(robot: RobotLike, plan: CoveragePlan, T_world_part: npt.ArrayL
     q_home = np.asarray(robot.q_home if settings.q_home is None else settings.q_home, float)
     if q_home.shape != (n,):
         raise TrajectoryError(f"q_home must have {n} joint values [rad], got {q_home.shape}")
+    q_home = robot.planned_home(q_home)     # a home on a limit starts just inside it
     timing = {"ik": 0.0, "path": 0.0, "toppra": 0.0, "ruckig": 0.0, "sampling": 0.0}
 
     # --- 1. IK (then joint paths in `_build`) ----------------------------------------------

@@ -151,6 +151,8 @@ class Robot:
     wrist_joint_index: int | None = 4  # joint whose sin is 0 at the wrist singularity (J5)
     # `paintcell.robots.rail.RailAxis` when joint 0 is a linear rail carrying the arm
     rail: Any = None
+    # (nq, 2) the MJCF's own range [rad; m on slides]: the hard limits q_lower/q_upper keep clear of
+    q_range_mjcf: np.ndarray | None = field(default=None, repr=False)
     _base_joint_placement: Any = field(default=None, repr=False)
     _base_frame_placement: Any = field(default=None, repr=False)
 
@@ -184,18 +186,14 @@ class Robot:
             raise RobotError(f"{path}: every joint needs a range (lower < upper); add range=")
         margin = np.minimum(np.where(mj.jnt_type == mujoco.mjtJoint.mjJNT_SLIDE, LIMIT_MARGIN_M,
                                      LIMIT_MARGIN_RAD), 0.1 * (q_upper - q_lower))
-        hard = q_lower.copy(), q_upper.copy()
+        hard = np.column_stack([q_lower, q_upper])
         q_lower, q_upper = q_lower + margin, q_upper - margin
         tau = np.full(nq, np.inf)
         for act in range(mj.nu):
             j = mj.actuator_trnid[act, 0]
             tau[j] = min(abs(mj.actuator_ctrlrange[act, 0]), abs(mj.actuator_ctrlrange[act, 1]))
         key = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_KEY, "home")
-        # no keyframe: the joints' zero, clipped into the range; a home on a limit (a carriage
-        # parked at the rail's end) starts the margin inside it
-        q_home = mj.key_qpos[key].copy() if key >= 0 else np.zeros(nq)
-        q_home = np.where((key < 0) | ((q_home >= hard[0]) & (q_home <= hard[1])),
-                          np.clip(q_home, q_lower, q_upper), q_home)
+        q_home = mj.key_qpos[key].copy() if key >= 0 else np.clip(np.zeros(nq), q_lower, q_upper)
 
         # Tool offset from MuJoCo's compiled values (independent of Pinocchio's site import).
         data = mujoco.MjData(mj)
@@ -220,11 +218,12 @@ class Robot:
                     tcp_site_name=tcp_site_name, base_body_name=base_body_name,
                     flange_site_name=flange_site_name, T_world_base=np.eye(4),
                     T_flange_tcp=T_flange_tcp, pin_model=pm, pin_data=pm.createData(),
-                    tcp_frame_id=tcp_id, opw=opw,
+                    tcp_frame_id=tcp_id, opw=opw, q_range_mjcf=hard,
                     _base_joint_placement=[pin.SE3(pm.jointPlacements[j])
                                            for j in range(pm.njoints)],
                     _base_frame_placement=[pin.SE3(f.placement) for f in pm.frames])
         robot._set_base(_as_pose(T_world_base, "T_world_base"))
+        robot.q_home = robot.planned_home(q_home)
         return robot
 
     @staticmethod
@@ -337,6 +336,17 @@ class Robot:
         """T_base_flange (M,4,4) for TCP targets T_world_tcp (M,4,4): strips base and tool."""
         T = np.asarray(T_world_tcp, float)
         return np.linalg.inv(self.T_world_base) @ T @ np.linalg.inv(self.T_flange_tcp)
+
+    def planned_home(self, q: npt.ArrayLike) -> np.ndarray:
+        """q (nq,) [rad; m on slides] with every joint that lies on or inside its MJCF limit but
+        outside the planned range (within the margin of a limit: a carriage parked at its rail's
+        end, an arm joint homed on its stop) moved onto that range, where programs start and end;
+        a joint outside the MJCF range is left as it is, for the checks that refuse it."""
+        q = np.array(q, dtype=float)
+        if self.q_range_mjcf is None:
+            return q
+        lo, hi = self.q_range_mjcf[:, 0], self.q_range_mjcf[:, 1]
+        return np.where((q >= lo) & (q <= hi), np.clip(q, self.q_lower, self.q_upper), q)
 
     def limit_margin(self, Q: npt.ArrayLike) -> np.ndarray:
         """(K,) smallest distance [rad] of each row of Q (K, nq) to the range planned within
