@@ -263,3 +263,22 @@ def test_video_on_request_needs_the_gif(results):
     (results / "execution.gif").unlink()
     with pytest.raises(report.ReportError, match="paintcell run --video"):
         report.write_report(results, video=True)
+
+
+def test_joints_plot_draws_the_mjcf_range_execution_is_judged_on():
+    """The joints plot's limits are the joint ranges MuJoCo reads from the robot's MJCF (the
+    range an executed trace's joint range use is measured against), not the planned range
+    1 mrad inside them."""
+    import mujoco
+
+    from paintcell.output.report_figures import _joint_limits
+    from paintcell.robots import load_robot
+    from paintcell.robots.robot import ABB_PAINT_MJCF
+
+    robot = load_robot("abb_paint")
+    lo, hi, v_max = _joint_limits(robot, None)
+    rng = mujoco.MjModel.from_xml_path(str(ABB_PAINT_MJCF)).jnt_range[: robot.nq]
+    np.testing.assert_array_equal(lo, rng[:, 0])
+    np.testing.assert_array_equal(hi, rng[:, 1])
+    assert np.all(robot.q_lower > lo) and np.all(robot.q_upper < hi)
+    np.testing.assert_array_equal(v_max, robot.v_max)

@@ -233,6 +233,8 @@ def _moments(trace: Any) -> list[tuple[str, int]]:
 
 
 def _joint_limits(robot: Any, trajectory: Any) -> tuple[Any, Any, Any] | None:
+    """(lower, upper, v_max) the joints plot draws: the MJCF range the execution and its
+    joint range use are measured against (the planned range lies 1 mm or 1 mrad inside it)."""
     if robot is None:
         try:
             from paintcell.robots import load_robot
@@ -240,6 +242,9 @@ def _joint_limits(robot: Any, trajectory: Any) -> tuple[Any, Any, Any] | None:
             robot = load_robot(trajectory.robot_name)
         except (ImportError, PaintcellError):
             return None
+    hard = getattr(robot, "q_range_mjcf", None)
+    if hard is not None:
+        return hard[:, 0], hard[:, 1], robot.v_max
     return robot.q_lower, robot.q_upper, robot.v_max
 
 
