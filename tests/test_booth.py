@@ -947,3 +947,34 @@ def test_booth_film_file(roof_booth, tmp_path):
     assert 100 * w[inside].sum() / w.sum() == pytest.approx(m["executed_within_tolerance_pct"],
                                                             abs=1e-9)
     assert 'id="film-3d"' in (tmp_path / "report.html").read_text(encoding="utf-8")
+
+
+def test_validate_fails_a_booth_whose_joint_passed_its_hard_stop(roof_booth_dir, tmp_path):
+    """A booth folder whose one trace has a robot's elbow 0.01 rad past the upper limit MuJoCo
+    reads from the arm's MJCF for one sample: `paintcell validate` re-measures joint range use
+    from the files, its check fails with that joint's figure, and the exit code says FAIL."""
+    import json
+    import shutil
+
+    import mujoco
+
+    from paintcell.cli.common import EXIT_FAIL
+    from paintcell.cli.main import main
+    from paintcell.execution.trace import ExecutedTrace
+    from paintcell.robots.arms import load_arm
+
+    d = tmp_path / "bo"
+    shutil.copytree(roof_booth_dir, d)
+    trace = ExecutedTrace.load_npz(d / "trace.npz")
+    hi = mujoco.MjModel.from_xml_path(str(load_arm("irb5500").mjcf_path)).jnt_range[2, 1]
+    lo_all, hi_all = np.array(trace.meta["q_lower"]), np.array(trace.meta["q_upper"])
+    col = 3                    # robot 0: rail, J1, J2, J3 (the elbow)
+    assert hi_all[col] == hi
+    trace.q[len(trace.t_s) // 2, col] = hi + 0.01
+    trace.save_npz(d / "trace.npz")
+    assert main(["validate", str(d)]) == EXIT_FAIL
+    m = json.loads((d / "metrics.json").read_text())
+    (check,) = [c for c in m["checks"] if c["name"] == "joint range utilization"]
+    half = 0.5 * (hi_all[col] - lo_all[col])
+    want = (hi + 0.01 - 0.5 * (hi_all[col] + lo_all[col])) / half
+    assert not check["passed"] and check["value"] == pytest.approx(want, rel=1e-12) and want > 1
