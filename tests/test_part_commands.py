@@ -92,7 +92,8 @@ def test_init_writes_a_scenario_that_plan_and_run_accept(tmp_path: Path) -> None
     assert main(["init", str(part), "--out", str(toml)]) == 0
     table = tomllib.loads(toml.read_text())
     assert table["part"]["file"] == "../parts/fender.stl"
-    assert table["part"]["units"] == "auto" and "# units: mm" in toml.read_text()
+    # the unit auto chose, written as the scenario's: every later run reads the part alike
+    assert table["part"]["units"] == "mm" and "# units: mm" in toml.read_text()
     assert set(table) >= {"name", "robot", "part", "part_placement", "base", "thresholds"}
     # a paint spec, stated (not a loose σ/μ threshold); the pieces joined as "auto" finds them
     assert table["spec"] == {"window_pct": 20.0, "min_inside_pct": 90.0, "max_nsd_pct": 10.0}

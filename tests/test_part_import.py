@@ -89,6 +89,25 @@ def test_units_auto_on_a_mm_file_equals_units_mm_and_a_metre_copy(parts, tmp_pat
     assert c.area == pytest.approx(a.area, rel=1e-6)   # the STL stores float32 coordinates
 
 
+def test_an_inch_file_is_read_in_inches_and_the_cm_reading_is_named(parts, tmp_path):
+    """A fender exported in inches (≈ 40 file units: 1 m in inches, 0.4 m in cm, both
+    plausible car parts) is read in inches, to the size of its mm original; the reason names
+    the cm reading and the setting that would choose it. A mm file has no second reading."""
+    path, _ = parts["fender"]
+    a, ra = import_part(MeshPart(file=str(path)), resolution_m=None)
+    m = trimesh.load(path, process=False)
+    m.vertices = m.vertices / 25.4
+    p_in = tmp_path / "fender_in.stl"
+    m.export(p_in)
+    b, rb = import_part(MeshPart(file=str(p_in)), resolution_m=None)
+    size = float(np.ptp(m.vertices, axis=0).max())
+    assert 10.0 < size < 100.0     # cm and in both give 0.1–6 m; mm does not
+    assert rb.units.units == "in" and rb.units.also_plausible == ("cm",)
+    assert 'units = "cm"' in rb.units.reason and f"{size * 0.01:.3g} m" in rb.units.reason
+    assert b.area == pytest.approx(a.area, rel=1e-5)
+    assert ra.units.also_plausible == () and "AMBIGUOUS" not in ra.units.reason
+
+
 @pytest.mark.parametrize("kind", ["door", "roof"])
 def test_remesh_keeps_area_and_reaches_the_resolution(parts, kind):
     path, truth = parts[kind]

@@ -106,7 +106,7 @@ rpy_rad = {_v([round(v, 6) for v in pl.rpy_rad])}
 [parts.part]
 file = {_v(spec.file)}   # relative to this file
 # units: {rep.units.units} — {rep.units.reason}
-units = {_v(spec.units)}
+units = {_v(rep.units.units)}
 pieces = {_v(spec.pieces)}
 side = {_v(spec.side)}
 # regions: {regions}; openings: {len(ops)}

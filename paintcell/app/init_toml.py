@@ -60,7 +60,7 @@ fast_resolution_m = 0.025      # remesh edge length of a --fast run [m]
 [part]
 file = {toml_value(spec.file)}   # relative to this file
 # units: {rep.units.units} — {rep.units.reason}
-units = {toml_value(spec.units)}
+units = {toml_value(rep.units.units)}
 # pieces: {len(rep.pieces)} found ({pieces}); "auto" paints the largest and the pieces
 # within pieces_gap_m of it that face its painted side; "largest" the largest alone
 pieces = {toml_value(spec.pieces)}

@@ -90,7 +90,9 @@ def _part_options(p: argparse.ArgumentParser, resolution: bool = True) -> None:
     plans at the fast resolution it writes into the scenario)."""
     p.add_argument("file", type=Path, help="part file: STL/OBJ/PLY mesh or STEP/IGES CAD")
     p.add_argument("--units", default="auto", choices=("auto", "m", "mm", "cm", "in"),
-                   help="length unit of the file's coordinates (auto: inferred from the size)")
+                   help="length unit of the file's coordinates (auto: the first of m, mm, in, "
+                   "cm that makes the part 0.1-6 m across; it says when another would too, and "
+                   "init writes the unit it used into the scenario)")
     p.add_argument("--pieces", default="auto",
                    help="pieces to paint: auto (the largest and every piece within --pieces-gap "
                    "of it facing its painted side; stray bits under 1 %% of its area left out), "

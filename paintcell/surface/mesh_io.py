@@ -5,9 +5,11 @@ Meshes (STL/OBJ/PLY/OFF/glTF) are read with trimesh; CAD (STEP/IGES) with the Op
 unit to millimetres, so CAD coordinates are always millimetres.
 
 A car part is 0.1–6 m across (`PLAUSIBLE_SIZE_M`: a fuel flap to a body side). `choose_units`
-takes the file's largest extent and picks the first of m, mm, cm, in that puts it in that range;
-an explicit unit is checked against the same range, so a 509 m door or a 1 mm panel is refused
-with its dimensions and the `units` setting that would fix it.
+takes the file's largest extent and picks the first of m, mm, in, cm that puts it in that range,
+and names every other unit that would too (a 52 file-unit part is a 1.33 m door in inches or a
+0.52 m panel in cm: no rule tells them apart, the user's `units` does); an explicit unit is
+checked against the same range, so a 509 m door or a 1 mm panel is refused with its dimensions
+and the `units` setting that would fix it.
 """
 
 from __future__ import annotations
@@ -30,8 +32,11 @@ __all__ = ["PLAUSIBLE_SIZE_M", "RawMesh", "UnitChoice", "choose_units", "read_pa
 
 #: Largest extent of a paintable car part [m]: smallest and largest plausible.
 PLAUSIBLE_SIZE_M = (0.1, 6.0)
-#: Order in which `units = "auto"` tries units: SI first, then what CAD systems export.
-_AUTO_ORDER = ("m", "mm", "cm", "in")
+#: Order in which `units = "auto"` tries units: SI first, then what CAD systems export. Inches
+#: before centimetres: where both read a car part (10–100 file units, too small in mm) inches
+#: read a door or a hood (0.25–2.5 m) and centimetres a panel under 1 m, and inch exports are
+#: the commoner of the two (US CAD defaults).
+_AUTO_ORDER = ("m", "mm", "in", "cm")
 
 
 @dataclass(frozen=True)
@@ -51,6 +56,8 @@ class UnitChoice:
     units: str
     scale_m: float
     reason: str
+    also_plausible: tuple[str, ...] = ()
+    """The other units that make the part a plausible size (`units = "auto"` only)."""
 
 
 def read_part_file(path: str | os.PathLike[str], chord_tolerance_m: float = 5e-5) -> RawMesh:
@@ -182,11 +189,17 @@ def choose_units(extent_file: np.ndarray, units: str, cad: bool = False) -> Unit
             raise SurfaceError(
                 f"part is {dims} file units: no unit (m, mm, cm, in) makes it {lo:g}–{hi:g} m "
                 "across; check the export, or set [part] units and scale it yourself")
-        u = fits[0]
-        others = [f"{w}: {size * UNITS_M[w]:.3g} m" for w in _AUTO_ORDER if w != u]
-        choice = UnitChoice(u, UNITS_M[u], f"largest extent {size:.4g} file units is "
-                            f"{size * UNITS_M[u]:.3g} m in {u}, the first of m, mm, cm, in in "
-                            f"{lo:g}–{hi:g} m ({'; '.join(others)})")
+        u, also = fits[0], tuple(fits[1:])
+        others = [f"{w}: {size * UNITS_M[w]:.3g} m" for w in _AUTO_ORDER
+                  if w != u and w not in also]
+        reason = (f"largest extent {size:.4g} file units, read as {u} {size * UNITS_M[u]:.3g} m: "
+                  f"the first of {', '.join(_AUTO_ORDER)} to give {lo:g}–{hi:g} m "
+                  f"({'; '.join(others)})")
+        if also:
+            reason += ("; AMBIGUOUS: " + ", ".join(
+                f"read as {w} it is {size * UNITS_M[w]:.3g} m" for w in also)
+                + f" — if so, write [part] units = \"{also[0]}\" (or --units {also[0]})")
+        choice = UnitChoice(u, UNITS_M[u], reason, also)
     else:
         choice = UnitChoice(units, UNITS_M[units], f"set in the scenario (units = \"{units}\")")
     size_m = size * choice.scale_m
