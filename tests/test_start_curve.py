@@ -12,6 +12,7 @@ from paintcell.coverage.offset import (
     check_offset_order,
     curve_through,
     indexing_curves,
+    stray_samples,
     walk,
 )
 from paintcell.coverage.offset_polyline import arc_length, geodesic_curvature, resample
@@ -214,6 +215,33 @@ def test_reversing_offset_is_refused() -> None:
     bad[5:7, 0] = bad[5:7, 0][::-1] + [0.15, -0.15]     # a swallowtail
     with pytest.raises(PlanError, match="self-intersects"):
         check_offset_order(src, bad, "offset +1")
+
+
+def test_a_stray_sample_is_left_out_and_a_cusp_is_not() -> None:
+    """An offset (41 samples) whose one sample landed two steps back (an indexing curve turned
+    at an opening's corner) reverses twice; left out, the rest runs in order, and only that
+    sample is named. Two strays, a NaN sample skipped, likewise. Not mended: a swallowtail over
+    nine samples (a cusp), and one stray on an offset of 12 samples (over 5 % of it)."""
+    src = np.stack([np.linspace(0, 2, 41), np.zeros(41), np.zeros(41)], 1)
+    off = src + [0.0, -0.2, 0.0]
+    assert not stray_samples(src, off).any()
+    one = off.copy()
+    one[8, 0] -= 0.1                                   # two steps back
+    with pytest.raises(PlanError, match="self-intersects"):
+        check_offset_order(src, one, "offset +1")
+    np.testing.assert_array_equal(np.flatnonzero(stray_samples(src, one)), [8])
+    two = one.copy()
+    two[25, 0] -= 0.12
+    two[3] = np.nan                                    # a curve that left the surface
+    got = stray_samples(src, two)
+    assert got is not None
+    np.testing.assert_array_equal(np.flatnonzero(got), [8, 25])
+    keep = np.all(np.isfinite(two), axis=1) & ~got
+    check_offset_order(src[keep], two[keep], "mended")
+    cusp = off.copy()
+    cusp[6:15, 0] = cusp[6:15, 0][::-1]                 # nine samples run backward
+    assert stray_samples(src, cusp) is None
+    assert stray_samples(src[:12], one[:12]) is None    # 1 of 12: a fold forming, not a stray
 
 
 def test_sphere_cap_start_curve_is_a_great_circle_through_the_axis() -> None:

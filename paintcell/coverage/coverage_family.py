@@ -29,7 +29,7 @@ from paintcell.coverage.notches import (
     find_notches,
     notch_samples,
 )
-from paintcell.coverage.offset import check_offset_order, walk
+from paintcell.coverage.offset import check_offset_order, stray_samples, walk
 from paintcell.coverage.offset_polyline import arc_length
 from paintcell.coverage.openings import (
     brush_off_openings,
@@ -248,8 +248,19 @@ def _sweeps(pl: Planner, name: str, start_pts: np.ndarray, start_nrm: np.ndarray
             pts, nrm, inside = walk(sweep_curves, w0)
             ok = np.all(np.isfinite(pts), axis=1)
             try:
-                check_offset_order(cur.foot[ok], pts[ok],
-                                   f"offset {sign * k:+d} of the {name} plan")
+                try:
+                    check_offset_order(cur.foot[ok], pts[ok],
+                                       f"offset {sign * k:+d} of the {name} plan")
+                except PlanError:
+                    # a few curves astray: left out, from a pass walked in order (a level
+                    # set's wiggles make strays that are folds)
+                    level_set = cur.info.get("offset") == "heat-method level set"
+                    stray = None if level_set else stray_samples(cur.foot, pts)
+                    if stray is None:
+                        raise
+                    pts = np.where(stray[:, None], np.nan, pts)
+                    ok &= ~stray
+                    info = dict(info, stray_samples_left_out=int(stray.sum()))
             except PlanError:
                 if not st.geodesic_fallback:
                     raise

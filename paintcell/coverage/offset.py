@@ -45,12 +45,19 @@ __all__ = [
     "check_offset_order",
     "curve_through",
     "indexing_curves",
+    "stray_samples",
     "walk",
 ]
 
 #: An offset chord running backward by more than this fraction of its source step is a reversal
 #: (a cusp: the offset self-intersects) [-].
 _REVERSAL_FRACTION = 0.02
+#: Most samples of an offset `stray_samples` may leave out before its reversal counts as a cusp,
+#: and at most this share of its samples [-]: on a short offset (a narrow bell's pass over a
+#: hood's tip, 8 samples) one stray is a fold forming, and the passes mended there crossed
+#: their neighbours two offsets on.
+MAX_STRAY_SAMPLES = 2
+MAX_STRAY_FRACTION = 0.05
 #: Length over which an end tangent is measured for the straight continuation past a boundary [m].
 _END_TANGENT_M = 0.01
 #: A curve leaves the surface *along* the boundary (not across it) when its end tangent is within
@@ -235,6 +242,60 @@ def walk(curves: list[IndexingCurve | None], distance_m: float | np.ndarray
     return pts, nrm, inside
 
 
+def _progress(source_points: np.ndarray, offset_points: np.ndarray) -> np.ndarray:
+    """(S − 1,) forward progress of each chord of the offset along its source step, as a
+    fraction of the step [-] (1: in step; < 0: backward; NaN where either end is not finite)."""
+    ds = np.diff(source_points, axis=0)
+    do = np.diff(offset_points, axis=0)
+    step = np.linalg.norm(ds, axis=1)
+    with np.errstate(invalid="ignore"):
+        return np.einsum("ij,ij->i", ds, do) / np.where(step > 0, step * step, 1.0)
+
+
+def _reversals(source_points: np.ndarray, offset_points: np.ndarray) -> np.ndarray:
+    """(S − 1,) bool: the chords of the offset that run backward along their source step by
+    more than `_REVERSAL_FRACTION` of it (False where either end is not finite). A few 0.1 mm
+    back is the noise of mesh sections near a focal point; a real cusp goes back by a good part
+    of a step."""
+    with np.errstate(invalid="ignore"):
+        return _progress(source_points, offset_points) < -_REVERSAL_FRACTION
+
+
+def stray_samples(source_points: np.ndarray, offset_points: np.ndarray,
+                  max_stray: int = MAX_STRAY_SAMPLES) -> np.ndarray | None:
+    """(S,) bool: at most `max_stray` samples (and `MAX_STRAY_FRACTION` of those with finite points)
+    of an offset that, left out, leave it with no reversal (`check_offset_order` on the samples
+    with finite points); None when no such set exists (a cusp: many samples run back). An indexing
+    curve that turns at an opening's corner can land behind its neighbours' offsets while theirs
+    run on in order (a door's window frame): left out, the neighbours bridge the gap, as they do a
+    sample whose curve left the surface. Chosen greedily: each time the sample, of those at a
+    reversed chord, whose removal leaves the fewest reversals, then the surest progress on the
+    chord that makes least (the sample out of line rather than a neighbour that then coincides with
+    it), then the first."""
+    src = np.asarray(source_points, float)
+    pts = np.asarray(offset_points, float)
+    finite = np.all(np.isfinite(pts), axis=1)
+    max_stray = min(max_stray, int(MAX_STRAY_FRACTION * finite.sum()))
+    drop = np.zeros(len(pts), bool)
+    while True:
+        idx = np.flatnonzero(finite & ~drop)
+        bad = np.flatnonzero(_reversals(src[idx], pts[idx]))
+        if len(bad) == 0:
+            return drop
+        if drop.sum() == max_stray:
+            return None
+        best: tuple[int, float, int] | None = None
+        for j in np.unique(np.concatenate([idx[bad], idx[bad + 1]])):
+            rest = idx[idx != j]
+            prog = _progress(src[rest], pts[rest])
+            least = float(np.nanmin(prog)) if prog.size else 1.0
+            key = (int(np.sum(prog < -_REVERSAL_FRACTION)), -least, int(j))
+            if best is None or key < best:
+                best = key
+        assert best is not None
+        drop[best[2]] = True
+
+
 def check_offset_order(source_points: np.ndarray, offset_points: np.ndarray,
                        label: str) -> None:
     """Refuse an offset that reverses direction (a cusp/swallowtail: it self-intersects).
@@ -242,16 +303,9 @@ def check_offset_order(source_points: np.ndarray, offset_points: np.ndarray,
     source_points / offset_points: (S, 3) corresponding points of the current pass and its
     offset [m]. Raises PlanError naming where along the pass it happened.
     """
-    ds = np.diff(source_points, axis=0)
-    do = np.diff(offset_points, axis=0)
-    ok = np.all(np.isfinite(do), axis=1)
-    step = np.linalg.norm(ds[ok], axis=1)
-    # backward progress of the offset along the source direction; a few 0.1 mm of it is the
-    # noise of mesh sections near a focal point, a real cusp goes back by a good part of a step
-    back = -np.einsum("ij,ij->i", ds[ok], do[ok]) / np.where(step > 0, step, 1.0)
-    bad = back > _REVERSAL_FRACTION * step
+    bad = _reversals(np.asarray(source_points, float), np.asarray(offset_points, float))
     if np.any(bad):
-        i = int(np.flatnonzero(ok)[np.argmax(bad)])
+        i = int(np.argmax(bad))
         s = float(arc_length(source_points)[i])
         raise PlanError(f"{label} self-intersects (the offset reverses direction {s:.3f} m along "
                         "the current pass; geodesic curvature too high): narrow the index range "
