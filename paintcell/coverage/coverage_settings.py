@@ -68,9 +68,11 @@ class PlannerSettings:
         (`paintcell.coverage.smoothing`).
     geodesic_fallback: where an offset walked along indexing curves self-intersects, take the
         level set of the heat-method geodesic distance from the pass instead
-        (`paintcell.coverage.geodesic`; False: refuse the plan as before). An offset that runs
-        in order once at most `paintcell.coverage.offset.MAX_STRAY_SAMPLES` samples are left
-        out (a curve turned astray at an opening's corner) is kept without them, either way.
+        (`paintcell.coverage.geodesic`; False: refuse the plan as before). An offset of a pass
+        walked in order that runs in order once at most
+        `paintcell.coverage.offset.MAX_STRAY_SAMPLES` samples (and `MAX_STRAY_FRACTION` of
+        them) are left out (curves turned astray at an opening's corner) is kept without them,
+        either way.
     plan_across_openings: plan on the surface with its openings (boundary loops other than the
         outer one) closed, so passes carry on straight across holes
         (`paintcell.coverage.openings`), and the deep bays of its outline (a wheel arch)
